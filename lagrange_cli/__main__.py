@@ -1,0 +1,3 @@
+from lagrange_cli.cli import main
+
+main()

@@ -1,0 +1,205 @@
+"""Checking `expect` answers against the derived model.
+
+Two sets of equations are equivalent when they give the same accelerations (and multipliers):
+any order, any non-zero factors, any invertible recombination. That is decided by solving
+the derived system at random points with 40-digit arithmetic, requiring each expected
+equation to vanish there and the expected set to determine the same unknowns.
+"""
+
+from __future__ import annotations
+
+import random
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
+
+import sympy as sp
+
+from lagrange_cli.derive import augmented
+from lagrange_cli.errors import Span
+from lagrange_cli.model import Model
+from lagrange_cli.spec import SystemSpec
+
+DIGITS = 40
+POINTS = 6
+TOLERANCE = sp.Float(10) ** (-(DIGITS - 12))
+
+
+@dataclass(frozen=True)
+class Result:
+    """One `expect` entry's verdict; `detail` says what is wrong (empty when it passes)."""
+
+    entry: str
+    passed: bool
+    detail: str = ""
+    span: Span | None = None
+    method: str = "numeric"
+
+
+@dataclass(frozen=True)
+class Point:
+    values: dict[sp.Symbol, sp.Float]
+    functions: dict[sp.Expr, Callable[..., sp.Expr]]
+    unknowns: dict[sp.Symbol, sp.Float]
+
+
+def check(spec: SystemSpec, model: Model) -> list[Result]:
+    """Every entry of the file's `expect` block, in file order."""
+    points = list(sample_points(model))
+    results = [_equations(spec, model, points)] if spec.expect.equations else []
+    for coordinate, expected, span in spec.expect.accelerations:
+        i = model.coordinates.index(coordinate) if coordinate in model.coordinates else None
+        if i is None:
+            results.append(Result(f"accelerations.{coordinate}_ddot", False, f"'{coordinate}' was eliminated", span))
+            continue
+        results.append(_compare(f"accelerations.{coordinate}_ddot", expected, model.qdd[i], points, span, solved=True))
+    for coordinate, expected, span in spec.expect.momenta:
+        i = model.coordinates.index(coordinate) if coordinate in model.coordinates else None
+        if i is None:
+            results.append(Result(f"momenta.{coordinate}", False, f"'{coordinate}' was eliminated", span))
+            continue
+        results.append(_compare(f"momenta.{coordinate}", expected, model.momenta[i], points, span))
+    for name, span in spec.expect.conserved:
+        results.append(_conserved(model, name, span))
+    return results
+
+
+def ignorable(model: Model, i: int) -> bool:
+    """q_i is ignorable when dL/dq_i = 0 and nothing else acts along it (Eqs. 6.37-6.38)."""
+    q = model.q[i]
+    return (
+        sp.diff(model.lagrangian, q) == 0
+        and sp.diff(model.dissipation, model.qd[i]) == 0
+        and model.generalized_forces[i] == 0
+        and all(c.jacobian[i] == 0 for c in model.constraints)
+    )
+
+
+def energy_conserved(model: Model) -> bool:
+    """h = sum p q_dot - L is conserved when L has no explicit t, nothing dissipates or is
+    applied, and every constraint is scleronomic."""
+    return (
+        not model.lagrangian.has(model.t)
+        and model.dissipation == 0
+        and not model.forced
+        and all(c.bias == 0 and not c.expr.has(model.t) for c in model.constraints)
+    )
+
+
+def _conserved(model: Model, name: str, span: Span) -> Result:
+    if name == "energy":
+        ok = energy_conserved(model)
+        why = "" if ok else "the energy function is not conserved: " + _why_not_energy(model)
+        return Result("conserved.energy", ok, why, span, "symbolic")
+    if name not in model.coordinates:
+        return Result(f"conserved.{name}", False, f"'{name}' was eliminated", span, "symbolic")
+    i = model.coordinates.index(name)
+    ok = ignorable(model, i)
+    why = "" if ok else f"'{name}' is not ignorable: dL/d{name} = {sp.simplify(sp.diff(model.lagrangian, model.q[i]))}"
+    return Result(f"conserved.{name}", ok, why, span, "symbolic")
+
+
+def _why_not_energy(model: Model) -> str:
+    if model.lagrangian.has(model.t):
+        return "the Lagrangian depends explicitly on time"
+    if model.dissipation != 0:
+        return "there is dissipation"
+    if model.forced:
+        return "applied forces do work"
+    return "a constraint depends on time"
+
+
+def _equations(spec: SystemSpec, model: Model, points: list[Point]) -> Result:
+    expected = [e for e, _ in spec.expect.equations]
+    span = spec.expect.equations[0][1]
+    unknown_symbols = [*model.qdd, *model.multipliers]
+    dynamic = [e for e in expected if any(e.has(u) for u in unknown_symbols)]
+    used = [u for u in unknown_symbols if any(e.has(u) for e in dynamic)]
+    if len(dynamic) != len([u for u in used if u in model.qdd]) + len([u for u in used if u not in model.qdd]) or any(u not in used for u in model.qdd):
+        return Result("equations", False, f"expected {model.n} equations determining {', '.join(map(str, model.qdd))}; got {len(dynamic)} involving {', '.join(map(str, used)) or 'no accelerations'}", span)
+    for point in points:
+        for k, equation in enumerate(dynamic):
+            residual, scale = _evaluate(equation, point, with_unknowns=True)
+            if abs(residual) > TOLERANCE * max(scale, 1):
+                where = spec.expect.equations[expected.index(equation)][1]
+                return Result("equations", False, f"equation {k + 1} does not hold for the derived motion (residual {sp.N(residual, 3)} at a random state)", where)
+        jacobian = sp.Matrix([[sp.diff(e, u) for u in used] for e in dynamic])
+        numeric = _concrete(jacobian, point.values, point.functions)
+        if abs(numeric.det()) < TOLERANCE:
+            return Result("equations", False, "the expected equations do not determine the accelerations (they are dependent)", span)
+    return Result("equations", True, "", span)
+
+
+def _compare(entry: str, expected: sp.Expr, derived: sp.Expr, points: list[Point], span: Span, solved: bool = False) -> Result:
+    difference = expected - derived
+    if not solved and sp.expand(difference) == 0:
+        return Result(entry, True, "", span, "symbolic")
+    for point in points:
+        residual, scale = _evaluate(difference, point, with_unknowns=solved)
+        if abs(residual) > TOLERANCE * max(scale, 1):
+            return Result(entry, False, _describe_difference(expected, derived, solved), span)
+    return Result(entry, True, "", span)
+
+
+def _describe_difference(expected: sp.Expr, derived: sp.Expr, solved: bool) -> str:
+    if solved:
+        return "differs from the derived acceleration"
+    difference = sp.trigsimp(sp.expand(derived - expected)) if sp.count_ops(derived) < 200 else sp.expand(derived - expected)
+    return f"expected is missing {difference} (derived: {derived})"
+
+
+def _evaluate(expr: sp.Expr, point: Point, with_unknowns: bool) -> tuple[sp.Float, sp.Float]:
+    """The value of `expr` at the point, and the sum of its terms' magnitudes (its scale)."""
+    values = {**point.values, **(point.unknowns if with_unknowns else {})}
+    concrete = _concrete(sp.Matrix([expr]), values, point.functions, evaluate=False)[0]
+    terms = sp.Add.make_args(sp.expand(concrete)) if sp.count_ops(concrete) < 2000 else (concrete,)
+    evaluated = [sp.N(term, DIGITS) for term in terms]
+    total = sp.Add(*evaluated).evalf(DIGITS)
+    return total, sum((abs(v) for v in evaluated), sp.Float(0))
+
+
+def sample_points(model: Model, count: int = POINTS, seed: int = 20261121) -> Iterator[Point]:
+    """Random states inside the domain (positive parameters positive), with each undefined
+    function replaced by a random smooth one, and the derived unknowns solved there."""
+    rng = random.Random(seed)
+    matrix, rhs = augmented(model)
+    functions = sorted({f.func for f in _undefined(model)}, key=str)
+    for _ in range(count):
+        values: dict[sp.Symbol, sp.Float] = {}
+        for parameter in model.parameters:
+            values[parameter.symbol] = sp.Float(rng.uniform(-1.5, 1.5) if parameter.real else rng.uniform(0.5, 2.0), DIGITS)
+        for q in model.q:
+            values[q] = sp.Float(rng.uniform(0.2, 1.3), DIGITS)
+        for v in model.qd:
+            values[v] = sp.Float(rng.uniform(-1.5, 1.5), DIGITS)
+        values[model.t] = sp.Float(rng.uniform(0.1, 2.0), DIGITS)
+        replacements = {}
+        for f in functions:
+            a, b, c = (sp.Float(rng.uniform(0.5, 1.5), DIGITS) for _ in range(3))
+            replacements[f] = _smooth(a, b, c)
+        concrete_matrix = _concrete(matrix, values, replacements)
+        concrete_rhs = _concrete(rhs, values, replacements)
+        solution = concrete_matrix.LUsolve(concrete_rhs)
+        unknowns = {u: sp.Float(solution[i], DIGITS) for i, u in enumerate((*model.qdd, *model.multipliers))}
+        yield Point(values, replacements, unknowns)
+
+
+def _concrete(matrix: sp.Matrix, values: dict[sp.Symbol, sp.Float], functions: dict[sp.Expr, Callable[..., sp.Expr]], evaluate: bool = True) -> sp.Matrix:
+    """Numbers for symbols and concrete functions for undefined ones (matched by name)."""
+    m = matrix.xreplace(values)
+    if functions:
+        by_name = {str(f): g for f, g in functions.items()}
+        m = m.replace(lambda e: isinstance(e, sp.core.function.AppliedUndef) and str(e.func) in by_name, lambda e: by_name[str(e.func)](*e.args)).doit()
+    return m.evalf(DIGITS) if evaluate else m
+
+
+def _smooth(a: sp.Float, b: sp.Float, c: sp.Float) -> Callable[..., sp.Expr]:
+    """A concrete smooth function of any number of arguments, standing in for U(...)."""
+
+    def function(*args: sp.Expr) -> sp.Expr:
+        return sp.Add(*(a * sp.sin(b * x + c) + c * x**2 + a * b * x for x in args))
+
+    return function
+
+
+def _undefined(model: Model) -> set[sp.Expr]:
+    return set(sp.Matrix([*model.mass_matrix, *model.forcing, model.lagrangian]).atoms(sp.core.function.AppliedUndef))

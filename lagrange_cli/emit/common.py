@@ -1,0 +1,40 @@
+"""What the text and LaTeX emitters share: the terms of each equation, in a stable order."""
+
+from __future__ import annotations
+
+import sympy as sp
+
+from lagrange_cli.errors import DerivationError
+from lagrange_cli.model import Model
+
+
+def lagrange_terms(model: Model) -> list[list[sp.Expr]]:
+    """Each equation as a list of terms, accelerations first, then the rest, then multipliers."""
+    rows = []
+    for i in range(model.n):
+        terms = [sp.factor_terms(model.mass_matrix[i, j]) * model.qdd[j] for j in range(model.n) if model.mass_matrix[i, j] != 0]
+        terms += ordered_terms(-model.forcing[i])
+        terms += [-sp.factor_terms(c.jacobian[i]) * c.multiplier for c in model.constraints if c.jacobian[i] != 0]
+        rows.append(terms or [sp.Integer(0)])
+    return rows
+
+
+def ordered_terms(expr: sp.Expr) -> list[sp.Expr]:
+    """The terms of a sum in sympy's printing order (deterministic)."""
+    expr = sp.expand(expr)
+    return [] if expr == 0 else list(expr.as_ordered_terms())
+
+
+def constraint_equations(model: Model) -> list[tuple[str, sp.Expr]]:
+    """Each kept constraint as written (holonomic f(q, t) or velocity a . q_dot + b)."""
+    return [(c.name, sp.expand(c.expr)) for c in model.constraints]
+
+
+def require_defined(model: Model, what: str) -> None:
+    """Numeric code needs every function defined; undefined ones (e.g. U(r)) cannot be emitted."""
+    undefined = sorted({str(f.func) for f in sp.Matrix([*model.mass_matrix, *model.forcing, model.energy]).atoms(sp.core.function.AppliedUndef)})
+    if undefined:
+        raise DerivationError(
+            f"{model.source}: {what} needs every function defined, but {', '.join(undefined)} "
+            f"{'is' if len(undefined) == 1 else 'are'} left undefined; write {'it' if len(undefined) == 1 else 'them'} out as an expression in the system file"
+        )

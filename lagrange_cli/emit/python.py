@@ -1,0 +1,272 @@
+"""Python: a self-contained module for numerical work, with common subexpressions eliminated.
+
+The module defines COORDINATES, PARAMETERS (defaults), mass_matrix, forcing, energy and
+rhs(t, y, p) with y = [q..., q_dot...], ready for scipy.integrate.solve_ivp. It imports
+only what it uses: `math` functions, and numpy only for large systems. Functions of an
+autonomous system take no time argument (except rhs, whose signature solve_ivp fixes).
+"""
+
+from __future__ import annotations
+
+import json
+import keyword
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import symengine as se
+import sympy as sp
+from sympy.printing.pycode import PythonCodePrinter
+
+from lagrange_cli import __version__
+from lagrange_cli.derive import check_invertible
+from lagrange_cli.emit.common import require_defined
+from lagrange_cli.model import Model
+
+# Above this many unknowns the linear solve is numpy's; below, straight-line Python is faster.
+NUMPY_SIZE = 9
+TAKEN = frozenset({"y", "p", "q", "q_dot", "t", "numpy", "COORDINATES", "PARAMETERS", "mass_matrix", "forcing", "energy", "rhs", "accelerations", "constraint_residuals"})
+AMBIGUOUS = frozenset({"l", "I", "O"})
+
+
+class CodePrinter(PythonCodePrinter):
+    """Bare `math` names (recorded in `module_imports`), symbols by a fixed name map, constants as literals."""
+
+    def __init__(self, names: dict[sp.Symbol, str]) -> None:
+        super().__init__({"fully_qualified_modules": False, "strict": True})
+        self.names = names
+
+    def _print_Symbol(self, expr: sp.Symbol) -> str:
+        return self.names[expr]
+
+    def _print_Pi(self, expr: sp.Expr) -> str:
+        return repr(math.pi)
+
+    def _print_Exp1(self, expr: sp.Expr) -> str:
+        return repr(math.e)
+
+    def _print_Pow(self, expr: sp.Pow, rational: bool = False) -> str:
+        base, exponent = expr.args
+        if exponent == 2 and (base.is_Symbol or base.is_Function):
+            b = self._print(base)
+            return f"{b}*{b}"
+        return str(super()._print_Pow(expr, rational))
+
+
+@dataclass(frozen=True)
+class Block:
+    """Straight-line code: assignments of common subexpressions, then the results."""
+
+    lines: tuple[str, ...]
+    results: tuple[str, ...]
+
+
+def emit(model: Model) -> str:
+    require_defined(model, "Python code")
+    check_invertible(model)
+    return _Writer(model).module()
+
+
+class _Writer:
+    def __init__(self, model: Model) -> None:
+        self.model = model
+        self.names = _names(model)
+        self.printer = CodePrinter(self.names)
+        self.uses_numpy = False
+        self.uses_solve = False
+        n, k = model.n, len(model.constraints)
+        self.size = n + k
+        self.upper = [(i, j) for i in range(n) for j in range(i, n)]
+
+    # -- pieces ---------------------------------------------------------------------------------
+
+    def block(self, exprs: Sequence[sp.Expr], prefix: str) -> Block:
+        """CSE by symengine on renamed symbols (so its x0, x1 cannot clash with the user's)."""
+        free = sorted(set().union(*(e.free_symbols for e in exprs)), key=str) if exprs else []
+        safe = {s: se.Symbol(f"_s{i}") for i, s in enumerate(free)}
+        back = {v: s for s, v in safe.items()}
+        converted = [se.sympify(e).xreplace(safe) if e.free_symbols else se.sympify(e) for e in exprs]
+        replacements, reduced = se.cse(converted)
+        temporaries = {lhs: sp.Symbol(f"_{prefix}{i}") for i, (lhs, _) in enumerate(replacements)}
+        mapping = {**back, **temporaries}
+        for symbol in temporaries.values():
+            self.names[symbol] = str(symbol)
+
+        def convert(e: se.Basic) -> sp.Expr:
+            return sp.sympify(e).xreplace({sp.sympify(a): b for a, b in mapping.items() if sp.sympify(a) in sp.sympify(e).free_symbols})
+
+        lines = tuple(f"{temporaries[lhs]} = {self.printer.doprint(convert(rhs))}" for lhs, rhs in replacements)
+        return Block(lines, tuple(self.printer.doprint(convert(e)) for e in reduced))
+
+    def unpack(self, exprs: Sequence[sp.Expr], state: str) -> list[str]:
+        """Lines binding the parameters used, then the coordinates/velocities from `state`."""
+        used = set().union(*(e.free_symbols for e in exprs)) if exprs else set()
+        lines = []
+        for parameter in self.model.parameters:
+            if parameter.symbol in used:
+                lines.append(f'{self.names[parameter.symbol]} = p["{parameter.name}"]' + _noqa(self.names[parameter.symbol]))
+        groups = [("y", [*self.model.q, *self.model.qd])] if state == "y" else [(g, v) for g, v in (("q", self.model.q), ("q_dot", self.model.qd)) if g in state.split(",")]
+        for group, variables in groups:
+            keep = [v in used or (group == "y" and v in self.model.qd) for v in variables]
+            if any(keep):
+                targets = [self.names[v] if k else "_" for v, k in zip(variables, keep, strict=True)]
+                lines.append(f"{', '.join(targets)}{',' * (len(targets) == 1)} = {group}" + _noqa(*targets))
+        return lines
+
+    def signature(self, exprs: Sequence[sp.Expr], state: str) -> str:
+        has_t = any(e.has(self.model.t) for e in exprs)
+        return ", ".join(["t"] * has_t + state.split(",") + ["p=PARAMETERS"])
+
+    def function(self, name: str, doc: str, exprs: Sequence[sp.Expr], state: str, shape: str) -> str:
+        block = self.block(exprs, "c")
+        body = [*self.unpack(exprs, state), *block.lines]
+        results = list(block.results)
+        if shape == "matrix":
+            n = self.model.n
+            cell = dict(zip(self.upper, results, strict=True))
+            rows = ["[" + ", ".join(cell[(min(i, j), max(i, j))] for j in range(n)) + "]" for i in range(n)]
+            body.append("return [" + ", ".join(rows) + "]")
+        elif shape == "vector":
+            body.append("return [" + ", ".join(results) + "]")
+        else:
+            body.append(f"return {results[0]}")
+        return _def(name, self.signature(exprs, state), doc, body)
+
+    def rhs(self) -> str:
+        model, n = self.model, self.model.n
+        mass = [model.mass_matrix[i, j] for i, j in self.upper]
+        force = list(model.forcing)
+        rows = model.constraints
+        extra = [-a for c in rows for a in c.jacobian] + [-c.acceleration_bias for c in rows]
+        exprs = [*mass, *force, *extra]
+        block = self.block(exprs, "c")
+        m = dict(zip(self.upper, block.results[: len(mass)], strict=True))
+        f = block.results[len(mass) : len(mass) + n]
+        body = [*self.unpack(exprs, "y"), *block.lines]
+        velocities = [self.names[v] for v in model.qd]
+        if rows:
+            a = block.results[len(mass) + n : len(mass) + n + n * len(rows)]
+            c = block.results[len(mass) + n + n * len(rows) :]
+            k = len(rows)
+            matrix = [[m[(min(i, j), max(i, j))] for j in range(n)] + [a[r * n + i] for r in range(k)] for i in range(n)]
+            matrix += [[_negate(a[r * n + j]) for j in range(n)] + ["0.0"] * k for r in range(k)]
+            body += self.solve(matrix, [*f, *c], "_x")
+            body.append(f"return [{', '.join(velocities)}, *_x[:{n}]]")
+            return _def("rhs", "t, y, p=PARAMETERS", _rhs_doc(model) + "\n\nThe multipliers are solved for together with the accelerations (index-1 form).", body)
+        if n == 1:
+            body.append(f"return [{velocities[0]}, ({f[0]})/({m[(0, 0)]})]")
+        elif n == 2:
+            body += [f"_m00 = {m[(0, 0)]}", f"_m01 = {m[(0, 1)]}", f"_m11 = {m[(1, 1)]}", f"_f0 = {f[0]}", f"_f1 = {f[1]}", "_det = _m00*_m11 - _m01*_m01"]
+            body.append(f"return [{velocities[0]}, {velocities[1]}, (_m11*_f0 - _m01*_f1)/_det, (_m00*_f1 - _m01*_f0)/_det]")
+        else:
+            matrix = [[m[(min(i, j), max(i, j))] for j in range(n)] for i in range(n)]
+            body += self.solve(matrix, f, "_x")
+            body.append(f"return [{', '.join(velocities)}, *_x]")
+        return _def("rhs", "t, y, p=PARAMETERS", _rhs_doc(model), body)
+
+    def solve(self, matrix: list[list[str]], vector: list[str], target: str) -> list[str]:
+        rows = "[" + ", ".join("[" + ", ".join(row) + "]" for row in matrix) + "]"
+        if len(matrix) >= NUMPY_SIZE:
+            self.uses_numpy = True
+            return [f"{target} = numpy.linalg.solve({rows}, [{', '.join(vector)}]).tolist()"]
+        self.uses_solve = True
+        return [f"{target} = _solve({rows}, [{', '.join(vector)}])"]
+
+    def residuals(self) -> str:
+        model = self.model
+        exprs = [c.expr for c in model.constraints]
+        return self.function("constraint_residuals", "Each constraint's residual: f(q, t) for holonomic ones, a . q_dot + b for velocity ones.", exprs, "q,q_dot", "vector")
+
+    # -- the module -----------------------------------------------------------------------------
+
+    def module(self) -> str:
+        model = self.model
+        functions = [
+            self.function("mass_matrix", "The mass matrix M as a list of rows.", [model.mass_matrix[i, j] for i, j in self.upper], "q", "matrix"),
+            self.function("forcing", "The forcing F of M q_ddot = F" + (" + A^T lambda" if model.constraints else "") + ".", list(model.forcing), "q,q_dot", "vector"),
+            self.function("energy", "The energy function h = sum p_i q_dot_i - L.", [model.energy], "q,q_dot", "scalar"),
+        ]
+        if model.constraints:
+            functions.append(self.residuals())
+        functions.append(self.rhs())
+        if self.uses_solve:
+            functions.append(SOLVE)
+        imports = []
+        math_names = sorted(self.printer.module_imports.get("math", set()))
+        if math_names:
+            imports.append(f"from math import {', '.join(math_names)}")
+        if self.uses_numpy:
+            imports.append("import numpy")
+        parameters = ", ".join(f"{json.dumps(p.name)}: {p.value!r}" for p in model.parameters if p.value is not None)
+        missing = [p.name for p in model.parameters if p.value is None]
+        header = [
+            f'"""{model.title}: equations of motion generated by lagrange {__version__} from {model.source}.',
+            "",
+            "M(q" + (", t" if not model.autonomous else "") + ") q_ddot = F(q, q_dot" + (", t" if not model.autonomous else "") + ")" + (" + A^T lambda" if model.constraints else "") + f", with y = [{', '.join(map(str, (*model.q, *model.qd)))}].",
+        ]
+        if missing:
+            header.append(f"Parameters without a default, to be given in p: {', '.join(missing)}.")
+        header.append('"""')
+        parts = ["\n".join(header), "\n".join(imports)] if imports else ["\n".join(header)]
+        coordinates = ", ".join(json.dumps(c) for c in model.coordinates)
+        parts.append(f"COORDINATES = ({coordinates}{',' * (model.n == 1)})\nPARAMETERS = {{{parameters}}}")
+        return "\n\n".join(parts) + "\n\n\n" + "\n\n\n".join(functions) + "\n"
+
+
+SOLVE = '''def _solve(a, b):
+    """Solve a x = b by Gaussian elimination with partial pivoting (a, b are overwritten)."""
+    n = len(b)
+    for k in range(n):
+        pivot = max(range(k, n), key=lambda i: abs(a[i][k]))
+        if a[pivot][k] == 0.0:
+            raise ZeroDivisionError("singular matrix")
+        if pivot != k:
+            a[k], a[pivot] = a[pivot], a[k]
+            b[k], b[pivot] = b[pivot], b[k]
+        row, inverse = a[k], 1.0 / a[k][k]
+        for i in range(k + 1, n):
+            factor = a[i][k] * inverse
+            if factor:
+                other = a[i]
+                for j in range(k + 1, n):
+                    other[j] -= factor * row[j]
+                b[i] -= factor * b[k]
+    x = [0.0] * n
+    for i in range(n - 1, -1, -1):
+        row = a[i]
+        x[i] = (b[i] - sum(row[j] * x[j] for j in range(i + 1, n))) / row[i]
+    return x'''
+
+
+def _names(model: Model) -> dict[sp.Symbol, str]:
+    """Python names for the model's symbols, renamed (trailing _) where they would clash."""
+    symbols = [*model.q, *model.qd, *(p.symbol for p in model.parameters), model.t]
+    names = {}
+    for s in symbols:
+        name = str(s)
+        while (name in TAKEN and s != model.t) or keyword.iskeyword(name):
+            name += "_"
+        names[s] = name
+    return names
+
+
+def _negate(code: str) -> str:
+    """The negation of a printed expression, without double signs."""
+    if code.startswith("-") and all(ch.isalnum() or ch in "_.*" for ch in code[1:]):
+        return code[1:]
+    return "-" + code if all(ch.isalnum() or ch in "_.*" for ch in code) else f"-({code})"
+
+
+def _noqa(*names: str) -> str:
+    return "  # noqa: E741" if AMBIGUOUS.intersection(names) else ""
+
+
+def _def(name: str, signature: str, doc: str, body: list[str]) -> str:
+    doc = doc.replace("\n\n", "\n\n    ")
+    lines = [f"def {name}({signature}):", f'    """{doc}"""'] + [f"    {line}" for line in body]
+    return "\n".join(lines)
+
+
+def _rhs_doc(model: Model) -> str:
+    state = ", ".join(map(str, (*model.q, *model.qd)))
+    return f"dy/dt for y = [{state}] (for scipy.integrate.solve_ivp)."

@@ -1,0 +1,115 @@
+"""The derived model of a system: frozen data that every emitter and numeric routine reads."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+import sympy as sp
+
+from lagrange_cli.errors import Span
+
+
+@dataclass(frozen=True)
+class Parameter:
+    """A constant symbol; `value` is the default used by simulation (None when not given)."""
+
+    symbol: sp.Symbol
+    value: float | None
+    real: bool = False
+    description: str = ""
+
+    @property
+    def name(self) -> str:
+        return str(self.symbol)
+
+
+@dataclass(frozen=True)
+class ConstraintRow:
+    """A constraint in velocity form `a . q_dot + b = 0` and acceleration form `a . q_ddot + c = 0`.
+
+    For a holonomic constraint f(q, t) = 0: a = df/dq and b = df/dt.
+    Its multiplier `lambda_<name>` enters the equations as `M q_ddot = F + a^T lambda`.
+    """
+
+    name: str
+    expr: sp.Expr
+    holonomic: bool
+    multiplier: sp.Symbol
+    jacobian: tuple[sp.Expr, ...]
+    bias: sp.Expr
+    acceleration_bias: sp.Expr
+
+
+@dataclass(frozen=True)
+class Model:
+    """Equations of motion `M(q, t) q_ddot = F(q, q_dot, t) + A^T lambda`, with `A q_ddot + c = 0`.
+
+    F collects everything but the accelerations: dL/dq - (d/dt of dL/dq_dot without q_ddot)
+    - dR/dq_dot + Q. The Lagrange form of equation i is `(M q_ddot - F - A^T lambda)_i = 0`.
+    """
+
+    title: str
+    source: str
+    coordinates: tuple[str, ...]
+    q: tuple[sp.Symbol, ...]
+    qd: tuple[sp.Symbol, ...]
+    qdd: tuple[sp.Symbol, ...]
+    t: sp.Symbol
+    parameters: tuple[Parameter, ...]
+    kinetic: sp.Expr
+    potential: sp.Expr
+    lagrangian: sp.Expr
+    dissipation: sp.Expr
+    generalized_forces: tuple[sp.Expr, ...]
+    mass_matrix: sp.ImmutableMatrix
+    forcing: sp.ImmutableMatrix
+    momenta: tuple[sp.Expr, ...]
+    energy: sp.Expr
+    constraints: tuple[ConstraintRow, ...] = ()
+    eliminated: tuple[tuple[str, sp.Expr], ...] = ()
+    description: str = ""
+    initial: Mapping[str, float] = field(default_factory=dict)
+    simulate: Mapping[str, Any] = field(default_factory=dict)
+    exact: Mapping[str, sp.Expr] = field(default_factory=dict)
+    spans: Mapping[str, Span] = field(default_factory=dict)
+
+    @property
+    def n(self) -> int:
+        return len(self.q)
+
+    @property
+    def multipliers(self) -> tuple[sp.Symbol, ...]:
+        return tuple(c.multiplier for c in self.constraints)
+
+    @property
+    def autonomous(self) -> bool:
+        """True when nothing depends explicitly on time."""
+        parts = [self.mass_matrix, self.forcing, *(c.jacobian + (c.bias, c.acceleration_bias) for c in self.constraints)]
+        return not any(sp.Matrix(p).has(self.t) if isinstance(p, tuple) else p.has(self.t) for p in parts)
+
+    @property
+    def dissipative(self) -> bool:
+        return self.dissipation != 0
+
+    @property
+    def forced(self) -> bool:
+        return any(f != 0 for f in self.generalized_forces)
+
+    @property
+    def constraint_matrix(self) -> sp.ImmutableMatrix:
+        """A, one row per constraint (empty 0 x n without constraints)."""
+        return sp.ImmutableMatrix(len(self.constraints), self.n, [a for c in self.constraints for a in c.jacobian])
+
+    def equations(self) -> tuple[sp.Expr, ...]:
+        """The Lagrange form: one expression per coordinate, each `= 0`."""
+        rows = []
+        for i in range(self.n):
+            lhs = sum((self.mass_matrix[i, j] * self.qdd[j] for j in range(self.n)), sp.Integer(0)) - self.forcing[i]
+            lhs -= sum((c.jacobian[i] * c.multiplier for c in self.constraints), sp.Integer(0))
+            rows.append(lhs)
+        return tuple(rows)
+
+    def parameter_values(self) -> dict[str, float]:
+        return {p.name: p.value for p in self.parameters if p.value is not None}

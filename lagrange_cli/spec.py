@@ -1,0 +1,681 @@
+"""The frontend: a system file (YAML) in, a validated `SystemSpec` of sympy expressions out.
+
+The file is composed, not constructed, so every node keeps its line and column.
+Every problem in the file is collected and reported at once.
+"""
+
+from __future__ import annotations
+
+import keyword
+import re
+from collections.abc import Callable, Iterator, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import sympy as sp
+import yaml
+
+from lagrange_cli.errors import Diagnostic, LagrangeError, Span, SpecError, fail
+from lagrange_cli.model import Parameter
+from lagrange_cli.expr import RESERVED, Scope, _closest, parse_equation, parse_expression
+
+MAX_FILE_BYTES = 1_000_000
+NAME = re.compile(r"[A-Za-z][A-Za-z0-9_]*\Z")
+TOP_KEYS = (
+    "title", "description", "coordinates", "parameters", "functions", "gravity", "particles",
+    "bodies", "kinetic", "potential", "lagrangian", "dissipation", "forces", "constraints",
+    "eliminate", "initial", "simulate", "exact", "expect",
+)  # fmt: skip
+PARTICLE_KEYS = ("mass", "position", "force", "damping")
+BODY_KEYS = ("mass", "position", "inertia", "angular_velocity")
+EXPECT_KEYS = ("equations", "accelerations", "momenta", "conserved")
+SIMULATE_KEYS = ("t_end", "method", "rtol", "atol", "step", "samples")
+STANDARD_TAGS = {f"tag:yaml.org,2002:{kind}" for kind in ("str", "int", "float", "bool", "null", "seq", "map")}
+
+
+@dataclass(frozen=True)
+class Particle:
+    name: str
+    mass: sp.Expr
+    position: tuple[sp.Expr, ...]
+    force: tuple[sp.Expr, ...] | None = None
+    damping: sp.Expr | None = None
+
+
+@dataclass(frozen=True)
+class Body:
+    """A rigid body: planar when `inertia` and `angular_velocity` are scalars, spatial when 3-tuples."""
+
+    name: str
+    mass: sp.Expr
+    position: tuple[sp.Expr, ...]
+    inertia: tuple[sp.Expr, ...]
+    angular_velocity: tuple[sp.Expr, ...]
+
+
+@dataclass(frozen=True)
+class Constraint:
+    """`expr = 0`: holonomic when it has no velocities, else linear in the velocities."""
+
+    name: str
+    expr: sp.Expr
+    holonomic: bool
+    span: Span
+
+
+@dataclass(frozen=True)
+class Expect:
+    equations: tuple[tuple[sp.Expr, Span], ...] = ()
+    accelerations: tuple[tuple[str, sp.Expr, Span], ...] = ()
+    momenta: tuple[tuple[str, sp.Expr, Span], ...] = ()
+    conserved: tuple[tuple[str, Span], ...] = ()
+
+    def __bool__(self) -> bool:
+        return bool(self.equations or self.accelerations or self.momenta or self.conserved)
+
+
+@dataclass(frozen=True)
+class SystemSpec:
+    """A validated system file. Symbols are plain (no assumptions); `q_dot` names are `<q>_dot`."""
+
+    path: str
+    title: str
+    description: str
+    coordinates: tuple[str, ...]
+    q: tuple[sp.Symbol, ...]
+    qd: tuple[sp.Symbol, ...]
+    qdd: tuple[sp.Symbol, ...]
+    t: sp.Symbol
+    parameters: tuple[Parameter, ...]
+    functions: tuple[str, ...] = ()
+    gravity: tuple[sp.Expr, ...] | None = None
+    particles: tuple[Particle, ...] = ()
+    bodies: tuple[Body, ...] = ()
+    kinetic: sp.Expr = sp.Integer(0)
+    potential: sp.Expr = sp.Integer(0)
+    lagrangian: sp.Expr = sp.Integer(0)
+    dissipation: sp.Expr = sp.Integer(0)
+    generalized_forces: tuple[sp.Expr, ...] = ()
+    constraints: tuple[Constraint, ...] = ()
+    eliminate: tuple[tuple[str, Span], ...] = ()
+    initial: Mapping[str, float] = field(default_factory=dict)
+    simulate: Mapping[str, Any] = field(default_factory=dict)
+    exact: Mapping[str, sp.Expr] = field(default_factory=dict)
+    expect: Expect = Expect()
+
+
+def time_derivative(expr: sp.Expr, q: tuple[sp.Symbol, ...], qd: tuple[sp.Symbol, ...], qdd: tuple[sp.Symbol, ...], t: sp.Symbol) -> sp.Expr:
+    """Total time derivative: d/dt f = sum df/dq q_dot + df/dq_dot q_ddot + df/dt."""
+    if any(expr.has(a) for a in qdd):
+        raise LagrangeError("cannot take the time derivative of an expression with accelerations")
+    result = sp.diff(expr, t)
+    for qi, qdi, qddi in zip(q, qd, qdd, strict=True):
+        result += sp.diff(expr, qi) * qdi + sp.diff(expr, qdi) * qddi
+    return result
+
+
+def bundled_systems() -> Path:
+    """The folder of bundled systems: inside the installed package, or beside it in a checkout."""
+    here = Path(__file__).resolve().parent
+    for candidate in (here / "systems", here.parent / "systems"):
+        if candidate.is_dir():
+            return candidate
+    return here / "systems"
+
+
+def resolve(name: str) -> Path:
+    """A path to a system file: `name` itself if it exists, else a bundled system of that name."""
+    path = Path(name)
+    if path.exists():
+        return path
+    folder = bundled_systems()
+    for candidate in (folder / name, folder / f"{name}.yaml"):
+        if candidate.is_file():
+            return candidate
+    known = sorted(p.stem for p in folder.glob("*.yaml"))
+    hint = _closest(path.stem, known)
+    raise fail(None, f"no such file: '{name}', and no bundled system of that name", f"a path to a .yaml file or one of: {', '.join(known)}" + (f" (did you mean '{hint}'?)" if hint else ""))
+
+
+def load(path: str | Path) -> SystemSpec:
+    """Read and validate a system file; raises `SpecError` listing every problem."""
+    path = Path(path)
+    try:
+        raw = path.read_bytes()
+    except OSError as exc:
+        raise fail(None, f"cannot read '{path}': {exc.strerror}", "a readable system file") from None
+    if len(raw) > MAX_FILE_BYTES:
+        raise fail(Span(str(path), 1, 1), f"file is {len(raw)} bytes", f"a system file under {MAX_FILE_BYTES} bytes")
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise fail(Span(str(path), 1, 1), f"file is not UTF-8 (byte {exc.start})", "a UTF-8 text file") from None
+    return parse(text, str(path))
+
+
+def parse(text: str, filename: str = "<string>") -> SystemSpec:
+    """Validate system-file text; `filename` is used in messages."""
+    root = _compose(text, filename)
+    return _Reader(filename, text).read(root)
+
+
+def _compose(text: str, filename: str) -> yaml.Node:
+    lines = text.splitlines()
+
+    def span(mark: Any) -> Span:
+        line = lines[mark.line] if mark.line < len(lines) else ""
+        return Span(filename, mark.line + 1, mark.column + 1, line)
+
+    try:
+        for event in yaml.parse(text, Loader=yaml.SafeLoader):
+            if isinstance(event, yaml.AliasEvent) or getattr(event, "anchor", None):
+                raise fail(span(event.start_mark), "YAML anchors and aliases are not supported", "plain values written out in full")
+        root = yaml.compose(text, Loader=yaml.SafeLoader)
+    except yaml.MarkedYAMLError as exc:
+        mark = exc.problem_mark or exc.context_mark
+        message = f"malformed YAML: {exc.problem or exc.context}"
+        raise fail(span(mark) if mark else Span(filename, 1, 1), message, "valid YAML, a map of keys such as `coordinates:`") from None
+    except yaml.YAMLError as exc:
+        raise fail(Span(filename, 1, 1), f"malformed YAML: {exc}", "valid YAML") from None
+    except RecursionError:
+        raise fail(Span(filename, 1, 1), "YAML is nested too deeply", "a flat map of the documented keys") from None
+    if root is None:
+        raise fail(Span(filename, 1, 1), "the file is empty", "a map with at least `coordinates:`")
+    return root
+
+
+class _Reader:
+    """Walks the composed YAML tree, collecting diagnostics instead of stopping at the first."""
+
+    def __init__(self, filename: str, text: str) -> None:
+        self.filename = filename
+        self.lines = text.splitlines()
+        self.problems: list[Diagnostic] = []
+
+    # -- helpers ------------------------------------------------------------------------------
+
+    def span(self, node: yaml.Node) -> Span:
+        mark = node.start_mark
+        line = self.lines[mark.line] if mark.line < len(self.lines) else ""
+        return Span(self.filename, mark.line + 1, mark.column + 1, line)
+
+    def text_span(self, node: yaml.ScalarNode) -> Span:
+        """Where the scalar's text starts (after an opening quote)."""
+        return self.span(node).shifted(1 if node.style in ("'", '"') else 0)
+
+    def problem(self, node: yaml.Node | None, message: str, expected: str = "") -> None:
+        self.problems.append(Diagnostic(self.span(node) if node is not None else None, message, expected))
+
+    def guard(self, action: Callable[[], Any]) -> Any:
+        """Run `action`, recording a `SpecError` instead of raising it; returns None on error."""
+        try:
+            return action()
+        except SpecError as exc:
+            self.problems.extend(exc.diagnostics)
+            return None
+
+    def check_tags(self, node: yaml.Node, depth: int = 0) -> None:
+        if depth > 40:
+            self.problem(node, "YAML is nested too deeply", "at most 40 levels")
+            return
+        if node.tag not in STANDARD_TAGS:
+            self.problem(node, f"YAML tag '{node.tag}' is not allowed", "plain values without tags")
+        if isinstance(node, yaml.SequenceNode):
+            for item in node.value:
+                self.check_tags(item, depth + 1)
+        elif isinstance(node, yaml.MappingNode):
+            for key, value in node.value:
+                self.check_tags(key, depth + 1)
+                self.check_tags(value, depth + 1)
+
+    def mapping(self, node: yaml.Node, what: str, keys: tuple[str, ...] | None = None) -> list[tuple[str, yaml.Node, yaml.Node]]:
+        """The entries of a YAML map, checking for a map, string keys, duplicates and unknown keys."""
+        if not isinstance(node, yaml.MappingNode):
+            self.problem(node, f"{what} must be a map, got {_kind(node)}", f"a map of `key: value` lines for {what}")
+            return []
+        entries, seen = [], set()
+        for key_node, value_node in node.value:
+            if not isinstance(key_node, yaml.ScalarNode) or key_node.tag != "tag:yaml.org,2002:str":
+                self.problem(key_node, f"a key in {what} must be a name, got {_kind(key_node)}", "a name")
+                continue
+            key = key_node.value
+            if key in seen:
+                self.problem(key_node, f"duplicate key '{key}' in {what}", "each key once")
+                continue
+            seen.add(key)
+            if keys is not None and key not in keys:
+                hint = _closest(key, list(keys))
+                self.problem(key_node, f"unknown key '{key}' in {what}", (f"did you mean '{hint}'? " if hint else "") + "one of " + ", ".join(keys))
+                continue
+            entries.append((key, key_node, value_node))
+        return entries
+
+    def sequence(self, node: yaml.Node, what: str) -> list[yaml.Node]:
+        if not isinstance(node, yaml.SequenceNode):
+            self.problem(node, f"{what} must be a list, got {_kind(node)}", f"a list such as `[a, b]` for {what}")
+            return []
+        return list(node.value)
+
+    def scalar_text(self, node: yaml.Node, what: str) -> str | None:
+        if not isinstance(node, yaml.ScalarNode):
+            self.problem(node, f"{what} must be an expression, got {_kind(node)}", "an expression such as `m*g*l*cos(theta)`")
+            return None
+        if node.tag == "tag:yaml.org,2002:null":
+            self.problem(node, f"{what} is empty", "an expression")
+            return None
+        if node.tag == "tag:yaml.org,2002:bool":
+            self.problem(node, f"{what} is the boolean '{node.value}'", "an expression")
+            return None
+        return str(node.value)
+
+    def expression(self, node: yaml.Node, what: str, scope: Scope, equation: bool = False) -> sp.Expr | None:
+        text = self.scalar_text(node, what)
+        if text is None:
+            return None
+        assert isinstance(node, yaml.ScalarNode)
+        parser = parse_equation if equation else parse_expression
+        return self.guard(lambda: parser(text, self.text_span(node), scope))
+
+    def vector(self, node: yaml.Node, what: str, scope: Scope, lengths: tuple[int, ...] = (1, 2, 3)) -> tuple[sp.Expr, ...] | None:
+        items = self.sequence(node, what)
+        if not items:
+            if isinstance(node, yaml.SequenceNode):
+                self.problem(node, f"{what} is an empty list", f"a list of {' or '.join(map(str, lengths))} components")
+            return None
+        if len(items) not in lengths:
+            self.problem(node, f"{what} has {len(items)} components", f"{' or '.join(map(str, lengths))} components")
+            return None
+        values = [self.expression(item, f"a component of {what}", scope) for item in items]
+        if any(v is None for v in values):
+            return None
+        return tuple(v for v in values if v is not None)
+
+    def number(self, node: yaml.Node, what: str) -> float | None:
+        """A finite number; a constant expression such as `pi/4` is accepted too."""
+        text = self.scalar_text(node, what)
+        if text is None:
+            return None
+        assert isinstance(node, yaml.ScalarNode)
+        scope = Scope({}, {}, sp.Symbol("t"), lambda e: e, what="numbers, `pi` and `E` (a default must be a number)")
+        value = self.guard(lambda: parse_expression(text, self.text_span(node), scope))
+        if value is None:
+            return None
+        if not value.is_number or value.has(sp.Symbol("t")):
+            self.problem(node, f"{what} must be a number, got '{text}'", "a number such as 9.81")
+            return None
+        result = complex(sp.N(value))
+        if result.imag != 0 or result.real != result.real or abs(result.real) == float("inf"):
+            self.problem(node, f"{what} must be a finite real number, got '{text}'", "a number such as 9.81")
+            return None
+        return result.real
+
+    def name(self, node: yaml.Node, what: str, taken: dict[str, str]) -> str | None:
+        if not isinstance(node, yaml.ScalarNode) or node.tag != "tag:yaml.org,2002:str":
+            self.problem(node, f"{what} must be a name, got {_kind(node)}", "a name such as `theta` or `x1`")
+            return None
+        name = node.value
+        if not NAME.match(name) or keyword.iskeyword(name):
+            self.problem(node, f"'{name}' is not a valid {what}", "letters, digits and _ starting with a letter, not a Python keyword")
+            return None
+        if name in RESERVED:
+            self.problem(node, f"'{name}' is reserved and cannot be a {what}", "another name (`t` is time; function names and pi, E are built in)")
+            return None
+        if name.endswith(("_dot", "_ddot")):
+            self.problem(node, f"'{name}' ends in _dot or _ddot, which name velocities and accelerations", "a name without that ending")
+            return None
+        if name in taken:
+            self.problem(node, f"'{name}' is already declared as a {taken[name]}", "each name declared once")
+            return None
+        taken[name] = what
+        return name
+
+    # -- the file -----------------------------------------------------------------------------
+
+    def read(self, root: yaml.Node) -> SystemSpec:
+        self.check_tags(root)
+        if self.problems:
+            raise SpecError(self.problems)
+        entries = {key: (key_node, value) for key, key_node, value in self.mapping(root, "the system file", TOP_KEYS)}
+        if "coordinates" not in entries and isinstance(root, yaml.MappingNode):
+            self.problem(root, "missing required key 'coordinates'", "`coordinates: [q1, q2, ...]`, the generalized coordinates")
+        taken: dict[str, str] = {}
+
+        coordinates = self.coordinates(entries, taken)
+        parameters = self.parameters(entries, taken)
+        functions = self.function_names(entries, taken)
+        q = tuple(sp.Symbol(c) for c in coordinates)
+        qd = tuple(sp.Symbol(f"{c}_dot") for c in coordinates)
+        qdd = tuple(sp.Symbol(f"{c}_ddot") for c in coordinates)
+        t = sp.Symbol("t")
+        undefined = {f: sp.Function(f) for f in functions}
+
+        def ddt(expr: sp.Expr) -> sp.Expr:
+            return time_derivative(expr, q, qd, qdd, t)
+
+        names = {str(s): s for s in (*q, *qd, *(p.symbol for p in parameters))}
+        state = Scope(names, undefined, t, ddt, "a coordinate, a velocity (`<q>_dot`), a parameter, `t`")
+        config = Scope({str(s): s for s in (*q, *(p.symbol for p in parameters))}, undefined, t, ddt, "a coordinate, a parameter, `t`")
+        constants = Scope({p.name: p.symbol for p in parameters}, undefined, t, ddt, "a parameter, `t`")
+
+        def value(key: str) -> yaml.Node | None:
+            return entries[key][1] if key in entries else None
+
+        def expr(key: str, scope: Scope) -> sp.Expr:
+            node = value(key)
+            return (self.expression(node, f"'{key}'", scope) if node is not None else None) or sp.Integer(0)
+
+        gravity = self.vector(value("gravity"), "'gravity'", constants) if value("gravity") is not None else None
+        particles = self.particles(value("particles"), config, state, constants)
+        bodies = self.bodies(value("bodies"), config, state, constants)
+        self.check_dimensions(gravity, particles, bodies, value)
+        potential = expr("potential", config)
+        if value("potential") is not None and any(potential.has(s) for s in qd):
+            self.problem(value("potential"), "'potential' depends on velocities", "a function of coordinates and time; put velocity-dependent terms under `lagrangian`")
+        spec = SystemSpec(
+            path=self.filename,
+            title=self.string(value("title"), "'title'") or Path(self.filename).stem.replace("_", " ").capitalize(),
+            description=self.string(value("description"), "'description'") or "",
+            coordinates=coordinates,
+            q=q,
+            qd=qd,
+            qdd=qdd,
+            t=t,
+            parameters=parameters,
+            functions=functions,
+            gravity=gravity,
+            particles=particles,
+            bodies=bodies,
+            kinetic=expr("kinetic", state),
+            potential=potential,
+            lagrangian=expr("lagrangian", state),
+            dissipation=expr("dissipation", state),
+            generalized_forces=self.forces(value("forces"), coordinates, state),
+            constraints=self.constraints(value("constraints"), state, qd, taken),
+            eliminate=self.eliminate(value("eliminate"), coordinates),
+            initial=self.initial(value("initial"), coordinates),
+            simulate=self.simulate(value("simulate")),
+            exact=self.exact(value("exact"), coordinates, constants),
+            expect=Expect(),
+        )
+        expect_node = value("expect")
+        if expect_node is not None:
+            spec = _replace(spec, expect=self.expect(expect_node, spec, state))
+        if spec.eliminate and not spec.constraints:
+            self.problem(value("eliminate"), "'eliminate' given but there are no constraints", "a holonomic constraint under `constraints` for each eliminated coordinate")
+        if self.problems:
+            raise SpecError(sorted(self.problems, key=lambda d: (d.span.line, d.span.column) if d.span else (0, 0)))
+        return spec
+
+    def string(self, node: yaml.Node | None, what: str) -> str | None:
+        if node is None:
+            return None
+        if not isinstance(node, yaml.ScalarNode) or node.tag == "tag:yaml.org,2002:null":
+            self.problem(node, f"{what} must be text, got {_kind(node)}", "a line of text")
+            return None
+        return str(node.value)
+
+    def coordinates(self, entries: dict[str, tuple[yaml.Node, yaml.Node]], taken: dict[str, str]) -> tuple[str, ...]:
+        if "coordinates" not in entries:
+            return ()
+        node = entries["coordinates"][1]
+        items = self.sequence(node, "'coordinates'")
+        if isinstance(node, yaml.SequenceNode) and not items:
+            self.problem(node, "'coordinates' is empty", "at least one generalized coordinate")
+        names = [self.name(item, "coordinate", taken) for item in items]
+        return tuple(n for n in names if n)
+
+    def parameters(self, entries: dict[str, tuple[yaml.Node, yaml.Node]], taken: dict[str, str]) -> tuple[Parameter, ...]:
+        if "parameters" not in entries:
+            return ()
+        node = entries["parameters"][1]
+        if isinstance(node, yaml.SequenceNode):
+            names = [self.name(item, "parameter", taken) for item in node.value]
+            return tuple(Parameter(sp.Symbol(n), None) for n in names if n)
+        result = []
+        for key, key_node, value in self.mapping(node, "'parameters'"):
+            name = self.name(key_node, "parameter", taken)
+            if name is None:
+                continue
+            if isinstance(value, yaml.MappingNode):
+                fields = {k: v for k, _, v in self.mapping(value, f"parameter '{key}'", ("value", "sign", "description"))}
+                number = self.number(fields["value"], f"the value of '{key}'") if "value" in fields else None
+                sign = self.string(fields.get("sign"), "'sign'") or "positive"
+                if sign not in ("positive", "real"):
+                    self.problem(fields["sign"], f"sign '{sign}' is not known", "`positive` (the default) or `real`")
+                if number is not None and sign == "positive" and number <= 0:
+                    self.problem(fields["value"], f"'{key}' is positive by default but its value is {number}", "a positive value, or `sign: real`")
+                description = self.string(fields.get("description"), "'description'") or ""
+                result.append(Parameter(sp.Symbol(name), number, sign == "real", description))
+            elif isinstance(value, yaml.ScalarNode) and value.tag == "tag:yaml.org,2002:null":
+                result.append(Parameter(sp.Symbol(name), None))
+            else:
+                number = self.number(value, f"the value of '{key}'")
+                result.append(Parameter(sp.Symbol(name), number, number is not None and number <= 0))
+        return tuple(result)
+
+    def function_names(self, entries: dict[str, tuple[yaml.Node, yaml.Node]], taken: dict[str, str]) -> tuple[str, ...]:
+        if "functions" not in entries:
+            return ()
+        names = [self.name(item, "function", taken) for item in self.sequence(entries["functions"][1], "'functions'")]
+        return tuple(n for n in names if n)
+
+    def particles(self, node: yaml.Node | None, config: Scope, state: Scope, constants: Scope) -> tuple[Particle, ...]:
+        if node is None:
+            return ()
+        result = []
+        for name, _, value in self.mapping(node, "'particles'"):
+            fields = {k: v for k, _, v in self.mapping(value, f"particle '{name}'", PARTICLE_KEYS)}
+            for required in ("mass", "position"):
+                if required not in fields and isinstance(value, yaml.MappingNode):
+                    self.problem(value, f"particle '{name}' has no '{required}'", f"`{required}:` " + ("an expression" if required == "mass" else "a list of 1 to 3 components"))
+            mass = self.expression(fields["mass"], f"the mass of '{name}'", constants) if "mass" in fields else None
+            position = self.vector(fields["position"], f"the position of '{name}'", config) if "position" in fields else None
+            force = self.vector(fields["force"], f"the force on '{name}'", state) if "force" in fields else None
+            damping = self.expression(fields["damping"], f"the damping of '{name}'", constants) if "damping" in fields else None
+            if mass is not None and position is not None:
+                if force is not None and len(force) != len(position):
+                    self.problem(fields["force"], f"the force on '{name}' has {len(force)} components but its position has {len(position)}", f"{len(position)} components")
+                    continue
+                result.append(Particle(name, mass, position, force, damping))
+        return tuple(result)
+
+    def bodies(self, node: yaml.Node | None, config: Scope, state: Scope, constants: Scope) -> tuple[Body, ...]:
+        if node is None:
+            return ()
+        result = []
+        for name, _, value in self.mapping(node, "'bodies'"):
+            fields = {k: v for k, _, v in self.mapping(value, f"body '{name}'", BODY_KEYS)}
+            missing = [k for k in BODY_KEYS if k not in fields]
+            if missing and isinstance(value, yaml.MappingNode):
+                self.problem(value, f"body '{name}' has no {', '.join(repr(m) for m in missing)}", "mass, position, inertia and angular_velocity")
+                continue
+            if missing:
+                continue
+            mass = self.expression(fields["mass"], f"the mass of '{name}'", constants)
+            position = self.vector(fields["position"], f"the position of '{name}'", config)
+            inertia = self.scalar_or_triple(fields["inertia"], f"the inertia of '{name}'", config)
+            omega = self.scalar_or_triple(fields["angular_velocity"], f"the angular velocity of '{name}'", state)
+            if mass is None or position is None or inertia is None or omega is None:
+                continue
+            if len(inertia) != len(omega):
+                self.problem(fields["angular_velocity"], f"body '{name}': inertia has {len(inertia)} component(s) but angular_velocity has {len(omega)}", "both scalars (planar) or both 3-lists (spatial)")
+                continue
+            result.append(Body(name, mass, position, inertia, omega))
+        return tuple(result)
+
+    def scalar_or_triple(self, node: yaml.Node, what: str, scope: Scope) -> tuple[sp.Expr, ...] | None:
+        if isinstance(node, yaml.SequenceNode):
+            return self.vector(node, what, scope, lengths=(3,))
+        value = self.expression(node, what, scope)
+        return None if value is None else (value,)
+
+    def check_dimensions(self, gravity: tuple[sp.Expr, ...] | None, particles: tuple[Particle, ...], bodies: tuple[Body, ...], value: Callable[[str], yaml.Node | None]) -> None:
+        if gravity is None:
+            return
+        for item in (*particles, *bodies):
+            if len(item.position) != len(gravity):
+                self.problem(value("gravity"), f"'gravity' has {len(gravity)} components but the position of '{item.name}' has {len(item.position)}", "vectors of one length throughout the file")
+                return
+
+    def forces(self, node: yaml.Node | None, coordinates: tuple[str, ...], state: Scope) -> tuple[sp.Expr, ...]:
+        forces = [sp.Integer(0)] * len(coordinates)
+        if node is None:
+            return ()
+        for key, _, value in self.mapping(node, "'forces'", ("generalized",)):
+            for coordinate, key_node, force in self.mapping(value, "'forces.generalized'"):
+                if coordinate not in coordinates:
+                    hint = _closest(coordinate, list(coordinates))
+                    self.problem(key_node, f"'{coordinate}' is not a coordinate", "one of " + ", ".join(coordinates) + (f"; did you mean '{hint}'?" if hint else ""))
+                    continue
+                expr = self.expression(force, f"the generalized force on '{coordinate}'", state)
+                if expr is not None:
+                    forces[coordinates.index(coordinate)] = expr
+        return tuple(forces)
+
+    def constraints(self, node: yaml.Node | None, state: Scope, qd: tuple[sp.Symbol, ...], taken: dict[str, str]) -> tuple[Constraint, ...]:
+        if node is None:
+            return ()
+        result = []
+        for name, key_node, value in self.mapping(node, "'constraints'"):
+            if not NAME.match(name) or keyword.iskeyword(name):
+                self.problem(key_node, f"'{name}' is not a valid constraint name", "letters, digits and _")
+                continue
+            multiplier = f"lambda_{name}"
+            if multiplier in taken:
+                self.problem(key_node, f"the multiplier '{multiplier}' of this constraint clashes with a {taken[multiplier]}", "another constraint name")
+                continue
+            expr = self.expression(value, f"constraint '{name}'", state, equation=True)
+            if expr is None:
+                continue
+            span = self.text_span(value) if isinstance(value, yaml.ScalarNode) else self.span(value)
+            velocities = [v for v in qd if expr.has(v)]
+            if velocities and any(sp.diff(expr, a, b) != 0 for a in velocities for b in velocities):
+                self.problem(value, f"constraint '{name}' is not linear in the velocities", "a holonomic constraint f(q, t) = 0 or a velocity constraint linear in the velocities")
+                continue
+            if expr == 0:
+                self.problem(value, f"constraint '{name}' is always satisfied", "an equation relating the coordinates")
+                continue
+            result.append(Constraint(name, expr, not velocities, span))
+        return tuple(result)
+
+    def eliminate(self, node: yaml.Node | None, coordinates: tuple[str, ...]) -> tuple[tuple[str, Span], ...]:
+        if node is None:
+            return ()
+        result = []
+        for item in self.sequence(node, "'eliminate'"):
+            if not isinstance(item, yaml.ScalarNode) or item.value not in coordinates:
+                hint = _closest(str(getattr(item, "value", "")), list(coordinates))
+                self.problem(item, f"'{getattr(item, 'value', '')}' is not a coordinate", "one of " + ", ".join(coordinates) + (f"; did you mean '{hint}'?" if hint else ""))
+                continue
+            result.append((str(item.value), self.span(item)))
+        return tuple(result)
+
+    def initial(self, node: yaml.Node | None, coordinates: tuple[str, ...]) -> dict[str, float]:
+        if node is None:
+            return {}
+        allowed = [*coordinates, *(f"{c}_dot" for c in coordinates)]
+        result = {}
+        for key, key_node, value in self.mapping(node, "'initial'"):
+            if key not in allowed:
+                hint = _closest(key, allowed)
+                self.problem(key_node, f"'{key}' is not a coordinate or velocity", "one of " + ", ".join(allowed) + (f"; did you mean '{hint}'?" if hint else ""))
+                continue
+            number = self.number(value, f"the initial value of '{key}'")
+            if number is not None:
+                result[key] = number
+        return result
+
+    def simulate(self, node: yaml.Node | None) -> dict[str, Any]:
+        if node is None:
+            return {}
+        result: dict[str, Any] = {}
+        for key, _, value in self.mapping(node, "'simulate'", SIMULATE_KEYS):
+            if key == "method":
+                result[key] = self.string(value, "'method'")
+            else:
+                number = self.number(value, f"'simulate.{key}'")
+                if number is not None and number <= 0:
+                    self.problem(value, f"'simulate.{key}' must be positive", "a positive number")
+                elif number is not None:
+                    result[key] = int(number) if key == "samples" else number
+        return result
+
+    def exact(self, node: yaml.Node | None, coordinates: tuple[str, ...], constants: Scope) -> dict[str, sp.Expr]:
+        if node is None:
+            return {}
+        result = {}
+        for key, key_node, value in self.mapping(node, "'exact'"):
+            if key not in coordinates:
+                self.problem(key_node, f"'{key}' is not a coordinate", "one of " + ", ".join(coordinates))
+                continue
+            expr = self.expression(value, f"the exact solution for '{key}'", constants)
+            if expr is not None:
+                result[key] = expr
+        return result
+
+    def expect(self, node: yaml.Node, spec: SystemSpec, state: Scope) -> Expect:
+        fields = {k: v for k, _, v in self.mapping(node, "'expect'", EXPECT_KEYS)}
+        multipliers = {f"lambda_{c.name}": sp.Symbol(f"lambda_{c.name}") for c in spec.constraints}
+        full = Scope({**state.symbols, **{str(s): s for s in spec.qdd}, **multipliers}, state.functions, state.time, state.time_derivative, "a coordinate, velocity, acceleration (`<q>_ddot`), parameter, multiplier or `t`")
+        equations = []
+        for item in self.sequence(fields["equations"], "'expect.equations'") if "equations" in fields else []:
+            expr = self.expression(item, "an expected equation", full, equation=True)
+            if expr is not None:
+                equations.append((expr, self.text_span(item) if isinstance(item, yaml.ScalarNode) else self.span(item)))
+        accelerations = []
+        for key, key_node, value in self.mapping(fields["accelerations"], "'expect.accelerations'") if "accelerations" in fields else []:
+            coordinate = key.removesuffix("_ddot")
+            if not key.endswith("_ddot") or coordinate not in spec.coordinates:
+                self.problem(key_node, f"'{key}' is not an acceleration", "one of " + ", ".join(f"{c}_ddot" for c in spec.coordinates))
+                continue
+            expr = self.expression(value, f"the expected '{key}'", full)
+            if expr is not None:
+                accelerations.append((coordinate, expr, self.span(value)))
+        momenta = []
+        for key, key_node, value in self.mapping(fields["momenta"], "'expect.momenta'") if "momenta" in fields else []:
+            if key not in spec.coordinates:
+                self.problem(key_node, f"'{key}' is not a coordinate", "one of " + ", ".join(spec.coordinates))
+                continue
+            expr = self.expression(value, f"the expected momentum of '{key}'", state)
+            if expr is not None:
+                momenta.append((key, expr, self.span(value)))
+        conserved = []
+        for item in self.sequence(fields["conserved"], "'expect.conserved'") if "conserved" in fields else []:
+            name = getattr(item, "value", None)
+            if not isinstance(item, yaml.ScalarNode) or (name not in spec.coordinates and name != "energy"):
+                self.problem(item, f"'{name}' is not a coordinate or 'energy'", "coordinate names and/or `energy`")
+                continue
+            conserved.append((str(name), self.span(item)))
+        return Expect(tuple(equations), tuple(accelerations), tuple(momenta), tuple(conserved))
+
+
+def _replace(spec: SystemSpec, **changes: Any) -> SystemSpec:
+    import dataclasses
+
+    return dataclasses.replace(spec, **changes)
+
+
+def _kind(node: yaml.Node | None) -> str:
+    if isinstance(node, yaml.SequenceNode):
+        return "a list"
+    if isinstance(node, yaml.MappingNode):
+        return "a map"
+    if isinstance(node, yaml.ScalarNode):
+        kind = node.tag.rsplit(":", 1)[-1]
+        return {"null": "nothing", "str": f"the text '{node.value}'", "bool": f"the boolean '{node.value}'"}.get(kind, f"the number {node.value}")
+    return "nothing"
+
+
+def iter_files(paths: list[str]) -> Iterator[Path]:
+    """System files named by paths, directories (their *.yaml, sorted) and globs."""
+    import glob
+
+    for item in paths:
+        path = Path(item)
+        if path.is_dir():
+            yield from sorted(path.glob("*.yaml"))
+        elif any(c in item for c in "*?["):
+            yield from (Path(p) for p in sorted(glob.glob(item, recursive=True)))
+        else:
+            yield resolve(item)
