@@ -109,24 +109,45 @@ def _why_not_energy(model: Model) -> str:
 
 
 def _equations(spec: SystemSpec, model: Model, points: list[Point]) -> Result:
+    """The expected equations hold at the derived accelerations and multipliers, and together
+    with the constraints of the multipliers they use, they determine those unknowns."""
     expected = [e for e, _ in spec.expect.equations]
     span = spec.expect.equations[0][1]
-    unknown_symbols = [*model.qdd, *model.multipliers]
-    dynamic = [e for e in expected if any(e.has(u) for u in unknown_symbols)]
-    used = [u for u in unknown_symbols if any(e.has(u) for e in dynamic)]
-    if len(dynamic) != len([u for u in used if u in model.qdd]) + len([u for u in used if u not in model.qdd]) or any(u not in used for u in model.qdd):
-        return Result("equations", False, f"expected {model.n} equations determining {', '.join(map(str, model.qdd))}; got {len(dynamic)} involving {', '.join(map(str, used)) or 'no accelerations'}", span)
+    unknowns = [*model.qdd, *model.multipliers]
+    dynamic = [e for e in expected if any(e.has(u) for u in unknowns)]
+    multipliers = [c for c in model.constraints if any(e.has(c.multiplier) for e in dynamic)]
+    if len(dynamic) < model.n:
+        return Result("equations", False, f"expected {model.n} equations of motion (one per coordinate: {', '.join(model.coordinates)}), got {len(dynamic)}", span)
+    for equation in expected:
+        if equation not in dynamic and not _is_a_constraint(equation, model, points):
+            where = spec.expect.equations[expected.index(equation)][1]
+            return Result("equations", False, f"'{equation} = 0' has no accelerations and is not one of the constraints", where)
+    rows = dynamic + [sum((a * u for a, u in zip(c.jacobian, model.qdd, strict=True)), c.acceleration_bias) for c in multipliers]
+    used = [*model.qdd, *(c.multiplier for c in multipliers)]
     for point in points:
         for k, equation in enumerate(dynamic):
             residual, scale = _evaluate(equation, point, with_unknowns=True)
             if abs(residual) > TOLERANCE * max(scale, 1):
                 where = spec.expect.equations[expected.index(equation)][1]
                 return Result("equations", False, f"equation {k + 1} does not hold for the derived motion (residual {sp.N(residual, 3)} at a random state)", where)
-        jacobian = sp.Matrix([[sp.diff(e, u) for u in used] for e in dynamic])
-        numeric = _concrete(jacobian, point.values, point.functions)
-        if abs(numeric.det()) < TOLERANCE:
+        jacobian = _concrete(sp.Matrix([[sp.diff(e, u) for u in used] for e in rows]), point.values, point.functions)
+        if jacobian.rank(iszerofunc=lambda x: abs(x) < TOLERANCE) < len(used):
             return Result("equations", False, "the expected equations do not determine the accelerations (they are dependent)", span)
     return Result("equations", True, "", span)
+
+
+def _is_a_constraint(equation: sp.Expr, model: Model, points: list[Point]) -> bool:
+    """True when `equation` is a non-zero multiple of one of the model's constraints."""
+    for c in model.constraints:
+        ratios = set()
+        for point in points:
+            numerator, _ = _evaluate(equation, point, with_unknowns=False)
+            denominator, _ = _evaluate(c.expr, point, with_unknowns=False)
+            ratios.add(sp.N(numerator / denominator, 20) if denominator != 0 else None)
+        values = [r for r in ratios if r is not None]
+        if values and None not in ratios and max(values) - min(values) < 1e-15 * max(1, *map(abs, values)) and values[0] != 0:
+            return True
+    return False
 
 
 def _compare(entry: str, expected: sp.Expr, derived: sp.Expr, points: list[Point], span: Span, solved: bool = False) -> Result:
@@ -185,10 +206,11 @@ def sample_points(model: Model, count: int = POINTS, seed: int = 20261121) -> It
 
 def _concrete(matrix: sp.Matrix, values: dict[sp.Symbol, sp.Float], functions: dict[sp.Expr, Callable[..., sp.Expr]], evaluate: bool = True) -> sp.Matrix:
     """Numbers for symbols and concrete functions for undefined ones (matched by name)."""
-    m = matrix.xreplace(values)
+    m = matrix
     if functions:
         by_name = {str(f): g for f, g in functions.items()}
         m = m.replace(lambda e: isinstance(e, sp.core.function.AppliedUndef) and str(e.func) in by_name, lambda e: by_name[str(e.func)](*e.args)).doit()
+    m = m.xreplace(values)
     return m.evalf(DIGITS) if evaluate else m
 
 

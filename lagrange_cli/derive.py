@@ -18,9 +18,9 @@ import dataclasses
 from collections.abc import Iterable, Sequence
 from itertools import combinations
 
-import symengine as se
 import sympy as sp
 
+from lagrange_cli._symengine import se, to_symengine
 from lagrange_cli.errors import DerivationError, fail
 from lagrange_cli.model import ConstraintRow, Model
 from lagrange_cli.spec import Constraint, SystemSpec, time_derivative
@@ -31,10 +31,10 @@ Vector = list[se.Basic]
 def derive(spec: SystemSpec) -> Model:
     """File to equations: eliminate constraints, build L and R, apply Lagrange's equation."""
     spec = eliminate(spec)
-    q, qd, t = _se(spec.q), _se(spec.qd), se.sympify(spec.t)
-    kinetic = combine_trig(kinetic_energy(spec) + se.sympify(spec.kinetic))
+    q, qd, t = _se(spec.q), _se(spec.qd), to_symengine(spec.t)
+    kinetic = combine_trig(kinetic_energy(spec) + to_symengine(spec.kinetic))
     potential = potential_energy(spec)
-    lagrangian = kinetic - potential + se.sympify(spec.lagrangian)
+    lagrangian = kinetic - potential + to_symengine(spec.lagrangian)
     dissipation = combine_trig(rayleigh(spec))
     forces = generalized_forces(spec)
     if any(_has(lagrangian, s) for s in _se(spec.qdd)):
@@ -71,11 +71,11 @@ def derive(spec: SystemSpec) -> Model:
 def kinetic_energy(spec: SystemSpec) -> se.Basic:
     """K = sum 1/2 m |x_dot|^2 over particles and bodies, plus 1/2 I omega^2 (planar)
     or 1/2 sum I_k omega_k^2 (spatial, principal body axes) for bodies."""
-    q, qd, t = _se(spec.q), _se(spec.qd), se.sympify(spec.t)
+    q, qd, t = _se(spec.q), _se(spec.qd), to_symengine(spec.t)
     total = se.Integer(0)
     for item in (*spec.particles, *spec.bodies):
         v = velocity(_se(item.position), q, qd, t)
-        total += se.sympify(item.mass) * sum((vi**2 for vi in v), se.Integer(0)) / 2
+        total += to_symengine(item.mass) * sum((vi**2 for vi in v), se.Integer(0)) / 2
     for body in spec.bodies:
         inertia, omega = _se(body.inertia), _se(body.angular_velocity)
         total += sum((i * w**2 for i, w in zip(inertia, omega, strict=True)), se.Integer(0)) / 2
@@ -89,29 +89,29 @@ def velocity(position: Sequence[se.Basic], q: Sequence[se.Basic], qd: Sequence[s
 
 def potential_energy(spec: SystemSpec) -> se.Basic:
     """U = U_file - sum m g . x over particles and bodies (a uniform field g)."""
-    total = se.sympify(spec.potential)
+    total = to_symengine(spec.potential)
     if spec.gravity is not None:
         g = _se(spec.gravity)
         for item in (*spec.particles, *spec.bodies):
-            total -= se.sympify(item.mass) * sum((gi * xi for gi, xi in zip(g, _se(item.position), strict=True)), se.Integer(0))
+            total -= to_symengine(item.mass) * sum((gi * xi for gi, xi in zip(g, _se(item.position), strict=True)), se.Integer(0))
     return total
 
 
 def rayleigh(spec: SystemSpec) -> se.Basic:
     """R = R_file + sum 1/2 k |x_dot|^2 over damped particles (Exercise 6.9)."""
-    q, qd, t = _se(spec.q), _se(spec.qd), se.sympify(spec.t)
-    total = se.sympify(spec.dissipation)
+    q, qd, t = _se(spec.q), _se(spec.qd), to_symengine(spec.t)
+    total = to_symengine(spec.dissipation)
     for particle in spec.particles:
         if particle.damping is not None:
             v = velocity(_se(particle.position), q, qd, t)
-            total += se.sympify(particle.damping) * sum((vi**2 for vi in v), se.Integer(0)) / 2
+            total += to_symengine(particle.damping) * sum((vi**2 for vi in v), se.Integer(0)) / 2
     return total
 
 
 def generalized_forces(spec: SystemSpec) -> Vector:
     """Q_i = Q_file,i + sum_j f_j dx_j/dq_i over particles with a force (Eq. 6.6)."""
     q = _se(spec.q)
-    forces = [se.sympify(f) for f in spec.generalized_forces] or [se.Integer(0)] * len(q)
+    forces = [to_symengine(f) for f in spec.generalized_forces] or [se.Integer(0)] * len(q)
     for particle in spec.particles:
         if particle.force is not None:
             f, x = _se(particle.force), _se(particle.position)
@@ -320,12 +320,12 @@ def solved_accelerations(model: Model, max_size: int = 4) -> tuple[sp.Expr, ...]
         )
     matrix, rhs = augmented(model)
     check_invertible(model, matrix)
-    det = _sp(combine_trig(se.sympify(matrix.det(method="berkowitz"))))
+    det = _sp(combine_trig(to_symengine(matrix.det(method="berkowitz"))))
     result = []
     for i in range(size):
         replaced = matrix.copy()
         replaced[:, i] = rhs
-        numerator = _sp(combine_trig(se.sympify(replaced.det(method="berkowitz"))))
+        numerator = _sp(combine_trig(to_symengine(replaced.det(method="berkowitz"))))
         result.append(sp.factor_terms(sp.cancel(numerator / det)))
     return tuple(result)
 
@@ -365,7 +365,7 @@ def check_invertible(model: Model, matrix: sp.Matrix | None = None) -> None:
 
 
 def _se(values: Iterable[sp.Expr]) -> list[se.Basic]:
-    return [se.sympify(v) for v in values]
+    return [to_symengine(v) for v in values]
 
 
 def _sp(value: se.Basic) -> sp.Expr:

@@ -17,8 +17,8 @@ import sympy as sp
 import yaml
 
 from lagrange_cli.errors import Diagnostic, LagrangeError, Span, SpecError, fail
-from lagrange_cli.model import Parameter
 from lagrange_cli.expr import RESERVED, Scope, _closest, parse_equation, parse_expression
+from lagrange_cli.model import Parameter
 
 MAX_FILE_BYTES = 1_000_000
 NAME = re.compile(r"[A-Za-z][A-Za-z0-9_]*\Z")

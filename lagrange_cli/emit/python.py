@@ -14,11 +14,11 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
-import symengine as se
 import sympy as sp
 from sympy.printing.pycode import PythonCodePrinter
 
 from lagrange_cli import __version__
+from lagrange_cli._symengine import se, to_symengine
 from lagrange_cli.derive import check_invertible
 from lagrange_cli.emit.common import require_defined
 from lagrange_cli.model import Model
@@ -83,9 +83,9 @@ class _Writer:
     def block(self, exprs: Sequence[sp.Expr], prefix: str) -> Block:
         """CSE by symengine on renamed symbols (so its x0, x1 cannot clash with the user's)."""
         free = sorted(set().union(*(e.free_symbols for e in exprs)), key=str) if exprs else []
-        safe = {s: se.Symbol(f"_s{i}") for i, s in enumerate(free)}
-        back = {v: s for s, v in safe.items()}
-        converted = [se.sympify(e).xreplace(safe) if e.free_symbols else se.sympify(e) for e in exprs]
+        safe = {to_symengine(s): se.Symbol(f"_s{i}") for i, s in enumerate(free)}
+        back = {v: s for s, v in zip(free, safe.values(), strict=True)}
+        converted = [to_symengine(e).xreplace(safe) if e.free_symbols else to_symengine(e) for e in exprs]
         replacements, reduced = se.cse(converted)
         temporaries = {lhs: sp.Symbol(f"_{prefix}{i}") for i, (lhs, _) in enumerate(replacements)}
         mapping = {**back, **temporaries}

@@ -1,0 +1,33 @@
+"""Small helpers shared by the tests."""
+
+from __future__ import annotations
+
+import random
+from pathlib import Path
+
+import sympy as sp
+
+from lagrange_cli import derive, spec
+from lagrange_cli.model import Model
+
+
+def model_of(text: str, name: str = "test.yaml") -> Model:
+    return derive.derive(spec.parse(text, name))
+
+
+def model_from(path: Path) -> Model:
+    return derive.derive(spec.load(path))
+
+
+def random_point(model: Model, seed: int) -> dict[sp.Symbol, float]:
+    """Parameters at their defaults (or random positive), coordinates and velocities at random."""
+    rng = random.Random(seed)
+    point: dict[sp.Symbol, float] = {}
+    for p in model.parameters:
+        point[p.symbol] = p.value if p.value is not None else rng.uniform(0.5, 2.0)
+    for q in model.q:
+        point[q] = rng.uniform(0.2, 1.3)
+    for v in model.qd:
+        point[v] = rng.uniform(-1.0, 1.0)
+    point[model.t] = rng.uniform(0.0, 2.0)
+    return point

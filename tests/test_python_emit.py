@@ -1,0 +1,128 @@
+"""Emitted Python: imported and run against an independent evaluation of the same equations."""
+
+from __future__ import annotations
+
+import importlib.util
+import inspect
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+from types import ModuleType
+
+import numpy as np
+import pytest
+import sympy as sp
+
+from lagrange_cli.derive import augmented
+from lagrange_cli.emit import python
+from lagrange_cli.errors import DerivationError
+from lagrange_cli.model import Model
+
+from .conftest import SYSTEMS
+from .helpers import model_from, model_of, random_point
+
+
+def load_module(code: str, path: Path) -> ModuleType:
+    path.write_text(code)
+    module_spec = importlib.util.spec_from_file_location(path.stem, path)
+    assert module_spec and module_spec.loader
+    module = importlib.util.module_from_spec(module_spec)
+    module_spec.loader.exec_module(module)
+    return module
+
+
+def reference_accelerations(model: Model, point: dict[sp.Symbol, float]) -> np.ndarray:
+    """Solve [[M, -A^T], [A, 0]] [q_ddot; lambda] = [F; -c] numerically from the sympy model."""
+    matrix, rhs = augmented(model)
+    a = np.array(matrix.xreplace(point).evalf(20).tolist(), dtype=float)
+    b = np.array(rhs.xreplace(point).evalf(20), dtype=float).ravel()
+    return np.linalg.solve(a, b)[: model.n]
+
+
+def emittable(path: Path) -> bool:
+    try:
+        python.emit(model_from(path))
+    except DerivationError:
+        return False
+    return True
+
+
+@pytest.mark.parametrize("path", SYSTEMS, ids=lambda p: p.stem)
+def test_rhs_agrees_with_independent_evaluation(path: Path, tmp_path: Path) -> None:
+    model = model_from(path)
+    try:
+        code = python.emit(model)
+    except DerivationError as error:
+        assert "undefined" in str(error) or "left undefined" in str(error)
+        return
+    module = load_module(code, tmp_path / f"{path.stem}_eom.py")
+    assert module.COORDINATES == model.coordinates
+    for seed in range(3):
+        point = random_point(model, seed)
+        parameters = {p.name: point[p.symbol] for p in model.parameters}
+        y = [point[s] for s in (*model.q, *model.qd)]
+        t = point[model.t]
+        derivative = module.rhs(t, y, parameters)
+        assert np.allclose(derivative[: model.n], y[model.n :])
+        assert np.allclose(derivative[model.n :], reference_accelerations(model, point), rtol=1e-9, atol=1e-12)
+        q, qd = y[: model.n], y[model.n :]
+        args = (t,) if not model.autonomous else ()
+        mass = module.mass_matrix(*(args if model.mass_matrix.has(model.t) else ()), q, parameters)
+        assert np.allclose(mass, np.array(model.mass_matrix.xreplace(point).evalf(), dtype=float))
+        energy_args = (t,) if model.energy.has(model.t) else ()
+        assert np.isclose(module.energy(*energy_args, q, qd, parameters), float(model.energy.xreplace(point)))
+
+
+@pytest.mark.skipif(shutil.which("ruff") is None and not (Path(sys.executable).parent / "ruff").exists(), reason="ruff not installed")
+def test_emitted_code_passes_ruff(tmp_path: Path) -> None:
+    ruff = shutil.which("ruff") or str(Path(sys.executable).parent / "ruff")
+    for path in SYSTEMS:
+        if emittable(path):
+            (tmp_path / f"{path.stem}_eom.py").write_text(python.emit(model_from(path)))
+    result = subprocess.run([ruff, "check", "--isolated", "--select", "E,F,W", "--line-length", "1000", str(tmp_path)], capture_output=True, text=True)
+    assert result.returncode == 0, result.stdout
+
+
+PENDULUM = """
+coordinates: [theta]
+parameters: {m: 1.0, l: 2.0, g: 9.81}
+gravity: [0, -g]
+particles:
+  bob: {mass: m, position: [l*sin(theta), -l*cos(theta)]}
+"""
+
+
+def test_autonomous_code_has_no_time_argument_and_only_math_imports(tmp_path: Path) -> None:
+    code = python.emit(model_of(PENDULUM))
+    module = load_module(code, tmp_path / "pendulum.py")
+    assert list(inspect.signature(module.mass_matrix).parameters) == ["q", "p"]
+    assert list(inspect.signature(module.forcing).parameters) == ["q", "q_dot", "p"]
+    assert list(inspect.signature(module.rhs).parameters) == ["t", "y", "p"]
+    assert "numpy" not in code and "_solve" not in code and "constraint" not in code
+    assert "from math import cos, sin" in code
+    assert module.rhs(0.0, [0.3, 0.0], module.PARAMETERS)[1] == pytest.approx(-9.81 / 2.0 * np.sin(0.3))
+
+
+def test_time_dependent_system_takes_time(tmp_path: Path) -> None:
+    code = python.emit(model_of(PENDULUM.replace("l*sin(theta)", "l*sin(theta) + sin(3*t)")))
+    module = load_module(code, tmp_path / "driven.py")
+    assert list(inspect.signature(module.forcing).parameters) == ["t", "q", "q_dot", "p"]
+    assert list(inspect.signature(module.mass_matrix).parameters) == ["q", "p"]
+
+
+def test_names_that_would_clash_are_renamed(tmp_path: Path) -> None:
+    text = "coordinates: [y, p]\nparameters: {q: 2.0, rhs: 3.0}\nkinetic: q*y_dot**2/2 + rhs*p_dot**2/2\npotential: y**2 + p**2\n"
+    module = load_module(python.emit(model_of(text)), tmp_path / "clash.py")
+    assert module.rhs(0.0, [1.0, 1.0, 0.0, 0.0], {"q": 2.0, "rhs": 3.0})[2:] == pytest.approx([-1.0, -2.0 / 3.0])
+
+
+def test_large_systems_solve_with_numpy(tmp_path: Path) -> None:
+    n = 10
+    coordinates = ", ".join(f"x{i}" for i in range(n))
+    kinetic = " + ".join(f"x{i}_dot**2/2" for i in range(n)) + " + x0_dot*x1_dot/4"
+    potential = " + ".join(f"(x{i} - x{i + 1})**2/2" for i in range(n - 1)) + " + x0**2/2"
+    code = python.emit(model_of(f"coordinates: [{coordinates}]\nkinetic: {kinetic}\npotential: {potential}\n"))
+    assert "import numpy" in code
+    module = load_module(code, tmp_path / "chain.py")
+    assert len(module.rhs(0.0, [0.1] * n + [0.0] * n)) == 2 * n
