@@ -92,8 +92,10 @@ class _Writer:
         for symbol in temporaries.values():
             self.names[symbol] = str(symbol)
 
+        renames = {sp.sympify(a): b for a, b in mapping.items()}
+
         def convert(e: se.Basic) -> sp.Expr:
-            return sp.sympify(e).xreplace({sp.sympify(a): b for a, b in mapping.items() if sp.sympify(a) in sp.sympify(e).free_symbols})
+            return sp.sympify(e).xreplace(renames)
 
         lines = tuple(f"{temporaries[lhs]} = {self.printer.doprint(convert(rhs))}" for lhs, rhs in replacements)
         return Block(lines, tuple(self.printer.doprint(convert(e)) for e in reduced))
