@@ -21,7 +21,7 @@ else:
 se = symengine
 
 
-def to_symengine(expr: object) -> se.Basic:
+def to_symengine(expr: object) -> symengine.Basic:
     """Convert a sympy expression by walking its tree.
 
     `symengine.sympify` of a sympy object consults numpy, which is hidden above; the

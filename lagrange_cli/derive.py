@@ -23,7 +23,7 @@ import sympy as sp
 from lagrange_cli._symengine import se, to_symengine
 from lagrange_cli.errors import DerivationError, fail
 from lagrange_cli.model import ConstraintRow, Model
-from lagrange_cli.spec import Constraint, SystemSpec, time_derivative
+from lagrange_cli.spec import Body, Constraint, Particle, SystemSpec, time_derivative
 
 Vector = list[se.Basic]
 
@@ -73,7 +73,7 @@ def kinetic_energy(spec: SystemSpec) -> se.Basic:
     or 1/2 sum I_k omega_k^2 (spatial, principal body axes) for bodies."""
     q, qd, t = _se(spec.q), _se(spec.qd), to_symengine(spec.t)
     total = se.Integer(0)
-    for item in (*spec.particles, *spec.bodies):
+    for item in _masses(spec):
         v = velocity(_se(item.position), q, qd, t)
         total += to_symengine(item.mass) * sum((vi**2 for vi in v), se.Integer(0)) / 2
     for body in spec.bodies:
@@ -92,7 +92,7 @@ def potential_energy(spec: SystemSpec) -> se.Basic:
     total = to_symengine(spec.potential)
     if spec.gravity is not None:
         g = _se(spec.gravity)
-        for item in (*spec.particles, *spec.bodies):
+        for item in _masses(spec):
             total -= to_symengine(item.mass) * sum((gi * xi for gi, xi in zip(g, _se(item.position), strict=True)), se.Integer(0))
     return total
 
@@ -128,8 +128,8 @@ def momenta(lagrangian: se.Basic, qd: Sequence[se.Basic]) -> Vector:
 def euler_lagrange(lagrangian: se.Basic, dissipation: se.Basic, forces: Sequence[se.Basic], q: Sequence[se.Basic], qd: Sequence[se.Basic], t: se.Basic) -> tuple[list[Vector], Vector]:
     """Split d/dt(dL/dq_dot) - dL/dq + dR/dq_dot = Q into M q_ddot = F by the chain rule:
 
-        d/dt p_i = sum_j dp_i/dq_dot_j q_ddot_j + sum_k dp_i/dq_k q_dot_k + dp_i/dt
-        M_ij = dp_i/dq_dot_j,  F_i = dL/dq_i - sum_k dp_i/dq_k q_dot_k - dp_i/dt - dR/dq_dot_i + Q_i
+    d/dt p_i = sum_j dp_i/dq_dot_j q_ddot_j + sum_k dp_i/dq_k q_dot_k + dp_i/dt
+    M_ij = dp_i/dq_dot_j,  F_i = dL/dq_i - sum_k dp_i/dq_k q_dot_k - dp_i/dt - dR/dq_dot_i + Q_i
     """
     p = momenta(lagrangian, qd)
     mass = [[se.diff(pi, v) for v in qd] for pi in p]
@@ -173,7 +173,9 @@ def eliminate(spec: SystemSpec) -> SystemSpec:
                     solution, used = solutions[0], constraint
                     break
                 if len(solutions) > 1:
-                    raise fail(span, f"constraint '{constraint.name}' has {len(solutions)} solutions for '{name}'", "a constraint with a single solution for the eliminated coordinate, or keep the multiplier")
+                    raise fail(
+                        span, f"constraint '{constraint.name}' has {len(solutions)} solutions for '{name}'", "a constraint with a single solution for the eliminated coordinate, or keep the multiplier"
+                    )
         if solution is None or used is None:
             raise fail(span, f"no holonomic constraint can be solved for '{name}'", f"a holonomic constraint under `constraints` that involves '{name}' and can be solved for it")
         spec = _substitute(spec, k, solution, used)
@@ -200,10 +202,10 @@ def _substitute(spec: SystemSpec, k: int, solution: sp.Expr, used: Constraint) -
     mapping = {q[k]: solution, qd[k]: rate, qdd[k]: time_derivative(rate, rq, rqd, rqdd, t)}
 
     def sub(expr: sp.Expr) -> sp.Expr:
-        return expr.xreplace(mapping) if expr is not None else expr
+        return expr.xreplace(mapping)
 
-    def subs_all(values: Iterable[sp.Expr] | None) -> tuple[sp.Expr, ...] | None:
-        return None if values is None else tuple(sub(v) for v in values)
+    def subs_all(values: Iterable[sp.Expr]) -> tuple[sp.Expr, ...]:
+        return tuple(sub(v) for v in values)
 
     forces = spec.generalized_forces
     if forces:
@@ -214,8 +216,8 @@ def _substitute(spec: SystemSpec, k: int, solution: sp.Expr, used: Constraint) -
         q=rq,
         qd=rqd,
         qdd=rqdd,
-        particles=tuple(dataclasses.replace(p, mass=sub(p.mass), position=subs_all(p.position), force=subs_all(p.force), damping=p.damping) for p in spec.particles),
-        bodies=tuple(dataclasses.replace(b, position=subs_all(b.position), inertia=subs_all(b.inertia), angular_velocity=subs_all(b.angular_velocity)) for b in spec.bodies),
+        particles=tuple(dataclasses.replace(p, mass=sub(p.mass), position=subs_all(p.position), force=None if p.force is None else subs_all(p.force)) for p in spec.particles),
+        bodies=tuple(dataclasses.replace(b, position=subs_all(b.position), mass=sub(b.mass), inertia=subs_all(b.inertia), angular_velocity=subs_all(b.angular_velocity)) for b in spec.bodies),
         kinetic=sub(spec.kinetic),
         potential=sub(spec.potential),
         lagrangian=sub(spec.lagrangian),
@@ -270,24 +272,26 @@ def _combine_once(expr: se.Basic) -> se.Basic:
             if index not in used:
                 by_kind.setdefault(kind, index)
         rest = se.Mul(*(b**e for b, e in key[-1]))  # type: ignore[attr-defined]
-        if key[0] == "square":
-            pairs = [("s", "c", lambda c1, c2: c1 if c1 == c2 else None)]
-        else:
-            a, b = key[1], key[2]
-            pairs = [
-                ("cc", "ss", lambda c1, c2, a=a, b=b: c1 * se.cos(a - b) if c1 == c2 else (c1 * se.cos(a + b) if c1 == -c2 else None)),
-                ("sc", "cs", lambda c1, c2, a=a, b=b: c1 * se.sin(a + b) if c1 == c2 else (c1 * se.sin(a - b) if c1 == -c2 else None)),
-            ]
-        for k1, k2, rule in pairs:
+        for k1, k2 in (("s", "c"),) if key[0] == "square" else (("cc", "ss"), ("sc", "cs")):
             if k1 in by_kind and k2 in by_kind:
                 i, j = by_kind[k1], by_kind[k2]
-                merged = rule(parsed[i][0], parsed[j][0])
+                merged = _merge(k1, parsed[i][0], parsed[j][0], key)
                 if merged is not None:
                     used.update((i, j))
                     extra.append(merged * rest)
     if not used:
         return expr
     return se.Add(*(term for index, term in enumerate(terms) if index not in used), *extra)
+
+
+def _merge(kind: str, c1: se.Basic, c2: se.Basic, key: tuple[object, ...]) -> se.Basic | None:
+    """The single term replacing c1 f + c2 g, if the identity for this pair applies."""
+    if kind == "s":
+        return c1 if c1 == c2 else None
+    a, b = se.sympify(key[1]), se.sympify(key[2])
+    if kind == "cc":
+        return c1 * se.cos(a - b) if c1 == c2 else (c1 * se.cos(a + b) if c1 == -c2 else None)
+    return c1 * se.sin(a + b) if c1 == c2 else (c1 * se.sin(a - b) if c1 == -c2 else None)
 
 
 def _factors(term: se.Basic) -> tuple[se.Basic, dict[se.Basic, se.Basic]]:
@@ -388,6 +392,10 @@ def pivot_ratio(matrix: sp.Matrix, model: Model, seed: int = 1) -> float:
             for j in range(k, n):
                 rows[i][j] -= factor * rows[k][j]
     return min(pivots) / max(pivots)
+
+
+def _masses(spec: SystemSpec) -> tuple[Particle | Body, ...]:
+    return (*spec.particles, *spec.bodies)
 
 
 def _se(values: Iterable[sp.Expr]) -> list[se.Basic]:

@@ -86,7 +86,7 @@ class Model:
     @property
     def autonomous(self) -> bool:
         """True when nothing depends explicitly on time."""
-        parts = [self.mass_matrix, self.forcing, *(c.jacobian + (c.bias, c.acceleration_bias) for c in self.constraints)]
+        parts = [self.mass_matrix, self.forcing, *((*c.jacobian, c.bias, c.acceleration_bias) for c in self.constraints)]
         return not any(sp.Matrix(p).has(self.t) if isinstance(p, tuple) else p.has(self.t) for p in parts)
 
     @property

@@ -57,7 +57,7 @@ def test_rhs_agrees_with_independent_evaluation(path: Path, tmp_path: Path) -> N
         assert "undefined" in str(error) or "left undefined" in str(error)
         return
     module = load_module(code, tmp_path / f"{path.stem}_eom.py")
-    assert module.COORDINATES == model.coordinates
+    assert model.coordinates == module.COORDINATES
     for seed in range(3):
         point = random_point(model, seed)
         parameters = {p.name: point[p.symbol] for p in model.parameters}

@@ -52,10 +52,7 @@ def emit(model: Model, form: str = "lagrange", standalone: bool = False) -> str:
     header = f"% {model.title}: {'Lagrange' if form == 'lagrange' else form} form, from {model.source}\n"
     if not standalone:
         return header + body
-    return (
-        "\\documentclass{article}\n\\usepackage{amsmath}\n\\usepackage[margin=2cm]{geometry}\n\\begin{document}\n"
-        f"\\section*{{{_escape(model.title)}}}\n" + body + "\\end{document}\n"
-    )
+    return f"\\documentclass{{article}}\n\\usepackage{{amsmath}}\n\\usepackage[margin=2cm]{{geometry}}\n\\begin{{document}}\n\\section*{{{_escape(model.title)}}}\n" + body + "\\end{document}\n"
 
 
 def _broken(parts: list[str], tail: str) -> str:

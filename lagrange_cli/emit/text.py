@@ -49,4 +49,3 @@ def join_terms(parts: list[str]) -> str:
         else:
             out += " + " + part
     return out or "0"
-
