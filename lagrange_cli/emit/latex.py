@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import sympy as sp
 from sympy.printing.latex import LatexPrinter
 
@@ -11,6 +13,8 @@ from lagrange_cli.emit.text import join_terms
 from lagrange_cli.model import Model
 
 TERMS_PER_LINE = 4
+# Subscripts that read better as symbols: I_perp -> I_{\perp}, I_par -> I_{\parallel}.
+SUBSCRIPTS = {"perp": r"\perp", "par": r"\parallel", "parallel": r"\parallel"}
 
 
 def symbol_names(model: Model) -> dict[sp.Symbol, str]:
@@ -21,6 +25,10 @@ def symbol_names(model: Model) -> dict[sp.Symbol, str]:
         head, _, sub = base.partition("_")
         names[qd] = rf"\dot{{{head}}}" + (f"_{sub}" if sub else "")
         names[qdd] = rf"\ddot{{{head}}}" + (f"_{sub}" if sub else "")
+    for p in model.parameters:
+        head, _, sub = p.name.partition("_")
+        if sub in SUBSCRIPTS and head:
+            names[p.symbol] = f"{sp.latex(sp.Symbol(head))}_{{{SUBSCRIPTS[sub]}}}"
     for c in model.constraints:
         names[c.multiplier] = rf"\lambda_{{\mathrm{{{_escape(c.name)}}}}}"
     return names
@@ -49,7 +57,7 @@ def emit(model: Model, form: str = "lagrange", standalone: bool = False) -> str:
         for symbol, value in zip((*model.qdd, *model.multipliers), values, strict=True):
             rows.append(f"{printer.doprint(symbol)} &= {printer.doprint(value)}")
     body = "\\begin{align*}\n" + " \\\\\n".join(rows) + "\n\\end{align*}\n"
-    header = f"% {model.title}: {'Lagrange' if form == 'lagrange' else form} form, from {model.source}\n"
+    header = f"% {model.title}: {'Lagrange' if form == 'lagrange' else form} form, from {Path(model.source).name}\n"
     if not standalone:
         return header + body
     return f"\\documentclass{{article}}\n\\usepackage{{amsmath}}\n\\usepackage[margin=2cm]{{geometry}}\n\\begin{{document}}\n\\section*{{{_escape(model.title)}}}\n" + body + "\\end{document}\n"
