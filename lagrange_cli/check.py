@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import sympy as sp
 
-from lagrange_cli.derive import augmented
+from lagrange_cli.algebra import augmented
 from lagrange_cli.errors import Span
 from lagrange_cli.model import Model
 from lagrange_cli.spec import SystemSpec

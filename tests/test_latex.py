@@ -56,5 +56,5 @@ def test_dots_greek_and_subscripts() -> None:
 
     model = model_of("coordinates: [theta1, x]\nparameters: [I_par, m]\nkinetic: I_par*theta1_dot**2/2 + m*x_dot**2/2\npotential: x**2\n")
     text = latex.emit(model)
-    assert r"\ddot{\theta}_{1}" in text and r"I_{par}" in text and r"\ddot{x}" in text
+    assert r"\ddot{\theta}_{1}" in text and r"I_{\parallel}" in text and r"\ddot{x}" in text
     assert text.count("&= 0") == 2 and "lambda" not in text

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 import sympy as sp
 
-from lagrange_cli.derive import augmented
+from lagrange_cli.algebra import augmented
 from lagrange_cli.emit import python
 from lagrange_cli.errors import DerivationError
 from lagrange_cli.model import Model

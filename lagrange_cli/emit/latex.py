@@ -7,7 +7,7 @@ from pathlib import Path
 import sympy as sp
 from sympy.printing.latex import LatexPrinter
 
-from lagrange_cli.derive import check_invertible, solved_accelerations
+from lagrange_cli.algebra import check_invertible, solved_accelerations
 from lagrange_cli.emit.common import constraint_equations, lagrange_terms
 from lagrange_cli.emit.text import join_terms
 from lagrange_cli.model import Model

@@ -20,7 +20,7 @@ from sympy.printing.pycode import PythonCodePrinter
 
 from lagrange_cli import __version__
 from lagrange_cli._symengine import se, to_symengine
-from lagrange_cli.derive import check_invertible
+from lagrange_cli.algebra import check_invertible
 from lagrange_cli.emit.common import require_defined
 from lagrange_cli.model import Model
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from sympy.printing.str import StrPrinter
 
-from lagrange_cli.derive import check_invertible, solved_accelerations
+from lagrange_cli.algebra import check_invertible, solved_accelerations
 from lagrange_cli.emit.common import constraint_equations, lagrange_terms
 from lagrange_cli.model import Model
 

@@ -1,63 +1,13 @@
-"""The command line: parse options, call one library function, render the result.
-
-Only this module imports typer and rich; library modules are imported inside each command
-so that `lagrange --help` stays fast (no sympy, numpy or scipy).
-"""
+"""`derive` and `check`: from a system file to its equations, and answers checked against them."""
 
 from __future__ import annotations
 
-import os
-import sys
-from enum import Enum
 from pathlib import Path
-from typing import TYPE_CHECKING, Annotated, NoReturn
+from typing import Annotated
 
 import typer
 
-if TYPE_CHECKING:
-    from lagrange_cli.errors import LagrangeError
-
-app = typer.Typer(
-    help="Equations of motion from a small YAML description of a mechanical system.",
-    no_args_is_help=True,
-    add_completion=False,
-    pretty_exceptions_enable=False,
-)
-
-
-class Form(str, Enum):
-    lagrange = "lagrange"
-    matrix = "matrix"
-    solved = "solved"
-
-
-def _fail(error: LagrangeError) -> NoReturn:
-    from rich.console import Console
-
-    Console(stderr=True, highlight=False, soft_wrap=True).print(str(error), markup=False)
-    raise typer.Exit(error.exit_code)
-
-
-def write_atomically(path: Path, text: str) -> None:
-    """Write `text` to `path` so that readers see the old file or the whole new one, never half."""
-    import tempfile
-
-    path = path.resolve()
-    handle, temporary = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(handle, "w", encoding="utf-8") as stream:
-            stream.write(text)
-        os.replace(temporary, path)
-    except BaseException:
-        Path(temporary).unlink(missing_ok=True)
-        raise
-
-
-def _output(text: str, output: Path | None) -> None:
-    if output is None:
-        sys.stdout.write(text)
-    else:
-        write_atomically(output, text)
+from lagrange_cli.cli import Form, app, fail_with, output
 
 
 @app.command()
@@ -68,7 +18,7 @@ def derive(
     python: Annotated[bool, typer.Option("--python", help="A Python module for numerical work.")] = False,
     form: Annotated[Form, typer.Option(help="lagrange: one equation per coordinate; matrix: M q_ddot = F; solved: q_ddot = ...")] = Form.lagrange,
     standalone: Annotated[bool, typer.Option(help="With --latex: a whole compilable document.")] = False,
-    output: Annotated[Path | None, typer.Option("-o", "--output", help="Write here (atomically) instead of to stdout.")] = None,
+    output_path: Annotated[Path | None, typer.Option("-o", "--output", help="Write here (atomically) instead of to stdout.")] = None,
 ) -> None:
     """Derive the equations of motion of a system."""
     from lagrange_cli.errors import LagrangeError, fail
@@ -92,9 +42,9 @@ def derive(
             from lagrange_cli.emit import text as emitter_txt
 
             result = emitter_txt.emit(model, form.value)
-        _output(result, output)
+        output(result, output_path)
     except LagrangeError as error:
-        _fail(error)
+        fail_with(error)
 
 
 @app.command()
@@ -119,7 +69,7 @@ def check(
     try:
         files = list(spec.iter_files(paths))
     except LagrangeError as error:
-        _fail(error)
+        fail_with(error)
     for path in files:
         try:
             system = spec.load(path)
@@ -139,7 +89,3 @@ def check(
             table.add_row(str(path), result.entry, "[green]pass[/green]" if result.passed else "[red]FAIL[/red]", result.method)
     console.print(table)
     raise typer.Exit(2 if bad else 1 if wrong else 0)
-
-
-def main() -> None:
-    app()

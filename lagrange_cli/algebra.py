@@ -1,0 +1,180 @@
+"""Algebra on expressions and models that every stage shares: the targeted trigonometric
+rewrite, the augmented (index-1) matrix of a constrained system, its invertibility, and
+the symbolically solved accelerations."""
+
+from __future__ import annotations
+
+from itertools import combinations
+
+import sympy as sp
+
+from lagrange_cli._symengine import se, to_symengine
+from lagrange_cli.errors import DerivationError
+from lagrange_cli.model import Model
+
+
+def combine_trig(expr: se.Basic) -> se.Basic:
+    """Targeted, linear-time trigonometric simplification of an expanded sum:
+    c cos a cos b + c sin a sin b -> c cos(a - b), c cos a cos b - c sin a sin b -> c cos(a + b),
+    c sin a cos b +- c cos a sin b -> c sin(a +- b), c sin^2 a + c cos^2 a -> c.
+    It only ever shortens the sum, so it is safe on expressions of any size."""
+    expr = se.expand(expr)
+    for _ in range(6):
+        combined = _combine_once(expr)
+        if combined == expr:
+            break
+        expr = se.expand(combined)
+    return expr
+
+
+def _combine_once(expr: se.Basic) -> se.Basic:
+    terms = list(expr.args) if isinstance(expr, se.Add) else [expr]
+    parsed = [_factors(term) for term in terms]
+    groups: dict[tuple[object, ...], list[tuple[int, str]]] = {}
+    for index, (_, factors) in enumerate(parsed):
+        trig = [f for f in factors if isinstance(f, (se.sin, se.cos))]
+        for f in trig:
+            if factors[f] == 2:
+                rest = frozenset((b, e) for b, e in factors.items() if b != f)
+                groups.setdefault(("square", f.args[0], rest), []).append((index, "s" if isinstance(f, se.sin) else "c"))
+        single = sorted((f for f in trig if factors[f] == 1), key=lambda f: (str(f.args[0]), isinstance(f, se.sin)))
+        for f, g in combinations(single, 2):
+            if f.args[0] == g.args[0]:
+                continue
+            if str(f.args[0]) > str(g.args[0]):
+                f, g = g, f
+            rest = frozenset((b, e) for b, e in factors.items() if b not in (f, g))
+            kind = ("s" if isinstance(f, se.sin) else "c") + ("s" if isinstance(g, se.sin) else "c")
+            groups.setdefault(("pair", f.args[0], g.args[0], rest), []).append((index, kind))
+    used: set[int] = set()
+    extra: list[se.Basic] = []
+    for key, members in groups.items():
+        by_kind: dict[str, int] = {}
+        for index, kind in members:
+            if index not in used:
+                by_kind.setdefault(kind, index)
+        rest = se.Mul(*(b**e for b, e in key[-1]))  # type: ignore[attr-defined]
+        for k1, k2 in (("s", "c"),) if key[0] == "square" else (("cc", "ss"), ("sc", "cs")):
+            if k1 in by_kind and k2 in by_kind:
+                i, j = by_kind[k1], by_kind[k2]
+                merged = _merge(k1, parsed[i][0], parsed[j][0], key)
+                if merged is not None:
+                    used.update((i, j))
+                    extra.append(merged * rest)
+    if not used:
+        return expr
+    return se.Add(*(term for index, term in enumerate(terms) if index not in used), *extra)
+
+
+def _merge(kind: str, c1: se.Basic, c2: se.Basic, key: tuple[object, ...]) -> se.Basic | None:
+    """The single term replacing c1 f + c2 g, if the identity for this pair applies."""
+    if kind == "s":
+        return c1 if c1 == c2 else None
+    a, b = se.sympify(key[1]), se.sympify(key[2])
+    if kind == "cc":
+        return c1 * se.cos(a - b) if c1 == c2 else (c1 * se.cos(a + b) if c1 == -c2 else None)
+    return c1 * se.sin(a + b) if c1 == c2 else (c1 * se.sin(a - b) if c1 == -c2 else None)
+
+
+def _factors(term: se.Basic) -> tuple[se.Basic, dict[se.Basic, se.Basic]]:
+    """A product as (numeric coefficient, {base: exponent})."""
+    coefficient: se.Basic = se.Integer(1)
+    factors: dict[se.Basic, se.Basic] = {}
+    for factor in term.args if isinstance(term, se.Mul) else (term,):
+        if factor.is_Number:
+            coefficient *= factor
+        elif isinstance(factor, se.Pow):
+            base, exponent = factor.args
+            factors[base] = factors.get(base, 0) + exponent
+        else:
+            factors[factor] = factors.get(factor, 0) + 1
+    return coefficient, factors
+
+
+def solved_accelerations(model: Model, max_size: int = 4) -> tuple[sp.Expr, ...]:
+    """q_ddot (and the multipliers) solved symbolically by Cramer's rule, only for small systems.
+
+    The solved form grows explosively (hundreds of operations at two coordinates, millions
+    at six), so larger systems are refused; numeric code solves M q_ddot = F at run time.
+    """
+    size = model.n + len(model.constraints)
+    if size > max_size:
+        raise DerivationError(
+            f"{model.source}: the solved form of a system with {size} unknowns would be enormous "
+            f"(at most {max_size} are solved symbolically); use `--form matrix`, or `--python`, "
+            "whose code solves M q_ddot = F numerically"
+        )
+    matrix, rhs = augmented(model)
+    check_invertible(model, matrix)
+    det = _sp(combine_trig(to_symengine(matrix.det(method="berkowitz"))))
+    result = []
+    for i in range(size):
+        replaced = matrix.copy()
+        replaced[:, i] = rhs
+        numerator = _sp(combine_trig(to_symengine(replaced.det(method="berkowitz"))))
+        result.append(sp.factor_terms(sp.cancel(numerator / det)))
+    return tuple(result)
+
+
+def augmented(model: Model) -> tuple[sp.Matrix, sp.Matrix]:
+    """[[M, -A^T], [A, 0]] [q_ddot; lambda] = [F; -c], the index-1 form of a constrained system."""
+    a = model.constraint_matrix
+    k = len(model.constraints)
+    top = sp.Matrix(model.mass_matrix).row_join(-a.T) if k else sp.Matrix(model.mass_matrix)
+    matrix = top.col_join(a.row_join(sp.zeros(k, k))) if k else top
+    rhs = sp.Matrix(model.forcing).col_join(sp.Matrix([-c.acceleration_bias for c in model.constraints])) if k else sp.Matrix(model.forcing)
+    return matrix, rhs
+
+
+def check_invertible(model: Model, matrix: sp.Matrix | None = None) -> None:
+    """Raise a `DerivationError` naming the coordinates without inertia if M (or the augmented
+    matrix of a constrained system) is singular at a generic point."""
+    if matrix is None:
+        matrix = augmented(model)[0]
+    zero_rows = [model.coordinates[i] for i in range(model.n) if all(matrix[i, j] == 0 for j in range(matrix.cols))]
+    if zero_rows:
+        raise DerivationError(
+            f"{model.source}: the mass matrix is singular: coordinate{'s' * (len(zero_rows) > 1)} "
+            f"{', '.join(repr(z) for z in zero_rows)} {'have' if len(zero_rows) > 1 else 'has'} no inertia "
+            "(no kinetic energy depends on its velocity); give it a mass, or remove it with a constraint and `eliminate`"
+        )
+    if pivot_ratio(matrix, model) < 1e-12:
+        raise DerivationError(
+            f"{model.source}: the mass matrix{' (with the constraint rows)' if model.constraints else ''} is singular: "
+            "the coordinates are not independent, or some have no inertia; the accelerations cannot be solved for"
+        )
+
+
+def pivot_ratio(matrix: sp.Matrix, model: Model, seed: int = 1) -> float:
+    """Smallest over largest pivot of A (rows scaled to unit norm) at a random point: about
+    1/condition number, and at rounding level when A is singular.
+
+    Evaluated in floating point with a pure-Python LU (no numpy in the derive path)."""
+    import random
+
+    rng = random.Random(seed)
+    point = {to_symengine(s): se.RealDouble(p.value if p.value else rng.uniform(0.5, 2.0)) for p in model.parameters for s in (p.symbol,)}
+    point.update({to_symengine(s): se.RealDouble(rng.uniform(0.2, 1.3)) for s in (*model.q, *model.qd, model.t)})
+    rows = [[float(to_symengine(matrix[i, j]).subs(point)) if matrix[i, j] != 0 else 0.0 for j in range(matrix.cols)] for i in range(matrix.rows)]
+    pivots = []
+    for row in rows:
+        norm = sum(x * x for x in row) ** 0.5
+        if norm == 0.0:
+            return 0.0
+        row[:] = [x / norm for x in row]
+    n = len(rows)
+    for k in range(n):
+        pivot = max(range(k, n), key=lambda i: abs(rows[i][k]))
+        if rows[pivot][k] == 0.0:
+            return 0.0
+        rows[k], rows[pivot] = rows[pivot], rows[k]
+        pivots.append(abs(rows[k][k]))
+        for i in range(k + 1, n):
+            factor = rows[i][k] / rows[k][k]
+            for j in range(k, n):
+                rows[i][j] -= factor * rows[k][j]
+    return min(pivots) / max(pivots)
+
+
+def _sp(value: se.Basic) -> sp.Expr:
+    return sp.sympify(value)

@@ -1,0 +1,68 @@
+"""The command line: parse options, call one library function, render the result.
+
+Only this package imports typer and rich; library modules are imported inside each command
+so that `lagrange --help` stays fast (no sympy, numpy or scipy).
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+from enum import Enum
+from pathlib import Path
+from typing import TYPE_CHECKING, NoReturn
+
+import typer
+
+if TYPE_CHECKING:
+    from lagrange_cli.errors import LagrangeError
+
+app = typer.Typer(
+    help="Equations of motion from a small YAML description of a mechanical system.",
+    no_args_is_help=True,
+    add_completion=False,
+    pretty_exceptions_enable=False,
+)
+
+
+class Form(str, Enum):
+    lagrange = "lagrange"
+    matrix = "matrix"
+    solved = "solved"
+
+
+def fail_with(error: LagrangeError) -> NoReturn:
+    from rich.console import Console
+
+    Console(stderr=True, highlight=False, soft_wrap=True).print(str(error), markup=False)
+    raise typer.Exit(error.exit_code)
+
+
+def write_atomically(path: Path, text: str) -> None:
+    """Write `text` to `path` so that readers see the old file or the whole new one, never half."""
+    import tempfile
+
+    path = path.resolve()
+    handle, temporary = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(handle, "w", encoding="utf-8") as stream:
+            stream.write(text)
+        os.replace(temporary, path)
+    except BaseException:
+        Path(temporary).unlink(missing_ok=True)
+        raise
+
+
+def output(text: str, path: Path | None) -> None:
+    if path is None:
+        sys.stdout.write(text)
+    else:
+        write_atomically(path, text)
+
+
+def main() -> None:
+    app()
+
+
+# Each module registers its commands on `app`; they import only typer at module level.
+from lagrange_cli.cli import derive as _derive  # noqa: E402, F401
