@@ -114,16 +114,116 @@ def _equations(spec: SystemSpec, model: Model, points: list[Point]) -> Result:
             return Result("equations", False, f"'{equation} = 0' has no accelerations and is not one of the constraints", where)
     rows = dynamic + [sum((a * u for a, u in zip(c.jacobian, model.qdd, strict=True)), c.acceleration_bias) for c in multipliers]
     used = [*model.qdd, *(c.multiplier for c in multipliers)]
+    method = "symbolic" if all(_matching_equation(e, model) is not None for e in dynamic) else "numeric"
     for point in points:
         for k, equation in enumerate(dynamic):
             residual, scale = _evaluate(equation, point, with_unknowns=True)
             if abs(residual) > TOLERANCE * max(scale, 1):
                 where = spec.expect.equations[expected.index(equation)][1]
-                return Result("equations", False, f"equation {k + 1} does not hold for the derived motion (residual {sp.N(residual, 3)} at a random state)", where)
+                return Result("equations", False, f"equation {k + 1}: " + diagnose_equation(equation, model, residual), where)
         jacobian = _concrete(sp.Matrix([[sp.diff(e, u) for u in used] for e in rows]), point.values, point.functions)
         if jacobian.rank(iszerofunc=lambda x: abs(x) < TOLERANCE) < len(used):
             return Result("equations", False, "the expected equations do not determine the accelerations (they are dependent)", span)
-    return Result("equations", True, "", span)
+    return Result("equations", True, "", span, method)
+
+
+def _matching_equation(expected: sp.Expr, model: Model) -> int | None:
+    """The derived equation that `expected` is a multiple of, shown symbolically, if any."""
+    for j, (scale, difference) in enumerate(_scaled_differences(expected, model)):
+        if scale is not None and _is_zero(difference):
+            return j
+    return None
+
+
+def _scaled_differences(expected: sp.Expr, model: Model) -> list[tuple[sp.Expr | None, sp.Expr]]:
+    """For each derived equation E_j: the factor r matching the leading unknown of `expected`,
+    and r E_j - expected (what the expected equation lacks)."""
+    unknowns = [*model.qdd, *model.multipliers]
+    out: list[tuple[sp.Expr | None, sp.Expr]] = []
+    for derived in model.equations():
+        ratio = None
+        for u in unknowns:
+            a, b = sp.diff(expected, u), sp.diff(derived, u)
+            if a != 0 and b != 0:
+                ratio = sp.cancel(a / b)
+                break
+        out.append((ratio, sp.expand(ratio * derived - expected) if ratio is not None else sp.Integer(0)))
+    return out
+
+
+def _is_zero(expr: sp.Expr) -> bool:
+    """Targeted normalisation: expand, combine products of sines and cosines, cancel."""
+    if expr == 0:
+        return True
+    if sp.count_ops(expr) > 400:
+        return False
+    from lagrange_cli._symengine import to_symengine
+    from lagrange_cli.algebra import combine_trig
+
+    try:
+        return sp.sympify(combine_trig(to_symengine(sp.expand_trig(sp.together(expr))))) == 0 or sp.cancel(sp.expand_trig(expr)) == 0
+    except (TypeError, ValueError):
+        return False
+
+
+def diagnose_equation(expected: sp.Expr, model: Model, residual: sp.Expr) -> str:
+    """Name the coordinate and the terms the expected equation gets wrong: compared with the
+    derived equation that has the same acceleration terms (after scaling), what is missing
+    and what is extra. Falls back to the residual at a random state."""
+    unknowns = [*model.qdd, *model.multipliers]
+    candidates = []
+    for j, (ratio, difference) in enumerate(_scaled_differences(expected, model)):
+        if ratio is None:
+            continue
+        if any(_depends(difference, u) for u in unknowns):
+            continue
+        candidates.append((sp.count_ops(difference), j, difference))
+    if not candidates:
+        return f"does not hold for the derived motion (it is not equivalent to any combination of the derived equations; residual {sp.N(residual, 3)} at a random state)"
+    _, j, difference = min(candidates, key=lambda c: (c[0], c[1]))
+    difference = _tidy(difference)
+    return f"for '{model.coordinates[j]}': " + describe_terms(expected, difference)
+
+
+def describe_terms(expected: sp.Expr, difference: sp.Expr) -> str:
+    """Say how `expected` differs, given `difference` = right - expected, term by term:
+    a wrong sign (difference holds -2 t for an expected term t), extra terms, missing terms."""
+    expected_terms = set(sp.Add.make_args(sp.expand(expected)))
+    signs, extra, missing = [], [], []
+    for term in sp.Add.make_args(difference):
+        if -term / 2 in expected_terms:
+            signs.append(-term / 2)
+        elif -term in expected_terms:
+            extra.append(-term)
+        else:
+            missing.append(term)
+    parts = [f"expected has the wrong sign on {_sum(signs)}"] if signs else []
+    if extra:
+        parts.append(f"expected has the extra term{'s' * (len(extra) > 1)} {_sum(extra)}")
+    if missing:
+        parts.append(f"expected is missing {_sum(missing)}")
+    return "; ".join(parts)
+
+
+def _depends(expr: sp.Expr, symbol: sp.Symbol) -> bool:
+    return expr.has(symbol) and not _is_zero(sp.diff(expr, symbol))
+
+
+def _tidy(expr: sp.Expr) -> sp.Expr:
+    """A readable form of a (small) difference."""
+    if sp.count_ops(expr) > 200:
+        return expr
+    from lagrange_cli._symengine import to_symengine
+    from lagrange_cli.algebra import combine_trig
+
+    try:
+        return sp.expand(sp.sympify(combine_trig(to_symengine(sp.expand(expr)))))
+    except (TypeError, ValueError):
+        return expr
+
+
+def _sum(terms: list[sp.Expr]) -> str:
+    return str(sp.Add(*terms))
 
 
 def _is_a_constraint(equation: sp.Expr, model: Model, points: list[Point]) -> bool:
@@ -141,21 +241,19 @@ def _is_a_constraint(equation: sp.Expr, model: Model, points: list[Point]) -> bo
 
 
 def _compare(entry: str, expected: sp.Expr, derived: sp.Expr, points: list[Point], span: Span, solved: bool = False) -> Result:
-    difference = expected - derived
-    if not solved and sp.expand(difference) == 0:
+    if not solved and _is_zero(sp.expand(expected - derived)):
         return Result(entry, True, "", span, "symbolic")
     for point in points:
-        residual, scale = _evaluate(difference, point, with_unknowns=solved)
+        residual, scale = _evaluate(expected - derived, point, with_unknowns=solved)
         if abs(residual) > TOLERANCE * max(scale, 1):
-            return Result(entry, False, _describe_difference(expected, derived, solved), span)
+            return Result(entry, False, _describe_difference(expected, derived, solved, residual), span)
     return Result(entry, True, "", span)
 
 
-def _describe_difference(expected: sp.Expr, derived: sp.Expr, solved: bool) -> str:
+def _describe_difference(expected: sp.Expr, derived: sp.Expr, solved: bool, residual: sp.Expr) -> str:
     if solved:
-        return "differs from the derived acceleration"
-    difference = sp.trigsimp(sp.expand(derived - expected)) if sp.count_ops(derived) < 200 else sp.expand(derived - expected)
-    return f"expected is missing {difference} (derived: {derived})"
+        return f"differs from the derived acceleration (expected - derived = {sp.N(residual, 3)} at a random state)"
+    return describe_terms(expected, _tidy(sp.expand(derived - expected))) + f" (derived: {derived})"
 
 
 def _evaluate(expr: sp.Expr, point: Point, with_unknowns: bool) -> tuple[sp.Float, sp.Float]:
@@ -215,3 +313,72 @@ def _smooth(a: sp.Float, b: sp.Float, c: sp.Float) -> Callable[..., sp.Expr]:
 
 def _undefined(model: Model) -> set[sp.Expr]:
     return set(sp.Matrix([*model.mass_matrix, *model.forcing, model.lagrangian]).atoms(sp.core.function.AppliedUndef))
+
+
+@dataclass(frozen=True)
+class FileReport:
+    """The results of one file, or the bad-input error that stopped it."""
+
+    path: str
+    results: tuple[Result, ...] = ()
+    error: str = ""
+
+    @property
+    def status(self) -> str:
+        if self.error:
+            return "error"
+        return "fail" if any(not r.passed for r in self.results) else "pass"
+
+
+def check_file(path: str) -> FileReport:
+    """Load, derive and check one file; bad input becomes the report's `error`."""
+    from lagrange_cli import derive, spec
+    from lagrange_cli.errors import LagrangeError
+
+    try:
+        system = spec.load(path)
+        return FileReport(str(path), tuple(check(system, derive.derive(system))))
+    except LagrangeError as error:
+        return FileReport(str(path), error=str(error))
+
+
+def exit_code(reports: list[FileReport]) -> int:
+    """0 when every answer is right, 1 when some answer is wrong, 2 for bad input."""
+    statuses = {r.status for r in reports}
+    return 2 if "error" in statuses else 1 if "fail" in statuses else 0
+
+
+def to_json(reports: list[FileReport]) -> str:
+    import json
+
+    files = []
+    for report in reports:
+        entries = [
+            {"entry": r.entry, "passed": r.passed, "method": r.method, "detail": r.detail, "line": r.span.line if r.span else None, "column": r.span.column if r.span else None} for r in report.results
+        ]
+        files.append({"path": report.path, "status": report.status, "error": report.error or None, "results": entries})
+    counts = {status: sum(1 for r in reports if r.status == status) for status in ("pass", "fail", "error")}
+    return json.dumps({"files": files, "summary": {"files": len(reports), **counts, "exit_code": exit_code(reports)}}, indent=2) + "\n"
+
+
+def to_junit(reports: list[FileReport]) -> str:
+    """JUnit XML: one test suite per file, one test case per `expect` entry."""
+    import xml.etree.ElementTree as ET
+
+    root = ET.Element("testsuites", name="lagrange check")
+    for report in reports:
+        suite = ET.SubElement(root, "testsuite", name=report.path, tests=str(max(len(report.results), 1)))
+        suite.set("failures", str(sum(1 for r in report.results if not r.passed)))
+        suite.set("errors", "1" if report.error else "0")
+        if report.error:
+            case = ET.SubElement(suite, "testcase", classname=report.path, name="load")
+            ET.SubElement(case, "error", message=report.error.splitlines()[0]).text = report.error
+        for result in report.results:
+            case = ET.SubElement(suite, "testcase", classname=report.path, name=result.entry)
+            if result.span:
+                case.set("file", result.span.file)
+                case.set("line", str(result.span.line))
+            if not result.passed:
+                ET.SubElement(case, "failure", message=result.detail).text = result.detail
+    ET.indent(root)
+    return '<?xml version="1.0" encoding="utf-8"?>\n' + ET.tostring(root, encoding="unicode") + "\n"

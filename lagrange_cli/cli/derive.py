@@ -7,7 +7,7 @@ from typing import Annotated
 
 import typer
 
-from lagrange_cli.cli import Form, app, fail_with, output
+from lagrange_cli.cli import Form, app, fail_with, output, write_atomically
 
 
 @app.command()
@@ -50,42 +50,51 @@ def derive(
 @app.command()
 def check(
     paths: Annotated[list[str], typer.Argument(help="System files, directories or globs with `expect` blocks.")],
+    junit: Annotated[Path | None, typer.Option("--junit", help="Also write a JUnit XML report here (one test case per expect entry).")] = None,
+    as_json: Annotated[bool, typer.Option("--json", help="Print a JSON report instead of the table.")] = False,
 ) -> None:
-    """Check the answers under `expect` against the derived equations (exit 1 if any is wrong)."""
+    """Check the answers under `expect` against the derived equations.
+
+    Exit code 0: all pass; 1: some answer is wrong; 2: bad input.
+    """
     from rich.console import Console
     from rich.table import Table
 
     from lagrange_cli import check as checker
-    from lagrange_cli import derive as core
     from lagrange_cli import spec
     from lagrange_cli.errors import LagrangeError
 
-    console = Console(highlight=False)
-    errors = Console(stderr=True, highlight=False, soft_wrap=True)
-    table = Table(title="lagrange check")
-    for column in ("file", "entry", "result", "how"):
-        table.add_column(column)
-    wrong = bad = 0
     try:
         files = list(spec.iter_files(paths))
     except LagrangeError as error:
         fail_with(error)
-    for path in files:
-        try:
-            system = spec.load(path)
-            results = checker.check(system, core.derive(system))
-        except LagrangeError as error:
-            errors.print(str(error), markup=False)
-            table.add_row(str(path), "-", "[red]error[/red]", "bad input")
-            bad += 1
-            continue
-        if not results:
-            table.add_row(str(path), "-", "[dim]no expect[/dim]", "")
-        for result in results:
+    reports = [checker.check_file(str(path)) for path in files]
+    if junit is not None:
+        write_atomically(junit, checker.to_junit(reports))
+    if as_json:
+        output(checker.to_json(reports), None)
+        raise typer.Exit(checker.exit_code(reports))
+    errors = Console(stderr=True, highlight=False, soft_wrap=True)
+    table = Table(title="lagrange check")
+    for column in ("file", "entry", "result", "decided"):
+        table.add_column(column)
+    for report in reports:
+        if report.error:
+            errors.print(report.error, markup=False)
+            table.add_row(report.path, "-", "[red]error[/red]", "bad input")
+        elif not report.results:
+            table.add_row(report.path, "-", "[dim]no expect[/dim]", "")
+        for result in report.results:
             if not result.passed:
-                wrong += 1
-                where = f"{result.span}: " if result.span else f"{path}: "
-                errors.print(f"{where}wrong: {result.entry}: {result.detail}", markup=False)
-            table.add_row(str(path), result.entry, "[green]pass[/green]" if result.passed else "[red]FAIL[/red]", result.method)
-    console.print(table)
-    raise typer.Exit(2 if bad else 1 if wrong else 0)
+                errors.print(f"[bold red]wrong[/bold red] {result.span or report.path}: [bold]{result.entry}[/bold]: {escape(result.detail)}")
+            table.add_row(report.path, result.entry, "[green]pass[/green]" if result.passed else "[red]FAIL[/red]", result.method)
+    Console(highlight=False).print(table)
+    counts = {status: sum(1 for r in reports if r.status == status) for status in ("pass", "fail", "error")}
+    Console(highlight=False).print(f"{len(reports)} files: {counts['pass']} passed, {counts['fail']} failed, {counts['error']} with errors")
+    raise typer.Exit(checker.exit_code(reports))
+
+
+def escape(text: str) -> str:
+    from rich.markup import escape as rich_escape
+
+    return rich_escape(text)
