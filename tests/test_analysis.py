@@ -25,8 +25,8 @@ def test_exercise_6_1_stability_condition() -> None:
     model = system("rotating_rod_strings")
     theta = model.q[0]
     lin = analysis.linearize(model, {theta: sp.Integer(0)})
-    g, l, omega = sp.symbols("g l omega")
-    assert lin.condition == (sp.StrictLessThan(omega**2, g / l),)
+    g, length, omega = sp.symbols("g l omega")
+    assert lin.condition == (sp.StrictLessThan(omega**2, g / length),)
     result = runner.invoke(app, ["equilibria", "rotating_rod_strings"])
     assert result.exit_code == 0 and "stable when: omega**2 < g/l" in result.stdout
 
@@ -54,8 +54,8 @@ def test_hamiltonian_of_the_central_potential() -> None:
 def test_double_pendulum_normal_modes() -> None:
     model = system("double_pendulum")
     lin = analysis.linearize(model, {q: sp.Integer(0) for q in model.q})
-    g, l = 9.81, 1.0
-    expected = sorted(math.sqrt((2 + s * math.sqrt(2)) * g / l) for s in (-1, 1))
+    g, length = 9.81, 1.0
+    expected = sorted(math.sqrt((2 + s * math.sqrt(2)) * g / length) for s in (-1, 1))
     assert [round(f, 9) for f in lin.frequencies] == [round(f, 9) for f in expected]
     assert lin.stability.startswith("stable")
     upright = analysis.linearize(model, {model.q[0]: sp.pi, model.q[1]: sp.pi})

@@ -53,6 +53,7 @@ def test_model_depends_only_on_errors() -> None:
 
 
 def test_symbolic_modules_import_no_numerics() -> None:
+    """The modules `derive` loads; analysis and numeric ones import numpy inside functions."""
     for name, found in modules().items():
-        if not name.startswith(("lagrange_cli.numeric", "lagrange_cli.cli")):
+        if not name.startswith(("lagrange_cli.numeric", "lagrange_cli.cli", "lagrange_cli.analysis", "lagrange_cli.report")):
             assert not any(i.split(".")[0] in ("numpy", "scipy", "matplotlib") for i in found), name
