@@ -36,7 +36,8 @@ class Diagnostic:
         lines = [f"{where}error: {self.message}"]
         if self.span and self.span.text:
             lines.append("    " + self.span.text)
-            lines.append("    " + " " * (self.span.column - 1) + "^")
+            pad = "".join(c if c == "\t" else " " for c in self.span.text[: self.span.column - 1])  # tabs stay tabs, so the caret lines up
+            lines.append("    " + pad.ljust(self.span.column - 1) + "^")
         if self.expected:
             lines.append(f"  expected: {self.expected}")
         return "\n".join(lines)

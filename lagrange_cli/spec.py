@@ -6,6 +6,7 @@ Every problem in the file is collected and reported at once.
 
 from __future__ import annotations
 
+import dataclasses
 import keyword
 import re
 from collections.abc import Callable, Iterator, Mapping
@@ -17,10 +18,12 @@ import sympy as sp
 import yaml
 
 from lagrange_cli.errors import Diagnostic, LagrangeError, Span, SpecError, fail
-from lagrange_cli.expr import RESERVED, Scope, _closest, parse_equation, parse_expression
+from lagrange_cli.expr import CONSTANTS, RESERVED, Scope, _closest, numeric_value, parse_equation, parse_expression, real_derivative
 from lagrange_cli.model import Parameter
 
 MAX_FILE_BYTES = 1_000_000
+MAX_YAML_DEPTH = 40
+MAX_YAML_VALUES = 20_000
 NAME = re.compile(r"[A-Za-z][A-Za-z0-9_]*\Z")
 TOP_KEYS = (
     "title", "description", "coordinates", "parameters", "functions", "gravity", "particles",
@@ -32,6 +35,14 @@ BODY_KEYS = ("mass", "position", "inertia", "angular_velocity")
 EXPECT_KEYS = ("equations", "accelerations", "momenta", "conserved")
 SIMULATE_KEYS = ("t_end", "method", "rtol", "atol", "step", "samples")
 STANDARD_TAGS = {f"tag:yaml.org,2002:{kind}" for kind in ("str", "int", "float", "bool", "null", "seq", "map")}
+IMPLICIT_TAGS = {"tag:yaml.org,2002:timestamp": "a date", "tag:yaml.org,2002:merge": "a merge key", "tag:yaml.org,2002:value": "a value key"}
+LINE_BREAK = re.compile("\r\n|[\r\n\x85\u2028\u2029]")
+ESCAPES = {
+    "0": "\0", "a": "\a", "b": "\b", "t": "\t", "\t": "\t", "n": "\n", "v": "\v", "f": "\f", "r": "\r", "e": "\x1b", " ": " ",
+    '"': '"', "/": "/", "\\": "\\", "N": "\x85", "_": "\xa0", "L": "\u2028", "P": "\u2029",
+}  # fmt: skip
+COMMA_AFTER = re.compile(r"[ \t\r\n]*,")
+FLOW_HINT = '; a comma inside a flow list `[...]` or map `{...}` splits an expression in two: quote it (`"atan2(y, x)"`) or write the list as a block list, one `- item` per line'
 
 
 @dataclass(frozen=True)
@@ -92,10 +103,10 @@ class SystemSpec:
     gravity: tuple[sp.Expr, ...] | None = None
     particles: tuple[Particle, ...] = ()
     bodies: tuple[Body, ...] = ()
-    kinetic: sp.Expr = sp.Integer(0)
-    potential: sp.Expr = sp.Integer(0)
-    lagrangian: sp.Expr = sp.Integer(0)
-    dissipation: sp.Expr = sp.Integer(0)
+    kinetic: sp.Expr = sp.S.Zero
+    potential: sp.Expr = sp.S.Zero
+    lagrangian: sp.Expr = sp.S.Zero
+    dissipation: sp.Expr = sp.S.Zero
     generalized_forces: tuple[sp.Expr, ...] = ()
     constraints: tuple[Constraint, ...] = ()
     eliminate: tuple[tuple[str, Span], ...] = ()
@@ -167,21 +178,41 @@ def _compose(text: str, filename: str) -> yaml.Node:
         line = lines[mark.line] if mark.line < len(lines) else ""
         return Span(filename, mark.line + 1, mark.column + 1, line)
 
+    span_at_start = Span(filename, 1, 1, lines[0] if lines else "")
+
     try:
-        for event in yaml.parse(text, Loader=yaml.SafeLoader):
+        # Check the event stream before building anything: aliases (billion laughs), deep
+        # nesting (the composer recurses) and sheer size are refused at their first sign.
+        depth = 0
+        for count, event in enumerate(yaml.parse(text, Loader=yaml.SafeLoader)):
             if isinstance(event, yaml.AliasEvent) or getattr(event, "anchor", None):
                 raise fail(span(event.start_mark), "YAML anchors and aliases are not supported", "plain values written out in full")
+            if isinstance(event, yaml.CollectionStartEvent):
+                depth += 1
+                if depth > MAX_YAML_DEPTH:
+                    raise fail(span(event.start_mark), f"YAML is nested more than {MAX_YAML_DEPTH} levels deep", "a map of the documented keys, with lists and maps nested a few levels at most")
+            elif isinstance(event, yaml.CollectionEndEvent):
+                depth -= 1
+            if count > MAX_YAML_VALUES:
+                raise fail(span(event.start_mark), f"the file holds more than {MAX_YAML_VALUES} YAML values", "a system file of a reasonable size")
         root = yaml.compose(text, Loader=yaml.SafeLoader)
     except yaml.MarkedYAMLError as exc:
         mark = exc.problem_mark or exc.context_mark
         message = f"malformed YAML: {exc.problem or exc.context}"
-        raise fail(span(mark) if mark else Span(filename, 1, 1), message, "valid YAML, a map of keys such as `coordinates:`") from None
+        if exc.problem and exc.context and exc.context_mark and exc.problem_mark and exc.context_mark.line != exc.problem_mark.line:
+            message += f" ({exc.context} that starts at line {exc.context_mark.line + 1}, column {exc.context_mark.column + 1})"
+        raise fail(span(mark) if mark else span_at_start, message, "valid YAML, a map of keys such as `coordinates:`") from None
+    except yaml.reader.ReaderError as exc:
+        before = LINE_BREAK.split(text[: exc.position])
+        where = Span(filename, len(before), len(before[-1]) + 1, lines[len(before) - 1] if len(before) <= len(lines) else "")
+        code = exc.character if isinstance(exc.character, int) else ord(exc.character)
+        raise fail(where, f"control character U+{code:04X} is not allowed in YAML", "printable text (tabs and line breaks are fine)") from None
     except yaml.YAMLError as exc:
-        raise fail(Span(filename, 1, 1), f"malformed YAML: {exc}", "valid YAML") from None
+        raise fail(span_at_start, f"malformed YAML: {exc}", "valid YAML") from None
     except RecursionError:
-        raise fail(Span(filename, 1, 1), "YAML is nested too deeply", "a flat map of the documented keys") from None
+        raise fail(span_at_start, "YAML is nested too deeply", "a flat map of the documented keys") from None
     if root is None:
-        raise fail(Span(filename, 1, 1), "the file is empty", "a map with at least `coordinates:`")
+        raise fail(span_at_start, "the file is empty", "a map with at least `coordinates:`")
     return root
 
 
@@ -190,8 +221,10 @@ class _Reader:
 
     def __init__(self, filename: str, text: str) -> None:
         self.filename = filename
+        self.text = text
         self.lines = text.splitlines()
         self.problems: list[Diagnostic] = []
+        self.split_head: int | None = None  # where the last reported `f(x` of a split `[f(x, y)]` ends
 
     # -- helpers ------------------------------------------------------------------------------
 
@@ -204,22 +237,107 @@ class _Reader:
         """Where the scalar's text starts (after an opening quote)."""
         return self.span(node).shifted(1 if node.style in ("'", '"') else 0)
 
+    def locate(self, node: yaml.ScalarNode, offset: int) -> Span:
+        """Where character `offset` of the scalar's value is in the file, also when YAML changed
+        the text on the way: a folded multi-line or block scalar, or escapes in quotes.
+
+        The value's non-blank characters appear in the source in the same order (after
+        undoing escapes), so the two are walked side by side, skipping blanks."""
+        units = self._source_units(node)
+        value = node.value
+        wanted = sum(1 for c in value[:offset] if not c.isspace())
+        visible = [c for c in value if not c.isspace()]
+        if units is None or [c for _, _, c in units] != visible:
+            return self.text_span(node)
+        if offset < len(value) and not value[offset].isspace() and wanted < len(units):
+            index = units[wanted][0]
+        elif wanted > 0:
+            index = units[wanted - 1][1]  # just after the last thing before `offset`
+        else:
+            return self.text_span(node)
+        start = node.start_mark
+        breaks = list(LINE_BREAK.finditer(self.text, start.index, index))
+        line = start.line + len(breaks)
+        column = index - breaks[-1].end() if breaks else start.column + index - start.index
+        return Span(self.filename, line + 1, column + 1, self.lines[line] if line < len(self.lines) else "")
+
+    def _source_units(self, node: yaml.ScalarNode) -> list[tuple[int, int, str]] | None:
+        """The non-blank characters of a scalar's source as (start, end, character), escapes decoded."""
+        text, i, end = self.text, node.start_mark.index, node.end_mark.index
+        if node.style in ("|", ">"):
+            header = LINE_BREAK.search(text, i, end)
+            if header is None:
+                return None
+            i = header.end()
+        elif node.style in ("'", '"'):
+            i, end = i + 1, end - 1
+        units = []
+        while i < end:
+            c, size = text[i], 1
+            if node.style == "'" and text.startswith("''", i):
+                size = 2
+            elif node.style == '"' and c == "\\" and i + 1 < end:
+                kind = text[i + 1]
+                width = {"x": 2, "u": 4, "U": 8}.get(kind)
+                if width is not None:
+                    try:
+                        c, size = chr(int(text[i + 2 : i + 2 + width], 16)), 2 + width
+                    except ValueError:
+                        return None
+                elif kind in ESCAPES:
+                    c, size = ESCAPES[kind], 2
+                elif LINE_BREAK.match(text, i + 1):
+                    c, size = " ", 1 + len(LINE_BREAK.match(text, i + 1).group())  # type: ignore[union-attr]
+                else:
+                    return None
+            if not c.isspace():
+                units.append((i, i + size, c))
+            i += size
+        return units
+
+    def split_by_comma(self, node: yaml.Node) -> bool:
+        """A plain scalar of a flow list or map that a comma cut out of a longer expression,
+        e.g. `f(x` and `y)` from `[f(x, y)]`: its brackets do not balance and a comma is next to it."""
+        if not isinstance(node, yaml.ScalarNode) or node.style is not None:
+            return False
+        balance = sum(node.value.count(c) for c in "([{") - sum(node.value.count(c) for c in ")]}")
+        if balance == 0:
+            return False
+        if balance > 0:
+            return COMMA_AFTER.match(self.text, node.end_mark.index) is not None
+        i = node.start_mark.index - 1
+        while i >= 0 and self.text[i] in " \t\r\n":
+            i -= 1
+        return i >= 0 and self.text[i] == ","
+
+    def parsed(self, node: yaml.ScalarNode, text: str, parser: Callable[[str, Span, Scope], sp.Expr], scope: Scope) -> sp.Expr | None:
+        """Run an expression parser on a scalar, recording its problems at their place in the file."""
+        base = self.text_span(node)
+        try:
+            return parser(text, base, scope)
+        except SpecError as exc:
+            split = self.split_by_comma(node)
+            if split and node.value.count("(") > node.value.count(")"):
+                self.split_head = node.end_mark.index
+            elif split and self.split_head is not None and not any(c in "[]{}" for c in self.text[self.split_head : node.start_mark.index]):
+                return None  # the second half of an expression whose first half was reported
+            for d in exc.diagnostics:
+                span = d.span
+                if span is not None and span.file == base.file and span.line == base.line:
+                    span = self.locate(node, span.column - base.column)
+                self.problems.append(Diagnostic(span, d.message, d.expected + (FLOW_HINT if split else "")))
+            return None
+
     def problem(self, node: yaml.Node | None, message: str, expected: str = "") -> None:
         self.problems.append(Diagnostic(self.span(node) if node is not None else None, message, expected))
 
-    def guard(self, action: Callable[[], Any]) -> Any:
-        """Run `action`, recording a `SpecError` instead of raising it; returns None on error."""
-        try:
-            return action()
-        except SpecError as exc:
-            self.problems.extend(exc.diagnostics)
-            return None
-
     def check_tags(self, node: yaml.Node, depth: int = 0) -> None:
-        if depth > 40:
-            self.problem(node, "YAML is nested too deeply", "at most 40 levels")
+        if depth > MAX_YAML_DEPTH:
+            self.problem(node, "YAML is nested too deeply", f"at most {MAX_YAML_DEPTH} levels")
             return
-        if node.tag not in STANDARD_TAGS:
+        if node.tag in IMPLICIT_TAGS and not self.text.startswith("!", node.start_mark.index):
+            self.problem(node, f"YAML reads '{node.value}' as {IMPLICIT_TAGS[node.tag]}", "a number, a name or an expression; put it in quotes if it is meant as text")
+        elif node.tag not in STANDARD_TAGS:
             self.problem(node, f"YAML tag '{node.tag}' is not allowed", "plain values without tags")
         if isinstance(node, yaml.SequenceNode):
             for item in node.value:
@@ -234,7 +352,8 @@ class _Reader:
         if not isinstance(node, yaml.MappingNode):
             self.problem(node, f"{what} must be a map, got {_kind(node)}", f"a map of `key: value` lines for {what}")
             return []
-        entries, seen = [], set()
+        entries: list[tuple[str, yaml.Node, yaml.Node]] = []
+        seen: set[str] = set()
         for key_node, value_node in node.value:
             if not isinstance(key_node, yaml.ScalarNode) or key_node.tag != "tag:yaml.org,2002:str":
                 self.problem(key_node, f"a key in {what} must be a name, got {_kind(key_node)}", "a name")
@@ -245,11 +364,17 @@ class _Reader:
                 continue
             seen.add(key)
             if keys is not None and key not in keys:
+                if self.split_by_comma(key_node) and value_node.tag == "tag:yaml.org,2002:null":
+                    continue  # `y)` from `{mass: f(x, y)}`, reported with its first half
                 hint = _closest(key, list(keys))
                 self.problem(key_node, f"unknown key '{key}' in {what}", (f"did you mean '{hint}'? " if hint else "") + "one of " + ", ".join(keys))
                 continue
             entries.append((key, key_node, value_node))
         return entries
+
+    def near_misses(self, node: yaml.MappingNode, keys: tuple[str, ...]) -> set[str | None]:
+        """The known keys that the unknown keys of a map look like misspellings of."""
+        return {_closest(k.value, list(keys)) for k, _ in node.value if isinstance(k, yaml.ScalarNode) and k.value not in keys}
 
     def sequence(self, node: yaml.Node, what: str) -> list[yaml.Node]:
         if not isinstance(node, yaml.SequenceNode):
@@ -274,8 +399,14 @@ class _Reader:
         if text is None:
             return None
         assert isinstance(node, yaml.ScalarNode)
-        parser = parse_equation if equation else parse_expression
-        return self.guard(lambda: parser(text, self.text_span(node), scope))
+        result = self.parsed(node, text, parse_equation if equation else parse_expression, scope)
+        if result is not None and scope.elsewhere:
+            # a total time derivative can bring in a velocity, e.g. `diff(x, t)` in a position
+            found = sorted(str(s) for s in result.free_symbols if str(s) in scope.elsewhere)
+            if found:
+                self.problem(node, f"{what} depends on {scope.elsewhere[found[0]]} ('{found[0]}')", scope.refusal())
+                return None
+        return result
 
     def vector(self, node: yaml.Node, what: str, scope: Scope, lengths: tuple[int, ...] = (1, 2, 3)) -> tuple[sp.Expr, ...] | None:
         items = self.sequence(node, what)
@@ -283,7 +414,7 @@ class _Reader:
             if isinstance(node, yaml.SequenceNode):
                 self.problem(node, f"{what} is an empty list", f"a list of {' or '.join(map(str, lengths))} components")
             return None
-        if len(items) not in lengths:
+        if len(items) not in lengths and not any(self.split_by_comma(item) for item in items):
             self.problem(node, f"{what} has {len(items)} components", f"{' or '.join(map(str, lengths))} components")
             return None
         values = [self.expression(item, f"a component of {what}", scope) for item in items]
@@ -297,18 +428,25 @@ class _Reader:
         if text is None:
             return None
         assert isinstance(node, yaml.ScalarNode)
-        scope = Scope({}, {}, sp.Symbol("t"), lambda e: e, what="numbers, `pi` and `E` (a default must be a number)")
-        value = self.guard(lambda: parse_expression(text, self.text_span(node), scope))
+        expected = "a number such as 9.81, or a constant expression such as `pi/4`"
+        if NAME.match(text.strip()) and text.strip() not in CONSTANTS:
+            self.problem(node, f"{what} must be a number, got '{text.strip()}'", expected)
+            return None
+        if node.tag == "tag:yaml.org,2002:float" and text.strip().lower().lstrip("+-") in (".inf", ".nan"):
+            self.problem(node, f"{what} must be a finite real number, got '{text}'", expected)
+            return None
+        scope = Scope({}, {}, sp.Symbol("t"), lambda e: e, what="numbers, `pi`, `E` and the listed functions (a default must be a number)")
+        value = self.parsed(node, text, parse_expression, scope)
         if value is None:
             return None
         if not value.is_number or value.has(sp.Symbol("t")):
-            self.problem(node, f"{what} must be a number, got '{text}'", "a number such as 9.81")
+            self.problem(node, f"{what} must be a number, got '{text}'", expected)
             return None
-        result = complex(sp.N(value))
-        if result.imag != 0 or result.real != result.real or abs(result.real) == float("inf"):
-            self.problem(node, f"{what} must be a finite real number, got '{text}'", "a number such as 9.81")
+        try:
+            return numeric_value(value)
+        except (OverflowError, ValueError):
+            self.problem(node, f"{what} must be a finite real number, got '{text}'", expected)
             return None
-        return result.real
 
     def name(self, node: yaml.Node, what: str, taken: dict[str, str]) -> str | None:
         if not isinstance(node, yaml.ScalarNode) or node.tag != "tag:yaml.org,2002:str":
@@ -351,12 +489,19 @@ class _Reader:
         undefined = {f: sp.Function(f) for f in functions}
 
         def ddt(expr: sp.Expr) -> sp.Expr:
-            return time_derivative(expr, q, qd, qdd, t)
+            def total(e: sp.Expr, real: Mapping[sp.Symbol, sp.Symbol]) -> sp.Expr:
+                rq, rqd, rqdd = (tuple(real.get(s, s) for s in v) for v in (q, qd, qdd))
+                return time_derivative(e, rq, rqd, rqdd, real.get(t, t))
+
+            return real_derivative(expr, total)
 
         names = {str(s): s for s in (*q, *qd, *(p.symbol for p in parameters))}
-        state = Scope(names, undefined, t, ddt, "a coordinate, a velocity (`<q>_dot`), a parameter, `t`")
-        config = Scope({str(s): s for s in (*q, *(p.symbol for p in parameters))}, undefined, t, ddt, "a coordinate, a parameter, `t`")
-        constants = Scope({p.name: p.symbol for p in parameters}, undefined, t, ddt, "a parameter, `t`")
+        velocities = {str(s): "a velocity" for s in qd}
+        accelerations = {str(s): "an acceleration" for s in qdd}
+        state = Scope(names, undefined, t, ddt, "a coordinate, a velocity (`<q>_dot`), a parameter, `t`", accelerations)
+        config = Scope({str(s): s for s in (*q, *(p.symbol for p in parameters))}, undefined, t, ddt, "a coordinate, a parameter, `t`", {**velocities, **accelerations})
+        constants = Scope({p.name: p.symbol for p in parameters}, undefined, t, ddt, "a parameter, `t`", {**{c: "a coordinate" for c in coordinates}, **velocities, **accelerations})
+        potential_scope = dataclasses.replace(config, note="velocity-dependent terms belong under `lagrangian`")
 
         def value(key: str) -> yaml.Node | None:
             return entries[key][1] if key in entries else None
@@ -365,13 +510,12 @@ class _Reader:
             node = value(key)
             return (self.expression(node, f"'{key}'", scope) if node is not None else None) or sp.Integer(0)
 
-        gravity = self.vector(value("gravity"), "'gravity'", constants) if value("gravity") is not None else None
+        gravity_node = value("gravity")
+        gravity = self.vector(gravity_node, "'gravity'", constants) if gravity_node is not None else None
         particles = self.particles(value("particles"), config, state, constants)
         bodies = self.bodies(value("bodies"), config, state, constants)
         self.check_dimensions(gravity, particles, bodies, value)
-        potential = expr("potential", config)
-        if value("potential") is not None and any(potential.has(s) for s in qd):
-            self.problem(value("potential"), "'potential' depends on velocities", "a function of coordinates and time; put velocity-dependent terms under `lagrangian`")
+        potential = expr("potential", potential_scope)
         spec = SystemSpec(
             path=self.filename,
             title=self.string(value("title"), "'title'") or Path(self.filename).stem.replace("_", " ").capitalize(),
@@ -467,7 +611,7 @@ class _Reader:
         for name, _, value in self.mapping(node, "'particles'"):
             fields = {k: v for k, _, v in self.mapping(value, f"particle '{name}'", PARTICLE_KEYS)}
             for required in ("mass", "position"):
-                if required not in fields and isinstance(value, yaml.MappingNode):
+                if required not in fields and isinstance(value, yaml.MappingNode) and required not in self.near_misses(value, PARTICLE_KEYS):
                     self.problem(value, f"particle '{name}' has no '{required}'", f"`{required}:` " + ("an expression" if required == "mass" else "a list of 1 to 3 components"))
             mass = self.expression(fields["mass"], f"the mass of '{name}'", constants) if "mass" in fields else None
             position = self.vector(fields["position"], f"the position of '{name}'", config) if "position" in fields else None
@@ -486,7 +630,9 @@ class _Reader:
         result = []
         for name, _, value in self.mapping(node, "'bodies'"):
             fields = {k: v for k, _, v in self.mapping(value, f"body '{name}'", BODY_KEYS)}
-            missing = [k for k in BODY_KEYS if k not in fields]
+            missing = [k for k in BODY_KEYS if k not in fields and (not isinstance(value, yaml.MappingNode) or k not in self.near_misses(value, BODY_KEYS))]
+            if not missing and len(fields) < len(BODY_KEYS):
+                continue  # a misspelt key, reported with a "did you mean"
             if missing and isinstance(value, yaml.MappingNode):
                 self.problem(value, f"body '{name}' has no {', '.join(repr(m) for m in missing)}", "mass, position, inertia and angular_velocity")
                 continue
@@ -499,7 +645,9 @@ class _Reader:
             if mass is None or position is None or inertia is None or omega is None:
                 continue
             if len(inertia) != len(omega):
-                self.problem(fields["angular_velocity"], f"body '{name}': inertia has {len(inertia)} component(s) but angular_velocity has {len(omega)}", "both scalars (planar) or both 3-lists (spatial)")
+                self.problem(
+                    fields["angular_velocity"], f"body '{name}': inertia has {len(inertia)} component(s) but angular_velocity has {len(omega)}", "both scalars (planar) or both 3-lists (spatial)"
+                )
                 continue
             result.append(Body(name, mass, position, inertia, omega))
         return tuple(result)
@@ -513,7 +661,8 @@ class _Reader:
     def check_dimensions(self, gravity: tuple[sp.Expr, ...] | None, particles: tuple[Particle, ...], bodies: tuple[Body, ...], value: Callable[[str], yaml.Node | None]) -> None:
         if gravity is None:
             return
-        for item in (*particles, *bodies):
+        items: tuple[Particle | Body, ...] = (*particles, *bodies)
+        for item in items:
             if len(item.position) != len(gravity):
                 self.problem(value("gravity"), f"'gravity' has {len(gravity)} components but the position of '{item.name}' has {len(item.position)}", "vectors of one length throughout the file")
                 return
@@ -522,7 +671,7 @@ class _Reader:
         forces = [sp.Integer(0)] * len(coordinates)
         if node is None:
             return ()
-        for key, _, value in self.mapping(node, "'forces'", ("generalized",)):
+        for _, _, value in self.mapping(node, "'forces'", ("generalized",)):
             for coordinate, key_node, force in self.mapping(value, "'forces.generalized'"):
                 if coordinate not in coordinates:
                     hint = _closest(coordinate, list(coordinates))
@@ -564,9 +713,12 @@ class _Reader:
             return ()
         result = []
         for item in self.sequence(node, "'eliminate'"):
-            if not isinstance(item, yaml.ScalarNode) or item.value not in coordinates:
-                hint = _closest(str(getattr(item, "value", "")), list(coordinates))
-                self.problem(item, f"'{getattr(item, 'value', '')}' is not a coordinate", "one of " + ", ".join(coordinates) + (f"; did you mean '{hint}'?" if hint else ""))
+            if not isinstance(item, yaml.ScalarNode):
+                self.problem(item, f"an entry of 'eliminate' must be a coordinate name, got {_kind(item)}", "one of " + ", ".join(coordinates))
+                continue
+            if item.value not in coordinates:
+                hint = _closest(str(item.value), list(coordinates))
+                self.problem(item, f"'{item.value}' is not a coordinate", "one of " + ", ".join(coordinates) + (f"; did you mean '{hint}'?" if hint else ""))
                 continue
             result.append((str(item.value), self.span(item)))
         return tuple(result)
@@ -617,7 +769,13 @@ class _Reader:
     def expect(self, node: yaml.Node, spec: SystemSpec, state: Scope) -> Expect:
         fields = {k: v for k, _, v in self.mapping(node, "'expect'", EXPECT_KEYS)}
         multipliers = {f"lambda_{c.name}": sp.Symbol(f"lambda_{c.name}") for c in spec.constraints}
-        full = Scope({**state.symbols, **{str(s): s for s in spec.qdd}, **multipliers}, state.functions, state.time, state.time_derivative, "a coordinate, velocity, acceleration (`<q>_ddot`), parameter, multiplier or `t`")
+        full = Scope(
+            {**state.symbols, **{str(s): s for s in spec.qdd}, **multipliers},
+            state.functions,
+            state.time,
+            state.time_derivative,
+            "a coordinate, velocity, acceleration (`<q>_ddot`), parameter, multiplier or `t`",
+        )
         equations = []
         for item in self.sequence(fields["equations"], "'expect.equations'") if "equations" in fields else []:
             expr = self.expression(item, "an expected equation", full, equation=True)
@@ -644,15 +802,13 @@ class _Reader:
         for item in self.sequence(fields["conserved"], "'expect.conserved'") if "conserved" in fields else []:
             name = getattr(item, "value", None)
             if not isinstance(item, yaml.ScalarNode) or (name not in spec.coordinates and name != "energy"):
-                self.problem(item, f"'{name}' is not a coordinate or 'energy'", "coordinate names and/or `energy`")
+                self.problem(item, f"{repr(name) if isinstance(item, yaml.ScalarNode) else _kind(item)} is not a coordinate or 'energy'", "coordinate names and/or `energy`")
                 continue
             conserved.append((str(name), self.span(item)))
         return Expect(tuple(equations), tuple(accelerations), tuple(momenta), tuple(conserved))
 
 
 def _replace(spec: SystemSpec, **changes: Any) -> SystemSpec:
-    import dataclasses
-
     return dataclasses.replace(spec, **changes)
 
 
