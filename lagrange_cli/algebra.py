@@ -13,6 +13,13 @@ from lagrange_cli.errors import DerivationError
 from lagrange_cli.model import Model
 
 
+def expand_bounded(expr: sp.Expr, max_power: int = 6) -> sp.Expr:
+    """sympy's expand, except when a power of a sum above `max_power` would explode."""
+    if any(p.base.is_Add and p.exp.is_Integer and abs(int(p.exp)) > max_power for p in expr.atoms(sp.Pow)):
+        return expr
+    return sp.expand(expr)
+
+
 def combine_trig(expr: se.Basic) -> se.Basic:
     """Targeted, linear-time trigonometric simplification of an expanded sum:
     c cos a cos b + c sin a sin b -> c cos(a - b), c cos a cos b - c sin a sin b -> c cos(a + b),
@@ -133,11 +140,15 @@ def check_invertible(model: Model, matrix: sp.Matrix | None = None) -> None:
         matrix = augmented(model)[0]
     zero_rows = [model.coordinates[i] for i in range(model.n) if all(matrix[i, j] == 0 for j in range(matrix.cols))]
     if zero_rows:
-        raise DerivationError(
-            f"{model.source}: the mass matrix is singular: coordinate{'s' * (len(zero_rows) > 1)} "
-            f"{', '.join(repr(z) for z in zero_rows)} {'have' if len(zero_rows) > 1 else 'has'} no inertia "
-            "(no kinetic energy depends on its velocity); give it a mass, or remove it with a constraint and `eliminate`"
-        )
+        from lagrange_cli.errors import fail
+
+        names = ", ".join(repr(z) for z in zero_rows)
+        message = f"the mass matrix is singular: coordinate{'s' * (len(zero_rows) > 1)} {names} {'have' if len(zero_rows) > 1 else 'has'} no inertia (no kinetic energy depends on {'their velocities' if len(zero_rows) > 1 else 'its velocity'})"
+        expected = "give it a mass, or remove it with a constraint and `eliminate`"
+        span = model.spans.get(zero_rows[0])
+        if span is not None:
+            raise fail(span, message, expected)
+        raise DerivationError(f"{model.source}: {message}; {expected}")
     if pivot_ratio(matrix, model) < 1e-12:
         raise DerivationError(
             f"{model.source}: the mass matrix{' (with the constraint rows)' if model.constraints else ''} is singular: "

@@ -41,6 +41,11 @@ def derive(spec: SystemSpec) -> Model:
         raise fail(None, f"{spec.path}: the Lagrangian depends on accelerations", "a Lagrangian of coordinates, velocities and time")
     p = momenta(lagrangian, qd)
     mass, force = euler_lagrange(lagrangian, dissipation, forces, q, qd, t)
+    for i, name in enumerate(spec.coordinates):
+        if all(m == 0 for m in mass[i]) and force[i] == 0 and not any(_has(c.expr, se.Symbol(name)) or _has(c.expr, qd[i]) for c in map(_se_constraint, spec.constraints)):
+            raise fail(
+                spec.spans.get(name), f"coordinate '{name}' appears nowhere in the energies or forces: its equation would be 0 = 0", "a coordinate that the positions, energies or forces depend on"
+            )
     return Model(
         title=spec.title,
         source=spec.path,
@@ -65,6 +70,7 @@ def derive(spec: SystemSpec) -> Model:
         initial=spec.initial,
         simulate=spec.simulate,
         exact=spec.exact,
+        spans=spec.spans,
     )
 
 
@@ -137,13 +143,29 @@ def euler_lagrange(lagrangian: se.Basic, dissipation: se.Basic, forces: Sequence
     for i, pi in enumerate(p):
         fi = se.diff(lagrangian, q[i]) - se.diff(pi, t) - se.diff(dissipation, qd[i]) + forces[i]
         fi -= sum((se.diff(pi, qk) * qdk for qk, qdk in zip(q, qd, strict=True)), se.Integer(0))
-        force.append(se.expand(fi))
-    return [[se.expand(m) for m in row] for row in mass], force
+        force.append(_expand(fi))
+    return [[_expand(m) for m in row] for row in mass], force
+
+
+def _expand(expr: se.Basic) -> se.Basic:
+    """Expand so that like terms cancel, unless a high power of a sum would explode."""
+    if any(isinstance(a, se.Pow) and isinstance(a.args[0], se.Add) and a.args[1].is_Integer and abs(int(a.args[1])) > 6 for a in _atoms(expr)):
+        return expr
+    return se.expand(expr)
+
+
+def _atoms(expr: se.Basic) -> list[se.Basic]:
+    stack, seen = [expr], []
+    while stack:
+        node = stack.pop()
+        seen.append(node)
+        stack.extend(node.args)
+    return seen
 
 
 def energy_function(lagrangian: se.Basic, p: Sequence[se.Basic], qd: Sequence[se.Basic]) -> se.Basic:
     """h = sum p_i q_dot_i - L, conserved when L has no explicit t and nothing dissipates."""
-    return se.expand(sum((pi * v for pi, v in zip(p, qd, strict=True)), se.Integer(0)) - lagrangian)
+    return _expand(sum((pi * v for pi, v in zip(p, qd, strict=True)), se.Integer(0)) - lagrangian)
 
 
 def constraint_row(constraint: Constraint, spec: SystemSpec) -> ConstraintRow:
@@ -231,6 +253,10 @@ def _substitute(spec: SystemSpec, k: int, solution: sp.Expr, used: Constraint) -
     return changed
 
 
+def _se_constraint(constraint: Constraint) -> Constraint:
+    return dataclasses.replace(constraint, expr=to_symengine(constraint.expr))
+
+
 def _masses(spec: SystemSpec) -> tuple[Particle | Body, ...]:
     return (*spec.particles, *spec.bodies)
 
@@ -240,7 +266,14 @@ def _se(values: Iterable[sp.Expr]) -> list[se.Basic]:
 
 
 def _sp(value: se.Basic) -> sp.Expr:
-    return sp.sympify(value)
+    """Back to sympy; derivatives of Abs and sign (real arguments) taken explicitly."""
+    result = sp.sympify(value)
+    if result.has(sp.Derivative):
+        result = result.replace(
+            lambda e: isinstance(e, sp.Derivative) and isinstance(e.expr, (sp.Abs, sp.sign)),
+            lambda e: sp.sign(e.expr.args[0]) * sp.diff(e.expr.args[0], *e.variables) if isinstance(e.expr, sp.Abs) else sp.Integer(0),
+        )
+    return result
 
 
 def _has(expr: se.Basic, symbol: se.Basic) -> bool:

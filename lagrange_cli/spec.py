@@ -113,6 +113,7 @@ class SystemSpec:
     initial: Mapping[str, float] = field(default_factory=dict)
     simulate: Mapping[str, Any] = field(default_factory=dict)
     exact: Mapping[str, sp.Expr] = field(default_factory=dict)
+    spans: Mapping[str, Span] = field(default_factory=dict)
     expect: Expect = Expect()
 
 
@@ -224,6 +225,7 @@ class _Reader:
         self.text = text
         self.lines = text.splitlines()
         self.problems: list[Diagnostic] = []
+        self.spans: dict[str, Span] = {}
         self.split_head: int | None = None  # where the last reported `f(x` of a split `[f(x, y)]` ends
 
     # -- helpers ------------------------------------------------------------------------------
@@ -521,6 +523,7 @@ class _Reader:
             title=self.string(value("title"), "'title'") or Path(self.filename).stem.replace("_", " ").capitalize(),
             description=self.string(value("description"), "'description'") or "",
             coordinates=coordinates,
+            spans=self.spans,
             q=q,
             qd=qd,
             qdd=qdd,
@@ -567,6 +570,7 @@ class _Reader:
         if isinstance(node, yaml.SequenceNode) and not items:
             self.problem(node, "'coordinates' is empty", "at least one generalized coordinate")
         names = [self.name(item, "coordinate", taken) for item in items]
+        self.spans.update({n: self.span(item) for n, item in zip(names, items, strict=True) if n})
         return tuple(n for n in names if n)
 
     def parameters(self, entries: dict[str, tuple[yaml.Node, yaml.Node]], taken: dict[str, str]) -> tuple[Parameter, ...]:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import sympy as sp
 
+from lagrange_cli.algebra import expand_bounded
 from lagrange_cli.errors import DerivationError
 from lagrange_cli.model import Model
 
@@ -21,13 +22,13 @@ def lagrange_terms(model: Model) -> list[list[sp.Expr]]:
 
 def ordered_terms(expr: sp.Expr) -> list[sp.Expr]:
     """The terms of a sum in sympy's printing order (deterministic)."""
-    expr = sp.expand(expr)
+    expr = expand_bounded(expr)
     return [] if expr == 0 else list(expr.as_ordered_terms())
 
 
 def constraint_equations(model: Model) -> list[tuple[str, sp.Expr]]:
     """Each kept constraint as written (holonomic f(q, t) or velocity a . q_dot + b)."""
-    return [(c.name, sp.expand(c.expr)) for c in model.constraints]
+    return [(c.name, expand_bounded(c.expr)) for c in model.constraints]
 
 
 def require_defined(model: Model, what: str) -> None:
