@@ -17,6 +17,10 @@ else:
         import symengine
     finally:
         del sys.modules["numpy"]
+    # symengine believes numpy is there and would look it up when converting foreign objects.
+    import symengine.lib.symengine_wrapper as _wrapper
+
+    _wrapper.have_numpy = False
 
 se = symengine
 
