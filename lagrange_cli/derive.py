@@ -199,7 +199,9 @@ def eliminate(spec: SystemSpec) -> SystemSpec:
                         span, f"constraint '{constraint.name}' has {len(solutions)} solutions for '{name}'", "a constraint with a single solution for the eliminated coordinate, or keep the multiplier"
                     )
         if solution is None or used is None:
-            raise fail(span, f"no holonomic constraint can be solved for '{name}'", f"a holonomic constraint under `constraints` that involves '{name}' and can be solved for it")
+            velocity = [c.name for c in spec.constraints if not c.holonomic and c.expr.has(spec.qd[k])]
+            hint = f"; '{velocity[0]}' is a velocity constraint: if it integrates to a relation between coordinates, write that relation instead" if velocity else ""
+            raise fail(span, f"no holonomic constraint can be solved for '{name}'", f"a holonomic constraint under `constraints` that involves '{name}' and can be solved for it{hint}")
         spec = _substitute(spec, k, solution, used)
     return spec
 
