@@ -67,3 +67,4 @@ def main() -> None:
 # Each module registers its commands on `app`; they import only typer at module level.
 from lagrange_cli.cli import analysis as _analysis  # noqa: E402, F401
 from lagrange_cli.cli import derive as _derive  # noqa: E402, F401
+from lagrange_cli.cli import numeric as _numeric  # noqa: E402, F401

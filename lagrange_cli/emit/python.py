@@ -62,6 +62,29 @@ class Block:
     results: tuple[str, ...]
 
 
+def cse_block(exprs: Sequence[sp.Expr], prefix: str, printer: CodePrinter) -> Block:
+    """Straight-line code computing `exprs`: CSE by symengine on renamed symbols (so that its
+    x0, x1 cannot clash with the user's names), temporaries `_<prefix>0, ...` added to
+    `printer.names`. Shared with the numeric package, which compiles the same code."""
+    free = sorted(set().union(*(e.free_symbols for e in exprs)), key=str) if exprs else []
+    safe = {to_symengine(s): se.Symbol(f"_s{i}") for i, s in enumerate(free)}
+    back = {v: s for s, v in zip(free, safe.values(), strict=True)}
+    converted = [to_symengine(e).xreplace(safe) if e.free_symbols else to_symengine(e) for e in exprs]
+    replacements, reduced = se.cse(converted)
+    temporaries = {lhs: sp.Symbol(f"_{prefix}{i}") for i, (lhs, _) in enumerate(replacements)}
+    mapping = {**back, **temporaries}
+    for symbol in temporaries.values():
+        printer.names[symbol] = str(symbol)
+
+    renames = {sp.sympify(a): b for a, b in mapping.items()}
+
+    def convert(e: se.Basic) -> sp.Expr:
+        return sp.sympify(e).xreplace(renames)
+
+    lines = tuple(f"{temporaries[lhs]} = {printer.doprint(convert(rhs))}" for lhs, rhs in replacements)
+    return Block(lines, tuple(printer.doprint(convert(e)) for e in reduced))
+
+
 def emit(model: Model) -> str:
     require_defined(model, "Python code")
     check_invertible(model)
@@ -82,24 +105,7 @@ class _Writer:
     # -- pieces ---------------------------------------------------------------------------------
 
     def block(self, exprs: Sequence[sp.Expr], prefix: str) -> Block:
-        """CSE by symengine on renamed symbols (so its x0, x1 cannot clash with the user's)."""
-        free = sorted(set().union(*(e.free_symbols for e in exprs)), key=str) if exprs else []
-        safe = {to_symengine(s): se.Symbol(f"_s{i}") for i, s in enumerate(free)}
-        back = {v: s for s, v in zip(free, safe.values(), strict=True)}
-        converted = [to_symengine(e).xreplace(safe) if e.free_symbols else to_symengine(e) for e in exprs]
-        replacements, reduced = se.cse(converted)
-        temporaries = {lhs: sp.Symbol(f"_{prefix}{i}") for i, (lhs, _) in enumerate(replacements)}
-        mapping = {**back, **temporaries}
-        for symbol in temporaries.values():
-            self.names[symbol] = str(symbol)
-
-        renames = {sp.sympify(a): b for a, b in mapping.items()}
-
-        def convert(e: se.Basic) -> sp.Expr:
-            return sp.sympify(e).xreplace(renames)
-
-        lines = tuple(f"{temporaries[lhs]} = {self.printer.doprint(convert(rhs))}" for lhs, rhs in replacements)
-        return Block(lines, tuple(self.printer.doprint(convert(e)) for e in reduced))
+        return cse_block(exprs, prefix, self.printer)
 
     def unpack(self, exprs: Sequence[sp.Expr], state: str) -> list[str]:
         """Lines binding the parameters used, then the coordinates/velocities from `state`."""

@@ -1,0 +1,170 @@
+"""`simulate`: integrate a system from its file, write the trajectory, and report how far to trust it."""
+
+from __future__ import annotations
+
+import sys
+import time
+from pathlib import Path
+from typing import TYPE_CHECKING, Annotated, Any
+
+import typer
+
+from lagrange_cli.cli import app, fail_with, write_atomically
+
+if TYPE_CHECKING:
+    from lagrange_cli.model import Model
+    from lagrange_cli.numeric.simulate import Trajectory
+
+PROGRESS_AFTER = 1.0  # seconds before a progress bar appears (on a terminal only)
+
+
+@app.command()
+def simulate(
+    file: Annotated[str, typer.Argument(help="A system file, or the name of a bundled system (e.g. double_pendulum).")],
+    t_end: Annotated[float | None, typer.Option("--t-end", help="Final time (default: the file's simulate.t_end, else 10).")] = None,
+    set_: Annotated[list[str] | None, typer.Option("--set", help="Override a parameter: name=value (repeatable).")] = None,
+    initial: Annotated[list[str] | None, typer.Option("--initial", help="Override initial values: q=value,q_dot=value (repeatable).")] = None,
+    method: Annotated[str | None, typer.Option(help="auto, RK45, DOP853, Radau, BDF, LSODA or symplectic.")] = None,
+    backend: Annotated[str, typer.Option(help="auto, compiled (numba) or python (scipy).")] = "auto",
+    rtol: Annotated[float | None, typer.Option(help="Relative tolerance of adaptive methods (default 1e-8).")] = None,
+    atol: Annotated[float | None, typer.Option(help="Absolute tolerance of adaptive methods (default 1e-10).")] = None,
+    step: Annotated[float | None, typer.Option(help="Fixed step of the symplectic method.")] = None,
+    max_step: Annotated[float | None, typer.Option("--max-step", help="Largest step of adaptive methods.")] = None,
+    samples: Annotated[int | None, typer.Option(help="Number of evenly spaced output times (default 1001).")] = None,
+    until: Annotated[str | None, typer.Option(help='Stop when this expression of the state crosses zero, e.g. "lambda_c" or "x - 1".')] = None,
+    output_path: Annotated[Path | None, typer.Option("-o", "--output", help="Write the trajectory: .csv or .npz, or - for CSV on stdout.")] = None,
+    plot: Annotated[Path | None, typer.Option(help="Plot coordinates, phase portrait and energy error: .png, .svg or .pdf.")] = None,
+) -> None:
+    """Simulate a system and report energy, momenta and constraint drift (exit 1 if the run fails)."""
+    from lagrange_cli.errors import LagrangeError
+
+    try:
+        from lagrange_cli import derive as core
+        from lagrange_cli import spec
+        from lagrange_cli.numeric import output as out
+        from lagrange_cli.numeric.simulate import simulate as run
+
+        if output_path is not None and str(output_path) != "-":
+            out.check_suffix(output_path, out.DATA_SUFFIXES, "output")
+        if plot is not None:
+            out.check_suffix(plot, out.PLOT_SUFFIXES, "plot")
+        model = core.derive(spec.load(spec.resolve(file)))
+        parameters, values = _assignments(model, set_ or [], "--set"), _assignments(model, initial or [], "--initial")
+        with _Progress() as progress:
+            trajectory = run(
+                model,
+                t_end=t_end,
+                method=method,
+                rtol=rtol,
+                atol=atol,
+                step=step,
+                samples=samples,
+                parameters=parameters,
+                initial=values,
+                until=until,
+                backend=backend,
+                max_step=max_step,
+                progress=progress,
+            )
+        _write(trajectory, output_path, plot)
+    except LagrangeError as error:
+        fail_with(error)
+    _report(trajectory, to_stderr=output_path is not None and str(output_path) == "-")
+    if trajectory.failed:
+        raise typer.Exit(1)
+
+
+def _assignments(model: Model, items: list[str], option: str) -> dict[str, float]:
+    """`name=value` pairs (comma-separated or repeated); values are constant expressions such as pi/2."""
+    import sympy as sp
+
+    from lagrange_cli.errors import LagrangeError, Span
+    from lagrange_cli.expr import Scope, numeric_value, parse_expression
+
+    result: dict[str, float] = {}
+    scope = Scope({}, {}, sp.Symbol("t"), lambda e: e, what="a number, `pi`, `E` or a function of them")
+    for item in (part.strip() for entry in items for part in entry.split(",")):
+        name, equals, text = item.partition("=")
+        if not equals or not name.strip() or not text.strip():
+            raise LagrangeError(f"{option} {item!r}: expected name=value, e.g. {option} {(model.coordinates[0] if option == '--initial' else 'g')}=1.5")
+        expr = parse_expression(text, Span(option, 1, len(name) + 2, item), scope)
+        try:
+            result[name.strip()] = numeric_value(expr)
+        except (ValueError, OverflowError) as error:
+            raise LagrangeError(f"{option} {item!r}: the value is not a finite real number ({error})") from None
+    return result
+
+
+def _write(trajectory: Trajectory, output_path: Path | None, plot: Path | None) -> None:
+    """The trajectory (also the part before a failure) to its file or stdout, and the plot."""
+    from lagrange_cli.numeric import output as out
+
+    if output_path is not None and str(output_path) == "-":
+        sys.stdout.write(out.csv_text(trajectory))
+    elif output_path is not None and output_path.suffix.lower() == ".npz":
+        out.write_npz(trajectory, output_path)
+    elif output_path is not None:
+        write_atomically(output_path, out.csv_text(trajectory))
+    if plot is not None:
+        out.write_plot(trajectory, plot)
+
+
+def _report(trajectory: Trajectory, to_stderr: bool) -> None:
+    """What ran, how it ended, the work and time it took, and every monitored invariant."""
+    from rich.console import Console
+    from rich.table import Table
+
+    console = Console(stderr=to_stderr, highlight=False, soft_wrap=True)
+    s, stats, timing = trajectory.settings, trajectory.stats, trajectory.timing
+    accuracy = f"step {s.step:.3g}" if s.method == "symplectic" and s.step else f"rtol {s.rtol:g}, atol {s.atol:g}"
+    console.print(f"[bold]{trajectory.title}[/bold]: {s.method} ({s.backend}), t = {s.t0:g} .. {s.t_end:g}, {accuracy}")
+    for note in trajectory.notes:
+        console.print(f"  [dim]{note}[/dim]")
+    if trajectory.failed:
+        Console(stderr=True, highlight=False, soft_wrap=True).print(f"error: {trajectory.message}; the trajectory up to there is kept", markup=False)
+    else:
+        console.print(f"{trajectory.status}: {trajectory.message}", markup=False)
+    rejected = f" ({stats.rejected} rejected)" if stats.rejected else ""
+    smallest = f", smallest step {stats.min_step:.3g}" if stats.min_step else ""
+    jacobians = f", {stats.njev} Jacobians, {stats.nlu} LU" if stats.njev or stats.nlu else ""
+    console.print(f"work: {stats.steps} steps{rejected}, {stats.nfev} evaluations{jacobians}{smallest}")
+    once = f", one-time: compile/load {_seconds(timing.compile)}, import {_seconds(timing.load)}, codegen {_seconds(timing.generate)}"
+    console.print(f"time: run {_seconds(timing.run)}{once}")
+    if trajectory.invariants:
+        table = Table(title="invariants", title_justify="left")
+        for column in ("quantity", "expected", "initial", "max change", "relative"):
+            table.add_column(column)
+        for inv in trajectory.invariants:
+            table.add_row(inv.name, "conserved" if inv.conserved else "not conserved", f"{inv.initial:.6g}", f"{inv.max_change:.2e}", f"{inv.relative:.2e}")
+        console.print(table)
+
+
+def _seconds(value: float) -> str:
+    return f"{value * 1e3:.3g} ms" if value < 1 else f"{value:.3g} s"
+
+
+class _Progress:
+    """A progress callback that shows a rich bar on stderr once a run has taken a second, on a terminal."""
+
+    def __init__(self) -> None:
+        self.start = time.perf_counter()
+        self.bar: Any = None
+        self.task: Any = None
+
+    def __enter__(self) -> _Progress:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        if self.bar is not None:
+            self.bar.stop()
+
+    def __call__(self, fraction: float) -> None:
+        if self.bar is None:
+            if time.perf_counter() - self.start < PROGRESS_AFTER or not sys.stderr.isatty():
+                return
+            from rich.progress import Progress
+
+            self.bar = Progress(transient=True)
+            self.bar.start()
+            self.task = self.bar.add_task("simulating", total=1.0)
+        self.bar.update(self.task, completed=fraction)

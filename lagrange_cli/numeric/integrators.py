@@ -1,0 +1,289 @@
+"""The integrators behind `simulate`: compiled loops (kernels.py) and scipy's solvers, one result shape.
+
+- `run_erk`: RK45 or DOP853 compiled with numba, the same steps as scipy's;
+- `run_gauss`: the symplectic Gauss-Legendre method in (q, p), compiled, fixed step;
+- `run_scipy`: scipy.integrate's RK45, DOP853, Radau, BDF, LSODA stepped one step at a time
+  (so that a failure keeps the trajectory so far, and events and samples use dense output),
+  with the generated Python right-hand side and, for the implicit methods, its analytic Jacobian.
+
+Each returns a `Run`: the samples reached, how it ended, and its counts and timings.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+import warnings
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from lagrange_cli.numeric.compile import Functions
+
+# How a run ended (the kernels' status codes map onto these).
+FINISHED, EVENT, SINGULAR, NONFINITE, STEP_COLLAPSE, NO_CONVERGENCE = "finished", "event", "singular", "nonfinite", "step", "convergence"
+_CODES = {0: FINISHED, 1: EVENT, 2: SINGULAR, 3: NONFINITE, 4: STEP_COLLAPSE, 5: NO_CONVERGENCE}
+PROGRESS_PERIOD = 0.1  # seconds between progress reports of a compiled run
+Progress = Callable[[float], None]
+"""Called now and then with the fraction of the time span done."""
+
+
+@dataclass(frozen=True)
+class Stats:
+    """Work done: right-hand side and Jacobian evaluations, LU decompositions, steps, step sizes."""
+
+    nfev: int
+    njev: int
+    nlu: int
+    steps: int
+    rejected: int | None
+    min_step: float | None
+    max_step: float | None
+
+
+@dataclass(frozen=True)
+class Run:
+    """What an integrator produced: samples y(t) for the times reached, the last state, how it ended."""
+
+    t: np.ndarray
+    y: np.ndarray
+    status: str
+    t_last: float
+    y_last: np.ndarray
+    stats: Stats
+    compile_seconds: float
+    run_seconds: float
+
+
+@dataclass(frozen=True)
+class Problem:
+    """One initial value problem: y' = f(t, y), y(t0) = y0 on [t0, t_end], samples at ts, parameters p."""
+
+    t0: float
+    t_end: float
+    y0: np.ndarray
+    ts: np.ndarray
+    p: np.ndarray
+    use_event: bool
+
+
+def _stats(raw: np.ndarray, nlu: int = 0) -> Stats:
+    low, high = float(raw[4]), float(raw[5])
+    return Stats(int(raw[0]), int(raw[1]), nlu, int(raw[2]), int(raw[3]), low if math.isfinite(low) else None, high if high > 0 else None)
+
+
+def _drive(advance: Callable[[float], int], now: Callable[[], float], problem: Problem, progress: Progress | None) -> int:
+    """Call a compiled loop (`advance(t_stop)` -> status) until it stops, returning to Python
+    about every PROGRESS_PERIOD seconds to report progress (once, without a callback)."""
+    if progress is None:
+        return advance(problem.t_end)
+    span = problem.t_end - problem.t0
+    target = problem.t0 + span / 100
+    while True:
+        began, t_before = time.perf_counter(), now()
+        status = advance(min(target, problem.t_end))
+        progress((now() - problem.t0) / span)
+        if status != -1:
+            return status
+        speed = (now() - t_before) / max(time.perf_counter() - began, 1e-6)
+        target = now() + max(span / 100, speed * PROGRESS_PERIOD)
+
+
+def _compile(functions: Functions, kernel: str, pieces: Sequence[tuple[str, Any]]) -> tuple[Any, list[Any], float]:
+    """The kernel entry point and the system's functions compiled for their signatures (or loaded)."""
+    start = time.perf_counter()
+    kernels = functions.kernels
+    assert kernels is not None
+    entry = kernels.compiled(kernel)
+    compiled = []
+    for name, signature in pieces:
+        dispatcher = getattr(functions.module, name)
+        dispatcher.compile(signature.args)
+        compiled.append(dispatcher)
+    return entry, compiled, time.perf_counter() - start
+
+
+def run_erk(functions: Functions, problem: Problem, dop: bool, rtol: float, atol: float, max_step: float, progress: Progress | None = None) -> Run:
+    """RK45 (dop False) or DOP853 compiled, with scipy's step-size control."""
+    kernels = functions.kernels
+    assert kernels is not None
+    start_entry, _, compile_start = _compile(functions, "erk_start", [])
+    run_entry, (accel, event), compile_run = _compile(functions, "erk_run", [("_accel", kernels.ACCEL_SIG), ("_event", kernels.EVENT_SIG)])
+    began = time.perf_counter()
+    size = functions.module._SIZE
+    y, f = problem.y0.copy(), np.empty_like(problem.y0)
+    stats = np.array([0.0, 0.0, 0.0, 0.0, math.inf, 0.0])
+    ys = np.full((len(problem.ts), len(y)), np.nan)
+    counters = np.zeros(1, dtype=np.int64)
+    h0 = start_entry(dop, problem.t0, y, f, problem.t_end, max_step, rtol, atol, problem.p, stats, size, accel)
+    state = np.array([problem.t0, h0, _initial_event(functions, problem)])
+
+    def advance(t_stop: float) -> int:
+        return int(run_entry(dop, y, f, state, problem.ts, ys, counters, problem.p, rtol, atol, max_step, problem.t_end, t_stop, problem.use_event, stats, size, accel, event))
+
+    status = 2 if h0 < 0 else _drive(advance, lambda: float(state[0]), problem, progress)
+    m = int(counters[0])
+    return Run(problem.ts[:m], ys[:m], _CODES[status], float(state[0]), y, _stats(stats), compile_start + compile_run, time.perf_counter() - began)
+
+
+def run_gauss(functions: Functions, problem: Problem, z0: np.ndarray, stages: int, step: float, progress: Progress | None = None) -> Run:
+    """The s-stage Gauss-Legendre method (order 2s) in z = (q, p) with a fixed step near `step`."""
+    kernels = functions.kernels
+    assert kernels is not None
+    entry, (hamilton, event), compile_seconds = _compile(functions, "gauss_run", [("_hamilton", kernels.HAMILTON_SIG), ("_event", kernels.EVENT_SIG)])
+    began = time.perf_counter()
+    size = functions.module._SIZE
+    steps = max(1, math.ceil((problem.t_end - problem.t0) / step - 1e-9))
+    h = (problem.t_end - problem.t0) / steps
+    z = z0.copy()
+    stats = np.array([0.0, 0.0, 0.0, 0.0, h, h])
+    ys = np.full((len(problem.ts), len(z)), np.nan)
+    counters = np.zeros(1, dtype=np.int64)
+    state = np.array([problem.t0, 0.0, _initial_event(functions, problem)])
+
+    def advance(t_stop: float) -> int:
+        return int(entry(stages, z, state, problem.ts, ys, counters, problem.p, h, steps, problem.t0, t_stop, problem.use_event, stats, size, hamilton, event))
+
+    status = _drive(advance, lambda: float(state[0]), problem, progress)
+    out, x, a = np.empty_like(z), np.empty(size), np.empty((size, size))
+    hamilton(float(state[0]), z, problem.p, out, x, a)
+    y_last = np.concatenate([z[: len(z) // 2], out[: len(z) // 2]])
+    m = int(counters[0])
+    return Run(problem.ts[:m], ys[:m], _CODES[status], float(state[0]), y_last, _stats(stats), compile_seconds, time.perf_counter() - began)
+
+
+def _initial_event(functions: Functions, problem: Problem) -> float:
+    """The stop condition at the start (1 when there is none)."""
+    if not problem.use_event:
+        return 1.0
+    kernels = functions.kernels
+    assert kernels is not None
+    size = functions.module._SIZE
+    return float(functions.module._event(problem.t0, problem.y0, problem.p, np.empty(size), np.empty((size, size))))
+
+
+# -- scipy --------------------------------------------------------------------------------------
+
+
+class _Failure(Exception):
+    """Raised from inside the right-hand side to stop a scipy solver with a reason."""
+
+    def __init__(self, status: str) -> None:
+        super().__init__(status)
+        self.status = status
+
+
+def python_rhs(module: Any, p: Sequence[float]) -> Callable[[float, np.ndarray], list[float]]:
+    """f(t, y) from the generated Python `_accel`, raising `_Failure` when it cannot be evaluated."""
+    accel, n, params = module._accel, module._N, list(p)
+
+    def rhs(t: float, y: np.ndarray) -> list[float]:
+        values = y.tolist()
+        try:
+            x = accel(t, values, params)
+        except ZeroDivisionError:
+            raise _Failure(SINGULAR) from None
+        except (OverflowError, ValueError):
+            raise _Failure(NONFINITE) from None
+        return values[n:] + x[:n]
+
+    return rhs
+
+
+def python_jac(module: Any, p: Sequence[float]) -> Callable[[float, np.ndarray], np.ndarray]:
+    """The analytic Jacobian df/dy from the generated Python `_jac`."""
+    jac, params = module._jac, list(p)
+
+    def jacobian(t: float, y: np.ndarray) -> np.ndarray:
+        try:
+            return np.asarray(jac(t, y.tolist(), params))
+        except (ZeroDivisionError, np.linalg.LinAlgError):
+            raise _Failure(SINGULAR) from None
+        except (OverflowError, ValueError):
+            raise _Failure(NONFINITE) from None
+
+    return jacobian
+
+
+def run_scipy(functions: Functions, problem: Problem, method: str, rtol: float, atol: float, max_step: float, progress: Progress | None = None) -> Run:
+    """One of scipy.integrate's solvers, stepped by hand: samples and the event from its dense output."""
+    import scipy.integrate
+
+    module, p = functions.module, problem.p.tolist()
+    options: dict[str, Any] = {"rtol": rtol, "atol": atol, "max_step": max_step}
+    if method in ("Radau", "BDF", "LSODA"):
+        options["jac"] = python_jac(module, p)
+    began = time.perf_counter()
+    solver_class = getattr(scipy.integrate, method)
+    ts, steps = problem.ts, 0
+    samples: list[np.ndarray] = []
+    sizes: list[float] = []
+    event = _python_event(module, p) if problem.use_event else None
+    g_old = event(problem.t0, problem.y0) if event else 1.0
+    status, t_last, y_last = FINISHED, problem.t0, problem.y0.copy()
+    with warnings.catch_warnings(), np.errstate(all="ignore"):
+        warnings.simplefilter("ignore")
+        try:
+            solver = solver_class(python_rhs(module, p), problem.t0, problem.y0, problem.t_end, **options)
+            while solver.status == "running":
+                t_old, y_old = solver.t, solver.y.copy()
+                message = solver.step()
+                if solver.status == "failed":
+                    status = NONFINITE if "finite" in str(message) else STEP_COLLAPSE
+                    break
+                if not np.all(np.isfinite(solver.y)):
+                    status, t_last, y_last = NONFINITE, t_old, y_old
+                    break
+                steps += 1
+                sizes.append(solver.t - t_old)
+                t_end_here, status = _scipy_samples(solver, t_old, ts, samples, event, g_old)
+                t_last, y_last = t_end_here, solver.y.copy() if status != EVENT else solver.dense_output()(t_end_here)
+                if event:
+                    g_old = event(solver.t, solver.y)
+                if progress is not None:
+                    progress((t_last - problem.t0) / (problem.t_end - problem.t0))
+                if status == EVENT:
+                    break
+        except _Failure as failure:
+            status = failure.status
+    nfev, njev, nlu = (int(getattr(solver, k, 0)) for k in ("nfev", "njev", "nlu")) if "solver" in locals() else (0, 0, 0)
+    stats = Stats(nfev, njev, nlu, steps, None, min(sizes[:-1]) if len(sizes) > 1 else (sizes[0] if sizes else None), max(sizes) if sizes else None)
+    m = len(samples)
+    y = np.array(samples) if samples else np.empty((0, len(problem.y0)))
+    return Run(ts[:m], y, status, float(t_last), np.asarray(y_last, dtype=float), stats, 0.0, time.perf_counter() - began)
+
+
+def _scipy_samples(solver: Any, t_old: float, ts: np.ndarray, samples: list[np.ndarray], event: Callable[[float, np.ndarray], float] | None, g_old: float) -> tuple[float, str]:
+    """Append the samples in (t_old, t] (or up to an event found in it); returns where the step ends."""
+    dense = None
+    t_new = solver.t
+    status = FINISHED
+    if event is not None:
+        g_new = event(t_new, solver.y)
+        if g_old != 0.0 and (g_old < 0.0) != (g_new < 0.0):
+            from scipy.optimize import brentq
+
+            dense = solver.dense_output()
+            t_new = brentq(lambda s: event(s, dense(s)), t_old, solver.t, xtol=4e-16 * max(abs(solver.t), 1.0), rtol=1e-15)
+            status = EVENT
+    j = len(samples)
+    while j < len(ts) and ts[j] <= t_new:
+        if dense is None:
+            dense = solver.dense_output()
+        samples.append(np.asarray(dense(ts[j]), dtype=float))
+        j += 1
+    return t_new, status
+
+
+def _python_event(module: Any, p: Sequence[float]) -> Callable[[float, np.ndarray], float]:
+    event, params = module._event, list(p)
+
+    def g(t: float, y: np.ndarray) -> float:
+        try:
+            return float(event(t, np.asarray(y).tolist(), params))
+        except (ZeroDivisionError, OverflowError, ValueError):
+            return math.nan
+
+    return g

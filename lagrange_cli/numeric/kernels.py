@@ -1,0 +1,621 @@
+"""Integration loops compiled once by numba and shared by every system.
+
+A system's generated functions (`accel`, `hamilton`, `event`: see codegen.py) are compiled
+with fixed signatures and passed in as first-class functions, so these loops are compiled
+once per machine, cached, and call the right-hand side through a pointer (a few ns), with
+nothing crossing back into Python per step. Everything works on float64 arrays and reports
+by status codes (no exceptions in compiled code). compile.py copies this file into the cache
+directory and imports it from there, so numba's cache sits beside it.
+
+- `erk_run`: adaptive explicit Runge-Kutta, Dormand-Prince 5(4) (`RK45`) or DOP853, with the
+  same step-size control, initial step and dense output as scipy.integrate (so both take the
+  same steps), samples written at requested times, and an event located by root finding on
+  the dense output;
+- `gauss_run`: fixed-step Gauss-Legendre collocation in (q, p), symplectic and symmetric,
+  stage equations solved to round-off by simplified Newton iteration (a finite-difference
+  Jacobian, refreshed when convergence slows), samples and events by cubic Hermite
+  interpolation.
+"""
+
+# ruff: noqa: SIM108, SIM110  (explicit loops and branches compile best in numba)
+# mypy: ignore-errors
+from typing import Any
+
+import numpy as np
+from numba import njit, types
+
+from lagrange_cli.numeric.tableaux import DOP853_A, DOP853_B, DOP853_C, DOP853_D, DOP853_E3, DOP853_E5, DOP853_STAGES, GAUSS, RK45_A, RK45_B, RK45_C, RK45_E, RK45_P
+
+# Status codes shared with integrators.py.
+RUNNING, DONE, EVENT, SINGULAR, NONFINITE, STEP_COLLAPSE, NO_CONVERGENCE = -1, 0, 1, 2, 3, 4, 5
+# Counters in `stats`: evaluations, Jacobians, steps, rejected steps, smallest and largest step.
+NFEV, NJEV, NSTEPS, NREJECT, HMIN, HMAX = 0, 1, 2, 3, 4, 5
+# The Gauss stage equations are solved until the estimated remaining error is below this,
+# relative: far below any energy error a run can show (1e-13 per step, 1e-8 over 1e5 steps).
+TOLERANCE = 1e-13
+
+_RK45_A = np.array(RK45_A)
+_RK45_B = np.array(RK45_B)
+_RK45_C = np.array(RK45_C)
+_RK45_E = np.array(RK45_E)
+_RK45_P = np.array(RK45_P)
+_DOP_A = np.array(DOP853_A)
+_DOP_B = np.array(DOP853_B)
+_DOP_C = np.array(DOP853_C)
+_DOP_D = np.array(DOP853_D)
+_DOP_E3 = np.array(DOP853_E3)
+_DOP_E5 = np.array(DOP853_E5)
+_DOP_STAGES = DOP853_STAGES
+_GAUSS_C, _GAUSS_A, _GAUSS_B, _GAUSS_E = np.zeros((3, 3)), np.zeros((3, 3, 3)), np.zeros((3, 3)), np.zeros((3, 3, 3))
+
+
+def _predictor(c: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """E with Z_i(next step) ~ z_next + h sum_j E_ij F_j: the collocation polynomial of a step,
+    u(t + theta h) = z + h sum_j L_j(theta) F_j (L_j the integrated Lagrange basis on the nodes c),
+    extrapolated to the next step's nodes theta = 1 + c_i."""
+    e = np.zeros((len(c), len(c)))
+    for j in range(len(c)):
+        others = np.delete(c, j)
+        basis = np.atleast_1d(np.poly(others)) / np.prod(c[j] - others)
+        integral = np.polyint(basis)
+        e[:, j] = np.polyval(integral, 1 + c) - np.polyval(integral, 0.0) - b[j]
+    return e
+
+
+for _s, (_c, _a, _b) in GAUSS.items():
+    _GAUSS_C[_s - 1, :_s], _GAUSS_A[_s - 1, :_s, :_s], _GAUSS_B[_s - 1, :_s] = _c, _a, _b
+    _GAUSS_E[_s - 1, :_s, :_s] = _predictor(np.array(_c), np.array(_b))
+
+_F8, _I8, _ARR, _MAT = types.float64, types.int64, types.float64[::1], types.float64[:, ::1]
+ACCEL_SIG = _I8(_F8, _ARR, _ARR, _ARR, _MAT)
+"""accel(t, y, p, x, a): x = [q_ddot; lambda], a the (size x size) workspace; 1 when singular."""
+HAMILTON_SIG = _I8(_F8, _ARR, _ARR, _ARR, _ARR, _MAT)
+"""hamilton(t, z, p, out, x, a): out = (q_dot, p_dot) at z = (q, p); 1 when singular."""
+EVENT_SIG = _F8(_F8, _ARR, _ARR, _ARR, _MAT)
+"""event(t, y, p, x, a): the stop condition."""
+_ACCEL_T, _HAMILTON_T, _EVENT_T = types.FunctionType(ACCEL_SIG), types.FunctionType(HAMILTON_SIG), types.FunctionType(EVENT_SIG)
+SIGNATURES = {
+    "erk_start": _F8(types.boolean, _F8, _ARR, _ARR, _F8, _F8, _F8, _F8, _ARR, _ARR, _I8, _ACCEL_T),
+    "erk_run": _I8(types.boolean, _ARR, _ARR, _ARR, _ARR, _MAT, types.int64[::1], _ARR, _F8, _F8, _F8, _F8, _F8, types.boolean, _ARR, _I8, _ACCEL_T, _EVENT_T),
+    "gauss_run": _I8(_I8, _ARR, _ARR, _ARR, _MAT, types.int64[::1], _ARR, _F8, _I8, _F8, _F8, types.boolean, _ARR, _I8, _HAMILTON_T, _EVENT_T),
+}
+_COMPILED: dict[str, Any] = {}
+
+
+def compiled(name: str) -> Any:
+    """The entry point `name` compiled for its signature (loaded from numba's cache when there)."""
+    if name not in _COMPILED:
+        _COMPILED[name] = njit(SIGNATURES[name], cache=True, error_model="numpy", nogil=True)(globals()[name])
+    return _COMPILED[name]
+
+
+# -- linear algebra --------------------------------------------------------------------------
+
+
+@njit(cache=True, error_model="numpy")
+def lu_solve(a, b):
+    """Solve a x = b in place (b becomes x) by Gaussian elimination with partial pivoting;
+    1 when a pivot is below 1e-13 of the largest entry (a singular matrix), else 0."""
+    n = b.shape[0]
+    scale = 0.0
+    for i in range(n):
+        for j in range(n):
+            scale = max(scale, abs(a[i, j]))
+    for k in range(n):
+        pivot = k
+        for i in range(k + 1, n):
+            if abs(a[i, k]) > abs(a[pivot, k]):
+                pivot = i
+        if not abs(a[pivot, k]) > 1e-13 * scale:
+            return 1
+        if pivot != k:
+            for j in range(n):
+                a[k, j], a[pivot, j] = a[pivot, j], a[k, j]
+            b[k], b[pivot] = b[pivot], b[k]
+        inverse = 1.0 / a[k, k]
+        for i in range(k + 1, n):
+            factor = a[i, k] * inverse
+            if factor != 0.0:
+                for j in range(k + 1, n):
+                    a[i, j] -= factor * a[k, j]
+                b[i] -= factor * b[k]
+    for i in range(n - 1, -1, -1):
+        total = b[i]
+        for j in range(i + 1, n):
+            total -= a[i, j] * b[j]
+        b[i] = total / a[i, i]
+    return 0
+
+
+# -- the system as y' = f(t, y) ----------------------------------------------------------------
+
+
+@njit(error_model="numpy")
+def _rhs(accel, t, y, p, out, x, a):
+    """out = (q_dot, q_ddot) at y = (q, q_dot); 1 when the matrix is singular."""
+    n = y.shape[0] // 2
+    status = accel(t, y, p, x, a)
+    for i in range(n):
+        out[i] = y[n + i]
+        out[n + i] = x[i]
+    return status
+
+
+@njit(error_model="numpy")
+def _rms(v, scale):
+    total = 0.0
+    for i in range(v.shape[0]):
+        total += (v[i] / scale[i]) ** 2
+    return (total / v.shape[0]) ** 0.5
+
+
+@njit(error_model="numpy")
+def _finite(v):
+    for i in range(v.shape[0]):
+        if not np.isfinite(v[i]):
+            return False
+    return True
+
+
+@njit(error_model="numpy")
+def _initial_step(accel, t0, y0, f0, t_bound, max_step, order, rtol, atol, p, x, a, stats):
+    """scipy's `select_initial_step`: h0 from the norms of y0 and f0, refined by one Euler step."""
+    n = y0.shape[0]
+    interval = abs(t_bound - t0)
+    if interval == 0.0:
+        return 0.0
+    scale = np.empty(n)
+    for i in range(n):
+        scale[i] = atol + abs(y0[i]) * rtol
+    d0 = _rms(y0, scale)
+    d1 = _rms(f0, scale)
+    h0 = 1e-6 if d0 < 1e-5 or d1 < 1e-5 else 0.01 * d0 / d1
+    h0 = min(h0, interval)
+    y1, f1 = np.empty(n), np.empty(n)
+    for i in range(n):
+        y1[i] = y0[i] + h0 * f0[i]
+    _rhs(accel, t0 + h0, y1, p, f1, x, a)
+    stats[NFEV] += 1
+    for i in range(n):
+        f1[i] -= f0[i]
+    d2 = _rms(f1, scale) / h0
+    if d1 <= 1e-15 and d2 <= 1e-15:
+        h1 = max(1e-6, h0 * 1e-3)
+    else:
+        h1 = (0.01 / max(d1, d2)) ** (1.0 / (order + 1))
+    return min(100 * h0, h1, interval, max_step)
+
+
+# -- explicit Runge-Kutta ---------------------------------------------------------------------
+
+
+@njit(error_model="numpy")
+def _erk_step(accel, dop, t, y, h, K, y_new, p, x, a, stats):
+    """One step of the pair from (t, y) with K[0] = f(t, y); fills K and y_new, K[stages] = f(t + h, y_new)."""
+    A, B, C = (_DOP_A, _DOP_B, _DOP_C) if dop else (_RK45_A, _RK45_B, _RK45_C)
+    stages = _DOP_STAGES if dop else 6
+    n = y.shape[0]
+    status = 0
+    for s in range(1, stages):
+        for i in range(n):
+            dy = 0.0
+            for j in range(s):
+                dy += A[s, j] * K[j, i]
+            y_new[i] = y[i] + h * dy
+        status += _rhs(accel, t + C[s] * h, y_new, p, K[s], x, a)
+    for i in range(n):
+        dy = 0.0
+        for j in range(stages):
+            dy += B[j] * K[j, i]
+        y_new[i] = y[i] + h * dy
+    status += _rhs(accel, t + h, y_new, p, K[stages], x, a)
+    stats[NFEV] += stages
+    return status
+
+
+@njit(error_model="numpy")
+def _erk_error(dop, K, h, y, y_new, rtol, atol):
+    """The scaled error norm of the step (scipy's RK45 and DOP853 estimates)."""
+    n = y.shape[0]
+    if not dop:
+        total = 0.0
+        for i in range(n):
+            e = 0.0
+            for j in range(7):
+                e += _RK45_E[j] * K[j, i]
+            total += (e * h / (atol + max(abs(y[i]), abs(y_new[i])) * rtol)) ** 2
+        return (total / n) ** 0.5
+    err5, err3 = 0.0, 0.0
+    for i in range(n):
+        e5, e3 = 0.0, 0.0
+        for j in range(_DOP_STAGES + 1):
+            e5 += _DOP_E5[j] * K[j, i]
+            e3 += _DOP_E3[j] * K[j, i]
+        scale = atol + max(abs(y[i]), abs(y_new[i])) * rtol
+        err5 += (e5 / scale) ** 2
+        err3 += (e3 / scale) ** 2
+    if err5 == 0.0 and err3 == 0.0:
+        return 0.0
+    return abs(h) * err5 / (n * (err5 + 0.01 * err3)) ** 0.5
+
+
+@njit(error_model="numpy")
+def _erk_dense(accel, dop, t, y, y_new, f_new, h, K, coef, p, x, a, stats):
+    """The interpolant's coefficients of the step [t, t + h] (DOP853: 3 more evaluations)."""
+    n = y.shape[0]
+    if not dop:
+        for c in range(4):
+            for i in range(n):
+                total = 0.0
+                for j in range(7):
+                    total += K[j, i] * _RK45_P[j, c]
+                coef[c, i] = total
+        return 0
+    status = 0
+    work = np.empty(n)
+    for s in range(_DOP_STAGES + 1, 16):
+        for i in range(n):
+            dy = 0.0
+            for j in range(s):
+                dy += _DOP_A[s, j] * K[j, i]
+            work[i] = y[i] + h * dy
+        status += _rhs(accel, t + _DOP_C[s] * h, work, p, K[s], x, a)
+    stats[NFEV] += 3
+    for i in range(n):
+        delta = y_new[i] - y[i]
+        coef[0, i] = delta
+        coef[1, i] = h * K[0, i] - delta
+        coef[2, i] = 2 * delta - h * (f_new[i] + K[0, i])
+        for r in range(4):
+            total = 0.0
+            for j in range(16):
+                total += _DOP_D[r, j] * K[j, i]
+            coef[3 + r, i] = h * total
+    return status
+
+
+@njit(error_model="numpy")
+def _erk_eval(dop, t_old, h, y_old, coef, t, out):
+    """The dense output at t in [t_old, t_old + h]."""
+    xi = (t - t_old) / h
+    n = y_old.shape[0]
+    if not dop:
+        for i in range(n):
+            total, power = 0.0, 1.0
+            for c in range(4):
+                power *= xi
+                total += coef[c, i] * power
+            out[i] = y_old[i] + h * total
+        return
+    for i in range(n):
+        value = 0.0
+        for r in range(6, -1, -1):
+            value += coef[r, i]
+            value *= xi if (6 - r) % 2 == 0 else 1.0 - xi
+        out[i] = value + y_old[i]
+
+
+@njit(error_model="numpy")
+def _erk_root(event, dop, t_old, h, y_old, coef, p, x, a, work, g_old):
+    """The time in (t_old, t_old + h] where the event changes sign: the Illinois method on the dense output."""
+    lo, hi = t_old, t_old + h
+    g_lo = g_old
+    _erk_eval(dop, t_old, h, y_old, coef, hi, work)
+    g_hi = event(hi, work, p, x, a)
+    side = 0
+    for _ in range(100):
+        if hi - lo <= 4e-16 * max(abs(hi), 1.0):
+            break
+        mid = (lo * g_hi - hi * g_lo) / (g_hi - g_lo) if g_hi != g_lo else 0.5 * (lo + hi)
+        if not lo < mid < hi:
+            mid = 0.5 * (lo + hi)
+        _erk_eval(dop, t_old, h, y_old, coef, mid, work)
+        g_mid = event(mid, work, p, x, a)
+        if g_mid == 0.0:
+            return mid
+        if (g_mid < 0.0) == (g_lo < 0.0):
+            lo, g_lo = mid, g_mid
+            if side == -1:
+                g_hi *= 0.5
+            side = -1
+        else:
+            hi, g_hi = mid, g_mid
+            if side == 1:
+                g_lo *= 0.5
+            side = 1
+    return hi
+
+
+def erk_start(dop, t0, y, f, t_bound, max_step, rtol, atol, p, stats, size, accel):
+    """f = f(t0, y) and scipy's initial step; -1 when the matrix is singular at t0."""
+    x, a = np.empty(size), np.empty((size, size))
+    if _rhs(accel, t0, y, p, f, x, a):
+        return -1.0
+    stats[NFEV] += 1
+    return _initial_step(accel, t0, y, f, t_bound, max_step, 7 if dop else 4, rtol, atol, p, x, a, stats)
+
+
+def erk_run(dop, y, f, state, ts, ys, counters, p, rtol, atol, max_step, t_bound, t_stop, use_event, stats, size, accel, event):
+    """Advance (t = state[0], y, f = f(t, y), |h| = state[1], event value state[2]) until t >= t_stop,
+    writing ys[j] = y(ts[j]) for the samples passed (counters[0] = next sample); returns a status."""
+    n = y.shape[0]
+    x, a = np.empty(size), np.empty((size, size))
+    stages = _DOP_STAGES if dop else 6
+    K = np.empty((16 if dop else 7, n))
+    coef = np.empty((7 if dop else 4, n))
+    y_new, work = np.empty(n), np.empty(n)
+    exponent = -1.0 / 8.0 if dop else -1.0 / 5.0
+    t, h_abs = state[0], state[1]
+    while t < t_stop and t < t_bound:
+        min_step = 10.0 * abs(np.nextafter(t, np.inf) - t)
+        h_abs = min(max(h_abs, min_step), max_step)
+        rejected, bad = False, False
+        while True:
+            if h_abs < min_step:
+                state[0], state[1] = t, h_abs
+                return NONFINITE if bad else STEP_COLLAPSE
+            t_new = min(t + h_abs, t_bound)
+            h = t_new - t
+            for i in range(n):
+                K[0, i] = f[i]
+            if _erk_step(accel, dop, t, y, h, K, y_new, p, x, a, stats):
+                state[0], state[1] = t, h
+                return SINGULAR
+            error = _erk_error(dop, K, h, y, y_new, rtol, atol)
+            bad = not (np.isfinite(error) and _finite(y_new))
+            if error < 1.0 and not bad:
+                factor = 10.0 if error == 0.0 else min(10.0, 0.9 * error**exponent)
+                if rejected:
+                    factor = min(1.0, factor)
+                break
+            h_abs *= 0.2 if bad else max(0.2, 0.9 * error**exponent)
+            rejected = True
+            stats[NREJECT] += 1
+        stats[NSTEPS] += 1
+        if t_new < t_bound:
+            stats[HMIN] = min(stats[HMIN], h)
+        stats[HMAX] = max(stats[HMAX], h)
+        j = counters[0]
+        need = j < ts.shape[0] and ts[j] <= t_new
+        t_end_here = t_new
+        status = RUNNING
+        if use_event:
+            g_new = event(t_new, y_new, p, x, a)
+            if (state[2] < 0.0) != (g_new < 0.0) and state[2] != 0.0:
+                need = True
+                status = EVENT
+            else:
+                state[2] = g_new
+        if need:
+            if _erk_dense(accel, dop, t, y, y_new, K[stages], h, K, coef, p, x, a, stats):
+                state[0], state[1] = t, h
+                return SINGULAR
+            if status == EVENT:
+                t_end_here = _erk_root(event, dop, t, h, y, coef, p, x, a, work, state[2])
+            while j < ts.shape[0] and ts[j] <= t_end_here:
+                _erk_eval(dop, t, h, y, coef, ts[j], ys[j])
+                j += 1
+            counters[0] = j
+            if status == EVENT:
+                _erk_eval(dop, t, h, y, coef, t_end_here, y_new)
+        for i in range(n):
+            f[i] = K[stages, i]
+            y[i] = y_new[i]
+        t = t_end_here
+        h_abs *= factor
+        state[0], state[1] = t, h_abs
+        if status == EVENT:
+            return EVENT
+    return DONE if t >= t_bound else RUNNING
+
+
+# -- Gauss-Legendre in (q, p) -----------------------------------------------------------------
+
+
+@njit(error_model="numpy")
+def _jacobian(hamilton, t, z, p, x, a, jac, f0, work, column, stats):
+    """J = dF/dz at z by forward differences (f0 = F(z) is computed too); 1 when M is singular."""
+    n = z.shape[0]
+    status = hamilton(t, z, p, f0, x, a)
+    for k in range(n):
+        for i in range(n):
+            work[i] = z[i]
+        step = 1.5e-8 * max(1.0, abs(z[k]))
+        work[k] += step
+        status += hamilton(t, work, p, column, x, a)
+        for i in range(n):
+            jac[i, k] = (column[i] - f0[i]) / step
+    stats[NFEV] += n + 1
+    stats[NJEV] += 1
+    return status
+
+
+@njit(error_model="numpy")
+def _newton_matrix(s, h, jac, m, pivots):
+    """LU factors of I - h (A x J), the simplified Newton matrix of the stage equations; 1 when singular."""
+    n = jac.shape[0]
+    for i in range(s):
+        for j in range(s):
+            for r in range(n):
+                for c in range(n):
+                    m[i * n + r, j * n + c] = (1.0 if i == j and r == c else 0.0) - h * _GAUSS_A[s - 1, i, j] * jac[r, c]
+    size = s * n
+    for k in range(size):
+        pivot = k
+        for i in range(k + 1, size):
+            if abs(m[i, k]) > abs(m[pivot, k]):
+                pivot = i
+        pivots[k] = pivot
+        if m[pivot, k] == 0.0:
+            return 1
+        for j in range(size):
+            m[k, j], m[pivot, j] = m[pivot, j], m[k, j]
+        for i in range(k + 1, size):
+            m[i, k] /= m[k, k]
+            for j in range(k + 1, size):
+                m[i, j] -= m[i, k] * m[k, j]
+    return 0
+
+
+@njit(error_model="numpy")
+def _lu_apply(m, pivots, b):
+    """Solve with the LU factors of `_newton_matrix`, in place."""
+    size = b.shape[0]
+    for k in range(size):
+        b[k], b[pivots[k]] = b[pivots[k]], b[k]
+    for i in range(size):
+        for j in range(i):
+            b[i] -= m[i, j] * b[j]
+    for i in range(size - 1, -1, -1):
+        for j in range(i + 1, size):
+            b[i] -= m[i, j] * b[j]
+        b[i] /= m[i, i]
+
+
+@njit(error_model="numpy")
+def _gauss_stages(hamilton, s, t, z, h, Z, FZ, p, x, a, m, pivots, g, stats):
+    """Solve Z_i = z + h sum_j a_ij F(Z_j) by simplified Newton iteration (matrix m from
+    `_newton_matrix`) until the corrections stop shrinking (round-off); FZ holds F at the stage
+    values of the last iteration. Returns (status, iterations)."""
+    n = z.shape[0]
+    previous = np.inf
+    for iteration in range(1, 41):
+        for i in range(s):
+            if hamilton(t + _GAUSS_C[s - 1, i] * h, Z[i], p, FZ[i], x, a):
+                return SINGULAR, iteration
+        stats[NFEV] += s
+        for i in range(s):
+            for k in range(n):
+                value = z[k] - Z[i, k]
+                for j in range(s):
+                    value += h * _GAUSS_A[s - 1, i, j] * FZ[j, k]
+                g[i * n + k] = value
+        _lu_apply(m, pivots, g)
+        change, size = 0.0, 0.0
+        for i in range(s):
+            for k in range(n):
+                Z[i, k] += g[i * n + k]
+                change = max(change, abs(g[i * n + k]))
+                size = max(size, abs(Z[i, k]))
+        if not np.isfinite(change):
+            return NONFINITE, iteration
+        rate = change / previous if iteration > 1 else 1.0
+        if change <= TOLERANCE * max(size, 1.0) or (rate < 1.0 and rate * change <= (1.0 - rate) * TOLERANCE * max(size, 1.0)):
+            return DONE, iteration
+        if iteration > 1 and rate >= 1.0 and change <= 1e-10 * max(size, 1.0):
+            return DONE, iteration  # round-off: the corrections stopped shrinking
+        previous = change
+    return NO_CONVERGENCE, 40
+
+
+@njit(error_model="numpy")
+def _hermite(t0, h, z0, f0, z1, f1, t, out):
+    """The cubic Hermite interpolant of (z0, f0) and (z1, f1) at t."""
+    xi = (t - t0) / h
+    h00 = (1 + 2 * xi) * (1 - xi) ** 2
+    h10 = xi * (1 - xi) ** 2
+    h01 = xi * xi * (3 - 2 * xi)
+    h11 = xi * xi * (xi - 1)
+    for i in range(z0.shape[0]):
+        out[i] = h00 * z0[i] + h10 * h * f0[i] + h01 * z1[i] + h11 * h * f1[i]
+
+
+@njit(error_model="numpy")
+def _velocity_state(z, f, out):
+    """(q, q_dot) from z = (q, p) and f = (q_dot, p_dot)."""
+    m = z.shape[0] // 2
+    for k in range(m):
+        out[k] = z[k]
+        out[m + k] = f[k]
+
+
+@njit(error_model="numpy")
+def _gauss_root(hamilton, event, t_old, h, z0, f0, z1, f1, p, x, a, g_old):
+    """The event time in (t_old, t_old + h], by bisection on the Hermite interpolant."""
+    n = z0.shape[0]
+    lo, hi = t_old, t_old + h
+    g_lo = g_old
+    work, f, state = np.empty(n), np.empty(n), np.empty(n)
+    for _ in range(200):
+        if hi - lo <= 4e-16 * max(abs(hi), 1.0):
+            break
+        mid = 0.5 * (lo + hi)
+        _hermite(t_old, h, z0, f0, z1, f1, mid, work)
+        hamilton(mid, work, p, f, x, a)
+        _velocity_state(work, f, state)
+        g_mid = event(mid, state, p, x, a)
+        if (g_mid < 0.0) == (g_lo < 0.0):
+            lo, g_lo = mid, g_mid
+        else:
+            hi = mid
+    return hi
+
+
+def gauss_run(s, z, state, ts, zs, counters, p, h, steps, t0, t_stop, use_event, stats, size, hamilton, event):
+    """Advance z = (q, p) by fixed steps h (t = state[0], state[1] steps taken of `steps`) until
+    t >= t_stop, writing zs[j] = (q, q_dot) at the samples ts[j] passed; returns a status."""
+    n = z.shape[0]
+    x, a = np.empty(size), np.empty((size, size))
+    Z, FZ = np.empty((s, n)), np.zeros((s, n))
+    z_new, f0, f1, work, fw, z_event = np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(n)
+    jac, m, pivots, g = np.empty((n, n)), np.empty((s * n, s * n)), np.empty(s * n, dtype=np.int64), np.empty(s * n)
+    done = int(state[1])
+    t = state[0]
+    fresh, refreshed = False, False
+    while done < steps and t < t_stop:
+        if not fresh:
+            if _jacobian(hamilton, t, z, p, x, a, jac, f0, work, fw, stats) or _newton_matrix(s, h, jac, m, pivots):
+                return SINGULAR
+            fresh, refreshed = True, True
+        for i in range(s):
+            for k in range(n):
+                value = z[k]
+                for j in range(s):
+                    value += h * _GAUSS_E[s - 1, i, j] * FZ[j, k]
+                Z[i, k] = value
+        status, iterations = _gauss_stages(hamilton, s, t, z, h, Z, FZ, p, x, a, m, pivots, g, stats)
+        if status == NO_CONVERGENCE and not refreshed:
+            fresh = False  # a Jacobian from an earlier step: refresh it and try again
+            continue
+        if status != DONE:
+            return status
+        fresh, refreshed = iterations <= 4, False
+        for k in range(n):
+            value = 0.0
+            for i in range(s):
+                value += _GAUSS_B[s - 1, i] * FZ[i, k]
+            z_new[k] = z[k] + h * value
+        if not _finite(z_new):
+            return NONFINITE
+        done += 1
+        t_new = t0 + done * h
+        stats[NSTEPS] += 1
+        j = counters[0]
+        if (j < ts.shape[0] and ts[j] <= t_new) or use_event:
+            if hamilton(t, z, p, f0, x, a) or hamilton(t_new, z_new, p, f1, x, a):
+                return SINGULAR
+            stats[NFEV] += 2
+        t_end_here = t_new
+        event_found = False
+        if use_event:
+            _velocity_state(z_new, f1, work)
+            g_new = event(t_new, work, p, x, a)
+            if (state[2] < 0.0) != (g_new < 0.0) and state[2] != 0.0:
+                event_found = True
+                t_end_here = _gauss_root(hamilton, event, t, h, z, f0, z_new, f1, p, x, a, state[2])
+                _hermite(t, h, z, f0, z_new, f1, t_end_here, z_event)
+            else:
+                state[2] = g_new
+        while j < ts.shape[0] and ts[j] <= t_end_here:
+            _hermite(t, h, z, f0, z_new, f1, ts[j], work)
+            hamilton(ts[j], work, p, fw, x, a)
+            _velocity_state(work, fw, zs[j])
+            j += 1
+        counters[0] = j
+        for k in range(n):
+            z[k] = z_event[k] if event_found else z_new[k]
+        t = t_end_here
+        state[0], state[1] = t, done
+        if event_found:
+            return EVENT
+    return DONE if done >= steps else RUNNING

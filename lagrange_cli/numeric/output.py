@@ -1,0 +1,107 @@
+"""A trajectory as CSV text, an .npz archive, or a figure; files are written atomically.
+
+CSV: a header `t,<q>...,<q>_dot...,energy`, then one row per sample with every digit kept
+(`repr` of each float), so reading it back gives the same numbers. The .npz archive holds the
+same arrays plus the settings and the report. The figure has the coordinates against time, a
+phase portrait, and the relative energy error.
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from collections.abc import Callable
+from pathlib import Path
+from typing import IO, Any
+
+import numpy as np
+
+from lagrange_cli.errors import LagrangeError
+from lagrange_cli.numeric.simulate import Trajectory
+
+DATA_SUFFIXES = (".csv", ".npz")
+PLOT_SUFFIXES = (".png", ".svg", ".pdf")
+
+
+def csv_text(trajectory: Trajectory) -> str:
+    """The samples as CSV: t, coordinates, velocities, energy."""
+    header = ",".join(["t", *trajectory.names, "energy"])
+    rows = np.column_stack([trajectory.t, trajectory.y, trajectory.energy]) if len(trajectory.t) else np.empty((0, len(trajectory.names) + 2))
+    return header + "\n" + "".join(",".join(repr(float(v)) for v in row) + "\n" for row in rows)
+
+
+def write_npz(trajectory: Trajectory, path: Path) -> None:
+    """The arrays and the report in a compressed .npz archive."""
+    s = trajectory.settings
+    arrays: dict[str, Any] = {
+        "t": trajectory.t,
+        "y": trajectory.y,
+        "energy": trajectory.energy,
+        "names": np.array(trajectory.names),
+        "parameters": np.array([name for name, _ in s.parameters]),
+        "parameter_values": np.array([value for _, value in s.parameters], dtype=float),
+        "y0": np.array(s.y0),
+        "method": np.array(s.method),
+        "backend": np.array(s.backend),
+        "status": np.array(trajectory.status),
+        "message": np.array(trajectory.message),
+        "t_last": np.array(trajectory.t_last),
+        "y_last": trajectory.y_last,
+    }
+    atomic_write(path, lambda stream: np.savez_compressed(stream, **arrays))
+
+
+def write_plot(trajectory: Trajectory, path: Path) -> None:
+    """Coordinates against time, a phase portrait, and the relative energy error, in one figure."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from matplotlib.figure import Figure
+
+    figure = Figure(figsize=(12, 4), layout="constrained")
+    left, middle, right = figure.subplots(1, 3)
+    n = len(trajectory.coordinates)
+    for i, name in enumerate(trajectory.coordinates):
+        left.plot(trajectory.t, trajectory.y[:, i], label=name)
+        middle.plot(trajectory.y[:, i], trajectory.y[:, n + i], label=name)
+    left.set(xlabel="t", title="coordinates")
+    middle.set(xlabel="q", ylabel="q_dot", title="phase portrait")
+    for axes in (left, middle):
+        axes.legend(loc="best", fontsize="small")
+    _energy_panel(right, trajectory)
+    figure.suptitle(f"{trajectory.title} ({trajectory.settings.method}, {trajectory.status})")
+    suffix = path.suffix.lower().lstrip(".")
+    atomic_write(path, lambda stream: figure.savefig(stream, format=suffix, dpi=120))
+
+
+def _energy_panel(axes: Any, trajectory: Trajectory) -> None:
+    energy = trajectory.energy
+    if len(energy) == 0:
+        return
+    scale = abs(energy[0]) or max(float(np.max(np.abs(energy))), 1e-300)
+    error = np.abs(energy - energy[0]) / scale
+    conserved = next((i.conserved for i in trajectory.invariants if i.name == "energy"), False)
+    if np.any(error[1:] > 0):
+        axes.semilogy(trajectory.t[1:], np.maximum(error[1:], 1e-17))
+    else:
+        axes.plot(trajectory.t, error)
+    axes.set(xlabel="t", title="relative energy error" + ("" if conserved else " (energy not conserved)"))
+
+
+def check_suffix(path: Path, allowed: tuple[str, ...], what: str) -> None:
+    """A LagrangeError unless `path` ends in one of `allowed`."""
+    if path.suffix.lower() not in allowed:
+        raise LagrangeError(f"{path}: cannot tell the {what} format from the name; use one of {', '.join(allowed)}")
+
+
+def atomic_write(path: Path, write: Callable[[IO[bytes]], object]) -> None:
+    """Write through `write(stream)` to a temporary file beside `path`, then rename it over `path`."""
+    path = path.resolve()
+    handle, temporary = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(handle, "wb") as stream:
+            write(stream)
+        os.replace(temporary, path)
+    except BaseException:
+        Path(temporary).unlink(missing_ok=True)
+        raise

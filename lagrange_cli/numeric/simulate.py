@@ -1,0 +1,191 @@
+"""`simulate(model, ...) -> Trajectory`: a system's motion from its initial state, and how far to trust it.
+
+    trajectory = simulate(model, t_end=10, method="DOP853", rtol=1e-10)
+    trajectory.t, trajectory.y          # samples; y = [q..., q_dot...]
+    trajectory.invariants               # energy, ignorable momenta, constraint residuals
+    trajectory.status, .message         # "finished", "event" or "failed", and why
+
+Settings come from the arguments, then the file's `simulate` and `initial` blocks, then
+defaults. Bad settings raise `LagrangeError`; a run that fails (a singular mass matrix,
+non-finite values, the step size collapsing) returns its trajectory so far with status
+"failed" and a message naming the time and state. Repeated calls on the same model reuse
+its compiled functions, and `timing` keeps one-time costs apart from the run itself, so a
+work-precision study can call `simulate` in a loop.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from lagrange_cli.errors import LagrangeError
+from lagrange_cli.model import Model
+from lagrange_cli.numeric import codegen, compile, integrators
+from lagrange_cli.numeric.integrators import Problem, Progress, Run, Stats
+from lagrange_cli.numeric.settings import Settings, resolve
+
+FAILURES = {
+    integrators.SINGULAR: "the mass matrix{} is singular (a coordinate singularity, such as Euler angles at theta = 0, or a configuration without inertia)",
+    integrators.NONFINITE: "the state became infinite or NaN (the motion blows up, or leaves the domain of a function such as sqrt or log)",
+    integrators.STEP_COLLAPSE: "the step size collapsed below the spacing of floating-point numbers (a singularity, or a problem too stiff for this method: try --method Radau)",
+    integrators.NO_CONVERGENCE: "the implicit stage equations did not converge (the step is too large for this motion: give a smaller --step)",
+}
+
+
+@dataclass(frozen=True)
+class Invariant:
+    """A monitored quantity: its initial value and how far it moved over the run."""
+
+    name: str
+    conserved: bool
+    """True when the equations conserve it, so any change is numerical error."""
+    initial: float
+    max_change: float
+    final_change: float
+
+    @property
+    def relative(self) -> float:
+        """The largest change relative to the initial value (absolute when that is 0)."""
+        return self.max_change / abs(self.initial) if self.initial != 0 else self.max_change
+
+
+@dataclass(frozen=True)
+class Timing:
+    """Seconds: writing the generated code, importing it (and numba), compiling or loading
+    machine code, and the integration itself."""
+
+    generate: float
+    load: float
+    compile: float
+    run: float
+
+
+@dataclass(frozen=True)
+class Trajectory:
+    """Samples of one run and its report."""
+
+    title: str
+    coordinates: tuple[str, ...]
+    settings: Settings
+    t: np.ndarray
+    y: np.ndarray
+    energy: np.ndarray
+    status: str
+    """"finished", "event" (the `until` condition crossed zero) or "failed"."""
+    message: str
+    t_last: float
+    y_last: np.ndarray
+    stats: Stats
+    timing: Timing
+    invariants: tuple[Invariant, ...] = ()
+    notes: tuple[str, ...] = field(default=())
+
+    @property
+    def failed(self) -> bool:
+        return self.status == "failed"
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        """The columns of y: the coordinates, then their velocities."""
+        return (*self.coordinates, *(f"{c}_dot" for c in self.coordinates))
+
+    def column(self, name: str) -> np.ndarray:
+        """The samples of one coordinate or velocity (`theta`, `theta_dot`), or `t`, or `energy`."""
+        if name == "t":
+            return self.t
+        if name == "energy":
+            return self.energy
+        if name not in self.names:
+            raise LagrangeError(f"'{name}' is not a coordinate or velocity of {self.title}; choose one of {', '.join(self.names)}")
+        return self.y[:, self.names.index(name)]
+
+
+def simulate(
+    model: Model,
+    *,
+    t_end: float | None = None,
+    method: str | None = None,
+    rtol: float | None = None,
+    atol: float | None = None,
+    step: float | None = None,
+    samples: int | None = None,
+    t_eval: Sequence[float] | None = None,
+    parameters: Mapping[str, float] | None = None,
+    initial: Mapping[str, float] | None = None,
+    until: str | None = None,
+    backend: str = "auto",
+    max_step: float | None = None,
+    progress: Progress | None = None,
+) -> Trajectory:
+    """Integrate `model` from its initial state; see the module docstring for the conventions."""
+    settings = resolve(
+        model, t_end=t_end, method=method, rtol=rtol, atol=atol, step=step, samples=samples, t_eval=t_eval, parameters=parameters, initial=initial, until=until, backend=backend, max_step=max_step
+    )
+    python = compile.build(model, "python", jacobian=settings.method in ("Radau", "BDF", "LSODA"), event=settings.event)
+    problem = Problem(settings.t0, settings.t_end, np.array(settings.y0, dtype=float), np.array(settings.t_eval, dtype=float), np.array(settings.p, dtype=float), settings.event is not None)
+    if settings.backend == "compiled":
+        numba = compile.build(model, "numba", event=settings.event)
+        generate, load = python.generate_seconds + numba.generate_seconds, python.import_seconds + numba.import_seconds
+        run = _run_compiled(numba, python, problem, settings, progress)
+    else:
+        generate, load = python.generate_seconds, python.import_seconds
+        run = integrators.run_scipy(python, problem, settings.method, settings.rtol, settings.atol, settings.max_step, progress)
+    return _trajectory(model, settings, python, run, Timing(generate, load, run.compile_seconds, run.run_seconds))
+
+
+def _run_compiled(numba: compile.Functions, python: compile.Functions, problem: Problem, settings: Settings, progress: Progress | None) -> Run:
+    if settings.method == "symplectic":
+        momenta = python.module._canonical(problem.t0, problem.y0.tolist(), problem.p.tolist())
+        z0 = np.concatenate([problem.y0[: len(problem.y0) // 2], np.array(momenta, dtype=float)])
+        assert settings.step is not None
+        return integrators.run_gauss(numba, problem, z0, settings.stages, settings.step, progress)
+    return integrators.run_erk(numba, problem, settings.method == "DOP853", settings.rtol, settings.atol, settings.max_step, progress)
+
+
+def _trajectory(model: Model, settings: Settings, python: compile.Functions, run: Run, timing: Timing) -> Trajectory:
+    """The report of a run: invariants along the samples, and a message for an event or a failure."""
+    module, p = python.module, list(settings.p)
+    energy = np.array([module._energy(t, y.tolist(), p) for t, y in zip(run.t, run.y, strict=True)])
+    invariants = _invariants(model, module, p, run, energy)
+    if run.status == integrators.FINISHED:
+        status, message = "finished", f"reached t = {_g(run.t_last)}"
+    elif run.status == integrators.EVENT:
+        status, message = "event", f"stopped at t = {_g(run.t_last)}, where {settings.until} crossed zero"
+    else:
+        status = "failed"
+        reason = FAILURES[run.status].format(" (with the constraint rows)" if model.constraints else "")
+        message = f"{model.source}: simulation failed at t = {_g(run.t_last)}: {reason}; state: {_state(model, run.y_last)}"
+    return Trajectory(model.title, model.coordinates, settings, run.t, run.y, energy, status, message, run.t_last, run.y_last, run.stats, timing, invariants, settings.notes)
+
+
+def _invariants(model: Model, module: object, p: list[float], run: Run, energy: np.ndarray) -> tuple[Invariant, ...]:
+    """Energy, the momenta of ignorable coordinates, and constraint residuals along the samples."""
+    if len(run.t) == 0:
+        return ()
+    result = [_invariant("energy", codegen.energy_conserved(model), energy)]
+    ignorable = codegen.ignorable(model)
+    if ignorable:
+        momenta = np.array([module._momenta(t, y.tolist(), p) for t, y in zip(run.t, run.y, strict=True)])  # type: ignore[attr-defined]
+        result += [_invariant(f"p_{model.coordinates[i]}", True, momenta[:, k]) for k, i in enumerate(ignorable)]
+    if model.constraints:
+        residuals = np.array([module._residuals(t, y.tolist(), p) for t, y in zip(run.t, run.y, strict=True)])  # type: ignore[attr-defined]
+        result += [_invariant(f"constraint {c.name}", True, residuals[:, k], drift=True) for k, c in enumerate(model.constraints)]
+    return tuple(result)
+
+
+def _invariant(name: str, conserved: bool, values: np.ndarray, drift: bool = False) -> Invariant:
+    start = 0.0 if drift else float(values[0])
+    change = np.abs(values - start)
+    return Invariant(name, conserved, start, float(np.nanmax(change)) if len(change) else 0.0, float(change[-1]))
+
+
+def _state(model: Model, y: np.ndarray) -> str:
+    names = (*model.coordinates, *(f"{c}_dot" for c in model.coordinates))
+    return ", ".join(f"{n} = {_g(float(v))}" for n, v in zip(names, y, strict=True))
+
+
+def _g(value: float) -> str:
+    return f"{value:.6g}" if math.isfinite(value) else str(value)
