@@ -361,6 +361,13 @@ class Bench:
             if not agree:
                 check += " -- **the values disagree, so the timings below are not comparable**"
             checks[-1:] = [check]
+            if "numba" in value["list"]:
+                compiled = value["list"]["numba"]
+                note = f"N = {n}: `lagrange derive --python --numba` rhs: {seconds(compiled)} per call (list y), {seconds(value['ndarray']['numba'])} (ndarray y); first call, compiling or loading the cache: {seconds(value['numba_first_call_seconds'])}"
+                if peer_name == "peer":
+                    note += f"; peer / numba: {ratio(value['list']['peer'] / compiled)}"
+                    self.target("rhs per call at N = 15 with --numba, peer / lagrange", ">= 5x", ratio(value["list"]["peer"] / compiled), value["list"]["peer"] / compiled >= 5)
+                checks.append(note)
             if peer_name == "hand":
                 r = value["list"]["lagrange"] / value["list"]["hand"]
                 measured = ratio(r) + f" (ndarray y: {ratio(value['ndarray']['lagrange'] / value['ndarray']['hand'])})"

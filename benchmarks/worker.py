@@ -80,6 +80,7 @@ def emit(n: int, path: str, out: str) -> None:
     code = python.emit(model)
     done = time.perf_counter()
     Path(out).write_text(code)
+    Path(out).with_name(Path(out).stem + "_numba.py").write_text(python.emit(model, numba=True))
     result({"seconds": done - start, "load": loaded - start, "derive": derived - loaded, "emit": done - derived, "lines": code.count("\n")})
 
 
@@ -111,7 +112,13 @@ def rhs(n: int, module_path: str, pickle_path: str | None = None) -> None:
     import numpy
 
     candidates: dict[str, Callable[..., Any]] = {"lagrange": load_module(module_path).rhs}
+    compiled = Path(module_path).with_name(Path(module_path).stem + "_numba.py")
     info: dict[str, Any] = {}
+    if compiled.exists():
+        candidates["numba"] = load_module(str(compiled)).rhs
+        start = time.perf_counter()
+        candidates["numba"](0.0, pendulum.state(n), dict(pendulum.PARAMETERS))
+        info["numba_first_call_seconds"] = time.perf_counter() - start
     if n == 2:
         candidates["hand"] = pendulum.hand_rhs
     if pickle_path:

@@ -19,7 +19,7 @@ from lagrange_cli.emit import python
 from lagrange_cli.errors import DerivationError
 from lagrange_cli.model import Model
 
-from .conftest import SYSTEMS
+from .conftest import ROOT, SYSTEMS
 from .helpers import model_from, model_of, random_point
 
 
@@ -126,3 +126,16 @@ def test_large_systems_solve_with_numpy(tmp_path: Path) -> None:
     assert "import numpy" in code
     module = load_module(code, tmp_path / "chain.py")
     assert len(module.rhs(0.0, [0.1] * n + [0.0] * n)) == 2 * n
+
+
+def test_numba_module_agrees_with_the_plain_one(tmp_path: Path) -> None:
+    pytest.importorskip("numba")
+    for name in ("double_pendulum", "rolling_disk_pendulum_multiplier", "chain_3"):
+        model = model_from(ROOT / "systems" / f"{name}.yaml")
+        plain = load_module(python.emit(model), tmp_path / f"{name}_plain.py")
+        compiled = load_module(python.emit(model, numba=True), tmp_path / f"{name}_numba.py")
+        for seed in range(2):
+            point = random_point(model, seed)
+            parameters = {p.name: point[p.symbol] for p in model.parameters}
+            y = [point[s] for s in (*model.q, *model.qd)]
+            assert np.allclose(compiled.rhs(0.0, np.array(y), parameters), plain.rhs(0.0, y, parameters), rtol=1e-12, atol=1e-12)

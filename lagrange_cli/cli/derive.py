@@ -18,6 +18,7 @@ def derive(
     python: Annotated[bool, typer.Option("--python", help="A Python module for numerical work.")] = False,
     form: Annotated[Form, typer.Option(help="lagrange: one equation per coordinate; matrix: M q_ddot = F; solved: q_ddot = ...")] = Form.lagrange,
     standalone: Annotated[bool, typer.Option(help="With --latex: a whole compilable document.")] = False,
+    numba: Annotated[bool, typer.Option("--numba", help="With --python: compile rhs with numba (needs numba where the module runs).")] = False,
     output_path: Annotated[Path | None, typer.Option("-o", "--output", help="Write here (atomically) instead of to stdout.")] = None,
 ) -> None:
     """Derive the equations of motion of a system."""
@@ -26,6 +27,8 @@ def derive(
     try:
         if text + latex + python > 1:
             raise fail(None, "choose one of --text, --latex, --python", "a single output format")
+        if numba and not python:
+            raise fail(None, "--numba applies to --python output", "--python --numba")
         from lagrange_cli import derive as core
         from lagrange_cli import spec
 
@@ -33,7 +36,7 @@ def derive(
         if python:
             from lagrange_cli.emit import python as emitter_py
 
-            result = emitter_py.emit(model)
+            result = emitter_py.emit(model, numba=numba)
         elif latex:
             from lagrange_cli.emit import latex as emitter_tex
 

@@ -85,15 +85,17 @@ def cse_block(exprs: Sequence[sp.Expr], prefix: str, printer: CodePrinter) -> Bl
     return Block(lines, tuple(printer.doprint(convert(e)) for e in reduced))
 
 
-def emit(model: Model) -> str:
+def emit(model: Model, numba: bool = False) -> str:
+    """The module's source; with `numba=True` its rhs is compiled by numba (cached on disk)."""
     require_defined(model, "Python code")
     check_invertible(model)
-    return _Writer(model).module()
+    return _Writer(model, numba).module()
 
 
 class _Writer:
-    def __init__(self, model: Model) -> None:
+    def __init__(self, model: Model, numba: bool = False) -> None:
         self.model = model
+        self.numba = numba
         self.names = _names(model)
         self.printer = CodePrinter(self.names)
         self.uses_numpy = False
@@ -119,7 +121,8 @@ class _Writer:
             keep = [v in used or (group == "y" and v in self.model.qd) for v in variables]
             if any(keep):
                 targets = [self.names[v] if k else "_" for v, k in zip(variables, keep, strict=True)]
-                lines.append(f"{', '.join(targets)}{',' * (len(targets) == 1)} = {group}" + _noqa(*targets))
+                source = f"{group}.tolist() if hasattr({group}, \"tolist\") else {group}" if group == "y" else group
+                lines.append(f"{', '.join(targets)}{',' * (len(targets) == 1)} = {source}" + _noqa(*targets))
         return lines
 
     def signature(self, exprs: Sequence[sp.Expr], state: str) -> str:
@@ -151,8 +154,13 @@ class _Writer:
         block = self.block(exprs, "c")
         m = dict(zip(self.upper, block.results[: len(mass)], strict=True))
         f = list(block.results[len(mass) : len(mass) + n])
+        if self.numba:
+            return self.compiled_rhs(exprs, block, m, f)
         body = [*self.unpack(exprs, "y"), *block.lines]
         velocities = [self.names[v] for v in model.qd]
+        if rows or n > 2:
+            body += [f"_m{i}_{j} = {code}" for (i, j), code in m.items() if not _simple(code)]
+            m = {(i, j): code if _simple(code) else f"_m{i}_{j}" for (i, j), code in m.items()}
         if rows:
             a = block.results[len(mass) + n : len(mass) + n + n * len(rows)]
             c = block.results[len(mass) + n + n * len(rows) :]
@@ -173,11 +181,45 @@ class _Writer:
             body.append(f"return [{', '.join(velocities)}, *_x]")
         return _def("rhs", "t, y, p=PARAMETERS", _rhs_doc(model), body)
 
+    def compiled_rhs(self, exprs: Sequence[sp.Expr], block: Block, m: dict[tuple[int, int], str], f: list[str]) -> str:
+        """rhs as a thin wrapper around a numba kernel taking y as an array and the used
+        parameters as scalars; the kernel fills [M, -A^T; A, 0] and solves with numpy."""
+        model, n = self.model, self.model.n
+        rows = model.constraints
+        k = len(rows)
+        used = set().union(*(e.free_symbols for e in exprs))
+        parameters = [p for p in model.parameters if p.symbol in used]
+        names = [self.names[p.symbol] for p in parameters]
+        state = [*model.q, *model.qd]
+        body = [f"{self.names[v]} = y[{i}]" + _noqa(self.names[v]) for i, v in enumerate(state) if v in used]
+        body += list(block.lines)
+        size = n + k
+        body.append(f"_a = numpy.zeros(({size}, {size}))")
+        body += [f"_a[{i}, {j}] = {m[(i, j)]}" + (f"\n_a[{j}, {i}] = _a[{i}, {j}]" if i != j else "") for i, j in self.upper if m[(i, j)] != "0"]
+        if rows:
+            a = block.results[len(self.upper) + n : len(self.upper) + n + n * k]
+            c = block.results[len(self.upper) + n + n * k :]
+            for r in range(k):
+                for j in range(n):
+                    if a[r * n + j] != "0":
+                        body += [f"_a[{j}, {n + r}] = {a[r * n + j]}", f"_a[{n + r}, {j}] = -_a[{j}, {n + r}]"]
+            f = [*f, *c]
+        body.append(f"_b = numpy.empty({size})")
+        body += [f"_b[{i}] = {value}" for i, value in enumerate(f)]
+        body += ["_x = numpy.linalg.solve(_a, _b)", f"_out = numpy.empty({2 * n})", f"_out[:{n}] = y[{n}:]", f"_out[{n}:] = _x[:{n}]", "return _out"]
+        kernel = "@numba.njit(cache=True)\n" + _def("_rhs", ", ".join(["t", "y", *names]), "The compiled right-hand side.", body).replace("\n_a[", "\n    _a[")
+        arguments = ", ".join(["t", "numpy.asarray(y, dtype=numpy.float64)", *(f'p["{p.name}"]' for p in parameters)])
+        wrapper = _def("rhs", "t, y, p=PARAMETERS", _rhs_doc(model) + " Compiled by numba; returns an array.", [f"return _rhs({arguments})"])
+        self.uses_numpy = True
+        return kernel + "\n\n\n" + wrapper
+
     def solve(self, matrix: list[list[str]], vector: list[str], target: str) -> list[str]:
         rows = "[" + ", ".join("[" + ", ".join(row) + "]" for row in matrix) + "]"
         if len(matrix) >= NUMPY_SIZE:
             self.uses_numpy = True
-            return [f"{target} = numpy.linalg.solve({rows}, [{', '.join(vector)}]).tolist()"]
+            n = len(matrix)
+            flat = ", ".join(x for row in matrix for x in row)
+            return [f"{target} = numpy.linalg.solve(numpy.fromiter(({flat}), float, {n * n}).reshape({n}, {n}), numpy.fromiter(({', '.join(vector)}), float, {n})).tolist()"]
         self.uses_solve = True
         return [f"{target} = _solve({rows}, [{', '.join(vector)}])"]
 
@@ -204,6 +246,8 @@ class _Writer:
         math_names = sorted(self.printer.module_imports.get("math", set()))
         if math_names:
             imports.append(f"from math import {', '.join(math_names)}")
+        if self.numba:
+            imports.append("import numba")
         if self.uses_numpy:
             imports.append("import numpy")
         parameters = ", ".join(f"{json.dumps(p.name)}: {p.value!r}" for p in model.parameters if p.value is not None)
@@ -263,6 +307,11 @@ def _names(model: Model) -> dict[sp.Symbol, str]:
             name += "_"
         names[s] = name
     return names
+
+
+def _simple(code: str) -> bool:
+    """A name or a number: nothing to gain from binding it to a temporary."""
+    return code.replace("_", "a").replace(".", "0").lstrip("-").isalnum()
 
 
 def _negate(code: str) -> str:

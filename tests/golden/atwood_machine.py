@@ -40,5 +40,5 @@ def rhs(t, y, p=PARAMETERS):
     m1 = p["m1"]
     m2 = p["m2"]
     g = p["g"]
-    _, y1_dot = y
+    _, y1_dot = y.tolist() if hasattr(y, "tolist") else y
     return [y1_dot, (g*m1 - g*m2)/(m1 + m2)]

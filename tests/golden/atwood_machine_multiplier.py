@@ -46,7 +46,7 @@ def rhs(t, y, p=PARAMETERS):
     m1 = p["m1"]
     m2 = p["m2"]
     g = p["g"]
-    _, _, y1_dot, y2_dot = y
+    _, _, y1_dot, y2_dot = y.tolist() if hasattr(y, "tolist") else y
     _x = _solve([[m1, 0, -1], [0, m2, -1], [1, 1, 0.0]], [g*m1, g*m2, 0])
     return [y1_dot, y2_dot, *_x[:2]]
 

@@ -58,7 +58,7 @@ def rhs(t, y, p=PARAMETERS):
     m = p["m"]
     l = p["l"]  # noqa: E741
     g = p["g"]
-    theta1, theta2, theta3, theta1_dot, theta2_dot, theta3_dot = y
+    theta1, theta2, theta3, theta1_dot, theta2_dot, theta3_dot = y.tolist() if hasattr(y, "tolist") else y
     _c0 = l*l*m
     _c1 = -theta1
     _c2 = _c1 + theta2
@@ -72,7 +72,11 @@ def rhs(t, y, p=PARAMETERS):
     _c10 = g*l*m
     _c11 = _c0*sin(_c5)
     _c12 = theta1_dot*theta1_dot
-    _x = _solve([[3*_c0, _c3*cos(_c2), _c0*cos(_c4)], [_c3*cos(_c2), _c3, _c0*cos(_c5)], [_c0*cos(_c4), _c0*cos(_c5), _c0]], [-3*_c10*sin(theta1) + _c6*_c7 + _c8*_c9, -2*_c10*sin(theta2) + _c11*_c6 - _c12*_c9, -_c10*sin(theta3) - _c11*_c8 - _c12*_c7])
+    _m0_0 = 3*_c0
+    _m0_1 = _c3*cos(_c2)
+    _m0_2 = _c0*cos(_c4)
+    _m1_2 = _c0*cos(_c5)
+    _x = _solve([[_m0_0, _m0_1, _m0_2], [_m0_1, _c3, _m1_2], [_m0_2, _m1_2, _c0]], [-3*_c10*sin(theta1) + _c6*_c7 + _c8*_c9, -2*_c10*sin(theta2) + _c11*_c6 - _c12*_c9, -_c10*sin(theta3) - _c11*_c8 - _c12*_c7])
     return [theta1_dot, theta2_dot, theta3_dot, *_x]
 
 

@@ -52,7 +52,7 @@ def rhs(t, y, p=PARAMETERS):
     """dy/dt for y = [theta, phi, psi, theta_dot, phi_dot, psi_dot] (for scipy.integrate.solve_ivp)."""
     I_perp = p["I_perp"]
     I_par = p["I_par"]
-    theta, _, _, theta_dot, phi_dot, psi_dot = y
+    theta, _, _, theta_dot, phi_dot, psi_dot = y.tolist() if hasattr(y, "tolist") else y
     _c0 = cos(theta)
     _c1 = sin(theta)
     _c2 = I_par*_c0
@@ -61,7 +61,8 @@ def rhs(t, y, p=PARAMETERS):
     _c5 = _c1*phi_dot
     _c6 = I_par*_c5
     _c7 = 2*_c5*theta_dot
-    _x = _solve([[I_perp, 0, 0], [0, I_par*_c0*_c0 + I_perp*_c1*_c1, _c2], [0, _c2, I_par]], [-_c2*_c3 + _c3*_c4 - _c6*psi_dot, I_par*_c1*psi_dot*theta_dot + _c2*_c7 - _c4*_c7, _c6*theta_dot])
+    _m1_1 = I_par*_c0*_c0 + I_perp*_c1*_c1
+    _x = _solve([[I_perp, 0, 0], [0, _m1_1, _c2], [0, _c2, I_par]], [-_c2*_c3 + _c3*_c4 - _c6*psi_dot, I_par*_c1*psi_dot*theta_dot + _c2*_c7 - _c4*_c7, _c6*theta_dot])
     return [theta_dot, phi_dot, psi_dot, *_x]
 
 

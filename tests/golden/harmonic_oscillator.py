@@ -33,5 +33,5 @@ def rhs(t, y, p=PARAMETERS):
     """dy/dt for y = [x, x_dot] (for scipy.integrate.solve_ivp)."""
     m = p["m"]
     k = p["k"]
-    x, x_dot = y
+    x, x_dot = y.tolist() if hasattr(y, "tolist") else y
     return [x_dot, (-k*x)/(m)]

@@ -48,6 +48,6 @@ def rhs(t, y, p=PARAMETERS):
     g = p["g"]
     A = p["A"]
     omega = p["omega"]
-    theta, theta_dot = y
+    theta, theta_dot = y.tolist() if hasattr(y, "tolist") else y
     _c0 = l*m
     return [theta_dot, (A*_c0*omega*omega*cos(theta)*cos(omega*t) - _c0*g*sin(theta))/(l*l*m)]

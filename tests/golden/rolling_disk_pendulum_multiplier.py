@@ -67,11 +67,15 @@ def rhs(t, y, p=PARAMETERS):
     l = p["l"]  # noqa: E741
     g = p["g"]
     alpha = p["alpha"]
-    _, _, theta, s_dot, phi_dot, theta_dot = y
+    _, _, theta, s_dot, phi_dot, theta_dot = y.tolist() if hasattr(y, "tolist") else y
     _c0 = alpha + theta
     _c1 = l*m
     _c2 = g*sin(alpha)
-    _x = _solve([[M + m, 0, _c1*cos(_c0), -1], [0, (1/2)*M*R*R, 0, R], [_c1*cos(_c0), 0, l*l*m, 0], [1, -R, -0, 0.0]], [M*_c2 + _c1*theta_dot*theta_dot*sin(_c0) + _c2*m, 0, -_c1*g*sin(theta), 0])
+    _m0_0 = M + m
+    _m0_2 = _c1*cos(_c0)
+    _m1_1 = (1/2)*M*R*R
+    _m2_2 = l*l*m
+    _x = _solve([[_m0_0, 0, _m0_2, -1], [0, _m1_1, 0, R], [_m0_2, 0, _m2_2, 0], [1, -R, -0, 0.0]], [M*_c2 + _c1*theta_dot*theta_dot*sin(_c0) + _c2*m, 0, -_c1*g*sin(theta), 0])
     return [s_dot, phi_dot, theta_dot, *_x[:3]]
 
 

@@ -47,6 +47,6 @@ def rhs(t, y, p=PARAMETERS):
     a = p["a"]
     g = p["g"]
     omega = p["omega"]
-    theta, theta_dot = y
+    theta, theta_dot = y.tolist() if hasattr(y, "tolist") else y
     _c0 = a*a*m
     return [theta_dot, (-_c0*omega*omega*sin(theta) - a*g*m*cos(omega*t + theta))/(_c0)]

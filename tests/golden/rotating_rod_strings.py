@@ -45,7 +45,7 @@ def rhs(t, y, p=PARAMETERS):
     l = p["l"]  # noqa: E741
     g = p["g"]
     omega = p["omega"]
-    theta, theta_dot = y
+    theta, theta_dot = y.tolist() if hasattr(y, "tolist") else y
     _c0 = l*l*m
     _c1 = sin(theta)
     return [theta_dot, (_c0*_c1*omega*omega*cos(theta) - _c1*g*l*m)/(_c0)]

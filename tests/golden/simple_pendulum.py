@@ -40,5 +40,5 @@ def rhs(t, y, p=PARAMETERS):
     m = p["m"]
     l = p["l"]  # noqa: E741
     g = p["g"]
-    theta, theta_dot = y
+    theta, theta_dot = y.tolist() if hasattr(y, "tolist") else y
     return [theta_dot, (-g*l*m*sin(theta))/(l*l*m)]

@@ -50,7 +50,7 @@ def rhs(t, y, p=PARAMETERS):
     F_r = p["F_r"]
     F_theta = p["F_theta"]
     F_phi = p["F_phi"]
-    r, theta, _, r_dot, theta_dot, phi_dot = y
+    r, theta, _, r_dot, theta_dot, phi_dot = y.tolist() if hasattr(y, "tolist") else y
     _c0 = m*r*r
     _c1 = sin(theta)
     _c2 = _c1*_c1
@@ -59,7 +59,8 @@ def rhs(t, y, p=PARAMETERS):
     _c5 = _c2*_c3
     _c6 = 2*r_dot
     _c7 = _c0*_c1*cos(theta)
-    _x = _solve([[m, 0, 0], [0, _c0, 0], [0, 0, _c0*_c2]], [F_r + _c3*theta_dot*theta_dot + _c4*_c5, F_theta*r - _c3*_c6*theta_dot + _c4*_c7, F_phi*_c1*r - _c5*_c6*phi_dot - 2*_c7*phi_dot*theta_dot])
+    _m2_2 = _c0*_c2
+    _x = _solve([[m, 0, 0], [0, _c0, 0], [0, 0, _m2_2]], [F_r + _c3*theta_dot*theta_dot + _c4*_c5, F_theta*r - _c3*_c6*theta_dot + _c4*_c7, F_phi*_c1*r - _c5*_c6*phi_dot - 2*_c7*phi_dot*theta_dot])
     return [r_dot, theta_dot, phi_dot, *_x]
 
 
