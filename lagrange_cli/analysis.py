@@ -119,6 +119,8 @@ def linearize(model: Model, point: Mapping[sp.Symbol, sp.Expr], values: Mapping[
     stiffness = sp.Matrix([[sp.simplify(-sp.diff(f, q).xreplace(full)) for q in model.q] for f in forcing])
     damping = sp.Matrix([[sp.simplify(-sp.diff(f, v).xreplace(full)) for v in model.qd] for f in forcing])
     mass = sp.Matrix(model.mass_matrix).xreplace(full).applyfunc(sp.simplify)
+    if sp.simplify(mass.det()) == 0:
+        return Linearization(point, mass, damping, stiffness, "degenerate (the mass matrix is singular at this point: a coordinate singularity)", values=values)
     neutral = [i for i in range(model.n) if all(stiffness[i, j] == 0 and stiffness[j, i] == 0 for j in range(model.n))]
     keep = [i for i in range(model.n) if i not in neutral]
     condition = stability_condition(stiffness.extract(keep, keep), damping.extract(keep, keep), model) if keep else (sp.true,)

@@ -15,7 +15,7 @@ from lagrange_cli.model import Model
 
 def info_text(model: Model, info: Info) -> str:
     lines = [f"{model.title}", f"degrees of freedom: {info.degrees_of_freedom} ({len(info.coordinates)} coordinates: {', '.join(info.coordinates)})"]
-    lines.append(f"autonomous: {_yes(info.autonomous)}; conservative: {_yes(info.conservative)}; constrained: {_yes(bool(info.constraints))}")
+    lines.append(f"autonomous: {_yes(info.autonomous)}; free of dissipation and applied forces: {_yes(info.conservative)}; constrained: {_yes(bool(info.constraints))}")
     for name, kind, multiplier in info.constraints:
         lines.append(f"  constraint {name}: {kind}, multiplier {multiplier}")
     lines.append("generalized momenta p = dL/dq_dot:")

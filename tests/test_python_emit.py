@@ -139,3 +139,13 @@ def test_numba_module_agrees_with_the_plain_one(tmp_path: Path) -> None:
             parameters = {p.name: point[p.symbol] for p in model.parameters}
             y = [point[s] for s in (*model.q, *model.qd)]
             assert np.allclose(compiled.rhs(0.0, np.array(y), parameters), plain.rhs(0.0, y, parameters), rtol=1e-12, atol=1e-12)
+
+
+def test_constrained_module_returns_the_multipliers(tmp_path: Path) -> None:
+    """A pendulum at rest, hanging: the rod tension is m g, and lambda_rod = -T/(2 l)."""
+    model = model_from(ROOT / "systems" / "pendulum_multiplier.yaml")
+    module = load_module(python.emit(model), tmp_path / "pm.py")
+    p = dict(module.PARAMETERS)
+    length = p["l"]
+    (value,) = module.multipliers(0.0, [0.0, -length, 0.0, 0.0], p)
+    assert value == pytest.approx(-p["m"] * p["g"] / (2 * length))

@@ -26,7 +26,7 @@ from lagrange_cli.model import Model
 
 # Above this many unknowns the linear solve is numpy's; below, straight-line Python is faster.
 NUMPY_SIZE = 9
-TAKEN = frozenset({"y", "p", "q", "q_dot", "t", "numpy", "COORDINATES", "PARAMETERS", "mass_matrix", "forcing", "energy", "rhs", "accelerations", "constraint_residuals"})
+TAKEN = frozenset({"y", "p", "q", "q_dot", "t", "numpy", "numba", "COORDINATES", "PARAMETERS", "mass_matrix", "forcing", "energy", "rhs", "accelerations", "multipliers", "constraint_residuals"})
 AMBIGUOUS = frozenset({"l", "I", "O"})
 
 
@@ -168,8 +168,12 @@ class _Writer:
             matrix = [[m[(min(i, j), max(i, j))] for j in range(n)] + [a[r * n + i] for r in range(k)] for i in range(n)]
             matrix += [[_negate(a[r * n + j]) for j in range(n)] + ["0.0"] * k for r in range(k)]
             body += self.solve(matrix, [*f, *c], "_x")
-            body.append(f"return [{', '.join(velocities)}, *_x[:{n}]]")
-            return _def("rhs", "t, y, p=PARAMETERS", _rhs_doc(model) + "\n\nThe multipliers are solved for together with the accelerations (index-1 form).", body)
+            body.append("return _x")
+            names = ", ".join(str(x) for x in model.multipliers)
+            solver = _def("accelerations", "t, y, p=PARAMETERS", f"[{', '.join(map(str, model.qdd))}, {names}] from [[M, -A^T], [A, 0]] x = [F, -c] (index-1 form).", body)
+            rhs = _def("rhs", "t, y, p=PARAMETERS", _rhs_doc(model), ["_x = accelerations(t, y, p)", f"return [*(y.tolist() if hasattr(y, \"tolist\") else y)[{n}:], *_x[:{n}]]"])
+            multipliers = _def("multipliers", "t, y, p=PARAMETERS", f"The multipliers [{names}]; A^T lambda is the generalized constraint force.", [f"return accelerations(t, y, p)[{n}:]"])
+            return "\n\n\n".join([solver, rhs, multipliers])
         if n == 1:
             body.append(f"return [{velocities[0]}, ({f[0]})/({m[(0, 0)]})]")
         elif n == 2:

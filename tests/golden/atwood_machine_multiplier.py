@@ -39,16 +39,25 @@ def constraint_residuals(q, q_dot, p=PARAMETERS):
     return [-l + y1 + y2]
 
 
-def rhs(t, y, p=PARAMETERS):
-    """dy/dt for y = [y1, y2, y1_dot, y2_dot] (for scipy.integrate.solve_ivp).
-
-    The multipliers are solved for together with the accelerations (index-1 form)."""
+def accelerations(t, y, p=PARAMETERS):
+    """[y1_ddot, y2_ddot, lambda_string] from [[M, -A^T], [A, 0]] x = [F, -c] (index-1 form)."""
     m1 = p["m1"]
     m2 = p["m2"]
     g = p["g"]
     _, _, y1_dot, y2_dot = y.tolist() if hasattr(y, "tolist") else y
     _x = _solve([[m1, 0, -1], [0, m2, -1], [1, 1, 0.0]], [g*m1, g*m2, 0])
-    return [y1_dot, y2_dot, *_x[:2]]
+    return _x
+
+
+def rhs(t, y, p=PARAMETERS):
+    """dy/dt for y = [y1, y2, y1_dot, y2_dot] (for scipy.integrate.solve_ivp)."""
+    _x = accelerations(t, y, p)
+    return [*(y.tolist() if hasattr(y, "tolist") else y)[2:], *_x[:2]]
+
+
+def multipliers(t, y, p=PARAMETERS):
+    """The multipliers [lambda_string]; A^T lambda is the generalized constraint force."""
+    return accelerations(t, y, p)[2:]
 
 
 def _solve(a, b):

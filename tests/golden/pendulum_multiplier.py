@@ -37,15 +37,24 @@ def constraint_residuals(q, q_dot, p=PARAMETERS):
     return [-l*l + x*x + y_*y_]
 
 
-def rhs(t, y, p=PARAMETERS):
-    """dy/dt for y = [x, y, x_dot, y_dot] (for scipy.integrate.solve_ivp).
-
-    The multipliers are solved for together with the accelerations (index-1 form)."""
+def accelerations(t, y, p=PARAMETERS):
+    """[x_ddot, y_ddot, lambda_rod] from [[M, -A^T], [A, 0]] x = [F, -c] (index-1 form)."""
     m = p["m"]
     g = p["g"]
     x, y_, x_dot, y_dot = y.tolist() if hasattr(y, "tolist") else y
     _x = _solve([[m, 0, -2*x], [0, m, -2*y_], [2*x, 2*y_, 0.0]], [0, -g*m, -2*x_dot*x_dot - 2*y_dot*y_dot])
-    return [x_dot, y_dot, *_x[:2]]
+    return _x
+
+
+def rhs(t, y, p=PARAMETERS):
+    """dy/dt for y = [x, y, x_dot, y_dot] (for scipy.integrate.solve_ivp)."""
+    _x = accelerations(t, y, p)
+    return [*(y.tolist() if hasattr(y, "tolist") else y)[2:], *_x[:2]]
+
+
+def multipliers(t, y, p=PARAMETERS):
+    """The multipliers [lambda_rod]; A^T lambda is the generalized constraint force."""
+    return accelerations(t, y, p)[2:]
 
 
 def _solve(a, b):

@@ -57,10 +57,8 @@ def constraint_residuals(q, q_dot, p=PARAMETERS):
     return [-R*phi + s]
 
 
-def rhs(t, y, p=PARAMETERS):
-    """dy/dt for y = [s, phi, theta, s_dot, phi_dot, theta_dot] (for scipy.integrate.solve_ivp).
-
-    The multipliers are solved for together with the accelerations (index-1 form)."""
+def accelerations(t, y, p=PARAMETERS):
+    """[s_ddot, phi_ddot, theta_ddot, lambda_rolling] from [[M, -A^T], [A, 0]] x = [F, -c] (index-1 form)."""
     M = p["M"]
     m = p["m"]
     R = p["R"]
@@ -76,7 +74,18 @@ def rhs(t, y, p=PARAMETERS):
     _m1_1 = (1/2)*M*R*R
     _m2_2 = l*l*m
     _x = _solve([[_m0_0, 0, _m0_2, -1], [0, _m1_1, 0, R], [_m0_2, 0, _m2_2, 0], [1, -R, -0, 0.0]], [M*_c2 + _c1*theta_dot*theta_dot*sin(_c0) + _c2*m, 0, -_c1*g*sin(theta), 0])
-    return [s_dot, phi_dot, theta_dot, *_x[:3]]
+    return _x
+
+
+def rhs(t, y, p=PARAMETERS):
+    """dy/dt for y = [s, phi, theta, s_dot, phi_dot, theta_dot] (for scipy.integrate.solve_ivp)."""
+    _x = accelerations(t, y, p)
+    return [*(y.tolist() if hasattr(y, "tolist") else y)[3:], *_x[:3]]
+
+
+def multipliers(t, y, p=PARAMETERS):
+    """The multipliers [lambda_rolling]; A^T lambda is the generalized constraint force."""
+    return accelerations(t, y, p)[3:]
 
 
 def _solve(a, b):
