@@ -121,7 +121,7 @@ class _Writer:
             keep = [v in used or (group == "y" and v in self.model.qd) for v in variables]
             if any(keep):
                 targets = [self.names[v] if k else "_" for v, k in zip(variables, keep, strict=True)]
-                source = f"{group}.tolist() if hasattr({group}, \"tolist\") else {group}" if group == "y" else group
+                source = f'{group}.tolist() if hasattr({group}, "tolist") else {group}' if group == "y" else group
                 lines.append(f"{', '.join(targets)}{',' * (len(targets) == 1)} = {source}" + _noqa(*targets))
         return lines
 
@@ -171,7 +171,7 @@ class _Writer:
             body.append("return _x")
             names = ", ".join(str(x) for x in model.multipliers)
             solver = _def("accelerations", "t, y, p=PARAMETERS", f"[{', '.join(map(str, model.qdd))}, {names}] from [[M, -A^T], [A, 0]] x = [F, -c] (index-1 form).", body)
-            rhs = _def("rhs", "t, y, p=PARAMETERS", _rhs_doc(model), ["_x = accelerations(t, y, p)", f"return [*(y.tolist() if hasattr(y, \"tolist\") else y)[{n}:], *_x[:{n}]]"])
+            rhs = _def("rhs", "t, y, p=PARAMETERS", _rhs_doc(model), ["_x = accelerations(t, y, p)", f'return [*(y.tolist() if hasattr(y, "tolist") else y)[{n}:], *_x[:{n}]]'])
             multipliers = _def("multipliers", "t, y, p=PARAMETERS", f"The multipliers [{names}]; A^T lambda is the generalized constraint force.", [f"return accelerations(t, y, p)[{n}:]"])
             return "\n\n\n".join([solver, rhs, multipliers])
         if n == 1:
