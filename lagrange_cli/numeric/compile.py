@@ -15,7 +15,6 @@ import hashlib
 import importlib.util
 import os
 import sys
-import tempfile
 import time
 from dataclasses import dataclass
 from importlib import resources
@@ -26,6 +25,7 @@ import sympy as sp
 
 from lagrange_cli import __version__
 from lagrange_cli.errors import LagrangeError
+from lagrange_cli.files import write_text
 from lagrange_cli.model import Model
 from lagrange_cli.numeric import codegen
 
@@ -179,16 +179,9 @@ def _write(path: Path, text: str) -> None:
     """Write atomically: concurrent runs see no file or the whole one."""
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
-        handle, temporary = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+        write_text(path, text)
     except OSError as error:
         raise LagrangeError(f"cannot write generated code to {path.parent} ({error.strerror}); set LAGRANGE_CACHE_DIR to a writable directory") from None
-    try:
-        with os.fdopen(handle, "w", encoding="utf-8") as stream:
-            stream.write(text)
-        os.replace(temporary, path)
-    except BaseException:
-        Path(temporary).unlink(missing_ok=True)
-        raise
 
 
 def _import(name: str, path: Path) -> ModuleType:

@@ -8,15 +8,13 @@ phase portrait, and the relative energy error.
 
 from __future__ import annotations
 
-import os
-import tempfile
-from collections.abc import Callable
 from pathlib import Path
-from typing import IO, Any
+from typing import Any
 
 import numpy as np
 
 from lagrange_cli.errors import LagrangeError
+from lagrange_cli.files import atomic_write
 from lagrange_cli.numeric.simulate import Trajectory
 
 DATA_SUFFIXES = (".csv", ".npz")
@@ -92,16 +90,3 @@ def check_suffix(path: Path, allowed: tuple[str, ...], what: str) -> None:
     """A LagrangeError unless `path` ends in one of `allowed`."""
     if path.suffix.lower() not in allowed:
         raise LagrangeError(f"{path}: cannot tell the {what} format from the name; use one of {', '.join(allowed)}")
-
-
-def atomic_write(path: Path, write: Callable[[IO[bytes]], object]) -> None:
-    """Write through `write(stream)` to a temporary file beside `path`, then rename it over `path`."""
-    path = path.resolve()
-    handle, temporary = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(handle, "wb") as stream:
-            write(stream)
-        os.replace(temporary, path)
-    except BaseException:
-        Path(temporary).unlink(missing_ok=True)
-        raise
