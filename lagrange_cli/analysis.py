@@ -16,7 +16,6 @@ from dataclasses import dataclass, field
 
 import sympy as sp
 
-from lagrange_cli.check import energy_conserved, ignorable
 from lagrange_cli.errors import DerivationError
 from lagrange_cli.model import Model
 
@@ -43,7 +42,7 @@ class Info:
 
 def info(model: Model) -> Info:
     """Momenta, ignorable coordinates, energy function, Hamiltonian and the system's kind."""
-    ignorables = tuple(c for i, c in enumerate(model.coordinates) if ignorable(model, i))
+    ignorables = tuple(c for i, c in enumerate(model.coordinates) if model.ignorable(i))
     symbols = tuple(sp.Symbol(f"p_{c}") for c in model.coordinates)
     hamiltonian, note = _hamiltonian(model, symbols)
     kinds = tuple((c.name, "holonomic" if c.holonomic else "velocity", str(c.multiplier)) for c in model.constraints)
@@ -53,7 +52,7 @@ def info(model: Model) -> Info:
         momenta=tuple(sp.factor_terms(p) for p in model.momenta),
         ignorable=ignorables,
         energy=sp.factor_terms(model.energy),
-        energy_conserved=energy_conserved(model),
+        energy_conserved=model.energy_conserved,
         hamiltonian=hamiltonian,
         hamiltonian_note=note,
         momentum_symbols=symbols,
@@ -308,7 +307,7 @@ def steady_motions(model: Model, seconds: float = 10.0) -> list[tuple[sp.Symbol,
     rates. With q_ddot = 0 and the non-ignorable velocities zero, each non-ignorable
     equation F_i = 0 becomes a relation among the ignorable rates, solved for the last one
     (e.g. the free top's steady precession psi_dot = (I_perp - I_par)/I_par cos(theta) phi_dot)."""
-    cyclic = [i for i in range(model.n) if ignorable(model, i)]
+    cyclic = [i for i in range(model.n) if model.ignorable(i)]
     if not cyclic or len(cyclic) == model.n or model.constraints:
         return []
     rest = {model.qd[i]: 0 for i in range(model.n) if i not in cyclic}

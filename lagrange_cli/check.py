@@ -63,27 +63,15 @@ def check(spec: SystemSpec, model: Model) -> list[Result]:
     return results
 
 
-def ignorable(model: Model, i: int) -> bool:
-    """q_i is ignorable when dL/dq_i = 0 and nothing else acts along it (Eqs. 6.37-6.38)."""
-    q = model.q[i]
-    return sp.diff(model.lagrangian, q) == 0 and sp.diff(model.dissipation, model.qd[i]) == 0 and model.generalized_forces[i] == 0 and all(c.jacobian[i] == 0 for c in model.constraints)
-
-
-def energy_conserved(model: Model) -> bool:
-    """h = sum p q_dot - L is conserved when L has no explicit t, nothing dissipates or is
-    applied, and every constraint is scleronomic."""
-    return not model.lagrangian.has(model.t) and model.dissipation == 0 and not model.forced and all(c.bias == 0 and not c.expr.has(model.t) for c in model.constraints)
-
-
 def _conserved(model: Model, name: str, span: Span) -> Result:
     if name == "energy":
-        ok = energy_conserved(model)
+        ok = model.energy_conserved
         why = "" if ok else "the energy function is not conserved: " + _why_not_energy(model)
         return Result("conserved.energy", ok, why, span, "symbolic")
     if name not in model.coordinates:
         return Result(f"conserved.{name}", False, f"'{name}' was eliminated", span, "symbolic")
     i = model.coordinates.index(name)
-    ok = ignorable(model, i)
+    ok = model.ignorable(i)
     why = "" if ok else f"'{name}' is not ignorable: dL/d{name} = {sp.simplify(sp.diff(model.lagrangian, model.q[i]))}"
     return Result(f"conserved.{name}", ok, why, span, "symbolic")
 

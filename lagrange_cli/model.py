@@ -111,5 +111,21 @@ class Model:
             rows.append(lhs)
         return tuple(rows)
 
+    def ignorable(self, i: int) -> bool:
+        """q_i is ignorable when dL/dq_i = 0 and nothing else acts along it, so that its
+        momentum p_i = dL/dq_dot_i is conserved (Eqs. 6.37-6.38)."""
+        return (
+            sp.diff(self.lagrangian, self.q[i]) == 0
+            and sp.diff(self.dissipation, self.qd[i]) == 0
+            and self.generalized_forces[i] == 0
+            and all(c.jacobian[i] == 0 for c in self.constraints)
+        )
+
+    @property
+    def energy_conserved(self) -> bool:
+        """h = sum p q_dot - L is conserved when L has no explicit t, nothing dissipates or is
+        applied, and every constraint is scleronomic."""
+        return not self.lagrangian.has(self.t) and self.dissipation == 0 and not self.forced and all(c.bias == 0 and not c.expr.has(self.t) for c in self.constraints)
+
     def parameter_values(self) -> dict[str, float]:
         return {p.name: p.value for p in self.parameters if p.value is not None}

@@ -22,7 +22,7 @@ from dataclasses import dataclass
 
 import sympy as sp
 
-from lagrange_cli._symengine import se, to_symengine
+from lagrange_cli._symengine import to_symengine
 from lagrange_cli.emit.python import Block, CodePrinter, cse_block
 from lagrange_cli.model import Model
 
@@ -43,22 +43,8 @@ def parameter_names(model: Model) -> tuple[str, ...]:
 
 
 def ignorable(model: Model) -> tuple[int, ...]:
-    """Indices of ignorable coordinates: dL/dq_i = 0, no force, dissipation or constraint on q_i,
-    so that p_i = dL/dq_dot_i is conserved."""
-    lagrangian, dissipation = to_symengine(model.lagrangian), to_symengine(model.dissipation)
-    found = []
-    for i, (q, qd) in enumerate(zip(model.q, model.qd, strict=True)):
-        if se.expand(lagrangian.diff(to_symengine(q))) != 0 or model.generalized_forces[i] != 0:
-            continue
-        if se.expand(dissipation.diff(to_symengine(qd))) != 0 or any(c.jacobian[i] != 0 for c in model.constraints):
-            continue
-        found.append(i)
-    return tuple(found)
-
-
-def energy_conserved(model: Model) -> bool:
-    """h = sum p q_dot - L is conserved: no explicit time, dissipation, forces or moving constraints."""
-    return model.autonomous and not model.dissipative and not model.forced and not model.lagrangian.has(model.t) and all(c.bias == 0 for c in model.constraints)
+    """Indices of the ignorable coordinates, whose momenta are conserved."""
+    return tuple(i for i in range(model.n) if model.ignorable(i))
 
 
 def stabilised_bias(model: Model) -> list[sp.Expr]:

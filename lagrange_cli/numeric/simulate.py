@@ -165,7 +165,7 @@ def _invariants(model: Model, module: object, p: list[float], run: Run, energy: 
     """Energy, the momenta of ignorable coordinates, and constraint residuals along the samples."""
     if len(run.t) == 0:
         return ()
-    result = [_invariant("energy", codegen.energy_conserved(model), energy)]
+    result = [_invariant("energy", model.energy_conserved, energy)]
     ignorable = codegen.ignorable(model)
     if ignorable:
         momenta = np.array([module._momenta(t, y.tolist(), p) for t, y in zip(run.t, run.y, strict=True)])  # type: ignore[attr-defined]
