@@ -6,7 +6,6 @@ so that `lagrange --help` stays fast (no sympy, numpy or scipy).
 
 from __future__ import annotations
 
-import os
 import sys
 from enum import Enum
 from pathlib import Path
@@ -40,17 +39,9 @@ def fail_with(error: LagrangeError) -> NoReturn:
 
 def write_atomically(path: Path, text: str) -> None:
     """Write `text` to `path` so that readers see the old file or the whole new one, never half."""
-    import tempfile
+    from lagrange_cli.files import write_text
 
-    path = path.resolve()
-    handle, temporary = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(handle, "w", encoding="utf-8") as stream:
-            stream.write(text)
-        os.replace(temporary, path)
-    except BaseException:
-        Path(temporary).unlink(missing_ok=True)
-        raise
+    write_text(path, text)
 
 
 def output(text: str, path: Path | None) -> None:
@@ -68,3 +59,4 @@ def main() -> None:
 from lagrange_cli.cli import analysis as _analysis  # noqa: E402, F401
 from lagrange_cli.cli import derive as _derive  # noqa: E402, F401
 from lagrange_cli.cli import numeric as _numeric  # noqa: E402, F401
+from lagrange_cli.cli import study as _study  # noqa: E402, F401

@@ -20,14 +20,14 @@ from lagrange_cli.emit.common import require_defined
 from lagrange_cli.errors import LagrangeError, Span, SpecError
 from lagrange_cli.expr import Scope, parse_expression
 from lagrange_cli.model import Model
-from lagrange_cli.numeric import compile
+from lagrange_cli.numeric import compile, diagnostics
 
 METHODS = ("auto", "RK45", "DOP853", "Radau", "BDF", "LSODA", "symplectic")
 COMPILED = ("RK45", "DOP853", "symplectic")
 BACKENDS = ("auto", "compiled", "python")
 DEFAULTS = {"t_end": 10.0, "rtol": 1e-8, "atol": 1e-10, "samples": 1001}
 HEAVY = 3000.0  # rate x time span above which compiling pays off (about 1e4 steps)
-STIFF = 500.0  # decay rate x time span of a real, negative eigenvalue above which auto picks Radau
+STIFF = diagnostics.STIFF  # decay rate x time span of a real, negative eigenvalue above which auto picks Radau
 STAGES = 2  # Gauss-Legendre stages of the symplectic method (order 4)
 
 
@@ -261,26 +261,17 @@ def _symplectic_step(rate: float, t_end: float, rtol: float) -> float:
 def _rates(model: Model, p: tuple[float, ...], y0: tuple[float, ...]) -> tuple[float, float]:
     """(decay, rate) of the linearisation at y0: the fastest decay -Re(lambda) among real-dominated
     eigenvalues (|Re| > |Im|), and the spectral radius; from a finite-difference Jacobian."""
+    found = initial_spectrum(model, p, y0)
+    return (found.decay, found.rate) if found is not None else (0.0, 0.0)
+
+
+def initial_spectrum(model: Model, p: tuple[float, ...], y0: tuple[float, ...]) -> diagnostics.Spectrum | None:
+    """The rates of the linearisation at y0 (None where the right-hand side cannot be evaluated);
+    the same diagnosis `lagrange stress` makes along a trajectory."""
     functions = compile.build(model, "python")
     rhs = _safe_rhs(functions.module, (*p, 0.0) if model.constraints else p)
-    y = np.array(y0, dtype=float)
-    f0 = rhs(0.0, y)
-    if f0 is None:
-        return 0.0, 0.0
-    columns = []
-    for j in range(len(y)):
-        h = 1e-7 * max(1.0, abs(y[j]))
-        shifted = y.copy()
-        shifted[j] += h
-        f1 = rhs(0.0, shifted)
-        if f1 is None:
-            return 0.0, 0.0
-        columns.append((f1 - f0) / h)
-    eigenvalues = np.linalg.eigvals(np.array(columns).T)
-    if not np.all(np.isfinite(eigenvalues)):
-        return 0.0, 0.0
-    decays = [-e.real for e in eigenvalues if -e.real > abs(e.imag)]
-    return max(decays, default=0.0), float(np.max(np.abs(eigenvalues)))
+    found = diagnostics.jacobian(rhs, 0.0, np.array(y0, dtype=float))
+    return diagnostics.spectrum(found) if found is not None else None
 
 
 def _safe_rhs(module: object, p: tuple[float, ...]) -> Callable[[float, np.ndarray], np.ndarray | None]:

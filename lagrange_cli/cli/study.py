@@ -1,0 +1,290 @@
+"""`accuracy` (a work-precision study) and `stress` (stiff and extreme regimes) for one system."""
+
+from __future__ import annotations
+
+import math
+import sys
+from pathlib import Path
+from typing import TYPE_CHECKING, Annotated
+
+import typer
+
+from lagrange_cli.cli import app, fail_with, write_atomically
+
+if TYPE_CHECKING:
+    from rich.console import Console
+
+    from lagrange_cli.model import Model
+    from lagrange_cli.numeric.accuracy import Candidate, Study
+    from lagrange_cli.numeric.stress import Report
+
+
+def _model(file: str) -> Model:
+    from lagrange_cli import derive as core
+    from lagrange_cli import spec
+
+    return core.derive(spec.load(spec.resolve(file)))
+
+
+def _candidates(methods: list[str] | None) -> list[Candidate] | None:
+    from lagrange_cli.numeric.accuracy import parse_candidate
+
+    if not methods:
+        return None
+    return [parse_candidate(part) for entry in methods for part in entry.split(",") if part.strip()]
+
+
+def _tolerances(text: str | None) -> list[float] | None:
+    """`1e-3..1e-8` (every decade) or `1e-4,1e-6,1e-9`."""
+    from lagrange_cli.errors import LagrangeError
+
+    if text is None:
+        return None
+    try:
+        if ".." in text:
+            low, high = (float(v) for v in text.split(".."))
+            a, b = sorted((math.log10(low), math.log10(high)))
+            return [10.0 ** (a + k) for k in range(round(b - a) + 1)]
+        return [float(v) for v in text.split(",") if v.strip()]
+    except ValueError:
+        raise LagrangeError(f"--tolerances {text!r}: expected a range such as 1e-3..1e-8 or a list such as 1e-4,1e-6,1e-9") from None
+
+
+def _status(message: str) -> None:
+    if sys.stderr.isatty():
+        sys.stderr.write(f"\r\033[K  running {message}")
+        sys.stderr.flush()
+
+
+def _clear_status() -> None:
+    if sys.stderr.isatty():
+        sys.stderr.write("\r\033[K")
+        sys.stderr.flush()
+
+
+def _write_text(path: Path, text: str) -> None:
+    if str(path) == "-":
+        sys.stdout.write(text)
+    else:
+        write_atomically(path, text)
+
+
+@app.command()
+def accuracy(
+    file: Annotated[str, typer.Argument(help="A system file, or the name of a bundled system (e.g. double_pendulum).")],
+    method: Annotated[list[str] | None, typer.Option("--method", help="Methods to study (repeatable or comma-separated; METHOD:python forces scipy). Default: all.")] = None,
+    tolerances: Annotated[str | None, typer.Option(help="rtol ladder, e.g. 1e-3..1e-8 (every decade) or 1e-4,1e-6 (default 1e-3..1e-8).")] = None,
+    t_end: Annotated[float | None, typer.Option("--t-end", help="Final time (default: the file's).")] = None,
+    set_: Annotated[list[str] | None, typer.Option("--set", help="Override a parameter: name=value (repeatable).")] = None,
+    initial: Annotated[list[str] | None, typer.Option("--initial", help="Override initial values: q=value (repeatable).")] = None,
+    samples: Annotated[int, typer.Option(help="Evenly spaced times the RMS error is taken over.")] = 201,
+    repeats: Annotated[int, typer.Option(help="Timed runs after the warm-up (fewer for slow runs).")] = 3,
+    budget: Annotated[float, typer.Option(help="Seconds after which one run is stopped and reported as over budget.")] = 20.0,
+    csv: Annotated[Path | None, typer.Option("--csv", help="Write the table as CSV (- for stdout).")] = None,
+    json: Annotated[Path | None, typer.Option("--json", help="Write the study as JSON (- for stdout).")] = None,
+    plot: Annotated[Path | None, typer.Option(help="Plot error against run time and against evaluations: .png, .svg or .pdf.")] = None,
+) -> None:
+    """Error against run time for every method over a ladder of tolerances, against an exact or confirmed reference."""
+    from lagrange_cli.errors import LagrangeError
+
+    try:
+        from lagrange_cli.cli.numeric import _assignments
+        from lagrange_cli.numeric import accuracy as core
+        from lagrange_cli.numeric import output as out
+
+        if plot is not None:
+            out.check_suffix(plot, out.PLOT_SUFFIXES, "plot")
+        if repeats < 0 or budget <= 0:
+            raise LagrangeError("--repeats must be at least 0 and --budget positive")
+        model = _model(file)
+        ladder = _tolerances(tolerances)
+        result = core.study(
+            model,
+            candidates=_candidates(method),
+            tolerances=ladder if ladder is not None else core.TOLERANCES,
+            t_end=t_end,
+            parameters=_assignments(model, set_ or [], "--set"),
+            initial=_assignments(model, initial or [], "--initial"),
+            samples=samples,
+            repeats=repeats,
+            budget=budget,
+            progress=_status,
+        )
+        _clear_status()
+        if csv is not None:
+            _write_text(csv, core.csv_text(result))
+        if json is not None:
+            _write_text(json, core.json_text(result))
+        if plot is not None:
+            core.write_plot(result, plot)
+    except LagrangeError as error:
+        _clear_status()
+        fail_with(error)
+    _report_study(result, to_stderr=str(csv) == "-" or str(json) == "-")
+
+
+def _console(to_stderr: bool) -> Console:
+    """A console wide enough for the tables, also when the output is a pipe or a file."""
+    from rich.console import Console
+
+    console = Console(stderr=to_stderr, highlight=False, soft_wrap=True)
+    if not console.is_terminal:
+        console = Console(stderr=to_stderr, highlight=False, soft_wrap=True, width=160)
+    return console
+
+
+def _e(value: float | None) -> str:
+    return "-" if value is None or not math.isfinite(value) else f"{value:.1e}"
+
+
+def _seconds(value: float) -> str:
+    if not math.isfinite(value):
+        return "-"
+    return f"{value * 1e3:.3g} ms" if value < 1 else f"{value:.3g} s"
+
+
+def _report_study(result: Study, to_stderr: bool) -> None:
+    from rich.markup import escape
+    from rich.table import Table
+
+    from lagrange_cli.numeric.accuracy import HORIZON_THRESHOLD
+
+    console = _console(to_stderr)
+    window = f"t = 0 .. {result.t_end:.4g}" + (f" (of {result.full_t_end:g})" if result.t_end < result.full_t_end else "")
+    console.print(f"[bold]{result.title}[/bold]: work-precision study, {window}")
+    ref = result.reference
+    own = "exact" if ref.kind == "exact" else f"its own error {_e(ref.own_error)}"
+    console.print(f"reference: {ref.description} ({own})", markup=False)
+    if result.horizon is not None:
+        h = result.horizon
+        if h.chaotic:
+            console.print(
+                f"chaotic: runs started {h.delta:.0e} apart part (separation {HORIZON_THRESHOLD:.0e}) at t = {h.horizon:.3g}, growth rate about {h.lyapunov:.2g}/s; errors measured up to there"
+            )
+        else:
+            console.print(f"not chaotic: runs started {h.delta:.0e} apart separate by {h.growth * h.delta:.1e} by the end (no exponential growth)")
+    for note in result.notes:
+        console.print(f"  [dim]{note}[/dim]", markup=True)
+    table = Table(title="runs", title_justify="left", box=None, padding=(0, 1))
+    for column in ("method", "setting", "final err", "RMS err", "energy", "constraint", "run time", "runs", "evals (jac)", "steps", "status"):
+        table.add_column(column, justify="left" if column in ("method", "setting", "status") else "right")
+    compile_costs: dict[str, float] = {}
+    for p in result.points:
+        compile_costs[p.resolved] = max(compile_costs.get(p.resolved, 0.0), p.compile_seconds)
+        status = "ok" if p.status == "finished" else f"[red]{p.status}[/red]: {escape(p.reason)}"
+        evals = f"{p.nfev} ({p.njev})" if p.njev else str(p.nfev)
+        name = p.resolved if p.method.split(":")[0] == p.resolved.split(" ")[0] else f"{p.method} -> {p.resolved}"
+        table.add_row(name, p.setting, _e(p.final_error), _e(p.rms_error), _e(p.energy_error), _e(p.constraint_drift), _seconds(p.seconds), str(p.runs), evals, str(p.steps), status)
+    console.print(table)
+    costs = ", ".join(f"{name} {_seconds(value)}" for name, value in compile_costs.items() if value > 0.01)
+    console.print(f"one-time costs (code generation, import, compile or load), not in the run times: {costs or 'none above 10 ms'}")
+    fastest = result.fastest
+    if fastest:
+        summary = Table(title="fastest method for each accuracy (error = max of final and RMS)", title_justify="left")
+        for column in ("error <=", "fastest", "setting", "run time", "error reached"):
+            summary.add_column(column)
+        for level, p in fastest:
+            summary.add_row(f"{level:.0e}", p.method, p.setting, _seconds(p.seconds), _e(p.error))
+        console.print(summary)
+    else:
+        console.print("[red]no run finished with a finite error[/red]")
+
+
+@app.command()
+def stress(
+    file: Annotated[str, typer.Argument(help="A system file, or the name of a bundled system (e.g. stiff_spring_pendulum_damped).")],
+    scale: Annotated[list[str] | None, typer.Option("--scale", help="Sweep a parameter: k=1e2..1e8 (every decade) or k=1,10,100 (repeatable).")] = None,
+    accuracy_: Annotated[float | None, typer.Option("--accuracy", help="Required error; exit 1 when in some regime no method meets it (default: 1e-6, reported only).")] = None,
+    method: Annotated[list[str] | None, typer.Option("--method", help="Methods to try (default: RK45:python, every method, auto).")] = None,
+    t_end: Annotated[float | None, typer.Option("--t-end", help="Final time (default: the file's).")] = None,
+    long: Annotated[float, typer.Option(help="The long-horizon regime runs this many times t_end.")] = 10.0,
+    energy: Annotated[float, typer.Option(help="The high-energy regime multiplies the initial velocities by this.")] = 3.0,
+    budget: Annotated[float, typer.Option(help="Seconds after which one run is stopped and reported as over budget.")] = 5.0,
+    json: Annotated[Path | None, typer.Option("--json", help="Write the report as JSON (- for stdout).")] = None,
+) -> None:
+    """Push a system towards its hard regimes; diagnose stiffness, singular coordinates, drift and blow-ups; recommend a method."""
+    from lagrange_cli.errors import LagrangeError
+
+    try:
+        from lagrange_cli.numeric import stress as core
+
+        if budget <= 0 or long <= 0 or energy <= 0:
+            raise LagrangeError("--budget, --long and --energy must be positive")
+        model = _model(file)
+        report = core.stress(
+            model,
+            scales=[core.parse_scale(s) for s in scale or []],
+            target=accuracy_ if accuracy_ is not None else 1e-6,
+            candidates=_candidates(method),
+            t_end=t_end,
+            long_factor=long,
+            energy_factor=energy,
+            budget=budget,
+            progress=_status,
+        )
+        _clear_status()
+        if json is not None:
+            _write_text(json, core.json_text(report))
+    except LagrangeError as error:
+        _clear_status()
+        fail_with(error)
+    _report_stress(report, to_stderr=str(json) == "-")
+    if accuracy_ is not None and not report.passed:
+        raise typer.Exit(1)
+
+
+def _report_stress(report: Report, to_stderr: bool) -> None:
+    from rich.markup import escape
+    from rich.table import Table
+
+    console = _console(to_stderr)
+    console.print(f"[bold]{report.title}[/bold]: stress test, required error {report.accuracy:.0e}")
+    summary = Table(title="summary", title_justify="left")
+    for column in ("regime", "diagnosis", "naive (scipy RK45)", "auto", "recommended"):
+        summary.add_column(column)
+    for o in report.outcomes:
+        console.print()
+        window = f", measured to t = {o.t_end:.3g} (predictability horizon)" if o.t_end < o.regime.t_end else ""
+        console.print(f"[bold]{escape(o.regime.name)}[/bold]: t_end = {o.regime.t_end:g}{window}")
+        console.print(f"  reference: {o.reference} (own error {_e(o.reference_error)})", markup=False)
+        d = o.diagnosis
+        console.print(f"  decay x t_end {d.decay_span:.3g}, stiffness ratio {d.stiffness_ratio:.3g}, time scales {d.scale_ratio:.3g}, fastest rate {d.rate:.3g}/s, max cond M {d.condition:.2g}")
+        for finding in d.findings:
+            console.print(f"  - {finding}", markup=False)
+        table = Table(box=None, padding=(0, 1))
+        for column in ("method", "setting", "error", "energy", "constraint", "run time", "steps", "evals (jac)", "status"):
+            table.add_column(column, justify="left" if column in ("method", "setting", "status") else "right")
+        for p in o.points:
+            met = p.ok and p.error <= report.accuracy
+            status = ("[green]meets[/green]" if met else "[yellow]misses[/yellow]") if p.ok else f"[red]{p.status}[/red]: {escape(p.reason)}"
+            name = p.resolved if p.method.split(":")[0] == p.resolved.split(" ")[0] else f"{p.method} -> {p.resolved}"
+            evals = f"{p.nfev} ({p.njev})" if p.njev else str(p.nfev)
+            table.add_row(name, p.setting, _e(p.error), _e(p.energy_error), _e(p.constraint_drift), _seconds(p.seconds), str(p.steps), evals, status)
+        console.print(table)
+        best = o.recommended
+        if best is not None:
+            console.print(f"  recommended: [bold]{best.resolved}[/bold] at {best.setting} (error {_e(best.error)} in {_seconds(best.seconds)})")
+        else:
+            console.print(f"  [red]no method meets error {report.accuracy:.0e} in this regime[/red]")
+        summary.add_row(
+            o.regime.name,
+            "; ".join(f.split(":")[0] for f in d.findings) or "benign",
+            _brief(o.naive, report.accuracy),
+            _brief(o.auto, report.accuracy),
+            _brief(best, report.accuracy) if best else "[red]none[/red]",
+        )
+    console.print()
+    console.print(summary)
+    verdict = "every regime has a method that meets it" if report.passed else "[red]some regime has no method that meets it[/red]"
+    console.print(f"required error {report.accuracy:.0e}: {verdict}")
+
+
+def _brief(p: object, target: float) -> str:
+    from lagrange_cli.numeric.accuracy import Point
+
+    if not isinstance(p, Point):
+        return "-"
+    if not p.ok:
+        return f"{p.status}"
+    mark = "ok" if p.error <= target else "misses"
+    return f"{p.resolved.split(' ')[0]} {p.setting}: {_e(p.error)} in {_seconds(p.seconds)} ({mark})"

@@ -1,0 +1,570 @@
+"""A work-precision study: how much accuracy each method buys per second on one system.
+
+    result = study(model)                      # every method x a ladder of tolerances
+    result.points                              # one row per run, failures included with their reason
+    result.fastest                             # (accuracy level, fastest run reaching it)
+
+The reference is the file's `exact:` solution when it has one for every coordinate (and the
+initial state is the file's), otherwise a run at a tolerance 1000 times tighter than the
+tightest of the ladder, confirmed by a second, different method; their largest disagreement
+is the reference's own error. Before that, two reference runs started `delta` apart (delta =
+the reference tolerance) tell whether the system is chaotic: when their separation grows by
+more than 100 over the second half of the time it takes to reach 1e-3 (exponential, not the
+linear drift of a regular motion), the errors are measured only up to that time, the
+predictability horizon, and the growth rate is reported as a Lyapunov exponent.
+
+Errors compare the samples at evenly spaced times (dense output) with the reference's. At a
+time t the error is max_i |y_i - y_ref,i| / s_i, with s_i = max(1, max_t |y_ref,i|) the size of
+component i (coordinates and velocities): an absolute error for quantities of order one, a
+relative one for large ones. `final_error` is that at the last time, `rms_error` its root mean
+square over the times. `energy_error` is max_t |E - E_ref| / max(max_t |E_ref|, 1e-300),
+`constraint_drift` the largest residual of a kept constraint.
+
+Timing: the first run is the warm-up (its one-time compile/load cost is reported apart); then
+the minimum of up to `repeats` more runs (fewer when one run is slow, see `_repeats`) of the
+integration itself (`Trajectory.timing.run`). A run longer than `budget` seconds is stopped
+and kept as a failure.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from lagrange_cli.errors import LagrangeError
+from lagrange_cli.model import Model
+from lagrange_cli.numeric import compile
+from lagrange_cli.numeric.settings import METHODS, initial_spectrum, resolve
+from lagrange_cli.numeric.settings import _symplectic_step as symplectic_step
+from lagrange_cli.numeric.simulate import Trajectory, simulate
+
+STUDY_METHODS = tuple(m for m in METHODS if m != "auto")
+TOLERANCES = (1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8)
+ATOL_RATIO = 1e-3  # atol = rtol x ATOL_RATIO
+REFERENCE_FACTOR = 1e-3  # the reference runs at this times the tightest tolerance
+TIGHTEST = 2.5e-14  # no run is asked for less (double precision)
+SAMPLES = 201
+HORIZON_THRESHOLD = 1e-3  # separation (scaled) at which nearby trajectories have parted
+CHAOS_GROWTH = 100.0  # growth over the second half of the time to part, above which it is exponential
+
+
+@dataclass(frozen=True)
+class Candidate:
+    """A method and the backend it runs on ("auto" picks compiled for RK45/DOP853 when numba is there)."""
+
+    method: str
+    backend: str = "auto"
+
+    @property
+    def label(self) -> str:
+        return self.method if self.backend == "auto" else f"{self.method}:{self.backend}"
+
+
+def parse_candidate(text: str) -> Candidate:
+    """`DOP853`, `RK45:python`, `auto`: a method, optionally with its backend."""
+    name, _, backend = text.strip().partition(":")
+    for known in METHODS:
+        if name.lower() == known.lower():
+            if backend and backend not in ("auto", "compiled", "python"):
+                raise LagrangeError(f"--method {text!r}: unknown backend '{backend}'; write METHOD or METHOD:compiled or METHOD:python")
+            return Candidate(known, backend or "auto")
+    raise LagrangeError(f"unknown method '{name}'; choose from {', '.join(METHODS)} (optionally METHOD:python or METHOD:compiled)")
+
+
+def default_candidates(model: Model) -> tuple[Candidate, ...]:
+    """Every method of `simulate` that applies to the system."""
+    methods = [m for m in STUDY_METHODS if not (m == "symplectic" and (model.constraints or not compile.numba_available()))]
+    return tuple(Candidate(m) for m in methods)
+
+
+def backend_for(candidate: Candidate) -> str:
+    """The backend a candidate runs on: RK45/DOP853 compiled when numba is available."""
+    if candidate.backend != "auto":
+        return candidate.backend
+    if candidate.method in ("RK45", "DOP853", "symplectic"):
+        return "compiled" if compile.numba_available() else "python"
+    return "auto" if candidate.method == "auto" else "python"
+
+
+@dataclass(frozen=True)
+class Setup:
+    """What every run of a study shares: the time window, sample times, parameters and initial values."""
+
+    t_end: float
+    times: tuple[float, ...]
+    parameters: Mapping[str, float] = field(default_factory=dict)
+    initial: Mapping[str, float] = field(default_factory=dict)
+    budget: float = 20.0
+
+
+@dataclass(frozen=True)
+class Point:
+    """One run of the study."""
+
+    method: str
+    """As requested (`DOP853`, `RK45:python`, `auto`)."""
+    resolved: str
+    """What ran: the method and backend (`auto` resolved)."""
+    tolerance: float
+    """rtol of an adaptive method; for the symplectic method the rtol its step was chosen for."""
+    step: float | None
+    status: str
+    """"finished", "failed", "over budget" or "not applicable"."""
+    reason: str
+    final_error: float
+    rms_error: float
+    energy_error: float
+    constraint_drift: float | None
+    seconds: float
+    runs: int
+    compile_seconds: float
+    nfev: int
+    njev: int
+    steps: int
+    drifts: tuple[tuple[str, float], ...] = ()
+    """Relative change of each conserved energy or momentum over the run."""
+
+    @property
+    def ok(self) -> bool:
+        return self.status == "finished" and math.isfinite(self.error)
+
+    @property
+    def error(self) -> float:
+        """The larger of the final and the RMS error."""
+        return max(self.final_error, self.rms_error)
+
+    @property
+    def setting(self) -> str:
+        return f"step {self.step:.3g}" if self.step is not None else f"rtol {self.tolerance:.0e}"
+
+
+@dataclass(frozen=True)
+class Reference:
+    """The solution errors are measured against, at the study's times."""
+
+    kind: str
+    """"exact" or "computed"."""
+    description: str
+    own_error: float
+    """The largest scaled disagreement of the two reference runs (0 for an exact solution; nan when unconfirmed)."""
+    t: np.ndarray
+    y: np.ndarray
+    energy: np.ndarray
+    seconds: float
+
+
+@dataclass(frozen=True)
+class Horizon:
+    """How nearby trajectories separate: two reference runs started `delta` apart."""
+
+    delta: float
+    chaotic: bool
+    lyapunov: float
+    """ln(growth over the second half) / (half the time to part), 1/s; 0 when not chaotic."""
+    horizon: float
+    """When the separation reached HORIZON_THRESHOLD (inf when it never did)."""
+    growth: float
+    """The largest separation over delta."""
+
+
+@dataclass(frozen=True)
+class Study:
+    title: str
+    source: str
+    t_end: float
+    """The end of the measured window (the predictability horizon for a chaotic system)."""
+    full_t_end: float
+    reference: Reference
+    horizon: Horizon | None
+    points: tuple[Point, ...]
+    notes: tuple[str, ...] = ()
+
+    @property
+    def fastest(self) -> tuple[tuple[float, Point], ...]:
+        """For each decade of error reached by some run, the fastest run reaching it."""
+        return fastest(self.points)
+
+
+def fastest(points: Sequence[Point]) -> tuple[tuple[float, Point], ...]:
+    result = []
+    for k in range(1, 15):
+        level = 10.0**-k
+        reaching = [p for p in points if p.ok and p.error <= level]
+        if reaching:
+            result.append((level, min(reaching, key=lambda p: p.seconds)))
+    return tuple(result)
+
+
+class _OverBudget(Exception):
+    def __init__(self, fraction: float) -> None:
+        super().__init__(fraction)
+        self.fraction = fraction
+
+
+Progress = Callable[[float], None]
+ProgressReport = Callable[[str], None]
+"""Told what the study is running now."""
+
+
+def _budget(seconds: float) -> Progress:
+    start = time.perf_counter()
+
+    def progress(fraction: float) -> None:
+        if time.perf_counter() - start > seconds:
+            raise _OverBudget(fraction)
+
+    return progress
+
+
+def run(model: Model, candidate: Candidate, tolerance: float, setup: Setup, *, step: float | None = None, progress: bool = True) -> Trajectory:
+    """One simulate() call of the study (raises _OverBudget, LagrangeError)."""
+    return simulate(
+        model,
+        t_end=setup.t_end,
+        method=candidate.method,
+        rtol=tolerance,
+        atol=tolerance * ATOL_RATIO,
+        step=step,
+        t_eval=setup.times,
+        parameters=setup.parameters,
+        initial=setup.initial,
+        backend=backend_for(candidate),
+        progress=_budget(setup.budget) if progress else None,
+    )
+
+
+def _repeats(first: float, repeats: int) -> int:
+    """More timed runs after the warm-up: `repeats` when one run is short, fewer for slow runs
+    (at most about 2 s of repeats per point), and at least one."""
+    if first <= 0:
+        return repeats
+    return max(1, min(repeats, int(2.0 / first)))
+
+
+def measure(model: Model, candidate: Candidate, tolerance: float, setup: Setup, reference: Reference, scale: np.ndarray, repeats: int = 3) -> Point:
+    """Run one point (warm-up, then timed repeats) and compare it with the reference."""
+    step = None
+    if candidate.method == "symplectic":
+        step = symplectic_step(_rate(model, setup), setup.t_end, tolerance)
+    empty = Point(candidate.label, candidate.label, tolerance, step, "", "", math.nan, math.nan, math.nan, None, math.nan, 0, 0.0, 0, 0, 0)
+    try:
+        first = run(model, candidate, tolerance, setup, step=step)
+    except _OverBudget as over:
+        return replace(empty, status="over budget", reason=f"stopped after {setup.budget:g} s at {100 * over.fraction:.0f}% of the time span")
+    except LagrangeError as error:
+        return replace(empty, status="not applicable", reason=str(error))
+    s = first.settings
+    resolved = f"{s.method} ({s.backend})"
+    compiled = first.timing.compile + first.timing.load + first.timing.generate
+    base = replace(
+        empty,
+        resolved=resolved,
+        compile_seconds=compiled,
+        nfev=first.stats.nfev,
+        njev=first.stats.njev,
+        steps=first.stats.steps,
+        seconds=first.timing.run,
+        runs=1,
+        step=s.step if s.method == "symplectic" else None,
+    )
+    if first.failed:
+        return replace(base, status="failed", reason=first.message)
+    final, rms, energy = errors(first, reference, scale)
+    drifts = [inv.max_change for inv in first.invariants if inv.name.startswith("constraint ")]
+    conserved = tuple((inv.name, inv.relative) for inv in first.invariants if inv.conserved and not inv.name.startswith("constraint "))
+    seconds = [first.timing.run]
+    if repeats > 0:
+        for _ in range(_repeats(first.timing.run, repeats)):
+            seconds.append(run(model, candidate, tolerance, setup, step=step, progress=False).timing.run)
+        seconds = seconds[1:]
+    return replace(
+        base, status="finished", final_error=final, rms_error=rms, energy_error=energy, constraint_drift=max(drifts) if drifts else None, seconds=min(seconds), runs=len(seconds), drifts=conserved
+    )
+
+
+_RATES: dict[tuple[int, tuple[tuple[str, float], ...], tuple[tuple[str, float], ...]], float] = {}
+
+
+def _rate(model: Model, setup: Setup) -> float:
+    """The spectral radius at the initial state (what the symplectic step is chosen from)."""
+    key = (id(model), tuple(sorted(setup.parameters.items())), tuple(sorted(setup.initial.items())))
+    if key not in _RATES:
+        s = resolve(model, method="DOP853", backend="python", parameters=setup.parameters, initial=setup.initial, t_end=setup.t_end)
+        found = initial_spectrum(model, s.p[: len(model.parameters)], s.y0)
+        _RATES[key] = found.rate if found is not None else 0.0
+    return _RATES[key]
+
+
+def scaled_errors(y: np.ndarray, reference: np.ndarray, scale: np.ndarray) -> np.ndarray:
+    """max_i |y_i - y_ref,i| / s_i at each sample."""
+    return np.max(np.abs(y - reference) / scale, axis=1)
+
+
+def errors(trajectory: Trajectory, reference: Reference, scale: np.ndarray) -> tuple[float, float, float]:
+    """(final error, RMS error, relative energy error) of a finished run."""
+    if len(trajectory.t) != len(reference.t) or not np.all(np.isfinite(trajectory.y)):
+        return math.nan, math.nan, math.nan
+    e = scaled_errors(trajectory.y, reference.y, scale)
+    size = max(float(np.max(np.abs(reference.energy))), 1e-300)
+    return float(e[-1]), float(np.sqrt(np.mean(e**2))), float(np.max(np.abs(trajectory.energy - reference.energy)) / size)
+
+
+def component_scale(y: np.ndarray) -> np.ndarray:
+    return np.maximum(1.0, np.max(np.abs(y), axis=0))
+
+
+# -- the reference ------------------------------------------------------------------------------
+
+
+def exact_reference(model: Model, setup: Setup) -> Reference | None:
+    """The file's exact solution at the study's times, when it covers every coordinate and the
+    initial state is the file's own (None otherwise)."""
+    import sympy as sp
+
+    if setup.initial or set(model.exact) != set(model.coordinates):
+        return None
+    s = resolve(model, method="DOP853", backend="python", parameters=setup.parameters, t_end=setup.t_end)
+    values = {p.symbol: v for p, v in zip(model.parameters, s.p, strict=False)}
+    t = sp.Symbol("t")
+    exprs = [sp.sympify(model.exact[c]).subs(values) for c in model.coordinates]
+    exprs += [sp.diff(e, t) for e in exprs[: model.n]]
+    evaluate = sp.lambdify(t, exprs, modules="numpy")
+    times = np.array(setup.times)
+    y = np.array([np.broadcast_to(np.asarray(v, dtype=float), times.shape) for v in evaluate(times)]).T
+    if np.max(np.abs(y[0] - np.array(s.y0))) > 1e-9 * max(1.0, float(np.max(np.abs(y[0])))):
+        return None
+    module = compile.build(model, "python").module
+    energy = np.array([module._energy(ti, yi.tolist(), list(s.p)) for ti, yi in zip(times, y, strict=True)])
+    return Reference("exact", "the file's exact solution", 0.0, times, y, energy, 0.0)
+
+
+def reference_candidates(model: Model, setup: Setup, tolerance: float) -> tuple[Candidate, Candidate]:
+    """The primary reference method and a different second one: compiled DOP853 confirmed by
+    compiled RK45 when numba is there (fast even when stiff: stability only costs steps);
+    otherwise what `auto` picks (Radau when stiff, else DOP853) and the other one."""
+    if compile.numba_available():
+        return Candidate("DOP853", "compiled"), Candidate("RK45", "compiled")
+    s = resolve(model, method="auto", rtol=tolerance, parameters=setup.parameters, initial=setup.initial, t_end=setup.t_end)
+    if s.method == "Radau":
+        return Candidate("Radau"), Candidate("DOP853")
+    return Candidate("DOP853"), Candidate("Radau")
+
+
+def computed_reference(model: Model, setup: Setup, tolerance: float) -> Reference:
+    """The primary reference run confirmed by the second; raises LagrangeError if the primary fails."""
+    primary, second = reference_candidates(model, setup, tolerance)
+    long = replace(setup, budget=max(setup.budget, 120.0))
+    began = time.perf_counter()
+    try:
+        main = run(model, primary, tolerance, long)
+    except _OverBudget:
+        raise LagrangeError(f"{model.source}: the reference run ({primary.method}, rtol {tolerance:.0e}) took more than {long.budget:g} s; give a shorter --t-end or looser --tolerances") from None
+    if main.failed:
+        raise LagrangeError(f"{model.source}: the reference run ({primary.method}, rtol {tolerance:.0e}) failed: {main.message}")
+    seconds = time.perf_counter() - began
+    scale = component_scale(main.y)
+    own, confirm = math.nan, f"unconfirmed: {second.method} at the same tolerance did not finish"
+    try:
+        other = run(model, second, tolerance, long)
+        if not other.failed and len(other.t) == len(main.t):
+            own = float(np.max(scaled_errors(other.y, main.y, scale)))
+            confirm = f"confirmed by {other.settings.method} ({other.settings.backend})"
+    except _OverBudget:
+        pass
+    description = f"{main.settings.method} ({main.settings.backend}) at rtol {tolerance:.0e}, atol {tolerance * ATOL_RATIO:.0e}, {confirm}"
+    return Reference("computed", description, own, main.t, main.y, main.energy, seconds)
+
+
+def horizon(model: Model, setup: Setup, tolerance: float) -> Horizon | None:
+    """Two primary reference runs started delta = tolerance apart (every component moved by
+    delta times its size): whether they part exponentially, and when."""
+    primary, _ = reference_candidates(model, setup, tolerance)
+    long = replace(setup, budget=max(setup.budget, 120.0))
+    try:
+        base = run(model, primary, tolerance, long)
+        if base.failed:
+            return None
+        s = base.settings
+        names = [*model.coordinates, *(f"{c}_dot" for c in model.coordinates)]
+        moved = {n: v + tolerance * max(1.0, abs(v)) for n, v in zip(names, s.y0, strict=True)}
+        if model.constraints:
+            return None  # moving the state would violate the constraints
+        other = run(model, primary, tolerance, replace(long, initial=moved))
+    except _OverBudget:
+        return None
+    if other.failed or len(other.t) != len(base.t):
+        return None
+    separation = np.maximum.accumulate(scaled_errors(other.y, base.y, component_scale(base.y)))
+    t = base.t
+    parted = np.nonzero(separation >= HORIZON_THRESHOLD)[0]
+    end = int(parted[0]) if len(parted) else len(t) - 1
+    half = int(np.searchsorted(t, t[end] / 2))
+    growth_half = separation[end] / max(separation[half], 1e-300)
+    chaotic = t[end] > 0 and growth_half > CHAOS_GROWTH
+    lyapunov = math.log(growth_half) / (t[end] / 2) if chaotic else 0.0
+    return Horizon(tolerance, bool(chaotic), lyapunov, float(t[end]) if len(parted) else math.inf, float(separation[-1] / tolerance))
+
+
+# -- the study ----------------------------------------------------------------------------------
+
+
+def study(
+    model: Model,
+    *,
+    candidates: Sequence[Candidate] | None = None,
+    tolerances: Sequence[float] = TOLERANCES,
+    t_end: float | None = None,
+    parameters: Mapping[str, float] | None = None,
+    initial: Mapping[str, float] | None = None,
+    samples: int = SAMPLES,
+    repeats: int = 3,
+    budget: float = 20.0,
+    progress: ProgressReport | None = None,
+) -> Study:
+    """Every candidate at every tolerance against one reference; see the module docstring."""
+    if not tolerances:
+        raise LagrangeError("give at least one tolerance")
+    if any(not (math.isfinite(t) and 0 < t < 1) for t in tolerances):
+        raise LagrangeError(f"tolerances must lie between 0 and 1, got {', '.join(f'{t:g}' for t in tolerances)}")
+    if samples < 2:
+        raise LagrangeError(f"samples must be at least 2, got {samples}")
+    tolerances = sorted(set(tolerances), reverse=True)
+    if min(tolerances) < 100 * TIGHTEST:
+        raise LagrangeError(f"the tightest tolerance {min(tolerances):g} leaves no room for a reference 1000 times tighter; give tolerances of at least {100 * TIGHTEST:.1e}")
+    chosen = tuple(candidates) if candidates else default_candidates(model)
+    settings = resolve(model, method="DOP853", backend="python", t_end=t_end, parameters=parameters, initial=initial)
+    full = settings.t_end
+    setup = Setup(full, tuple(np.linspace(0.0, full, samples).tolist()), dict(parameters or {}), dict(initial or {}), budget)
+    ref_tol = max(min(tolerances) * REFERENCE_FACTOR, TIGHTEST)
+    setup, reference, found, notes = prepare(model, setup, ref_tol, progress)
+    scale = component_scale(reference.y)
+    points = []
+    for candidate in chosen:
+        for tolerance in tolerances:
+            if progress:
+                progress(f"{candidate.label} {tolerance:.0e}")
+            points.append(measure(model, candidate, tolerance, setup, reference, scale, repeats))
+    return Study(model.title, model.source, setup.t_end, full, reference, found, tuple(points), notes)
+
+
+def prepare(model: Model, setup: Setup, ref_tol: float, progress: ProgressReport | None = None) -> tuple[Setup, Reference, Horizon | None, tuple[str, ...]]:
+    """The reference (exact, or computed at `ref_tol` and confirmed), and the window: cut to the
+    predictability horizon when nearby trajectories part exponentially."""
+    notes: list[str] = []
+    reference = exact_reference(model, setup)
+    found: Horizon | None = None
+    if reference is None:
+        if model.exact:
+            notes.append("the file's exact solution was not used (it does not cover every coordinate, or the initial state was changed)")
+        if progress:
+            progress("reference")
+        found = horizon(model, replace(setup, times=tuple(np.linspace(0.0, setup.t_end, 4 * len(setup.times)).tolist())), ref_tol)
+        if found is not None and found.chaotic and found.horizon < setup.t_end:
+            setup = replace(setup, t_end=found.horizon, times=tuple(np.linspace(0.0, found.horizon, len(setup.times)).tolist()))
+            notes.append(f"chaotic: nearby trajectories part at about {found.lyapunov:.2g}/s; errors are measured up to the predictability horizon t = {found.horizon:.3g}")
+        reference = computed_reference(model, setup, ref_tol)
+    return setup, reference, found, tuple(notes)
+
+
+# -- output -------------------------------------------------------------------------------------
+
+COLUMNS = ("method", "ran", "setting", "status", "final_error", "rms_error", "energy_error", "constraint_drift", "seconds", "runs", "compile_seconds", "nfev", "njev", "steps", "reason")
+
+
+def rows(result: Study) -> list[dict[str, object]]:
+    """One plain dict per point (for CSV and JSON)."""
+    out = []
+    for p in result.points:
+        out.append(
+            {
+                "method": p.method,
+                "ran": p.resolved,
+                "setting": p.setting,
+                "status": p.status,
+                "final_error": p.final_error,
+                "rms_error": p.rms_error,
+                "energy_error": p.energy_error,
+                "constraint_drift": p.constraint_drift,
+                "seconds": p.seconds,
+                "runs": p.runs,
+                "compile_seconds": p.compile_seconds,
+                "nfev": p.nfev,
+                "njev": p.njev,
+                "steps": p.steps,
+                "reason": p.reason,
+            }
+        )
+    return out
+
+
+def csv_text(result: Study) -> str:
+    import csv
+    import io
+
+    buffer = io.StringIO()
+    writer = csv.DictWriter(buffer, COLUMNS, lineterminator="\n")
+    writer.writeheader()
+    for row in rows(result):
+        writer.writerow({k: ("" if v is None else repr(v) if isinstance(v, float) else v) for k, v in row.items()})
+    return buffer.getvalue()
+
+
+def _json_number(value: object) -> object:
+    return None if isinstance(value, float) and not math.isfinite(value) else value
+
+
+def json_text(result: Study) -> str:
+    import json
+
+    h = result.horizon
+    document = {
+        "system": result.title,
+        "source": result.source,
+        "t_end": result.t_end,
+        "full_t_end": result.full_t_end,
+        "reference": {"kind": result.reference.kind, "description": result.reference.description, "own_error": _json_number(result.reference.own_error), "seconds": result.reference.seconds},
+        "horizon": None if h is None else {"delta": h.delta, "chaotic": h.chaotic, "lyapunov": h.lyapunov, "horizon": _json_number(h.horizon), "growth": h.growth},
+        "points": [{k: _json_number(v) for k, v in row.items()} for row in rows(result)],
+        "fastest": [{"error": level, "method": p.method, "setting": p.setting, "seconds": p.seconds, "error_reached": p.error} for level, p in result.fastest],
+        "notes": list(result.notes),
+    }
+    return json.dumps(document, indent=2, allow_nan=False) + "\n"
+
+
+def write_plot(result: Study, path: object) -> None:
+    """Two log-log panels, error against run time and against evaluations, one line per method;
+    written atomically."""
+    from pathlib import Path
+
+    import matplotlib
+
+    from lagrange_cli.files import atomic_write
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    target = Path(str(path)).resolve()
+    figure, (left, right) = plt.subplots(1, 2, figsize=(12, 5))
+    for method in dict.fromkeys(p.method for p in result.points):
+        good = [p for p in result.points if p.method == method and p.ok and p.error > 0]
+        if not good:
+            continue
+        errors_ = [p.error for p in good]
+        (line,) = left.loglog([p.seconds for p in good], errors_, "o-", label=method)
+        right.loglog([max(p.nfev, 1) for p in good], errors_, "o-", color=line.get_color(), label=method)
+    for axes, xlabel in ((left, "run time (s)"), (right, "right-hand side evaluations")):
+        axes.set_xlabel(xlabel)
+        axes.set_ylabel("error (max of final and RMS, scaled)")
+        axes.grid(True, which="both", alpha=0.3)
+        axes.legend()
+    window = f"t = 0..{result.t_end:.3g}" + (" (predictability horizon)" if result.t_end < result.full_t_end else "")
+    figure.suptitle(f"{result.title}: work-precision, {window}")
+    figure.tight_layout()
+    try:
+        atomic_write(target, lambda stream: figure.savefig(stream, format=target.suffix.lstrip(".").lower()))
+    finally:
+        plt.close(figure)

@@ -1,0 +1,325 @@
+"""Numerical stability on stiff and extreme cases: push a system towards its hard regimes and report what breaks.
+
+    report = stress(model, scales=[("k", [1e2, 1e4, 1e6, 1e8])], accuracy=1e-6)
+    report.outcomes        # per regime: every method's cheapest run meeting the accuracy, a diagnosis, a recommendation
+    report.passed          # False when in some regime no method meets the accuracy
+
+Regimes: a parameter sweep (`k=1e2..1e8`), or else the file's own setup, a long horizon
+(t_end x `long_factor`), a high energy (velocities x `energy_factor`; a start at rest gets the
+velocity of the slowest mode times the factor; kept constraints are respected) and, when
+one exists, a start near a singular configuration (where cond M(q) is largest, found by trying
+0, +-pi/2 and pi for each coordinate, moved 0.01 away from it).
+
+In each regime every candidate runs at tolerances from 10x the accuracy down to 1/100 of it
+(stopping at the first that meets it, or at a failure), against a reference as in
+`accuracy` (exact or confirmed, the window cut to the predictability horizon when chaotic).
+The diagnosis is made along the reference trajectory: the Jacobian's eigenvalues (stiffness
+ratio, time scales, the fastest decay x t_end that `simulate --method auto` also uses), the
+explicit method's step count against the implicit one's, cond M (coordinate singularities),
+drift of the energy, ignorable momenta and constraints, and blow-ups.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from lagrange_cli.errors import LagrangeError
+from lagrange_cli.model import Model
+from lagrange_cli.numeric import accuracy as study
+from lagrange_cli.numeric import compile, diagnostics
+from lagrange_cli.numeric.accuracy import Candidate, Point, Reference, Setup
+from lagrange_cli.numeric.settings import resolve
+
+NAIVE = Candidate("RK45", "python")
+"""scipy's default method, what a user reaches for first."""
+SAMPLES = 101
+EXPLOSION = 10.0  # explicit steps / implicit steps above which the explicit step count has exploded
+
+
+@dataclass(frozen=True)
+class Regime:
+    name: str
+    t_end: float
+    parameters: Mapping[str, float]
+    initial: Mapping[str, float]
+
+
+@dataclass(frozen=True)
+class Diagnosis:
+    decay_span: float
+    """max over the trajectory of the fastest decay rate x t_end (stiff above diagnostics.STIFF)."""
+    stiffness_ratio: float
+    scale_ratio: float
+    rate: float
+    condition: float
+    """max cond M(q) along the trajectory."""
+    findings: tuple[str, ...]
+
+
+@dataclass(frozen=True)
+class Outcome:
+    regime: Regime
+    t_end: float
+    """The measured window (shorter than the regime's t_end when chaotic)."""
+    reference: str
+    reference_error: float
+    points: tuple[Point, ...]
+    """Per candidate, its cheapest run meeting the accuracy, else its last run."""
+    diagnosis: Diagnosis
+    recommended: Point | None
+    naive: Point | None
+    auto: Point | None
+
+    @property
+    def met(self) -> bool:
+        return self.recommended is not None
+
+
+@dataclass(frozen=True)
+class Report:
+    title: str
+    accuracy: float
+    outcomes: tuple[Outcome, ...]
+
+    @property
+    def passed(self) -> bool:
+        return all(o.met for o in self.outcomes)
+
+
+def parse_scale(text: str) -> tuple[str, tuple[float, ...]]:
+    """`k=1e2..1e8` (every decade), `k=1,10,50` (a list)."""
+    name, equals, values = text.partition("=")
+    try:
+        if not equals or not name.strip():
+            raise ValueError
+        if ".." in values:
+            low, high = (float(v) for v in values.split(".."))
+            if not (low > 0 and high > 0):
+                raise ValueError
+            a, b = sorted((math.log10(low), math.log10(high)))
+            found = tuple(10.0 ** (a + k) for k in range(round(b - a) + 1))
+        else:
+            found = tuple(float(v) for v in values.split(","))
+    except ValueError:
+        raise LagrangeError(f"--scale {text!r}: expected name=low..high (every decade, both positive) or name=v1,v2,..., e.g. --scale k=1e2..1e8") from None
+    return name.strip(), found
+
+
+def regimes(model: Model, scales: Sequence[tuple[str, Sequence[float]]], long_factor: float = 10.0, energy_factor: float = 3.0, t_end: float | None = None) -> tuple[Regime, ...]:
+    """The regimes to run: the sweeps, or the defaults, a long horizon, high energy and near-singular start."""
+    base = resolve(model, method="DOP853", backend="python", t_end=t_end)
+    known = [p.name for p in model.parameters]
+    if scales:
+        result = []
+        for name, values in scales:
+            if name not in known:
+                raise LagrangeError(f"--scale: '{name}' is not a parameter of {model.source}; parameters: {', '.join(known) or 'none'}")
+            result += [Regime(f"{name} = {v:g}", base.t_end, {name: v}, {}) for v in values]
+        return tuple(result)
+    result = [Regime("defaults", base.t_end, {}, {}), Regime(f"long horizon (t_end x {long_factor:g})", base.t_end * long_factor, {}, {})]
+    result.append(Regime(f"high energy (velocities x {energy_factor:g})", base.t_end, {}, _high_energy(model, base.p, base.y0, energy_factor)))
+    singular = _near_singular(model, base.p, base.y0)
+    if singular is not None:
+        result.append(Regime(singular[0], base.t_end, {}, singular[1]))
+    return tuple(result)
+
+
+def _names(model: Model) -> list[str]:
+    return [*model.coordinates, *(f"{c}_dot" for c in model.coordinates)]
+
+
+def _high_energy(model: Model, p: Sequence[float], y0: Sequence[float], factor: float) -> dict[str, float]:
+    n = model.n
+    v = np.array(y0[n:], dtype=float)
+    if not np.any(v):
+        from lagrange_cli.numeric.settings import initial_spectrum
+
+        found = initial_spectrum(model, tuple(p), tuple(y0))
+        v = np.full(n, found.slowest if found is not None and found.slowest > 0 else 1.0)
+    v = factor * v
+    if model.constraints:
+        import sympy as sp
+
+        values = {parameter.symbol: value for parameter, value in zip(model.parameters, p, strict=False)}
+        rows = sp.Matrix([list(c.jacobian) for c in model.constraints]).subs(values)
+        a = np.array(sp.lambdify([model.t, *model.q], rows.tolist(), modules="math")(0.0, *y0[:n]), dtype=float)
+        v = v - a.T @ np.linalg.solve(a @ a.T, a @ v)
+    return dict(zip(_names(model)[n:], v.tolist(), strict=True))
+
+
+def _near_singular(model: Model, p: Sequence[float], y0: Sequence[float]) -> tuple[str, dict[str, float]] | None:
+    """Where cond M is largest when one coordinate is set to 0, +-pi/2 or pi: a start 0.01 from it."""
+    condition = diagnostics.mass_condition(model, p)
+    best: tuple[float, int, float] | None = None
+    for i in range(model.n):
+        for value in (0.0, math.pi / 2, -math.pi / 2, math.pi):
+            y = np.array(y0, dtype=float)
+            y[i] = value
+            c = condition(0.0, y)
+            if c > 1e10 and (best is None or c > best[0]):
+                best = (c, i, value)
+    if best is None:
+        return None
+    _, i, value = best
+    y = np.array(y0, dtype=float)
+    y[i] = value + 0.01
+    name = model.coordinates[i]
+    return f"near singular ({name} = {value + 0.01:.3g}, cond M = {condition(0.0, y):.1e})", {name: value + 0.01}
+
+
+def default_candidates(model: Model) -> tuple[Candidate, ...]:
+    return (NAIVE, *study.default_candidates(model), Candidate("auto"))
+
+
+def ladder(target: float) -> tuple[float, ...]:
+    return tuple(t for t in (10 * target, target, target / 10, target / 100) if 100 * study.TIGHTEST <= t < 1)
+
+
+def stress(
+    model: Model,
+    *,
+    scales: Sequence[tuple[str, Sequence[float]]] = (),
+    target: float = 1e-6,
+    candidates: Sequence[Candidate] | None = None,
+    t_end: float | None = None,
+    long_factor: float = 10.0,
+    energy_factor: float = 3.0,
+    budget: float = 5.0,
+    progress: Callable[[str], None] | None = None,
+) -> Report:
+    """Every regime; see the module docstring."""
+    if not (0 < target < 1e-1):
+        raise LagrangeError(f"--accuracy must lie between 0 and 0.1, got {target:g}")
+    if target < 1e4 * study.TIGHTEST:
+        raise LagrangeError(f"--accuracy {target:g} leaves no room for a reference 1e5 times tighter; give at least {1e4 * study.TIGHTEST:.1e}")
+    chosen = tuple(candidates) if candidates else default_candidates(model)
+    outcomes = [_regime(model, regime, target, chosen, budget, progress) for regime in regimes(model, scales, long_factor, energy_factor, t_end)]
+    return Report(model.title, target, tuple(outcomes))
+
+
+def _regime(model: Model, regime: Regime, target: float, candidates: Sequence[Candidate], budget: float, progress: Callable[[str], None] | None) -> Outcome:
+    setup = Setup(regime.t_end, tuple(np.linspace(0.0, regime.t_end, SAMPLES).tolist()), dict(regime.parameters), dict(regime.initial), budget)
+    ref_tol = max(target * 1e-5, study.TIGHTEST)
+    say = (lambda text: progress(f"{regime.name}: {text}")) if progress else None
+    try:
+        setup, reference, _, _ = study.prepare(model, setup, ref_tol, say)
+    except LagrangeError as error:
+        finding = f"blow-up or failure of the reference run: {error}"
+        return Outcome(regime, setup.t_end, "none", math.nan, (), Diagnosis(0.0, 1.0, 1.0, 0.0, math.nan, (finding,)), None, None, None)
+    scale = study.component_scale(reference.y)
+    points: list[Point] = []
+    runs: dict[tuple[str, float], Point] = {}
+    for candidate in candidates:
+        last: Point | None = None
+        for tolerance in ladder(target):
+            if say:
+                say(f"{candidate.label} {tolerance:.0e}")
+            last = study.measure(model, candidate, tolerance, setup, reference, scale, repeats=1)
+            runs[(candidate.label, tolerance)] = last
+            if not last.ok or last.error <= target:
+                break
+        if last is not None:
+            points.append(last)
+    meeting = [p for p in points if p.ok and p.error <= target]
+    recommended = min(meeting, key=lambda p: p.seconds) if meeting else None
+    naive = next((p for p in points if p.method == NAIVE.label), None)
+    auto = next((p for p in points if p.method == "auto"), None)
+    diagnosis = diagnose(model, setup, reference, points, runs, target)
+    return Outcome(regime, setup.t_end, reference.description, reference.own_error, tuple(points), diagnosis, recommended, naive, auto)
+
+
+def diagnose(model: Model, setup: Setup, reference: Reference, points: Sequence[Point], runs: Mapping[tuple[str, float], Point], target: float) -> Diagnosis:
+    """Stiffness, time scales and conditioning along the reference, and what the runs showed."""
+    s = resolve(model, method="DOP853", backend="python", t_end=setup.t_end, parameters=setup.parameters, initial=setup.initial)
+    module = compile.build(model, "python", jacobian=True).module
+    p = list(s.p) if not model.constraints else [*s.p[: len(model.parameters)], 0.0]
+    spectra = []
+    for k in np.linspace(0, len(reference.t) - 1, min(25, len(reference.t))).astype(int):
+        try:
+            found = diagnostics.spectrum(np.asarray(module._jac(float(reference.t[k]), reference.y[k].tolist(), p), dtype=float))
+        except (ZeroDivisionError, OverflowError, ValueError, np.linalg.LinAlgError):
+            found = None
+        if found is not None:
+            spectra.append(found)
+    condition = diagnostics.mass_condition(model, s.p[: len(model.parameters)])
+    worst = max((condition(float(t), y) for t, y in zip(reference.t, reference.y, strict=True)), default=math.nan)
+    decay = max((x.decay for x in spectra), default=0.0)
+    rate = max((x.rate for x in spectra), default=0.0)
+    stiffness = max((x.stiffness_ratio for x in spectra), default=1.0)
+    scales = max((x.scale_ratio for x in spectra), default=1.0)
+    findings = []
+    if decay * setup.t_end > diagnostics.STIFF:
+        findings.append(f"stiff: a mode decays at up to {decay:.3g}/s (x t_end = {decay * setup.t_end:.3g}), stiffness ratio {stiffness:.3g}")
+    elif scales > 100:
+        findings.append(f"two time scales (highly oscillatory, not dissipative): fastest rate {rate:.3g}/s, {scales:.3g} x the slowest")
+    by_method = {(label.split(":")[0], tolerance): point for (label, tolerance), point in runs.items()}
+    for tolerance in ladder(target):
+        implicit = by_method.get(("Radau", tolerance))
+        explicit = max((by_method[(m, tolerance)] for m in ("RK45", "DOP853") if (m, tolerance) in by_method), key=lambda p: p.steps, default=None)
+        if explicit and implicit and explicit.steps and implicit.steps and explicit.steps > EXPLOSION * implicit.steps:
+            findings.append(f"explicit step count explodes: {explicit.method} took {explicit.steps} steps against Radau's {implicit.steps} at rtol {tolerance:.0e}")
+            break
+    if worst > diagnostics.SINGULAR_CONDITION:
+        findings.append(f"near a coordinate singularity: cond M reaches {worst:.2g} along the trajectory")
+    for point in points:
+        if point.status == "failed" and ("infinite or NaN" in point.reason or "singular" in point.reason):
+            findings.append(f"{point.method} ({point.setting}) failed: {point.reason.split(': ', 1)[-1]}")
+        elif point.status == "over budget":
+            findings.append(f"{point.method} ({point.setting}) {point.reason}")
+        for name, drift in point.drifts:
+            if point.ok and drift > 10 * target and point.method == NAIVE.label:
+                findings.append(f"{point.method} ({point.setting}): {name} drifts by {drift:.1e} (relative)")
+        if point.ok and point.constraint_drift is not None and point.constraint_drift > target and point.method == NAIVE.label:
+            findings.append(f"{point.method} ({point.setting}): constraint drift {point.constraint_drift:.1e}")
+    return Diagnosis(decay * setup.t_end, stiffness, scales, rate, worst, tuple(findings))
+
+
+def json_text(report: Report) -> str:
+    import json
+
+    def number(value: float | None) -> float | None:
+        return value if value is not None and math.isfinite(value) else None
+
+    def point(p: Point | None) -> dict[str, object] | None:
+        if p is None:
+            return None
+        return {
+            "method": p.method,
+            "ran": p.resolved,
+            "setting": p.setting,
+            "status": p.status,
+            "error": number(p.error),
+            "seconds": number(p.seconds),
+            "steps": p.steps,
+            "nfev": p.nfev,
+            "reason": p.reason,
+        }
+
+    document = {
+        "system": report.title,
+        "accuracy": report.accuracy,
+        "passed": report.passed,
+        "regimes": [
+            {
+                "regime": o.regime.name,
+                "t_end": o.t_end,
+                "reference": o.reference,
+                "reference_error": number(o.reference_error),
+                "stiffness_ratio": number(o.diagnosis.stiffness_ratio),
+                "decay_x_t_end": number(o.diagnosis.decay_span),
+                "time_scale_ratio": number(o.diagnosis.scale_ratio),
+                "max_mass_condition": number(o.diagnosis.condition),
+                "findings": list(o.diagnosis.findings),
+                "recommended": point(o.recommended),
+                "naive": point(o.naive),
+                "auto": point(o.auto),
+                "runs": [point(p) for p in o.points],
+            }
+            for o in report.outcomes
+        ],
+    }
+    return json.dumps(document, indent=2, allow_nan=False) + "\n"

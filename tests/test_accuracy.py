@@ -1,0 +1,135 @@
+"""The work-precision study: errors against an exact or confirmed reference, failures kept,
+chaos detected and the window cut to the predictability horizon, and the command's outputs."""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import math
+from pathlib import Path
+
+import pytest
+from typer.testing import CliRunner
+
+from lagrange_cli.cli import app
+from lagrange_cli.errors import LagrangeError
+from lagrange_cli.numeric import accuracy
+from lagrange_cli.numeric.accuracy import Candidate
+
+from .conftest import ROOT
+from .helpers import model_from, model_of
+
+runner = CliRunner()
+SCIPY = [Candidate("RK45", "python"), Candidate("DOP853", "python"), Candidate("Radau")]
+
+
+@pytest.fixture(autouse=True, scope="module")
+def cache(tmp_path_factory: pytest.TempPathFactory) -> None:
+    patch = pytest.MonkeyPatch()
+    patch.setenv("LAGRANGE_CACHE_DIR", str(tmp_path_factory.mktemp("lagrange-cache")))
+    yield
+    patch.undo()
+
+
+def test_errors_against_the_exact_solution_shrink_with_the_tolerance() -> None:
+    model = model_from(ROOT / "systems" / "harmonic_oscillator.yaml")
+    result = accuracy.study(model, candidates=SCIPY, tolerances=[1e-4, 1e-6, 1e-8], repeats=1, samples=51)
+    assert result.reference.kind == "exact" and result.reference.own_error == 0.0
+    assert len(result.points) == 9 and all(p.ok for p in result.points)
+    for method in ("RK45:python", "DOP853:python", "Radau"):
+        errors = [p.error for p in result.points if p.method == method]
+        assert errors[0] > errors[1] > errors[2], (method, errors)
+        assert errors[2] < 1e-5
+    dop = [p for p in result.points if p.method == "DOP853:python"]
+    assert all(p.nfev > 0 and p.steps > 0 and p.seconds > 0 for p in dop)
+    levels = [level for level, _ in result.fastest]
+    assert levels == sorted(levels, reverse=True) and levels[0] == 0.1
+    for level, point in result.fastest:
+        assert point.error <= level
+        assert point.seconds == min(p.seconds for p in result.points if p.ok and p.error <= level)
+
+
+def test_a_computed_reference_is_confirmed_by_a_second_method() -> None:
+    """Without an exact solution the reference runs 1000 times tighter, confirmed by another method."""
+    model = model_from(ROOT / "systems" / "simple_pendulum.yaml")
+    result = accuracy.study(model, candidates=[Candidate("RK45", "python")], tolerances=[1e-5], repeats=0, samples=21, t_end=3.0)
+    assert result.reference.kind == "computed" and "rtol 1e-08" in result.reference.description
+    assert "confirmed by RK45" in result.reference.description
+    assert 0 < result.reference.own_error < 1e-6
+    assert result.horizon is not None and not result.horizon.chaotic and result.t_end == 3.0
+
+
+def test_exact_solution_is_not_used_when_the_initial_state_changes() -> None:
+    model = model_from(ROOT / "systems" / "harmonic_oscillator.yaml")
+    result = accuracy.study(model, candidates=[Candidate("DOP853", "python")], tolerances=[1e-6], initial={"x": 0.3}, repeats=0, samples=11, t_end=2.0)
+    assert result.reference.kind == "computed" and result.notes
+
+
+def test_chaotic_double_pendulum_is_measured_inside_its_horizon() -> None:
+    model = model_from(ROOT / "systems" / "double_pendulum_chaotic.yaml")
+    result = accuracy.study(model, candidates=[Candidate("DOP853", "python")], tolerances=[1e-4], repeats=0, samples=41)
+    h = result.horizon
+    assert h is not None and h.chaotic and 0.5 < h.lyapunov < 5
+    assert 3 < result.t_end == h.horizon < result.full_t_end == 20
+    assert result.reference.own_error < 1e-2
+
+
+def test_failed_and_inapplicable_runs_stay_in_the_table() -> None:
+    """A blow-up is kept with its reason; the symplectic method refuses kept constraints."""
+    text = "coordinates: [x]\nparameters: {c: 1.0}\npotential: -c*x**4\nparticles: {p: {mass: 1, position: [x]}}\ninitial: {x: 1.0, x_dot: 1.0}\nsimulate: {t_end: 5}\n"
+    model = model_of(text)
+    setup = accuracy.Setup(5.0, (0.0, 5.0))
+    reference = accuracy.Reference("exact", "none", 0.0, __import__("numpy").zeros(2), __import__("numpy").zeros((2, 2)), __import__("numpy").zeros(2), 0.0)
+    point = accuracy.measure(model, Candidate("RK45", "python"), 1e-6, setup, reference, __import__("numpy").ones(2), repeats=0)
+    assert point.status == "failed" and "failed at t =" in point.reason and not point.ok and math.isnan(point.error)
+    constrained = model_from(ROOT / "systems" / "pendulum_multiplier.yaml")
+    inapplicable = accuracy.measure(constrained, Candidate("symplectic", "compiled"), 1e-6, setup, reference, __import__("numpy").ones(4), repeats=0)
+    assert inapplicable.status == "not applicable" and "constraints" in inapplicable.reason
+
+
+def test_over_budget_runs_are_stopped_and_kept() -> None:
+    model = model_from(ROOT / "systems" / "stiff_spring_pendulum_damped.yaml")
+    setup = accuracy.Setup(10.0, (0.0, 10.0), {"k": 1e8}, {}, budget=0.05)
+    import numpy as np
+
+    reference = accuracy.Reference("exact", "none", 0.0, np.zeros(2), np.zeros((2, 4)), np.zeros(2), 0.0)
+    point = accuracy.measure(model, Candidate("RK45", "python"), 1e-6, setup, reference, np.ones(4), repeats=0)
+    assert point.status == "over budget" and "0.05 s" in point.reason
+
+
+def test_bad_study_settings_raise() -> None:
+    model = model_from(ROOT / "systems" / "harmonic_oscillator.yaml")
+    with pytest.raises(LagrangeError, match="between 0 and 1"):
+        accuracy.study(model, tolerances=[2.0])
+    with pytest.raises(LagrangeError, match="no room"):
+        accuracy.study(model, tolerances=[1e-13])
+    with pytest.raises(LagrangeError, match="unknown method"):
+        accuracy.parse_candidate("RK4")
+
+
+def test_accuracy_command_writes_table_csv_json_and_plot(tmp_path: Path) -> None:
+    csv_path, json_path, plot_path = tmp_path / "s.csv", tmp_path / "s.json", tmp_path / "s.png"
+    args = ["accuracy", "harmonic_oscillator", "--method", "RK45:python,Radau", "--tolerances", "1e-3..1e-5", "--repeats", "1", "--samples", "21"]
+    result = runner.invoke(app, [*args, "--csv", str(csv_path), "--json", str(json_path), "--plot", str(plot_path)])
+    assert result.exit_code == 0, result.output
+    assert "exact solution" in result.output and "fastest method for each accuracy" in result.output
+    table = list(csv.DictReader(io.StringIO(csv_path.read_text())))
+    assert len(table) == 6 and {row["method"] for row in table} == {"RK45:python", "Radau"}
+    document = json.loads(json_path.read_text())
+    assert document["reference"]["kind"] == "exact" and len(document["points"]) == 6 and document["fastest"]
+    assert plot_path.read_bytes()[:4] == b"\x89PNG"
+
+
+@pytest.mark.parametrize(
+    ("args", "text"),
+    [
+        (["--method", "RK4"], "unknown method"),
+        (["--tolerances", "abc"], "--tolerances"),
+        (["--plot", "x.txt"], "plot"),
+        (["--set", "q=1"], "not a parameter"),
+    ],
+)
+def test_accuracy_bad_options_exit_2(args: list[str], text: str) -> None:
+    result = runner.invoke(app, ["accuracy", "harmonic_oscillator", *args])
+    assert result.exit_code == 2 and text in result.output and "Traceback" not in result.output

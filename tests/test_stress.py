@@ -1,0 +1,84 @@
+"""The stress test: regimes built as asked, stiffness and singular coordinates diagnosed, the
+naive method's failure and the recommended method's success shown, and the CI exit code."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+from typer.testing import CliRunner
+
+from lagrange_cli.cli import app
+from lagrange_cli.errors import LagrangeError
+from lagrange_cli.numeric import stress
+from lagrange_cli.numeric.accuracy import Candidate
+
+from .conftest import ROOT
+from .helpers import model_from
+
+runner = CliRunner()
+SCIPY = [Candidate("RK45", "python"), Candidate("Radau"), Candidate("DOP853", "python")]
+
+
+@pytest.fixture(autouse=True, scope="module")
+def cache(tmp_path_factory: pytest.TempPathFactory) -> None:
+    patch = pytest.MonkeyPatch()
+    patch.setenv("LAGRANGE_CACHE_DIR", str(tmp_path_factory.mktemp("lagrange-cache")))
+    yield
+    patch.undo()
+
+
+def test_scales_parse_into_decades_and_lists() -> None:
+    assert stress.parse_scale("k=1e2..1e4") == ("k", pytest.approx((1e2, 1e3, 1e4)))
+    assert stress.parse_scale("k=1,5") == ("k", (1.0, 5.0))
+    for bad in ("k", "k=a..b", "=1", "k=0..10"):
+        with pytest.raises(LagrangeError, match="--scale"):
+            stress.parse_scale(bad)
+
+
+def test_default_regimes_include_long_high_energy_and_near_singular() -> None:
+    model = model_from(ROOT / "systems" / "spherical_pendulum.yaml")
+    names = [r.name for r in stress.regimes(model, [])]
+    assert names[0] == "defaults" and names[1].startswith("long horizon") and names[2].startswith("high energy")
+    assert any(n.startswith("near singular (theta = 0.01") for n in names)
+    constrained = model_from(ROOT / "systems" / "pendulum_multiplier.yaml")
+    high = next(r for r in stress.regimes(constrained, []) if r.name.startswith("high energy"))
+    x, y = 0.8414709848078965, -0.5403023058681398
+    assert abs(x * high.initial["x_dot"] + y * high.initial["y_dot"]) < 1e-12  # the velocity constraint holds
+    with pytest.raises(LagrangeError, match="not a parameter"):
+        stress.regimes(model, [("kk", [1.0])])
+
+
+def test_stiff_damped_spring_shows_the_naive_method_losing_and_radau_winning() -> None:
+    model = model_from(ROOT / "systems" / "stiff_spring_pendulum_damped.yaml")
+    report = stress.stress(model, scales=[("k", [1e6])], target=1e-5, candidates=SCIPY, t_end=2.0, budget=10.0)
+    (outcome,) = report.outcomes
+    assert report.passed and outcome.recommended is not None and outcome.recommended.method == "Radau"
+    assert any(f.startswith("stiff") for f in outcome.diagnosis.findings)
+    assert any("explicit step count explodes" in f for f in outcome.diagnosis.findings)
+    assert outcome.naive is not None and outcome.naive.steps > 10 * outcome.recommended.steps
+
+
+def test_near_pole_passage_is_diagnosed_as_a_coordinate_singularity() -> None:
+    model = model_from(ROOT / "systems" / "spherical_pendulum_near_pole.yaml")
+    report = stress.stress(model, scales=[("g", [9.81])], target=1e-4, candidates=[Candidate("DOP853", "python")], t_end=3.0)
+    (outcome,) = report.outcomes
+    assert outcome.diagnosis.condition > 1e4
+    assert any("coordinate singularity" in f for f in outcome.diagnosis.findings) or outcome.diagnosis.condition < 1e6
+
+
+def test_unreachable_accuracy_exits_1_and_reachable_exits_0(tmp_path: Path) -> None:
+    common = ["stress", "harmonic_oscillator", "--scale", "k=4", "--t-end", "2"]
+    ok = runner.invoke(app, [*common, "--accuracy", "1e-4", "--method", "RK45:python", "--json", str(tmp_path / "r.json")])
+    assert ok.exit_code == 0, ok.output
+    document = json.loads((tmp_path / "r.json").read_text())
+    assert document["passed"] and document["regimes"][0]["recommended"]["method"] == "RK45:python"
+    starved = runner.invoke(app, [*common, "--accuracy", "1e-4", "--method", "RK45:python", "--budget", "1e-9"])
+    assert starved.exit_code == 1 and "no method meets" in starved.output
+
+
+@pytest.mark.parametrize(("args", "text"), [(["--scale", "q=1..10"], "not a parameter"), (["--accuracy", "2"], "--accuracy"), (["--method", "Euler"], "unknown method")])
+def test_stress_bad_options_exit_2(args: list[str], text: str) -> None:
+    result = runner.invoke(app, ["stress", "harmonic_oscillator", *args])
+    assert result.exit_code == 2 and text in result.output and "Traceback" not in result.output
