@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import numpy as np
 import pytest
 from typer.testing import CliRunner
 
@@ -82,3 +83,53 @@ def test_unreachable_accuracy_exits_1_and_reachable_exits_0(tmp_path: Path) -> N
 def test_stress_bad_options_exit_2(args: list[str], text: str) -> None:
     result = runner.invoke(app, ["stress", "harmonic_oscillator", *args])
     assert result.exit_code == 2 and text in result.output and "Traceback" not in result.output
+
+
+def test_spectrum_does_not_count_a_saddle_pair_as_stiffness() -> None:
+    from lagrange_cli.numeric import diagnostics
+
+    saddle = diagnostics.spectrum(np.array([[0.0, 1.0], [1e6, 0.0]]))  # eigenvalues +-1000: an unstable pair
+    assert saddle is not None and saddle.decay == 0 and saddle.growth == pytest.approx(1000)
+    assert diagnostics.choose(saddle, 10.0)[0] == "DOP853"
+    jacobian = np.zeros((4, 4))
+    jacobian[:2, :2] = [[0.0, 1.0], [-1.0, 0.0]]  # a slow swing, +-i
+    jacobian[2:, 2:] = [[0.0, 1.0], [-1e8, -2e4]]  # a critically damped fast mode, a double root at -1e4
+    damped = diagnostics.spectrum(jacobian)
+    assert damped is not None and damped.decay == pytest.approx(1e4, rel=1e-3) and damped.growth == 0 and damped.slowest == pytest.approx(1)
+    assert diagnostics.choose(damped, 10.0)[0] == "Radau"
+    assert diagnostics.choose(damped, 0.1)[0] == "DOP853"  # decay x t_end 1e3: stiff, but ~300 explicit steps are cheaper compiled
+    assert diagnostics.choose(damped, 1.0, compiled=False)[0] == "Radau"
+
+
+@pytest.mark.parametrize(
+    ("name", "parameters", "initial", "picked"),
+    [
+        ("stiff_spring_pendulum", {}, {}, ("DOP853", "RK45")),
+        ("stiff_spring_pendulum", {"k": 1e8}, {}, ("DOP853", "RK45")),
+        ("heavy_top", {}, {}, ("DOP853", "RK45")),
+        ("heavy_top", {}, {"theta": 0.01, "phi_dot": 0.0, "psi_dot": 0.0}, ("DOP853", "RK45")),
+        ("double_pendulum", {}, {}, ("DOP853", "RK45")),
+        ("double_pendulum_chaotic", {}, {}, ("DOP853", "RK45")),
+        ("stiff_spring_pendulum_damped", {"k": 1e4}, {}, ("DOP853", "RK45")),
+        ("stiff_spring_pendulum_damped", {"k": 1e8}, {}, ("Radau", "BDF")),
+    ],
+)
+def test_auto_picks_explicit_unless_an_explicit_method_is_stability_limited_too_long(name: str, parameters: dict[str, float], initial: dict[str, float], picked: tuple[str, ...]) -> None:
+    from lagrange_cli.numeric.settings import resolve
+
+    settings = resolve(model_from(ROOT / "systems" / f"{name}.yaml"), method="auto", parameters=parameters, initial=initial, t_end=10.0)
+    assert settings.method in picked, settings.notes
+
+
+def test_report_names_the_naive_failure_and_the_recommended_success() -> None:
+    # the damped stiff spring at its default k = 1e8: scipy's RK45 needs ~33000 stability-limited
+    # steps (~2.4 s in Python) for t = 0..10, Radau ~300 (~60 ms): a 0.5 s budget stops the naive run
+    model = model_from(ROOT / "systems" / "stiff_spring_pendulum_damped.yaml")
+    report = stress.stress(model, scales=[("k", [1e8])], target=1e-5, candidates=[Candidate("RK45", "python"), Candidate("auto")], budget=0.5)
+    outcome = report.outcomes[0]
+    assert outcome.naive is not None and outcome.auto is not None
+    assert outcome.naive.status == "over budget", outcome.naive
+    assert any(f.startswith("RK45:python") and "stopped after" in f for f in outcome.diagnosis.findings)
+    assert any(f.startswith("stiff:") for f in outcome.diagnosis.findings), outcome.diagnosis.findings
+    assert outcome.recommended is not None and outcome.recommended.resolved.startswith("Radau") and outcome.auto.resolved.startswith("Radau")
+    assert json.loads(stress.json_text(report))["regimes"][0]["naive"]["status"] == "over budget"

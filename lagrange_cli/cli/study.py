@@ -268,7 +268,7 @@ def _report_stress(report: Report, to_stderr: bool) -> None:
             console.print(f"  [red]no method meets error {report.accuracy:.0e} in this regime[/red]")
         summary.add_row(
             o.regime.name,
-            "; ".join(f.split(":")[0] for f in d.findings) or "benign",
+            "; ".join(f.split(": ")[0] for f in d.findings) or "benign",
             _brief(o.naive, report.accuracy),
             _brief(o.auto, report.accuracy),
             _brief(best, report.accuracy) if best else "[red]none[/red]",

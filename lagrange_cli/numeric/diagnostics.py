@@ -1,9 +1,14 @@
 """What makes a system hard to integrate, measured at a state: shared by `stress` and `simulate --method auto`.
 
 - `spectrum(J)`: from the eigenvalues lambda of the Jacobian df/dy, the fastest decay
-  max(-Re lambda) among real-dominated eigenvalues (|Re| > |Im|: dissipative stiffness), the
-  spectral radius max |lambda| (the fastest time scale, oscillatory or not), and the slowest
-  non-zero |lambda|; their ratios are the stiffness ratio and the ratio of time scales.
+  max(-Re lambda) among real-dominated eigenvalues (|Re| > |Im|: dissipative stiffness) that
+  have no matching growth (see below), the fastest growth max Re lambda, the spectral radius
+  max |lambda| (the fastest time scale, oscillatory or not), and the slowest non-zero |lambda|;
+  their ratios are the stiffness ratio and the ratio of time scales.
+- `choose(spectrum, t_end)`: the method `simulate --method auto` picks and the label `stress`
+  gives (see its docstring): stiff only when a decay is both fast over the run and unmatched
+  by growth, and Radau only when an explicit method's stability-limited step count is too
+  large, against Radau's estimated steps, to be cheaper compiled.
 - `mass_condition(model, p)`: the 2-norm condition number of M(q, t), which grows without
   bound near a coordinate singularity (Euler angles at theta = 0, the pole of spherical
   coordinates).
@@ -22,6 +27,20 @@ from lagrange_cli.model import Model
 
 STIFF = 500.0
 """decay rate x time span of a real-dominated eigenvalue above which a problem counts as stiff."""
+FAR = 100.0
+"""decay / slowest rate above which a decaying mode is far faster than the motion of interest."""
+MATCHED = 0.5
+"""a decay d is matched (a saddle's +-pair, not stiffness) when some eigenvalue grows at >= MATCHED x d."""
+STABILITY = 3.0
+"""|h lambda| on the negative real axis that RK45 and DOP853 stay stable for (about 3)."""
+PER_RADIAN = 10.0
+"""steps an implicit method takes per radian of the slowest motion (measured: Radau ~6-7 on the
+damped stiff spring at rtol 1e-5), plus TRANSIENT steps for the fast transient."""
+TRANSIENT = 100.0
+COST_RATIO = 50.0
+"""cost of a scipy Radau step (Python, Newton iterations, LU solves; ~250 us measured) over a
+compiled RK45/DOP853 step (~1-5 us measured): deliberately conservative, as the compiled step
+measured ~0.6 us on the damped stiff spring."""
 SINGULAR_CONDITION = 1e6
 """condition number of M above which the coordinates count as near-singular."""
 
@@ -31,11 +50,15 @@ class Spectrum:
     """Rates (1/s) of the linearisation at one state."""
 
     decay: float
-    """max -Re(lambda) over eigenvalues with |Re| > |Im| (0 when none decays)."""
+    """max -Re(lambda) over eigenvalues with |Re| > |Im| whose decay is not matched by a growth
+    rate of MATCHED x its size or more (0 when none decays)."""
     rate: float
     """max |lambda|, the spectral radius."""
     slowest: float
     """min |lambda| over eigenvalues above 1e-9 of the spectral radius (0 when all are 0)."""
+    growth: float = 0.0
+    """max Re(lambda), 0 when nothing grows: an unstable mode (a saddle near a singular or
+    inverted configuration, or chaos), which an implicit method does not help with."""
 
     @property
     def stiffness_ratio(self) -> float:
@@ -57,9 +80,59 @@ def spectrum(jacobian: np.ndarray) -> Spectrum | None:
         return None
     sizes = np.abs(eigenvalues)
     rate = float(np.max(sizes)) if len(sizes) else 0.0
-    decays = [-e.real for e in eigenvalues if -e.real > abs(e.imag)]
+    growth = max(0.0, float(np.max(eigenvalues.real))) if len(eigenvalues) else 0.0
+    decays = [-e.real for e in eigenvalues if -e.real > abs(e.imag) and growth < MATCHED * -e.real]
     nonzero = sizes[sizes > 1e-9 * rate] if rate > 0 else sizes[:0]
-    return Spectrum(max(decays, default=0.0), rate, float(np.min(nonzero)) if len(nonzero) else 0.0)
+    return Spectrum(max(decays, default=0.0), rate, float(np.min(nonzero)) if len(nonzero) else 0.0, growth)
+
+
+def stiff(found: Spectrum, t_end: float) -> bool:
+    """A decay (already free of matched growth, see `spectrum`) fast over the run (decay x t_end >
+    STIFF) and far faster than the slowest motion (stiffness ratio decay / slowest > FAR)."""
+    return found.decay * t_end > STIFF and found.stiffness_ratio > FAR
+
+
+def explicit_steps(decay: float, t_end: float) -> float:
+    """The steps RK45/DOP853 need just to stay stable: decay x t_end / STABILITY."""
+    return decay * t_end / STABILITY
+
+
+def implicit_steps(slowest: float, t_end: float) -> float:
+    """The steps Radau needs for the slow motion: PER_RADIAN x slowest rate x t_end + TRANSIENT."""
+    return PER_RADIAN * slowest * t_end + TRANSIENT
+
+
+def explicit_affordable(found: Spectrum, t_end: float) -> bool:
+    """Whether compiled explicit steps (stability-limited) cost less than Radau's: explicit steps
+    <= COST_RATIO x implicit steps, i.e. decay / STABILITY <= COST_RATIO x (PER_RADIAN x slowest
+    + TRANSIENT / t_end) - a bound on the stiffness ratio decay / slowest, about 1500 on long runs."""
+    return explicit_steps(found.decay, t_end) <= COST_RATIO * implicit_steps(found.slowest, t_end)
+
+
+def choose(found: Spectrum | None, t_end: float, compiled: bool = True) -> tuple[str, str]:
+    """(method, why) for `simulate --method auto`, from the linearisation at one state.
+
+    - Not stiff -> DOP853: no unmatched decay d with d x t_end > STIFF and d > FAR x the
+      slowest rate (a decay comparable with the motion itself is resolved anyway). Eigenvalues that are
+      oscillatory (|Im| >= |Re|, e.g. a stiff undamped spring) or that come as a +-pair (a decay
+      matched by a growth rate of at least MATCHED x d, e.g. the heavy top near theta = 0 or
+      an inverted pendulum) are not stiffness: an implicit method would not buy larger steps.
+    - Stiff but affordable -> DOP853: the stability limit forces about d x t_end / STABILITY
+      explicit steps; while that is at most COST_RATIO x Radau's estimated steps
+      (`explicit_affordable`), a compiled explicit method is cheaper (measured: damped stiff
+      spring at k = 1e4..1e6, ~1-4 ms compiled against 59-174 ms for Radau).
+    - Stiff and expensive -> Radau (e.g. the damped stiff spring at k = 1e8 over t_end = 10:
+      3.3e4 explicit steps against 50 x ~390 estimated Radau steps), and
+      any stiff case when explicit methods cannot run compiled (`compiled=False`: no numba).
+    """
+    if found is None:
+        return "DOP853", "the linearisation at the initial state could not be evaluated"
+    if not stiff(found, t_end):
+        return "DOP853", "not stiff at the initial state"
+    steps = explicit_steps(found.decay, t_end)
+    if compiled and explicit_affordable(found, t_end):
+        return "DOP853", f"mildly stiff (decay {found.decay:.3g}/s x t_end {t_end:g}): about {steps:.3g} stability-limited explicit steps, cheaper compiled than Radau"
+    return "Radau", f"stiff: a mode decays at rate {found.decay:.3g}/s over t_end = {t_end:g} (about {steps:.3g} explicit steps)"
 
 
 def jacobian(rhs: Callable[[float, np.ndarray], np.ndarray | None], t: float, y: np.ndarray) -> np.ndarray | None:

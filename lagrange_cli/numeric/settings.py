@@ -2,8 +2,10 @@
 
 `resolve` validates everything at once into a frozen `Settings` (or raises `LagrangeError`
 saying what to change), and resolves `method="auto"` and `backend="auto"` from the system:
-the linearisation at the initial state tells whether it is stiff (Radau) or not (DOP853),
-and how fast it moves (whether compiling pays off, and the symplectic method's step).
+the linearisation at the initial state tells whether it is stiff enough that Radau beats a
+compiled explicit method (`diagnostics.choose`, the same rule `lagrange stress` reports with)
+or not (DOP853), and how fast it moves (whether compiling pays off, and the symplectic
+method's step).
 """
 
 from __future__ import annotations
@@ -27,7 +29,6 @@ COMPILED = ("RK45", "DOP853", "symplectic")
 BACKENDS = ("auto", "compiled", "python")
 DEFAULTS = {"t_end": 10.0, "rtol": 1e-8, "atol": 1e-10, "samples": 1001}
 HEAVY = 3000.0  # rate x time span above which compiling pays off (about 1e4 steps)
-STIFF = diagnostics.STIFF  # decay rate x time span of a real, negative eigenvalue above which auto picks Radau
 STAGES = 2  # Gauss-Legendre stages of the symplectic method (order 4)
 
 
@@ -214,14 +215,13 @@ def _choose(
     if backend == "compiled" and method in ("Radau", "BDF", "LSODA"):
         raise LagrangeError(f"{method} runs through scipy; use --backend python (or auto)")
     needs_rates = method == "auto" or backend == "auto" or (method == "symplectic" and step is None) or bool(model.constraints)
-    decay, rate = _rates(model, p, y0) if needs_rates else (0.0, 0.0)
+    found = initial_spectrum(model, p, y0) if needs_rates else None
+    rate = found.rate if found is not None else 0.0
     if method == "auto":
         if step is not None and not model.constraints:
             method, why = "symplectic", "a fixed step was given"
-        elif decay * t_end > STIFF:
-            method, why = "Radau", f"stiff: a mode decays at rate {decay:.3g}/s over t_end = {t_end:g}"
         else:
-            method, why = "DOP853", "not stiff at the initial state"
+            method, why = diagnostics.choose(found, t_end, compiled=backend != "python" and compile.numba_available())
         notes.append(f"method auto -> {method}: {why}")
     if method == "symplectic" and step is None:
         step = _symplectic_step(rate, t_end, rtol)
@@ -256,13 +256,6 @@ def _symplectic_step(rate: float, t_end: float, rtol: float) -> float:
     if rate <= 0:
         return t_end / 1000
     return min(t_end / 100, 2.0 * rtol**0.25 / rate)
-
-
-def _rates(model: Model, p: tuple[float, ...], y0: tuple[float, ...]) -> tuple[float, float]:
-    """(decay, rate) of the linearisation at y0: the fastest decay -Re(lambda) among real-dominated
-    eigenvalues (|Re| > |Im|), and the spectral radius; from a finite-difference Jacobian."""
-    found = initial_spectrum(model, p, y0)
-    return (found.decay, found.rate) if found is not None else (0.0, 0.0)
 
 
 def initial_spectrum(model: Model, p: tuple[float, ...], y0: tuple[float, ...]) -> diagnostics.Spectrum | None:

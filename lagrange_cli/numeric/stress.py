@@ -10,11 +10,14 @@ velocity of the slowest mode times the factor; kept constraints are respected) a
 one exists, a start near a singular configuration (where cond M(q) is largest, found by trying
 0, +-pi/2 and pi for each coordinate, moved 0.01 away from it).
 
-In each regime every candidate runs at tolerances from 10x the accuracy down to 1/100 of it
+In each regime every candidate runs at tolerances from 10x the accuracy down to 1/1000 of it
 (stopping at the first that meets it, or at a failure), against a reference as in
 `accuracy` (exact or confirmed, the window cut to the predictability horizon when chaotic).
 The diagnosis is made along the reference trajectory: the Jacobian's eigenvalues (stiffness
-ratio, time scales, the fastest decay x t_end that `simulate --method auto` also uses), the
+ratio, time scales, the fastest unmatched decay x t_end and the stability-limited explicit
+step count, by the rules of `diagnostics.choose` that `simulate --method auto` also uses,
+a decay counting only if no state of the run grows at MATCHED x its rate or more; growth
+rates, which an implicit method does not help with, are reported apart), the
 explicit method's step count against the implicit one's, cond M (coordinate singularities),
 drift of the energy, ignorable momenta and constraints, and blow-ups.
 """
@@ -51,7 +54,7 @@ class Regime:
 @dataclass(frozen=True)
 class Diagnosis:
     decay_span: float
-    """max over the trajectory of the fastest decay rate x t_end (stiff above diagnostics.STIFF)."""
+    """max over the trajectory of the fastest unmatched decay rate x t_end (stiff above diagnostics.STIFF)."""
     stiffness_ratio: float
     scale_ratio: float
     rate: float
@@ -176,7 +179,8 @@ def default_candidates(model: Model) -> tuple[Candidate, ...]:
 
 
 def ladder(target: float) -> tuple[float, ...]:
-    return tuple(t for t in (10 * target, target, target / 10, target / 100) if 100 * study.TIGHTEST <= t < 1)
+    """Tolerances from 10x the target down to 1/1000 of it (still 100x looser than the reference)."""
+    return tuple(t for t in (10 * target, target, target / 10, target / 100, target / 1000) if 100 * study.TIGHTEST <= t < 1)
 
 
 def stress(
@@ -251,11 +255,23 @@ def diagnose(model: Model, setup: Setup, reference: Reference, points: Sequence[
     rate = max((x.rate for x in spectra), default=0.0)
     stiffness = max((x.stiffness_ratio for x in spectra), default=1.0)
     scales = max((x.scale_ratio for x in spectra), default=1.0)
+    growth = max((x.growth for x in spectra), default=0.0)
     findings = []
-    if decay * setup.t_end > diagnostics.STIFF:
-        findings.append(f"stiff: a mode decays at up to {decay:.3g}/s (x t_end = {decay * setup.t_end:.3g}), stiffness ratio {stiffness:.3g}")
+    if growth >= diagnostics.MATCHED * decay:
+        decay = 0.0  # matched by growth somewhere along the run (a saddle's +-pair, chaos): not stiffness
+    # the slowest rate that makes the largest per-state stiffness ratio, so that `stiff` judges by that ratio
+    overall = diagnostics.Spectrum(decay, rate, decay / stiffness if 0 < stiffness < math.inf else 0.0, growth)
+    if diagnostics.stiff(overall, setup.t_end):
+        steps = diagnostics.explicit_steps(decay, setup.t_end)
+        affordable = diagnostics.explicit_affordable(overall, setup.t_end)
+        cheap = " (explicit affordable)" if affordable else ""
+        findings.append(
+            f"stiff{cheap}: a mode decays at up to {decay:.3g}/s (x t_end = {decay * setup.t_end:.3g}), stiffness ratio {stiffness:.3g}, about {steps:.3g} stability-limited explicit steps"
+        )
     elif scales > 100:
         findings.append(f"two time scales (highly oscillatory, not dissipative): fastest rate {rate:.3g}/s, {scales:.3g} x the slowest")
+    if growth * setup.t_end > diagnostics.STIFF:
+        findings.append(f"unstable modes: growth rate up to {growth:.3g}/s (a saddle, chaos or constraint drift; not stiffness: decays matched by growth are not counted)")
     by_method = {(label.split(":")[0], tolerance): point for (label, tolerance), point in runs.items()}
     for tolerance in ladder(target):
         implicit = by_method.get(("Radau", tolerance))

@@ -6,7 +6,7 @@ M(q) q_ddot = F(q, q_dot), with y = [x, theta, x_dot, theta_dot].
 from math import cos, sin, sqrt
 
 COORDINATES = ("x", "theta")
-PARAMETERS = {"m": 1.0, "g": 9.81, "l": 1.0, "k": 1000000.0, "zeta": 1.0}
+PARAMETERS = {"m": 1.0, "g": 9.81, "l": 1.0, "k": 100000000.0, "zeta": 1.0}
 
 
 def mass_matrix(q, p=PARAMETERS):
