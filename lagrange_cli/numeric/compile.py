@@ -24,35 +24,11 @@ from types import ModuleType
 import sympy as sp
 
 from lagrange_cli import __version__
+from lagrange_cli.emit.python import SOLVE
 from lagrange_cli.errors import LagrangeError
 from lagrange_cli.files import write_text
 from lagrange_cli.model import Model
 from lagrange_cli.numeric import codegen
-
-PY_SOLVE = '''def _solve(a, b):
-    """Solve a x = b by Gaussian elimination with partial pivoting (a, b are overwritten);
-    ZeroDivisionError when a pivot is below 1e-13 of the largest entry."""
-    n = len(b)
-    scale = max(abs(v) for row in a for v in row)
-    for k in range(n):
-        pivot = max(range(k, n), key=lambda i: abs(a[i][k]))
-        if not abs(a[pivot][k]) > 1e-13 * scale:
-            raise ZeroDivisionError("singular matrix")
-        a[k], a[pivot] = a[pivot], a[k]
-        b[k], b[pivot] = b[pivot], b[k]
-        row, inverse = a[k], 1.0 / a[k][k]
-        for i in range(k + 1, n):
-            factor = a[i][k] * inverse
-            if factor:
-                other = a[i]
-                for j in range(k + 1, n):
-                    other[j] -= factor * row[j]
-                b[i] -= factor * b[k]
-    x = [0.0] * n
-    for i in range(n - 1, -1, -1):
-        row = a[i]
-        x[i] = (b[i] - sum(row[j] * x[j] for j in range(i + 1, n))) / row[i]
-    return x'''
 
 JIT_FOOTER = """
 
@@ -155,7 +131,7 @@ def module_source(model: Model, target: str, jacobian: bool, event: sp.Expr | No
         assert kernels is not None
         return header + f"from {kernels.__name__} import lu_solve as _lu_solve\n\n" + body + JIT_FOOTER
     imports = "import numpy\n\n\n" if jacobian else ""
-    return header + imports + PY_SOLVE + "\n\n\n" + body
+    return header + imports + SOLVE + "\n\n\n" + body
 
 
 @functools.cache

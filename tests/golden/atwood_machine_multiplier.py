@@ -61,15 +61,16 @@ def multipliers(t, y, p=PARAMETERS):
 
 
 def _solve(a, b):
-    """Solve a x = b by Gaussian elimination with partial pivoting (a, b are overwritten)."""
+    """Solve a x = b by Gaussian elimination with partial pivoting (a, b are overwritten);
+    ZeroDivisionError when a pivot is below 1e-13 of the largest entry."""
     n = len(b)
+    scale = max(abs(v) for row in a for v in row)
     for k in range(n):
         pivot = max(range(k, n), key=lambda i: abs(a[i][k]))
-        if a[pivot][k] == 0.0:
+        if not abs(a[pivot][k]) > 1e-13 * scale:
             raise ZeroDivisionError("singular matrix")
-        if pivot != k:
-            a[k], a[pivot] = a[pivot], a[k]
-            b[k], b[pivot] = b[pivot], b[k]
+        a[k], a[pivot] = a[pivot], a[k]
+        b[k], b[pivot] = b[pivot], b[k]
         row, inverse = a[k], 1.0 / a[k][k]
         for i in range(k + 1, n):
             factor = a[i][k] * inverse
