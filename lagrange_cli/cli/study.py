@@ -16,7 +16,7 @@ if TYPE_CHECKING:
 
     from lagrange_cli.model import Model
     from lagrange_cli.numeric.accuracy import Candidate, Study
-    from lagrange_cli.numeric.stress import Report
+    from lagrange_cli.numeric.stress import Outcome, Report
 
 
 def _model(file: str) -> Model:
@@ -147,7 +147,7 @@ def _report_study(result: Study, to_stderr: bool) -> None:
     from rich.markup import escape
     from rich.table import Table
 
-    from lagrange_cli.numeric.accuracy import HORIZON_THRESHOLD
+    from lagrange_cli.numeric.accuracy import HORIZON_THRESHOLD, tol_text
 
     console = _console(to_stderr)
     window = f"t = 0 .. {result.t_end:.4g}" + (f" (of {result.full_t_end:g})" if result.t_end < result.full_t_end else "")
@@ -159,10 +159,10 @@ def _report_study(result: Study, to_stderr: bool) -> None:
         h = result.horizon
         if h.chaotic:
             console.print(
-                f"chaotic: runs started {h.delta:.0e} apart part (separation {HORIZON_THRESHOLD:.0e}) at t = {h.horizon:.3g}, growth rate about {h.lyapunov:.2g}/s; errors measured up to there"
+                f"chaotic: runs started {tol_text(h.delta)} apart part (separation {HORIZON_THRESHOLD:.0e}) at t = {h.horizon:.3g}, growth rate about {h.lyapunov:.2g}/s; errors measured up to there"
             )
         else:
-            console.print(f"not chaotic: runs started {h.delta:.0e} apart separate by {h.growth * h.delta:.1e} by the end (no exponential growth)")
+            console.print(f"not chaotic: runs started {tol_text(h.delta)} apart separate by {h.growth * h.delta:.1e} by the end (no exponential growth)")
     for note in result.notes:
         console.print(f"  [dim]{note}[/dim]", markup=True)
     table = Table(title="runs", title_justify="left", box=None, padding=(0, 1))
@@ -237,8 +237,10 @@ def _report_stress(report: Report, to_stderr: bool) -> None:
     from rich.markup import escape
     from rich.table import Table
 
+    from lagrange_cli.numeric.accuracy import tol_text
+
     console = _console(to_stderr)
-    console.print(f"[bold]{report.title}[/bold]: stress test, required error {report.accuracy:.0e}")
+    console.print(f"[bold]{report.title}[/bold]: stress test, required error {tol_text(report.accuracy)}")
     summary = Table(title="summary", title_justify="left")
     for column in ("regime", "diagnosis", "naive (scipy RK45)", "auto", "recommended"):
         summary.add_column(column)
@@ -254,29 +256,43 @@ def _report_stress(report: Report, to_stderr: bool) -> None:
         table = Table(box=None, padding=(0, 1))
         for column in ("method", "setting", "error", "energy", "constraint", "run time", "steps", "evals (jac)", "status"):
             table.add_column(column, justify="left" if column in ("method", "setting", "status") else "right")
-        for p in o.points:
+        for p in (o.naive_default, *o.points) if o.naive_default is not None else o.points:
             met = p.ok and p.error <= report.accuracy
             status = ("[green]meets[/green]" if met else "[yellow]misses[/yellow]") if p.ok else f"[red]{p.status}[/red]: {escape(p.reason)}"
-            name = p.resolved if p.method.split(":")[0] == p.resolved.split(" ")[0] else f"{p.method} -> {p.resolved}"
+            name = p.resolved if p.resolved == p.method or p.method.split(":")[0] == p.resolved.split(" ")[0] else f"{p.method} -> {p.resolved}"
             evals = f"{p.nfev} ({p.njev})" if p.njev else str(p.nfev)
-            table.add_row(name, p.setting, _e(p.error), _e(p.energy_error), _e(p.constraint_drift), _seconds(p.seconds), str(p.steps), evals, status)
+            setting = f"{p.setting} (default)" if p is o.naive_default else p.setting
+            table.add_row(name, setting, _e(p.error), _e(p.energy_error), _e(p.constraint_drift), _seconds(p.seconds), str(p.steps), evals, status)
         console.print(table)
         best = o.recommended
         if best is not None:
             console.print(f"  recommended: [bold]{best.resolved}[/bold] at {best.setting} (error {_e(best.error)} in {_seconds(best.seconds)})")
         else:
-            console.print(f"  [red]no method meets error {report.accuracy:.0e} in this regime[/red]")
+            console.print(f"  [red]no method meets error {tol_text(report.accuracy)} in this regime[/red]")
         summary.add_row(
             o.regime.name,
             "; ".join(f.split(": ")[0] for f in d.findings) or "benign",
-            _brief(o.naive, report.accuracy),
+            _naive(o, report.accuracy),
             _brief(o.auto, report.accuracy),
             _brief(best, report.accuracy) if best else "[red]none[/red]",
         )
     console.print()
     console.print(summary)
     verdict = "every regime has a method that meets it" if report.passed else "[red]some regime has no method that meets it[/red]"
-    console.print(f"required error {report.accuracy:.0e}: {verdict}")
+    console.print(f"required error {tol_text(report.accuracy)}: {verdict}")
+
+
+def _naive(outcome: Outcome, target: float) -> str:
+    """scipy's RK45 at its default tolerances, then at the loosest tolerance that met the accuracy (if any)."""
+    from lagrange_cli.numeric.accuracy import tol_text
+
+    first, best = outcome.naive_default, outcome.naive
+    if first is None:
+        return _brief(best, target)
+    text = f"default rtol {tol_text(first.tolerance)}: " + (f"{_e(first.error)} ({'ok' if first.error <= target else 'misses'})" if first.ok else first.status)
+    if best is not None and not (first.ok and first.error <= target):
+        text += f"; {_brief(best, target)}"
+    return text
 
 
 def _brief(p: object, target: float) -> str:

@@ -52,6 +52,12 @@ HORIZON_THRESHOLD = 1e-3  # separation (scaled) at which nearby trajectories hav
 CHAOS_GROWTH = 100.0  # growth over the second half of the time to part, above which it is exponential
 
 
+def tol_text(value: float) -> str:
+    """A tolerance or accuracy as written: 1e-06, 2.5e-12."""
+    text = f"{value:.1e}"
+    return f"{value:.0e}" if text[1:3] == ".0" else text
+
+
 @dataclass(frozen=True)
 class Candidate:
     """A method and the backend it runs on ("auto" picks compiled for RK45/DOP853 when numba is there)."""
@@ -139,7 +145,7 @@ class Point:
 
     @property
     def setting(self) -> str:
-        return f"step {self.step:.3g}" if self.step is not None else f"rtol {self.tolerance:.0e}"
+        return f"step {self.step:.3g}" if self.step is not None else f"rtol {tol_text(self.tolerance)}"
 
 
 @dataclass(frozen=True)
@@ -169,6 +175,14 @@ class Horizon:
     """When the separation reached HORIZON_THRESHOLD (inf when it never did)."""
     growth: float
     """The largest separation over delta."""
+    t: np.ndarray = field(default_factory=lambda: np.zeros(0), compare=False, repr=False)
+    separation: np.ndarray = field(default_factory=lambda: np.zeros(0), compare=False, repr=False)
+    """The running maximum of the scaled separation at the times t."""
+
+    def time_to(self, level: float) -> float:
+        """When the separation first reached `level` (inf when it never did)."""
+        reached = np.nonzero(self.separation >= level)[0]
+        return float(self.t[reached[0]]) if len(reached) else math.inf
 
 
 @dataclass(frozen=True)
@@ -362,9 +376,11 @@ def computed_reference(model: Model, setup: Setup, tolerance: float) -> Referenc
     try:
         main = run(model, primary, tolerance, long)
     except _OverBudget:
-        raise LagrangeError(f"{model.source}: the reference run ({primary.method}, rtol {tolerance:.0e}) took more than {long.budget:g} s; give a shorter --t-end or looser --tolerances") from None
+        raise LagrangeError(
+            f"{model.source}: the reference run ({primary.method}, rtol {tol_text(tolerance)}) took more than {long.budget:g} s; give a shorter --t-end or looser --tolerances"
+        ) from None
     if main.failed:
-        raise LagrangeError(f"{model.source}: the reference run ({primary.method}, rtol {tolerance:.0e}) failed: {main.message}")
+        raise LagrangeError(f"{model.source}: the reference run ({primary.method}, rtol {tol_text(tolerance)}) failed: {main.message}")
     seconds = time.perf_counter() - began
     scale = component_scale(main.y)
     own, confirm = math.nan, f"unconfirmed: {second.method} at the same tolerance did not finish"
@@ -375,7 +391,7 @@ def computed_reference(model: Model, setup: Setup, tolerance: float) -> Referenc
             confirm = f"confirmed by {other.settings.method} ({other.settings.backend})"
     except _OverBudget:
         pass
-    description = f"{main.settings.method} ({main.settings.backend}) at rtol {tolerance:.0e}, atol {tolerance * ATOL_RATIO:.0e}, {confirm}"
+    description = f"{main.settings.method} ({main.settings.backend}) at rtol {tol_text(tolerance)}, atol {tol_text(tolerance * ATOL_RATIO)}, {confirm}"
     return Reference("computed", description, own, main.t, main.y, main.energy, seconds)
 
 
@@ -406,7 +422,7 @@ def horizon(model: Model, setup: Setup, tolerance: float) -> Horizon | None:
     growth_half = separation[end] / max(separation[half], 1e-300)
     chaotic = t[end] > 0 and growth_half > CHAOS_GROWTH
     lyapunov = math.log(growth_half) / (t[end] / 2) if chaotic else 0.0
-    return Horizon(tolerance, bool(chaotic), lyapunov, float(t[end]) if len(parted) else math.inf, float(separation[-1] / tolerance))
+    return Horizon(tolerance, bool(chaotic), lyapunov, float(t[end]) if len(parted) else math.inf, float(separation[-1] / tolerance), t, separation)
 
 
 # -- the study ----------------------------------------------------------------------------------
@@ -446,14 +462,16 @@ def study(
     for candidate in chosen:
         for tolerance in tolerances:
             if progress:
-                progress(f"{candidate.label} {tolerance:.0e}")
+                progress(f"{candidate.label} {tol_text(tolerance)}")
             points.append(measure(model, candidate, tolerance, setup, reference, scale, repeats))
     return Study(model.title, model.source, setup.t_end, full, reference, found, tuple(points), notes)
 
 
-def prepare(model: Model, setup: Setup, ref_tol: float, progress: ProgressReport | None = None) -> tuple[Setup, Reference, Horizon | None, tuple[str, ...]]:
-    """The reference (exact, or computed at `ref_tol` and confirmed), and the window: cut to the
-    predictability horizon when nearby trajectories part exponentially."""
+def prepare(model: Model, setup: Setup, ref_tol: float, progress: ProgressReport | None = None, window: float = HORIZON_THRESHOLD) -> tuple[Setup, Reference, Horizon | None, tuple[str, ...]]:
+    """The reference (exact, or computed at `ref_tol` and confirmed), and the window: when nearby
+    trajectories part exponentially, cut to where runs started `ref_tol` apart are `window` apart
+    (the predictability horizon at that accuracy; `stress` asks for a smaller one than the
+    study's HORIZON_THRESHOLD, so that its tightest tolerances can meet the accuracy it wants)."""
     notes: list[str] = []
     reference = exact_reference(model, setup)
     found: Horizon | None = None
@@ -463,9 +481,14 @@ def prepare(model: Model, setup: Setup, ref_tol: float, progress: ProgressReport
         if progress:
             progress("reference")
         found = horizon(model, replace(setup, times=tuple(np.linspace(0.0, setup.t_end, 4 * len(setup.times)).tolist())), ref_tol)
-        if found is not None and found.chaotic and found.horizon < setup.t_end:
-            setup = replace(setup, t_end=found.horizon, times=tuple(np.linspace(0.0, found.horizon, len(setup.times)).tolist()))
-            notes.append(f"chaotic: nearby trajectories part at about {found.lyapunov:.2g}/s; errors are measured up to the predictability horizon t = {found.horizon:.3g}")
+        end = min(found.time_to(window), found.horizon) if found is not None and found.chaotic else math.inf
+        if 0 < end < setup.t_end:
+            assert found is not None
+            setup = replace(setup, t_end=end, times=tuple(np.linspace(0.0, end, len(setup.times)).tolist()))
+            notes.append(
+                f"chaotic: nearby trajectories part at about {found.lyapunov:.2g}/s; errors are measured up to the predictability horizon t = {end:.3g}"
+                + (f", where runs started {tol_text(ref_tol)} apart are {window:.0e} apart" if window != HORIZON_THRESHOLD else "")
+            )
         reference = computed_reference(model, setup, ref_tol)
     return setup, reference, found, tuple(notes)
 

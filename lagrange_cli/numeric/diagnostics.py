@@ -37,10 +37,15 @@ PER_RADIAN = 10.0
 """steps an implicit method takes per radian of the slowest motion (measured: Radau ~6-7 on the
 damped stiff spring at rtol 1e-5), plus TRANSIENT steps for the fast transient."""
 TRANSIENT = 100.0
-COST_RATIO = 50.0
-"""cost of a scipy Radau step (Python, Newton iterations, LU solves; ~250 us measured) over a
-compiled RK45/DOP853 step (~1-5 us measured): deliberately conservative, as the compiled step
-measured ~0.6 us on the damped stiff spring."""
+COST_RATIO = 100.0
+"""cost of a scipy Radau step over a compiled DOP853 step, in units of the estimated steps:
+measured on the damped stiff spring (`lagrange stress stiff_spring_pendulum_damped --scale
+k=1e4..1e10 --method DOP853,Radau,auto`), a Radau step costs 250-350 us and a compiled DOP853
+step 1.2-1.9 us, and DOP853 takes about half the steps `explicit_steps` estimates (its
+stability interval is about 6, not 3) while Radau takes ~0.75 of `implicit_steps`: the two
+break even near 300. 100 keeps a factor 3 in hand for larger systems, where a compiled step
+grows faster than Radau's Python overhead; it puts the switch between k = 1e8 (DOP853 30 ms,
+Radau 106 ms) and k = 1e9 (59 ms against 57-72 ms)."""
 SINGULAR_CONDITION = 1e6
 """condition number of M above which the coordinates count as near-singular."""
 
@@ -105,7 +110,7 @@ def implicit_steps(slowest: float, t_end: float) -> float:
 def explicit_affordable(found: Spectrum, t_end: float) -> bool:
     """Whether compiled explicit steps (stability-limited) cost less than Radau's: explicit steps
     <= COST_RATIO x implicit steps, i.e. decay / STABILITY <= COST_RATIO x (PER_RADIAN x slowest
-    + TRANSIENT / t_end) - a bound on the stiffness ratio decay / slowest, about 1500 on long runs."""
+    + TRANSIENT / t_end) - a bound on the stiffness ratio decay / slowest, about 3000 on long runs."""
     return explicit_steps(found.decay, t_end) <= COST_RATIO * implicit_steps(found.slowest, t_end)
 
 
@@ -121,8 +126,8 @@ def choose(found: Spectrum | None, t_end: float, compiled: bool = True) -> tuple
       explicit steps; while that is at most COST_RATIO x Radau's estimated steps
       (`explicit_affordable`), a compiled explicit method is cheaper (measured: damped stiff
       spring at k = 1e4..1e6, ~1-4 ms compiled against 59-174 ms for Radau).
-    - Stiff and expensive -> Radau (e.g. the damped stiff spring at k = 1e8 over t_end = 10:
-      3.3e4 explicit steps against 50 x ~390 estimated Radau steps), and
+    - Stiff and expensive -> Radau (e.g. the damped stiff spring at k = 1e9 over t_end = 10:
+      1.05e5 explicit steps against 100 x ~390 estimated Radau steps), and
       any stiff case when explicit methods cannot run compiled (`compiled=False`: no numba).
     """
     if found is None:

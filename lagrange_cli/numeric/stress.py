@@ -10,9 +10,13 @@ velocity of the slowest mode times the factor; kept constraints are respected) a
 one exists, a start near a singular configuration (where cond M(q) is largest, found by trying
 0, +-pi/2 and pi for each coordinate, moved 0.01 away from it).
 
-In each regime every candidate runs at tolerances from 10x the accuracy down to 1/1000 of it
-(stopping at the first that meets it, or at a failure), against a reference as in
-`accuracy` (exact or confirmed, the window cut to the predictability horizon when chaotic).
+In each regime scipy's RK45 first runs at its default tolerances (rtol 1e-3, atol 1e-6: what a
+user gets without asking), then every candidate runs at tolerances from 10x the accuracy down
+by decades to 100x the reference's (stopping at the first that meets it, at a failure, or when
+a tighter tolerance stops buying accuracy), against a reference as in `accuracy`: exact, or
+computed at 1e-8 x the accuracy (at least TIGHTEST) and confirmed. For a chaotic system the
+window is cut to where runs started the reference tolerance apart are 1e-3 x the accuracy
+apart, beyond which no tolerance of the ladder can meet the accuracy; the diagnosis says so.
 The diagnosis is made along the reference trajectory: the Jacobian's eigenvalues (stiffness
 ratio, time scales, the fastest unmatched decay x t_end and the stability-limited explicit
 step count, by the rules of `diagnostics.choose` that `simulate --method auto` also uses,
@@ -34,12 +38,18 @@ from lagrange_cli.errors import LagrangeError
 from lagrange_cli.model import Model
 from lagrange_cli.numeric import accuracy as study
 from lagrange_cli.numeric import compile, diagnostics
-from lagrange_cli.numeric.accuracy import Candidate, Point, Reference, Setup
+from lagrange_cli.numeric.accuracy import Candidate, Point, Reference, Setup, tol_text
 from lagrange_cli.numeric.settings import resolve
 
 NAIVE = Candidate("RK45", "python")
 """scipy's default method, what a user reaches for first."""
+NAIVE_RTOL = 1e-3
+"""solve_ivp's default rtol (with atol = rtol x ATOL_RATIO = 1e-6, its default too): how a user first runs it."""
 SAMPLES = 101
+STALLED = 2.0
+"""Two decades in a row that each shrink an error below SATURATED by less than this end a
+method's ladder; errors above SATURATED (a phase lost entirely) may not shrink for a while."""
+SATURATED = 0.01
 EXPLOSION = 10.0  # explicit steps / implicit steps above which the explicit step count has exploded
 
 
@@ -76,6 +86,8 @@ class Outcome:
     recommended: Point | None
     naive: Point | None
     auto: Point | None
+    naive_default: Point | None = None
+    """scipy's RK45 at its default tolerances (rtol 1e-3, atol 1e-6)."""
 
     @property
     def met(self) -> bool:
@@ -178,9 +190,25 @@ def default_candidates(model: Model) -> tuple[Candidate, ...]:
     return (NAIVE, *study.default_candidates(model), Candidate("auto"))
 
 
+REFERENCE_FACTOR = 1e-8
+"""The reference runs at this times the accuracy asked for (at least TIGHTEST)."""
+WINDOW_FACTOR = 1e-3
+"""A chaotic regime is measured up to where runs started the reference tolerance apart are this
+times the accuracy apart: the tightest tolerance of the ladder (100 x the reference's), whose
+global error is some 10 x its tolerance, then still meets the accuracy."""
+
+
+def reference_tolerance(target: float) -> float:
+    return max(target * REFERENCE_FACTOR, study.TIGHTEST)
+
+
 def ladder(target: float) -> tuple[float, ...]:
-    """Tolerances from 10x the target down to 1/1000 of it (still 100x looser than the reference)."""
-    return tuple(t for t in (10 * target, target, target / 10, target / 100, target / 1000) if 100 * study.TIGHTEST <= t < 1)
+    """Tolerances from 10x the target down by decades to 100x the reference's (that floor the last
+    rung): a long horizon needs a tolerance far below the error it wants, since errors add up
+    over many periods."""
+    floor = 100 * reference_tolerance(target)
+    rungs = [t for t in (float(f"{target * 10.0 ** (1 - k):.12g}") for k in range(20)) if floor * (1 + 1e-9) < t < 1]
+    return (*rungs, floor)
 
 
 def stress(
@@ -198,8 +226,8 @@ def stress(
     """Every regime; see the module docstring."""
     if not (0 < target < 1e-1):
         raise LagrangeError(f"--accuracy must lie between 0 and 0.1, got {target:g}")
-    if target < 1e4 * study.TIGHTEST:
-        raise LagrangeError(f"--accuracy {target:g} leaves no room for a reference 1e5 times tighter; give at least {1e4 * study.TIGHTEST:.1e}")
+    if target < 1e3 * study.TIGHTEST:
+        raise LagrangeError(f"--accuracy {target:g} leaves no room for a reference 1000 times tighter; give at least {1e3 * study.TIGHTEST:.1e}")
     chosen = tuple(candidates) if candidates else default_candidates(model)
     outcomes = [_regime(model, regime, target, chosen, budget, progress) for regime in regimes(model, scales, long_factor, energy_factor, t_end)]
     return Report(model.title, target, tuple(outcomes))
@@ -207,37 +235,48 @@ def stress(
 
 def _regime(model: Model, regime: Regime, target: float, candidates: Sequence[Candidate], budget: float, progress: Callable[[str], None] | None) -> Outcome:
     setup = Setup(regime.t_end, tuple(np.linspace(0.0, regime.t_end, SAMPLES).tolist()), dict(regime.parameters), dict(regime.initial), budget)
-    ref_tol = max(target * 1e-5, study.TIGHTEST)
+    ref_tol = reference_tolerance(target)
     say = (lambda text: progress(f"{regime.name}: {text}")) if progress else None
     try:
-        setup, reference, _, _ = study.prepare(model, setup, ref_tol, say)
+        setup, reference, horizon, _ = study.prepare(model, setup, ref_tol, say, window=WINDOW_FACTOR * target)
     except LagrangeError as error:
         finding = f"blow-up or failure of the reference run: {error}"
         return Outcome(regime, setup.t_end, "none", math.nan, (), Diagnosis(0.0, 1.0, 1.0, 0.0, math.nan, (finding,)), None, None, None)
     scale = study.component_scale(reference.y)
     points: list[Point] = []
     runs: dict[tuple[str, float], Point] = {}
+    naive_default = None
+    if NAIVE in candidates:
+        if say:
+            say(f"{NAIVE.label} {NAIVE_RTOL:.0e} (scipy's default)")
+        naive_default = study.measure(model, NAIVE, NAIVE_RTOL, setup, reference, scale, repeats=1)
     for candidate in candidates:
         last: Point | None = None
+        stalls = 0
         for tolerance in ladder(target):
             if say:
-                say(f"{candidate.label} {tolerance:.0e}")
-            last = study.measure(model, candidate, tolerance, setup, reference, scale, repeats=1)
+                say(f"{candidate.label} {tol_text(tolerance)}")
+            previous, last = last, study.measure(model, candidate, tolerance, setup, reference, scale, repeats=1)
             runs[(candidate.label, tolerance)] = last
             if not last.ok or last.error <= target:
                 break
+            stalled = previous is not None and previous.ok and previous.error < SATURATED and last.error > previous.error / STALLED
+            stalls = stalls + 1 if stalled else 0
+            if stalls == 2:
+                break  # tighter tolerances no longer buy accuracy (round-off, or an error floor)
         if last is not None:
             points.append(last)
     meeting = [p for p in points if p.ok and p.error <= target]
     recommended = min(meeting, key=lambda p: p.seconds) if meeting else None
     naive = next((p for p in points if p.method == NAIVE.label), None)
     auto = next((p for p in points if p.method == "auto"), None)
-    diagnosis = diagnose(model, setup, reference, points, runs, target)
-    return Outcome(regime, setup.t_end, reference.description, reference.own_error, tuple(points), diagnosis, recommended, naive, auto)
+    diagnosis = diagnose(model, setup, reference, points, runs, target, horizon if setup.t_end < regime.t_end else None)
+    return Outcome(regime, setup.t_end, reference.description, reference.own_error, tuple(points), diagnosis, recommended, naive, auto, naive_default)
 
 
-def diagnose(model: Model, setup: Setup, reference: Reference, points: Sequence[Point], runs: Mapping[tuple[str, float], Point], target: float) -> Diagnosis:
-    """Stiffness, time scales and conditioning along the reference, and what the runs showed."""
+def diagnose(model: Model, setup: Setup, reference: Reference, points: Sequence[Point], runs: Mapping[tuple[str, float], Point], target: float, horizon: study.Horizon | None = None) -> Diagnosis:
+    """Stiffness, time scales and conditioning along the reference, and what the runs showed
+    (`horizon`: the chaos that cut the window short)."""
     s = resolve(model, method="DOP853", backend="python", t_end=setup.t_end, parameters=setup.parameters, initial=setup.initial)
     module = compile.build(model, "python", jacobian=True).module
     p = list(s.p) if not model.constraints else [*s.p[: len(model.parameters)], 0.0]
@@ -257,6 +296,11 @@ def diagnose(model: Model, setup: Setup, reference: Reference, points: Sequence[
     scales = max((x.scale_ratio for x in spectra), default=1.0)
     growth = max((x.growth for x in spectra), default=0.0)
     findings = []
+    if horizon is not None:
+        findings.append(
+            f"chaotic: nearby trajectories part at about {horizon.lyapunov:.2g}/s, so an error of {tol_text(target)} can only be had up to t = {setup.t_end:.3g}"
+            f" (runs started {tol_text(horizon.delta)} apart are {study.HORIZON_THRESHOLD:.0e} apart at t = {horizon.horizon:.3g}); errors are measured up to there"
+        )
     if growth >= diagnostics.MATCHED * decay:
         decay = 0.0  # matched by growth somewhere along the run (a saddle's +-pair, chaos): not stiffness
     # the slowest rate that makes the largest per-state stiffness ratio, so that `stiff` judges by that ratio
@@ -277,7 +321,7 @@ def diagnose(model: Model, setup: Setup, reference: Reference, points: Sequence[
         implicit = by_method.get(("Radau", tolerance))
         explicit = max((by_method[(m, tolerance)] for m in ("RK45", "DOP853") if (m, tolerance) in by_method), key=lambda p: p.steps, default=None)
         if explicit and implicit and explicit.steps and implicit.steps and explicit.steps > EXPLOSION * implicit.steps:
-            findings.append(f"explicit step count explodes: {explicit.method} took {explicit.steps} steps against Radau's {implicit.steps} at rtol {tolerance:.0e}")
+            findings.append(f"explicit step count explodes: {explicit.method} took {explicit.steps} steps against Radau's {implicit.steps} at rtol {tol_text(tolerance)}")
             break
     if worst > diagnostics.SINGULAR_CONDITION:
         findings.append(f"near a coordinate singularity: cond M reaches {worst:.2g} along the trajectory")
@@ -332,6 +376,7 @@ def json_text(report: Report) -> str:
                 "findings": list(o.diagnosis.findings),
                 "recommended": point(o.recommended),
                 "naive": point(o.naive),
+                "naive_default": point(o.naive_default),
                 "auto": point(o.auto),
                 "runs": [point(p) for p in o.points],
             }
