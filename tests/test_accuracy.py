@@ -71,8 +71,13 @@ def test_chaotic_double_pendulum_is_measured_inside_its_horizon() -> None:
     result = accuracy.study(model, candidates=[Candidate("DOP853", "python")], tolerances=[1e-4], repeats=0, samples=41)
     h = result.horizon
     assert h is not None and h.chaotic and 0.5 < h.lyapunov < 5
-    assert 3 < result.t_end == h.horizon < result.full_t_end == 20
-    assert result.reference.own_error < 1e-2
+    # the window: where runs started the tightest tolerance (1e-4) apart would be 1e-3 apart
+    assert result.t_end == pytest.approx(h.time_to(1e-3 * h.delta / 1e-4))
+    assert 1 < result.t_end < h.horizon < result.full_t_end == 20
+    assert result.reference.own_error < 1e-6
+    tight = accuracy.study(model, candidates=[Candidate("DOP853")], tolerances=[1e-4, 1e-8], repeats=0, samples=41)
+    assert tight.horizon is not None and result.t_end < tight.t_end < tight.horizon.horizon  # tighter tolerances stay predictable for longer
+    assert min(p.error for p in tight.points) < 1e-2, tight.points  # the tightest run is measured where it still means something
 
 
 def test_failed_and_inapplicable_runs_stay_in_the_table() -> None:
