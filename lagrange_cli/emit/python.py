@@ -47,11 +47,20 @@ class CodePrinter(PythonCodePrinter):
         return repr(math.e)
 
     def _print_Pow(self, expr: sp.Pow, rational: bool = False) -> str:
-        base, exponent = expr.args
-        if exponent == 2 and (base.is_Symbol or base.is_Function):
-            b = self._print(base)
+        if _squared(expr):
+            b = self._print(expr.base)
             return f"{b}*{b}"
         return str(super()._print_Pow(expr, rational))
+
+    def _print_Mul(self, expr: sp.Mul) -> str:
+        """sympy's, except that a lone divisor printed as a product is parenthesized: `k/(r*r)`, not `k/r*r`."""
+        text = str(super()._print_Mul(expr))
+        below = [f for f in expr.args if f.is_Pow and f.exp.is_Rational and f.exp.is_negative]
+        if len(below) == 1 and _squared(1 / below[0]):
+            square = self._print(1 / below[0])
+            if text.endswith("/" + square):
+                text = f"{text[: -len(square)]}({square})"
+        return text
 
 
 @dataclass(frozen=True)
@@ -312,6 +321,11 @@ def _names(model: Model) -> dict[sp.Symbol, str]:
             name += "_"
         names[s] = name
     return names
+
+
+def _squared(expr: sp.Expr) -> bool:
+    """`x**2` of a name or a function call, which prints as `x*x`."""
+    return isinstance(expr, sp.Pow) and expr.exp == 2 and bool(expr.base.is_Symbol or expr.base.is_Function)
 
 
 def _simple(code: str) -> bool:

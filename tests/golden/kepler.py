@@ -21,7 +21,7 @@ def forcing(q, q_dot, p=PARAMETERS):
     r, _ = q
     r_dot, theta_dot = q_dot
     _c0 = m*r
-    return [_c0*theta_dot*theta_dot - k/r*r, -2*_c0*r_dot*theta_dot]
+    return [_c0*theta_dot*theta_dot - k/(r*r), -2*_c0*r_dot*theta_dot]
 
 
 def energy(q, q_dot, p=PARAMETERS):
