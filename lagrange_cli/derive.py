@@ -71,6 +71,7 @@ def derive(spec: SystemSpec) -> Model:
         simulate=spec.simulate,
         exact=spec.exact,
         spans=spec.spans,
+        definitions=spec.definitions,
     )
 
 

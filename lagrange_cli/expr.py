@@ -65,6 +65,8 @@ class Scope:
     """Declared names that may not appear here, each with what it is (e.g. `x_dot` -> "a velocity")."""
     note: str = ""
     """Advice for when one of those appears, e.g. where velocity-dependent terms belong."""
+    arities: Mapping[str, int] = field(default_factory=dict)
+    """The number of arguments of each declared function that states it (map form of `functions`)."""
 
     def refusal(self) -> str:
         """The `expected:` text for a name from `elsewhere`."""
@@ -277,7 +279,13 @@ class _Builder:
         if name in self.scope.functions:
             if not args:
                 raise fail(self.at(node), f"'{name}' called without arguments", f"`{name}(x)`")
+            declared = self.scope.arities.get(name)
+            if declared is not None and len(args) != declared:
+                plural = "s" * (declared > 1)
+                raise fail(self.at(node), f"'{name}' takes {declared} argument{plural}, got {len(args)}", f"{declared} argument{plural}, as declared under `functions`")
             return self.scope.functions[name](*args)
+        if name in self.scope.elsewhere:
+            raise fail(self.at(node.func), f"'{name}' is {self.scope.elsewhere[name]}, which cannot appear here", self.scope.refusal())
         hint = _closest(name, [*FUNCTIONS, *self.scope.functions, *DERIVATIVES])
         raise fail(self.at(node.func), f"unknown function '{name}'", "one of " + ", ".join(sorted(FUNCTIONS)) + ", or a name listed under `functions`" + (f"; did you mean '{hint}'?" if hint else ""))
 

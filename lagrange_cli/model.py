@@ -2,11 +2,14 @@
 
 from __future__ import annotations
 
+import dataclasses
+import functools
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
 import sympy as sp
+from sympy.core.function import AppliedUndef
 
 from lagrange_cli.errors import Span
 
@@ -74,6 +77,9 @@ class Model:
     simulate: Mapping[str, Any] = field(default_factory=dict)
     exact: Mapping[str, sp.Expr] = field(default_factory=dict)
     spans: Mapping[str, Span] = field(default_factory=dict)
+    definitions: Mapping[str, sp.Lambda] = field(default_factory=dict)
+    """The file's definitions of its functions, e.g. U -> Lambda(s, -k/s). The equations keep the
+    general U(r); numeric code evaluates `with_definitions()`."""
 
     @property
     def n(self) -> int:
@@ -124,3 +130,58 @@ class Model:
 
     def parameter_values(self) -> dict[str, float]:
         return {p.name: p.value for p in self.parameters if p.value is not None}
+
+    def with_definitions(self) -> Model:
+        """This model with every defined function written out, `U(r)` -> `-k/r` and
+        `Derivative(U(r), r)` -> `k/r**2`: what numeric code evaluates. Computed once per model."""
+        return self._with_definitions
+
+    @functools.cached_property
+    def _with_definitions(self) -> Model:
+        if not self.definitions:
+            return self
+
+        def sub(expr: sp.Expr) -> sp.Expr:
+            return apply_definitions(expr, self.definitions)
+
+        def subs_all(values: tuple[sp.Expr, ...]) -> tuple[sp.Expr, ...]:
+            return tuple(sub(v) for v in values)
+
+        rows = tuple(dataclasses.replace(c, expr=sub(c.expr), jacobian=subs_all(c.jacobian), bias=sub(c.bias), acceleration_bias=sub(c.acceleration_bias)) for c in self.constraints)
+        return dataclasses.replace(
+            self,
+            kinetic=sub(self.kinetic),
+            potential=sub(self.potential),
+            lagrangian=sub(self.lagrangian),
+            dissipation=sub(self.dissipation),
+            generalized_forces=subs_all(self.generalized_forces),
+            mass_matrix=self.mass_matrix.applyfunc(sub),
+            forcing=self.forcing.applyfunc(sub),
+            momenta=subs_all(self.momenta),
+            energy=sub(self.energy),
+            constraints=rows,
+            eliminated=tuple((name, sub(e)) for name, e in self.eliminated),
+            exact={name: sub(e) for name, e in self.exact.items()},
+            definitions={},
+        )
+
+
+def apply_definitions(expr: sp.Expr, definitions: Mapping[str, sp.Lambda]) -> sp.Expr:
+    """`expr` with each call of a defined function replaced by its definition (matched by name,
+    as the function comes back from symengine as a new object), then the derivatives of those
+    calls taken: `Derivative(U(r), r)` and `Subs(Derivative(U(x), x), x, r - s)` become numbers'
+    expressions. Derivatives are taken with real stand-ins, as in the parser: every quantity is
+    real, and sympy differentiates `Abs(x)` of an unknown x into `re` and `im` terms."""
+    if not definitions or not expr.has(AppliedUndef):
+        return expr
+
+    def wanted(e: sp.Basic) -> bool:
+        return (isinstance(e, AppliedUndef) and str(e.func) in definitions) or isinstance(e, (sp.Derivative, sp.Subs))
+
+    def value(e: sp.Basic) -> sp.Basic:
+        if isinstance(e, AppliedUndef):
+            return definitions[str(e.func)](*e.args)
+        real = {s: sp.Dummy(s.name, real=True) for s in e.free_symbols if isinstance(s, sp.Symbol)}
+        return e.xreplace(real).doit().xreplace({v: s for s, v in real.items()})
+
+    return expr.replace(wanted, value)

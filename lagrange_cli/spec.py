@@ -31,6 +31,7 @@ TOP_KEYS = (
     "eliminate", "initial", "simulate", "exact", "expect",
 )  # fmt: skip
 PARTICLE_KEYS = ("mass", "position", "force", "damping")
+FUNCTION_KEYS = ("arguments", "definition", "description")
 BODY_KEYS = ("mass", "position", "inertia", "angular_velocity")
 EXPECT_KEYS = ("equations", "accelerations", "momenta", "conserved")
 SIMULATE_KEYS = ("t_end", "method", "rtol", "atol", "step", "samples")
@@ -100,6 +101,8 @@ class SystemSpec:
     t: sp.Symbol
     parameters: tuple[Parameter, ...]
     functions: tuple[str, ...] = ()
+    definitions: Mapping[str, sp.Lambda] = field(default_factory=dict)
+    """Functions given a numeric definition (map form of `functions`): name -> Lambda(arguments, expression)."""
     gravity: tuple[sp.Expr, ...] | None = None
     particles: tuple[Particle, ...] = ()
     bodies: tuple[Body, ...] = ()
@@ -483,7 +486,7 @@ class _Reader:
 
         coordinates = self.coordinates(entries, taken)
         parameters = self.parameters(entries, taken)
-        functions = self.function_names(entries, taken)
+        functions, arities, definitions = self.functions(entries, taken, coordinates, parameters)
         q = tuple(sp.Symbol(c) for c in coordinates)
         qd = tuple(sp.Symbol(f"{c}_dot") for c in coordinates)
         qdd = tuple(sp.Symbol(f"{c}_ddot") for c in coordinates)
@@ -500,9 +503,9 @@ class _Reader:
         names = {str(s): s for s in (*q, *qd, *(p.symbol for p in parameters))}
         velocities = {str(s): "a velocity" for s in qd}
         accelerations = {str(s): "an acceleration" for s in qdd}
-        state = Scope(names, undefined, t, ddt, "a coordinate, a velocity (`<q>_dot`), a parameter, `t`", accelerations)
-        config = Scope({str(s): s for s in (*q, *(p.symbol for p in parameters))}, undefined, t, ddt, "a coordinate, a parameter, `t`", {**velocities, **accelerations})
-        constants = Scope({p.name: p.symbol for p in parameters}, undefined, t, ddt, "a parameter, `t`", {**{c: "a coordinate" for c in coordinates}, **velocities, **accelerations})
+        state = Scope(names, undefined, t, ddt, "a coordinate, a velocity (`<q>_dot`), a parameter, `t`", accelerations, arities=arities)
+        config = Scope({str(s): s for s in (*q, *(p.symbol for p in parameters))}, undefined, t, ddt, "a coordinate, a parameter, `t`", {**velocities, **accelerations}, arities=arities)
+        constants = Scope({p.name: p.symbol for p in parameters}, undefined, t, ddt, "a parameter, `t`", {**{c: "a coordinate" for c in coordinates}, **velocities, **accelerations}, arities=arities)
         potential_scope = dataclasses.replace(config, note="velocity-dependent terms belong under `lagrangian`")
 
         def value(key: str) -> yaml.Node | None:
@@ -530,6 +533,7 @@ class _Reader:
             t=t,
             parameters=parameters,
             functions=functions,
+            definitions=definitions,
             gravity=gravity,
             particles=particles,
             bodies=bodies,
@@ -602,11 +606,64 @@ class _Reader:
                 result.append(Parameter(sp.Symbol(name), number, number is not None and number <= 0))
         return tuple(result)
 
-    def function_names(self, entries: dict[str, tuple[yaml.Node, yaml.Node]], taken: dict[str, str]) -> tuple[str, ...]:
+    def functions(
+        self, entries: dict[str, tuple[yaml.Node, yaml.Node]], taken: dict[str, str], coordinates: tuple[str, ...], parameters: tuple[Parameter, ...]
+    ) -> tuple[tuple[str, ...], dict[str, int], dict[str, sp.Lambda]]:
+        """`functions`: a list of names (undefined functions), or a map name -> {arguments, definition,
+        description}. Returns the names, the number of arguments of those that state them, and the
+        definitions, each `Lambda(arguments, expression)` of its arguments and the parameters."""
         if "functions" not in entries:
-            return ()
-        names = [self.name(item, "function", taken) for item in self.sequence(entries["functions"][1], "'functions'")]
-        return tuple(n for n in names if n)
+            return (), {}, {}
+        node = entries["functions"][1]
+        if isinstance(node, yaml.SequenceNode):
+            listed = [self.name(item, "function", taken) for item in node.value]
+            return tuple(n for n in listed if n), {}, {}
+        if not isinstance(node, yaml.MappingNode):
+            self.problem(node, f"'functions' must be a list or a map, got {_kind(node)}", "a list of names such as `[U]`, or a map such as `{U: {arguments: [s], definition: -k/s}}`")
+            return (), {}, {}
+        items = self.mapping(node, "'functions'")
+        declared = {key for key, _, _ in items}
+        names, arities, definitions = [], {}, {}
+        for key, key_node, value in items:
+            name = self.name(key_node, "function", taken)
+            fields = {k: v for k, _, v in self.mapping(value, f"function '{key}'", FUNCTION_KEYS)}
+            self.string(fields.get("description"), "'description'")
+            if name is None:
+                continue
+            names.append(name)
+            if "arguments" not in fields:
+                if isinstance(value, yaml.MappingNode) and "arguments" not in self.near_misses(value, FUNCTION_KEYS):
+                    self.problem(value, f"function '{key}' has no 'arguments'", "`arguments:` a list of names, e.g. `[s]`")
+                continue
+            arguments = self.arguments(fields["arguments"], key, parameters)
+            if arguments is None:
+                continue
+            arities[name] = len(arguments)
+            scope = _definition_scope(name, arguments, coordinates, parameters, declared)
+            expr = self.expression(fields["definition"], f"the definition of '{key}'", scope) if "definition" in fields else None
+            if expr is not None:
+                definitions[name] = sp.Lambda(tuple(sp.Symbol(a) for a in arguments), expr)
+        return tuple(names), arities, definitions
+
+    def arguments(self, node: yaml.Node, function: str, parameters: tuple[Parameter, ...]) -> tuple[str, ...] | None:
+        """The argument names of a function: new names, local to its definition (so they may
+        repeat a coordinate's name), but not a parameter's, which they would hide there."""
+        items = self.sequence(node, f"the arguments of '{function}'")
+        if not items:
+            if isinstance(node, yaml.SequenceNode):
+                self.problem(node, f"function '{function}' has no arguments", "at least one argument name, e.g. `[s]` (a constant belongs under `parameters`)")
+            return None
+        local: dict[str, str] = {}
+        names = [self.name(item, "function argument", local) for item in items]
+        if any(n is None for n in names):
+            return None
+        result = tuple(n for n in names if n)
+        hidden = {p.name for p in parameters}
+        for item, name in zip(items, result, strict=True):
+            if name in hidden:
+                self.problem(item, f"argument '{name}' of '{function}' is also a parameter, which it would hide in the definition", "another name for the argument, e.g. `s`")
+                return None
+        return result
 
     def particles(self, node: yaml.Node | None, config: Scope, state: Scope, constants: Scope) -> tuple[Particle, ...]:
         if node is None:
@@ -779,6 +836,7 @@ class _Reader:
             state.time,
             state.time_derivative,
             "a coordinate, velocity, acceleration (`<q>_ddot`), parameter, multiplier or `t`",
+            arities=state.arities,
         )
         equations = []
         for item in self.sequence(fields["equations"], "'expect.equations'") if "equations" in fields else []:
@@ -810,6 +868,18 @@ class _Reader:
                 continue
             conserved.append((str(name), self.span(item)))
         return Expect(tuple(equations), tuple(accelerations), tuple(momenta), tuple(conserved))
+
+
+def _definition_scope(function: str, arguments: tuple[str, ...], coordinates: tuple[str, ...], parameters: tuple[Parameter, ...], functions: set[str]) -> Scope:
+    """What a function's definition may name: its arguments and the parameters, nothing that
+    changes along the motion (coordinates, velocities, `t`) and no declared function."""
+    elsewhere = {c: "a coordinate" for c in coordinates if c not in arguments}
+    elsewhere |= {f"{c}_dot": "a velocity" for c in coordinates} | {f"{c}_ddot": "an acceleration" for c in coordinates}
+    elsewhere |= {f: "a declared function" for f in functions} | {"t": "time"}
+    symbols = {p.name: p.symbol for p in parameters} | {a: sp.Symbol(a) for a in arguments}
+    what = f"the arguments of '{function}' ({', '.join(arguments)}) or a parameter"
+    note = f"a definition depends on nothing else; make it an argument (e.g. `arguments: [{', '.join(arguments)}, tau]` and `{function}(..., t)`)"
+    return Scope(symbols, {}, sp.Symbol("t"), lambda e: e, what, elsewhere, note)
 
 
 def _replace(spec: SystemSpec, **changes: Any) -> SystemSpec:

@@ -20,6 +20,7 @@ def test_every_key_is_documented() -> None:
     assert documented_keys("## Top-level keys") == set(spec.TOP_KEYS)
     assert documented_keys("### Particles") == set(spec.PARTICLE_KEYS)
     assert documented_keys("### Bodies") == set(spec.BODY_KEYS)
+    assert documented_keys("### Functions") == set(spec.FUNCTION_KEYS)
     assert documented_keys("## `expect`") == set(spec.EXPECT_KEYS)
     for key in spec.SIMULATE_KEYS:
         assert f"`{key}`" in DOCS

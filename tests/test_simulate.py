@@ -19,7 +19,6 @@ from .conftest import ROOT, SYSTEMS
 from .helpers import model_from, model_of
 
 runner = CliRunner()
-UNDEFINED = {"central_potential.yaml"}  # its potential U(r) is an undefined function
 
 
 @pytest.fixture(autouse=True, scope="module")
@@ -31,7 +30,7 @@ def cache(tmp_path_factory: pytest.TempPathFactory) -> None:
     patch.undo()
 
 
-@pytest.mark.parametrize("path", [p for p in SYSTEMS if p.name not in UNDEFINED], ids=lambda p: p.stem)
+@pytest.mark.parametrize("path", SYSTEMS, ids=lambda p: p.stem)
 def test_every_bundled_system_simulates_with_its_defaults(path: Path) -> None:
     trajectory = simulate(model_from(path), backend="python")
     assert trajectory.status == "finished", trajectory.message
@@ -41,8 +40,10 @@ def test_every_bundled_system_simulates_with_its_defaults(path: Path) -> None:
             assert invariant.relative < 1e-5 or invariant.max_change < 1e-6, invariant
 
 
-def test_undefined_function_is_refused_by_name() -> None:
-    result = runner.invoke(app, ["simulate", str(ROOT / "systems" / "central_potential.yaml")])
+def test_undefined_function_is_refused_by_name(tmp_path: Path) -> None:
+    path = tmp_path / "undefined.yaml"
+    path.write_text("coordinates: [r]\nparameters: {m: 1.0}\nfunctions: [U]\nkinetic: m*r_dot**2/2\npotential: U(r)\n")
+    result = runner.invoke(app, ["simulate", str(path)])
     assert result.exit_code == 2 and "U is left undefined" in result.output and "Traceback" not in result.output
 
 

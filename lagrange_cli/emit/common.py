@@ -32,10 +32,14 @@ def constraint_equations(model: Model) -> list[tuple[str, sp.Expr]]:
 
 
 def require_defined(model: Model, what: str) -> None:
-    """Numeric code needs every function defined; undefined ones (e.g. U(r)) cannot be emitted."""
-    undefined = sorted({str(f.func) for f in sp.Matrix([*model.mass_matrix, *model.forcing, model.energy]).atoms(sp.core.function.AppliedUndef)})
+    """Numeric code needs every function defined, by a `definition` in the file (numeric code
+    evaluates `model.with_definitions()`); undefined ones (e.g. U(r)) cannot be emitted."""
+    numeric = model.with_definitions()
+    undefined = sorted({str(f.func) for f in sp.Matrix([*numeric.mass_matrix, *numeric.forcing, numeric.energy]).atoms(sp.core.function.AppliedUndef)})
     if undefined:
+        one = len(undefined) == 1
         raise DerivationError(
-            f"{model.source}: {what} needs every function defined, but {', '.join(undefined)} "
-            f"{'is' if len(undefined) == 1 else 'are'} left undefined; write {'it' if len(undefined) == 1 else 'them'} out as an expression in the system file"
+            f"{model.source}: {what} needs every function defined, but {', '.join(undefined)} {'is' if one else 'are'} left undefined; "
+            f"give {'it' if one else 'each'} a definition under `functions` (e.g. `functions: {{{undefined[0]}: {{arguments: [s], definition: -k/s}}}}`) "
+            f"or write {'it' if one else 'them'} out as an expression in the system file"
         )

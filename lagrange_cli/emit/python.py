@@ -4,6 +4,8 @@ The module defines COORDINATES, PARAMETERS (defaults), mass_matrix, forcing, ene
 rhs(t, y, p) with y = [q..., q_dot...], ready for scipy.integrate.solve_ivp. It imports
 only what it uses: `math` functions, and numpy only for large systems. Functions of an
 autonomous system take no time argument (except rhs, whose signature solve_ivp fixes).
+Functions the file defines (`functions: {U: {arguments: [s], definition: -k/s}}`) are written
+out from their definitions, which the module's docstring states.
 """
 
 from __future__ import annotations
@@ -11,7 +13,7 @@ from __future__ import annotations
 import json
 import keyword
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -95,15 +97,19 @@ def cse_block(exprs: Sequence[sp.Expr], prefix: str, printer: CodePrinter) -> Bl
 
 
 def emit(model: Model, numba: bool = False) -> str:
-    """The module's source; with `numba=True` its rhs is compiled by numba (cached on disk)."""
+    """The module's source; with `numba=True` its rhs is compiled by numba (cached on disk).
+    The file's function definitions are written out (`Model.with_definitions`)."""
+    definitions = model.definitions
+    model = model.with_definitions()
     require_defined(model, "Python code")
     check_invertible(model)
-    return _Writer(model, numba).module()
+    return _Writer(model, numba, definitions).module()
 
 
 class _Writer:
-    def __init__(self, model: Model, numba: bool = False) -> None:
+    def __init__(self, model: Model, numba: bool = False, definitions: Mapping[str, sp.Lambda] | None = None) -> None:
         self.model = model
+        self.definitions = definitions or {}
         self.numba = numba
         self.names = _names(model)
         self.printer = CodePrinter(self.names)
@@ -276,6 +282,9 @@ class _Writer:
             + (" + A^T lambda" if model.constraints else "")
             + f", with y = [{', '.join(map(str, (*model.q, *model.qd)))}].",
         ]
+        if self.definitions:
+            written = "; ".join(f"{name}({', '.join(map(str, f.variables))}) = {sp.sstr(f.expr)}" for name, f in sorted(self.definitions.items()))
+            header.append(f"Functions written out from their definitions in the file: {written}.")
         if missing:
             header.append(f"Parameters without a default, to be given in p: {', '.join(missing)}.")
         header.append('"""')

@@ -13,6 +13,8 @@ same `cse_block` as the Python emitter:
 - `energy`, `momenta`, `residuals`, `event`: the monitored quantities and the stop condition.
 
 Generated names start with `_` (system names cannot), so nothing the user names can clash.
+Functions the file defines (`functions: {U: {arguments: [s], definition: -k/s}}`) are written
+out here, from `Model.with_definitions()`: the symbolic model keeps the general U(r).
 """
 
 from __future__ import annotations
@@ -43,7 +45,9 @@ def parameter_names(model: Model) -> tuple[str, ...]:
 
 
 def ignorable(model: Model) -> tuple[int, ...]:
-    """Indices of the ignorable coordinates, whose momenta are conserved."""
+    """Indices of the ignorable coordinates, whose momenta are conserved (with the file's
+    definitions written out, as in the generated `_momenta`)."""
+    model = model.with_definitions()
     return tuple(i for i in range(model.n) if model.ignorable(i))
 
 
@@ -58,9 +62,10 @@ def stabilised_bias(model: Model) -> list[sp.Expr]:
 
 
 class Generator:
-    """Writes the functions of one model for one target ("numba" or "python")."""
+    """Writes the functions of one model, its defined functions written out, for one target ("numba" or "python")."""
 
     def __init__(self, model: Model, target: str) -> None:
+        model = model.with_definitions()
         self.model, self.target = model, target
         n, k = model.n, len(model.constraints)
         self.n, self.k, self.size = n, k, n + k

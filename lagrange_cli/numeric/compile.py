@@ -76,8 +76,10 @@ def numba_available() -> bool:
 
 def fingerprint(model: Model, target: str, jacobian: bool, event: sp.Expr | None) -> str:
     """A hash of everything the generated module depends on: the model's equations and
-    monitored quantities, the options, lagrange's and the compiler's versions, the kernels.
+    monitored quantities (with the file's function definitions written out, as codegen writes
+    them), the options, lagrange's and the compiler's versions, the kernels.
     Remembered per model object (which it keeps alive, so that its id is not reused)."""
+    model = model.with_definitions()
     memo = (id(model), target, jacobian, str(event))
     if memo in _FINGERPRINTS:
         return _FINGERPRINTS[memo][1]

@@ -228,6 +228,7 @@ def stress(
         raise LagrangeError(f"--accuracy must lie between 0 and 0.1, got {target:g}")
     if target < 1e3 * study.TIGHTEST:
         raise LagrangeError(f"--accuracy {target:g} leaves no room for a reference 1000 times tighter; give at least {1e3 * study.TIGHTEST:.1e}")
+    model = model.with_definitions()  # the mass matrix and constraint rows are evaluated here too
     chosen = tuple(candidates) if candidates else default_candidates(model)
     outcomes = [_regime(model, regime, target, chosen, budget, progress) for regime in regimes(model, scales, long_factor, energy_factor, t_end)]
     return Report(model.title, target, tuple(outcomes))
