@@ -239,3 +239,14 @@ def test_csv_to_stdout() -> None:
     result = runner.invoke(app, ["simulate", "harmonic_oscillator", "--samples", "3", "-o", "-"])
     assert result.exit_code == 0
     assert result.stdout.splitlines()[0] == "t,x,x_dot,energy" and len(result.stdout.splitlines()) == 4
+
+
+def test_cached_modules_are_not_reused_after_the_code_generator_changes(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A fix to the generator (e.g. the printer) gives new cache keys, so no stale module is loaded."""
+    from lagrange_cli.numeric import compile
+
+    keys = []
+    for source in ("generator as it was", "generator as fixed"):
+        monkeypatch.setattr(compile, "_generator_source", lambda source=source: source)
+        keys.append(compile.fingerprint(model_from(ROOT / "systems" / "kepler.yaml"), "python", False, None))
+    assert keys[0] != keys[1]

@@ -77,13 +77,13 @@ def numba_available() -> bool:
 def fingerprint(model: Model, target: str, jacobian: bool, event: sp.Expr | None) -> str:
     """A hash of everything the generated module depends on: the model's equations and
     monitored quantities (with the file's function definitions written out, as codegen writes
-    them), the options, lagrange's and the compiler's versions, the kernels.
+    them), the options, lagrange's and the compiler's versions, the code generator, the kernels.
     Remembered per model object (which it keeps alive, so that its id is not reused)."""
     model = model.with_definitions()
     memo = (id(model), target, jacobian, str(event))
     if memo in _FINGERPRINTS:
         return _FINGERPRINTS[memo][1]
-    parts = [__version__, target, str(jacobian), str(event), sys.version, _numba_version(target), _kernels_source() if target == "numba" else ""]
+    parts = [__version__, _generator_source(), target, str(jacobian), str(event), sys.version, _numba_version(target), _kernels_source() if target == "numba" else ""]
     parts += [str(model.coordinates), str([p.name for p in model.parameters]), str(model.mass_matrix), str(model.forcing)]
     parts += [str(model.energy), str(model.momenta), str(model.lagrangian), str(model.dissipation), str(model.generalized_forces)]
     parts += [str((c.expr, c.jacobian, c.bias, c.acceleration_bias, c.holonomic)) for c in model.constraints]
@@ -139,6 +139,13 @@ def module_source(model: Model, target: str, jacobian: bool, event: sp.Expr | No
 @functools.cache
 def _kernels_source() -> str:
     return resources.files("lagrange_cli.numeric").joinpath("kernels.py").read_text(encoding="utf-8")
+
+
+@functools.cache
+def _generator_source() -> str:
+    """The code that writes the generated modules: a fix to it must not reuse modules cached before."""
+    files = [("lagrange_cli.numeric", "codegen.py"), ("lagrange_cli.emit", "python.py"), ("lagrange_cli.emit", "common.py"), ("lagrange_cli", "algebra.py")]
+    return "".join(resources.files(package).joinpath(name).read_text(encoding="utf-8") for package, name in files)
 
 
 @functools.cache
