@@ -142,16 +142,17 @@ def run_gauss(functions: Functions, problem: Problem, z0: np.ndarray, stages: in
     ys = np.full((len(problem.ts), len(z)), np.nan)
     counters = np.zeros(1, dtype=np.int64)
     state = np.array([problem.t0, 0.0, _initial_event(functions, problem)])
+    sizes = np.abs(z)
 
     def advance(t_stop: float) -> int:
-        return int(entry(stages, z, state, problem.ts, ys, counters, problem.p, h, steps, problem.t0, t_stop, problem.use_event, stats, size, hamilton, event))
+        return int(entry(stages, z, state, problem.ts, ys, counters, problem.p, h, steps, problem.t0, problem.t_end, t_stop, problem.use_event, stats, sizes, size, hamilton, event))
 
     status = _drive(advance, lambda: float(state[0]), problem, progress)
     out, x, a = np.empty_like(z), np.empty(size), np.empty((size, size))
     hamilton(float(state[0]), z, problem.p, out, x, a)
     y_last = np.concatenate([z[: len(z) // 2], out[: len(z) // 2]])
     m = int(counters[0])
-    return Run(problem.ts[:m], ys[:m], _CODES[status], float(state[0]), y_last, _stats(stats), compile_seconds, time.perf_counter() - began)
+    return Run(problem.ts[:m], ys[:m], _CODES[status], float(state[0]), y_last, _stats(stats, nlu=int(stats[1])), compile_seconds, time.perf_counter() - began)
 
 
 def _initial_event(functions: Functions, problem: Problem) -> float:
@@ -193,18 +194,36 @@ def python_rhs(module: Any, p: Sequence[float]) -> Callable[[float, np.ndarray],
 
 
 def python_jac(module: Any, p: Sequence[float]) -> Callable[[float, np.ndarray], np.ndarray]:
-    """The analytic Jacobian df/dy from the generated Python `_jac`."""
-    jac, params = module._jac, list(p)
+    """The analytic Jacobian df/dy from the generated Python `_jac`; where a formula of it cannot
+    be evaluated although f can (0/0 in the derivative of |v| v at rest, say), forward differences
+    of f instead. A singular augmented matrix is a failure."""
+    jac, params, rhs = module._jac, list(p), python_rhs(module, p)
 
     def jacobian(t: float, y: np.ndarray) -> np.ndarray:
         try:
             return np.asarray(jac(t, y.tolist(), params))
-        except (ZeroDivisionError, np.linalg.LinAlgError):
+        except np.linalg.LinAlgError:
             raise _Failure(SINGULAR) from None
-        except (OverflowError, ValueError):
-            raise _Failure(NONFINITE) from None
+        except (ZeroDivisionError, OverflowError, ValueError):
+            return _differences(rhs, t, y)
 
     return jacobian
+
+
+def _differences(rhs: Callable[[float, np.ndarray], list[float]], t: float, y: np.ndarray) -> np.ndarray:
+    """df/dy by forward differences, each component moved by 1.5e-8 of its size (of 1 when it is
+    0); raises `_Failure` when f itself cannot be evaluated there."""
+    f0 = np.array(rhs(t, y))
+    columns = []
+    for k, value in enumerate(y.tolist()):
+        step = 1.5e-8 * (abs(value) or 1.0)
+        moved = y.copy()
+        moved[k] = value + step
+        columns.append((np.array(rhs(t, moved)) - f0) / step)
+    result = np.column_stack(columns)
+    if not np.all(np.isfinite(result)):
+        raise _Failure(NONFINITE)
+    return result
 
 
 def run_scipy(functions: Functions, problem: Problem, method: str, rtol: float, atol: float, max_step: float, progress: Progress | None = None) -> Run:

@@ -78,7 +78,7 @@ _ACCEL_T, _HAMILTON_T, _EVENT_T = types.FunctionType(ACCEL_SIG), types.FunctionT
 SIGNATURES = {
     "erk_start": _F8(types.boolean, _F8, _ARR, _ARR, _F8, _F8, _F8, _F8, _ARR, _ARR, _I8, _ACCEL_T),
     "erk_run": _I8(types.boolean, _ARR, _ARR, _ARR, _ARR, _MAT, types.int64[::1], _ARR, _F8, _F8, _F8, _F8, _F8, types.boolean, _ARR, _I8, _ACCEL_T, _EVENT_T),
-    "gauss_run": _I8(_I8, _ARR, _ARR, _ARR, _MAT, types.int64[::1], _ARR, _F8, _I8, _F8, _F8, types.boolean, _ARR, _I8, _HAMILTON_T, _EVENT_T),
+    "gauss_run": _I8(_I8, _ARR, _ARR, _ARR, _MAT, types.int64[::1], _ARR, _F8, _I8, _F8, _F8, _F8, types.boolean, _ARR, _ARR, _I8, _HAMILTON_T, _EVENT_T),
 }
 _COMPILED: dict[str, Any] = {}
 
@@ -95,19 +95,27 @@ def compiled(name: str) -> Any:
 
 @njit(cache=True, error_model="numpy")
 def lu_solve(a, b):
-    """Solve a x = b in place (b becomes x) by Gaussian elimination with partial pivoting;
-    1 when a pivot is below 1e-13 of the largest entry (a singular matrix), else 0."""
+    """Solve a x = b in place (b becomes x) by Gaussian elimination with partial pivoting, each
+    row first divided by its largest entry; 1 when a pivot is below 1e-13 of its row's largest
+    entry (a singular matrix), else 0. Measuring each row against itself keeps rows in
+    different units (diag(m, m r^2) with r = 7e6 m) from being mistaken for a singular matrix."""
     n = b.shape[0]
-    scale = 0.0
     for i in range(n):
+        largest = 0.0
         for j in range(n):
-            scale = max(scale, abs(a[i, j]))
+            largest = max(largest, abs(a[i, j]))
+        if not largest > 0.0:
+            return 1
+        inverse = 1.0 / largest
+        for j in range(n):
+            a[i, j] *= inverse
+        b[i] *= inverse
     for k in range(n):
         pivot = k
         for i in range(k + 1, n):
             if abs(a[i, k]) > abs(a[pivot, k]):
                 pivot = i
-        if not abs(a[pivot, k]) > 1e-13 * scale:
+        if not abs(a[pivot, k]) > 1e-13:
             return 1
         if pivot != k:
             for j in range(n):
@@ -414,14 +422,16 @@ def erk_run(dop, y, f, state, ts, ys, counters, p, rtol, atol, max_step, t_bound
 
 
 @njit(error_model="numpy")
-def _jacobian(hamilton, t, z, p, x, a, jac, f0, work, column, stats):
-    """J = dF/dz at z by forward differences (f0 = F(z) is computed too); 1 when M is singular."""
+def _jacobian(hamilton, t, z, p, x, a, jac, f0, work, column, sizes, stats):
+    """J = dF/dz at z by forward differences (f0 = F(z) is computed too), each component moved
+    by 1.5e-8 of its size (`sizes`: the largest |z_k| so far); 1 when M is singular."""
     n = z.shape[0]
     status = hamilton(t, z, p, f0, x, a)
     for k in range(n):
         for i in range(n):
             work[i] = z[i]
-        step = 1.5e-8 * max(1.0, abs(z[k]))
+        scale = max(abs(z[k]), sizes[k])
+        step = 1.5e-8 * (scale if scale > 0.0 else 1.0)
         work[k] += step
         status += hamilton(t, work, p, column, x, a)
         for i in range(n):
@@ -474,10 +484,13 @@ def _lu_apply(m, pivots, b):
 
 
 @njit(error_model="numpy")
-def _gauss_stages(hamilton, s, t, z, h, Z, FZ, p, x, a, m, pivots, g, stats):
+def _gauss_stages(hamilton, s, t, z, h, Z, FZ, p, x, a, m, pivots, g, sizes, stats):
     """Solve Z_i = z + h sum_j a_ij F(Z_j) by simplified Newton iteration (matrix m from
     `_newton_matrix`) until the corrections stop shrinking (round-off); FZ holds F at the stage
-    values of the last iteration. Returns (status, iterations)."""
+    values of the last iteration. Returns (status, iterations). Corrections are measured
+    component by component against that component's size (the larger of |Z_ik| and `sizes`,
+    the largest |z_k| so far), so that coordinates and momenta of very different magnitudes
+    (r = 7e6 m and p_r = 1e4 kg m/s, or x = 1e-8 m and p = 1e-13) all converge."""
     n = z.shape[0]
     previous = np.inf
     for iteration in range(1, 41):
@@ -492,18 +505,19 @@ def _gauss_stages(hamilton, s, t, z, h, Z, FZ, p, x, a, m, pivots, g, stats):
                     value += h * _GAUSS_A[s - 1, i, j] * FZ[j, k]
                 g[i * n + k] = value
         _lu_apply(m, pivots, g)
-        change, size = 0.0, 0.0
+        change = 0.0
         for i in range(s):
             for k in range(n):
                 Z[i, k] += g[i * n + k]
-                change = max(change, abs(g[i * n + k]))
-                size = max(size, abs(Z[i, k]))
+                correction = abs(g[i * n + k])
+                if correction > 0.0:
+                    change = max(change, correction / max(abs(Z[i, k]), sizes[k]))
         if not np.isfinite(change):
             return NONFINITE, iteration
         rate = change / previous if iteration > 1 else 1.0
-        if change <= TOLERANCE * max(size, 1.0) or (rate < 1.0 and rate * change <= (1.0 - rate) * TOLERANCE * max(size, 1.0)):
+        if change <= TOLERANCE or (rate < 1.0 and rate * change <= (1.0 - rate) * TOLERANCE):
             return DONE, iteration
-        if iteration > 1 and rate >= 1.0 and change <= 1e-10 * max(size, 1.0):
+        if iteration > 1 and rate >= 1.0 and change <= 1e-10:
             return DONE, iteration  # round-off: the corrections stopped shrinking
         previous = change
     return NO_CONVERGENCE, 40
@@ -552,9 +566,11 @@ def _gauss_root(hamilton, event, t_old, h, z0, f0, z1, f1, p, x, a, g_old):
     return hi
 
 
-def gauss_run(s, z, state, ts, zs, counters, p, h, steps, t0, t_stop, use_event, stats, size, hamilton, event):
+def gauss_run(s, z, state, ts, zs, counters, p, h, steps, t0, t_end, t_stop, use_event, stats, sizes, size, hamilton, event):
     """Advance z = (q, p) by fixed steps h (t = state[0], state[1] steps taken of `steps`) until
-    t >= t_stop, writing zs[j] = (q, q_dot) at the samples ts[j] passed; returns a status."""
+    t >= t_stop, writing zs[j] = (q, q_dot) at the samples ts[j] passed; returns a status.
+    The last step ends at t_end exactly (t0 + steps h may fall short of it by round-off).
+    `sizes` keeps the largest |z_k| so far (the scale of each component's convergence test)."""
     n = z.shape[0]
     x, a = np.empty(size), np.empty((size, size))
     Z, FZ = np.empty((s, n)), np.zeros((s, n))
@@ -565,7 +581,7 @@ def gauss_run(s, z, state, ts, zs, counters, p, h, steps, t0, t_stop, use_event,
     fresh, refreshed = False, False
     while done < steps and t < t_stop:
         if not fresh:
-            if _jacobian(hamilton, t, z, p, x, a, jac, f0, work, fw, stats) or _newton_matrix(s, h, jac, m, pivots):
+            if _jacobian(hamilton, t, z, p, x, a, jac, f0, work, fw, sizes, stats) or _newton_matrix(s, h, jac, m, pivots):
                 return SINGULAR
             fresh, refreshed = True, True
         for i in range(s):
@@ -574,7 +590,7 @@ def gauss_run(s, z, state, ts, zs, counters, p, h, steps, t0, t_stop, use_event,
                 for j in range(s):
                     value += h * _GAUSS_E[s - 1, i, j] * FZ[j, k]
                 Z[i, k] = value
-        status, iterations = _gauss_stages(hamilton, s, t, z, h, Z, FZ, p, x, a, m, pivots, g, stats)
+        status, iterations = _gauss_stages(hamilton, s, t, z, h, Z, FZ, p, x, a, m, pivots, g, sizes, stats)
         if status == NO_CONVERGENCE and not refreshed:
             fresh = False  # a Jacobian from an earlier step: refresh it and try again
             continue
@@ -589,7 +605,7 @@ def gauss_run(s, z, state, ts, zs, counters, p, h, steps, t0, t_stop, use_event,
         if not _finite(z_new):
             return NONFINITE
         done += 1
-        t_new = t0 + done * h
+        t_new = t_end if done >= steps else t0 + done * h
         stats[NSTEPS] += 1
         j = counters[0]
         if (j < ts.shape[0] and ts[j] <= t_new) or use_event:
@@ -615,6 +631,7 @@ def gauss_run(s, z, state, ts, zs, counters, p, h, steps, t0, t_stop, use_event,
         counters[0] = j
         for k in range(n):
             z[k] = z_event[k] if event_found else z_new[k]
+            sizes[k] = max(sizes[k], abs(z[k]))
         t = t_end_here
         state[0], state[1] = t, done
         if event_found:
