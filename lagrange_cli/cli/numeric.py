@@ -126,7 +126,7 @@ def _report(trajectory: Trajectory, to_stderr: bool) -> None:
         console.print(f"{trajectory.status}: {trajectory.message}", markup=False)
     rejected = f" ({stats.rejected} rejected)" if stats.rejected else ""
     smallest = f", smallest step {stats.min_step:.3g}" if stats.min_step else ""
-    jacobians = f", {stats.njev} Jacobians, {stats.nlu} LU" if stats.njev or stats.nlu else ""
+    jacobians = f", {stats.njev} Jacobian{'s' * (stats.njev != 1)}, {stats.nlu} LU" if stats.njev or stats.nlu else ""
     console.print(f"work: {stats.steps} steps{rejected}, {stats.nfev} evaluations{jacobians}{smallest}")
     once = f", one-time: compile/load {_seconds(timing.compile)}, import {_seconds(timing.load)}, codegen {_seconds(timing.generate)}"
     console.print(f"time: run {_seconds(timing.run)}{once}")
@@ -136,6 +136,10 @@ def _report(trajectory: Trajectory, to_stderr: bool) -> None:
             table.add_column(column)
         for inv in trajectory.invariants:
             table.add_row(inv.name, "conserved" if inv.conserved else "not conserved", f"{inv.initial:.6g}", f"{inv.max_change:.2e}", f"{inv.relative:.2e}")
+        energy = next((inv for inv in trajectory.invariants if inv.name == "energy"), None)
+        if energy is not None and energy.scale > abs(energy.initial):
+            table.caption = f"energy: relative to the largest |sum p q_dot| = {energy.scale:.6g} (twice the kinetic energy of a natural system), which exceeds |initial|"
+            table.caption_justify = "left"
         console.print(table)
 
 

@@ -76,9 +76,10 @@ def _energy_panel(axes: Any, trajectory: Trajectory) -> None:
     energy = trajectory.energy
     if len(energy) == 0:
         return
-    scale = abs(energy[0]) or max(float(np.max(np.abs(energy))), 1e-300)
+    invariant = next((i for i in trajectory.invariants if i.name == "energy"), None)
+    scale = (invariant.scale if invariant is not None else 0.0) or abs(energy[0]) or max(float(np.max(np.abs(energy))), 1e-300)
     error = np.abs(energy - energy[0]) / scale
-    conserved = next((i.conserved for i in trajectory.invariants if i.name == "energy"), False)
+    conserved = invariant.conserved if invariant is not None else False
     if np.any(error[1:] > 0):
         axes.semilogy(trajectory.t[1:], np.maximum(error[1:], 1e-17))
     else:

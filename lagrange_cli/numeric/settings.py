@@ -71,7 +71,7 @@ def resolve(
     max_step: float | None = None,
 ) -> Settings:
     """Validated settings, with `auto` choices made; raises `LagrangeError` on bad input."""
-    _check(model)
+    check(model)
     file = dict(model.simulate)
     end = _positive("t_end", t_end if t_end is not None else file.get("t_end", DEFAULTS["t_end"]))
     chosen_method = _method(method if method is not None else file.get("method", "auto"))
@@ -90,7 +90,42 @@ def resolve(
         raise LagrangeError(f"unknown backend '{backend}'; choose one of {', '.join(BACKENDS)}")
     chosen_method, backend, fixed, rate, notes = _choose(model, chosen_method, backend, fixed, end, relative, p, y0)
     vector = (*p, _stabilisation(rate, end)) if model.constraints else p
+    notes = (*notes, *constraint_notes(model, p, y0))
     return Settings(0.0, end, chosen_method, backend, relative, absolute, fixed, STAGES, limit, times, tuple(zip(names, p, strict=True)), vector, y0, until, event, notes)
+
+
+_ROWS: dict[int, tuple[Model, Callable[..., list[list[float]]]]] = {}
+
+
+def constraint_notes(model: Model, p: Sequence[float], y0: Sequence[float]) -> list[str]:
+    """A note for each kept constraint the initial state violates, in positions (f(q, 0) != 0)
+    or velocities (a . q_dot + b != 0), beyond round-off relative to the sizes of its terms:
+    the run then starts off the constrained motion (the stabilisation pulls it back)."""
+    if not model.constraints:
+        return []
+    if id(model) not in _ROWS:
+        import sympy as sp
+
+        rows = [[c.expr, *c.jacobian, c.bias] for c in model.constraints]
+        _ROWS[id(model)] = (model, sp.lambdify([model.t, *model.q, *(par.symbol for par in model.parameters)], rows, modules="math"))
+    n = model.n
+    q, qd = np.array(y0[:n], dtype=float), np.array(y0[n:], dtype=float)
+    try:
+        values = np.array(_ROWS[id(model)][1](0.0, *q, *p[: len(model.parameters)]), dtype=float)
+    except (ZeroDivisionError, OverflowError, ValueError):
+        return []
+    notes = []
+    for c, row in zip(model.constraints, values, strict=True):
+        gradient, bias = row[1 : n + 1], row[n + 1]
+        velocity = float(gradient @ qd + bias)
+        off = []
+        if c.holonomic and abs(row[0]) > 1e-8 * (1.0 + float(np.linalg.norm(gradient) * np.linalg.norm(q))):
+            off.append(f"residual {row[0]:.3g} in the positions")
+        if abs(velocity) > 1e-8 * (float(np.linalg.norm(gradient) * np.linalg.norm(qd)) + abs(bias)):
+            off.append(f"{velocity:.3g} in the velocities")
+        if off:
+            notes.append(f"the initial state violates constraint '{c.name}' ({', '.join(off)}): the run starts off the constrained motion; give initial values that satisfy it")
+    return notes
 
 
 def _stabilisation(rate: float, t_end: float) -> float:
@@ -102,8 +137,9 @@ def _stabilisation(rate: float, t_end: float) -> float:
 _CHECKED: dict[int, Model] = {}
 
 
-def _check(model: Model) -> None:
-    """Every function defined and M invertible at a generic point (once per model object)."""
+def check(model: Model) -> None:
+    """Every function defined and M invertible at a generic point (once per model object);
+    raises `LagrangeError` saying what is missing."""
     if id(model) not in _CHECKED:
         require_defined(model, "simulation")
         check_invertible(model)
@@ -160,6 +196,11 @@ def _parameters(model: Model, overrides: Mapping[str, float]) -> tuple[tuple[str
             raise LagrangeError(f"'{name}' is not a parameter of {model.source}; parameters: {choices}" + (f" (did you mean '{hint}'?)" if hint else ""))
         if not math.isfinite(float(value)):
             raise LagrangeError(f"the value of parameter '{name}' must be a finite number, got {value!r}")
+        declared = next(p for p in model.parameters if p.name == name)
+        if not declared.real and float(value) <= 0:
+            raise LagrangeError(
+                f"'{name}' is positive in {model.source} (the equations were derived assuming so), but was given {float(value):g}; give a positive value, or declare it `{name}: {{value: ..., sign: real}}`"
+            )
     values = {p.name: p.value for p in model.parameters}
     values.update({k: float(v) for k, v in overrides.items()})
     missing = [name for name, value in values.items() if value is None]
@@ -225,7 +266,12 @@ def _choose(
         notes.append(f"method auto -> {method}: {why}")
     if method == "symplectic" and step is None:
         step = _symplectic_step(rate, t_end, rtol)
-        notes.append(f"symplectic step {step:.3g} from the fastest rate at the initial state ({rate:.3g}/s) and rtol")
+        if found is None:
+            notes.append(f"symplectic step {step:.3g} = t_end/1000: the linearisation at the initial state could not be evaluated (give --step)")
+        elif rate <= 0:
+            notes.append(f"symplectic step {step:.3g} = t_end/1000: the linearisation at the initial state has no rates (give --step)")
+        else:
+            notes.append(f"symplectic step {step:.3g} from the fastest rate at the initial state ({rate:.3g}/s) and rtol")
     if backend == "auto":
         backend, why = _backend(model, method, rate, t_end)
         notes.append(f"backend auto -> {backend}: {why}")

@@ -25,7 +25,7 @@ from lagrange_cli.errors import LagrangeError
 from lagrange_cli.model import Model
 from lagrange_cli.numeric import codegen, compile, integrators
 from lagrange_cli.numeric.integrators import Problem, Progress, Run, Stats
-from lagrange_cli.numeric.settings import Settings, resolve
+from lagrange_cli.numeric.settings import Settings, check, resolve
 
 FAILURES = {
     integrators.SINGULAR: "the mass matrix{} is singular (a coordinate singularity, such as Euler angles at theta = 0, or a configuration without inertia)",
@@ -45,11 +45,15 @@ class Invariant:
     initial: float
     max_change: float
     final_change: float
+    scale: float = 0.0
+    """The size the change is measured against: |initial|, or for the energy the larger of
+    |initial| and the largest |sum p q_dot| (twice the kinetic energy of a natural system),
+    so that an energy that starts at or near 0 still gets a meaningful relative error."""
 
     @property
     def relative(self) -> float:
-        """The largest change relative to the initial value (absolute when that is 0)."""
-        return self.max_change / abs(self.initial) if self.initial != 0 else self.max_change
+        """The largest change relative to `scale` (absolute when that is 0)."""
+        return self.max_change / self.scale if self.scale > 0 else self.max_change
 
 
 @dataclass(frozen=True)
@@ -121,17 +125,19 @@ def simulate(
     progress: Progress | None = None,
 ) -> Trajectory:
     """Integrate `model` from its initial state; see the module docstring for the conventions."""
+    check(model)
+    plain = compile.build(model, "python")  # here rather than in resolve's linearisation, so that its cost is reported
     settings = resolve(
         model, t_end=t_end, method=method, rtol=rtol, atol=atol, step=step, samples=samples, t_eval=t_eval, parameters=parameters, initial=initial, until=until, backend=backend, max_step=max_step
     )
     python = compile.build(model, "python", jacobian=settings.method in ("Radau", "BDF", "LSODA"), event=settings.event)
+    generate, load = plain.generate_seconds + python.generate_seconds, plain.import_seconds + python.import_seconds
     problem = Problem(settings.t0, settings.t_end, np.array(settings.y0, dtype=float), np.array(settings.t_eval, dtype=float), np.array(settings.p, dtype=float), settings.event is not None)
     if settings.backend == "compiled":
         numba = compile.build(model, "numba", event=settings.event)
-        generate, load = python.generate_seconds + numba.generate_seconds, python.import_seconds + numba.import_seconds
+        generate, load = generate + numba.generate_seconds, load + numba.import_seconds
         run = _run_compiled(numba, python, problem, settings, progress)
     else:
-        generate, load = python.generate_seconds, python.import_seconds
         run = integrators.run_scipy(python, problem, settings.method, settings.rtol, settings.atol, settings.max_step, progress)
     return _trajectory(model, settings, python, run, Timing(generate, load, run.compile_seconds, run.run_seconds))
 
@@ -165,7 +171,7 @@ def _invariants(model: Model, module: object, p: list[float], run: Run, energy: 
     """Energy, the momenta of ignorable coordinates, and constraint residuals along the samples."""
     if len(run.t) == 0:
         return ()
-    result = [_invariant("energy", model.energy_conserved, energy)]
+    result = [_invariant("energy", model.energy_conserved, energy, scale=_energy_scale(module, p, run))]
     ignorable = codegen.ignorable(model)
     if ignorable:
         momenta = np.array([module._momenta(t, y.tolist(), p) for t, y in zip(run.t, run.y, strict=True)])  # type: ignore[attr-defined]
@@ -176,10 +182,25 @@ def _invariants(model: Model, module: object, p: list[float], run: Run, energy: 
     return tuple(result)
 
 
-def _invariant(name: str, conserved: bool, values: np.ndarray, drift: bool = False) -> Invariant:
+def _invariant(name: str, conserved: bool, values: np.ndarray, drift: bool = False, scale: float = 0.0) -> Invariant:
     start = 0.0 if drift else float(values[0])
     change = np.abs(values - start)
-    return Invariant(name, conserved, start, float(np.nanmax(change)) if len(change) else 0.0, float(change[-1]))
+    size = max(abs(start), scale) if math.isfinite(scale) else abs(start)
+    return Invariant(name, conserved, start, float(np.nanmax(change)) if len(change) else 0.0, float(change[-1]), size)
+
+
+ENERGY_SCALE_SAMPLES = 101  # samples at which sum p q_dot is evaluated for the energy's scale
+
+
+def _energy_scale(module: object, p: list[float], run: Run) -> float:
+    """The largest |sum p_i q_dot_i| over (at most ENERGY_SCALE_SAMPLES of) the samples."""
+    n = run.y.shape[1] // 2
+    every = max(1, math.ceil(len(run.t) / ENERGY_SCALE_SAMPLES))
+    largest = 0.0
+    for t, y in zip(run.t[::every], run.y[::every], strict=True):
+        momenta = module._canonical(t, y.tolist(), p)  # type: ignore[attr-defined]
+        largest = max(largest, abs(math.fsum(m * v for m, v in zip(momenta, y[n:].tolist(), strict=True))))
+    return largest
 
 
 def _state(model: Model, y: np.ndarray) -> str:
