@@ -157,10 +157,10 @@ def _report_study(result: Study, to_stderr: bool) -> None:
     console.print(f"reference: {ref.description} ({own})", markup=False)
     if result.horizon is not None:
         h = result.horizon
-        if h.chaotic:
-            console.print(
-                f"chaotic: runs started {tol_text(h.delta)} apart part (separation {HORIZON_THRESHOLD:.0e}) at t = {h.horizon:.3g}, growth rate about {h.lyapunov:.2g}/s; errors measured up to there"
-            )
+        if h.chaotic and math.isfinite(h.horizon):
+            console.print(f"chaotic: runs started {tol_text(h.delta)} apart are {HORIZON_THRESHOLD:.0e} apart at t = {h.horizon:.3g}, growth rate about {h.lyapunov:.2g}/s")
+        elif h.chaotic:
+            console.print(f"chaotic: runs started {tol_text(h.delta)} apart separate exponentially (about {h.lyapunov:.2g}/s) but stay within {HORIZON_THRESHOLD:.0e} up to t = {result.full_t_end:g}")
         else:
             console.print(f"not chaotic: runs started {tol_text(h.delta)} apart separate by {h.growth * h.delta:.1e} by the end (no exponential growth)")
     for note in result.notes:
@@ -171,7 +171,10 @@ def _report_study(result: Study, to_stderr: bool) -> None:
     compile_costs: dict[str, float] = {}
     for p in result.points:
         compile_costs[p.resolved] = max(compile_costs.get(p.resolved, 0.0), p.compile_seconds)
-        status = "ok" if p.status == "finished" else f"[red]{p.status}[/red]: {escape(p.reason)}"
+        if p.status == "finished":
+            status = "ok" if p.ok else "[yellow]finished[/yellow]: its error could not be measured (samples missing or not finite)"
+        else:
+            status = f"[red]{p.status}[/red]: {escape(p.reason)}"
         evals = f"{p.nfev} ({p.njev})" if p.njev else str(p.nfev)
         name = p.resolved if p.method.split(":")[0] == p.resolved.split(" ")[0] else f"{p.method} -> {p.resolved}"
         table.add_row(name, p.setting, _e(p.final_error), _e(p.rms_error), _e(p.energy_error), _e(p.constraint_drift), _seconds(p.seconds), str(p.runs), evals, str(p.steps), status)
