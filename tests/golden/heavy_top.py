@@ -90,13 +90,19 @@ def rhs(t, y, p=PARAMETERS):
 
 
 def _solve(a, b):
-    """Solve a x = b by Gaussian elimination with partial pivoting (a, b are overwritten);
-    ZeroDivisionError when a pivot is below 1e-13 of the largest entry."""
+    """Solve a x = b by Gaussian elimination with partial pivoting (a, b are overwritten), each
+    row first divided by its largest entry so that rows in different units compare fairly;
+    ZeroDivisionError when a pivot is below 1e-13 of its row's largest entry."""
     n = len(b)
-    scale = max(abs(v) for row in a for v in row)
+    for i in range(n):
+        largest = max(abs(v) for v in a[i])
+        if not largest > 0.0:
+            raise ZeroDivisionError("singular matrix")
+        a[i] = [v / largest for v in a[i]]
+        b[i] /= largest
     for k in range(n):
         pivot = max(range(k, n), key=lambda i: abs(a[i][k]))
-        if not abs(a[pivot][k]) > 1e-13 * scale:
+        if not abs(a[pivot][k]) > 1e-13:
             raise ZeroDivisionError("singular matrix")
         a[k], a[pivot] = a[pivot], a[k]
         b[k], b[pivot] = b[pivot], b[k]
