@@ -109,7 +109,8 @@ def linearize(model: Model, point: Mapping[sp.Symbol, sp.Expr], values: Mapping[
         raise DerivationError(f"{model.source}: linearization of a system with kept constraints is not supported; eliminate them (`eliminate:`) first")
     if not model.autonomous:
         raise DerivationError(f"{model.source}: the system depends explicitly on time, so it has no fixed equilibria to linearize about")
-    full = {**{q: sp.Integer(0) for q in model.q}, **dict(point), **{v: sp.Integer(0) for v in model.qd}}
+    point = {q: point.get(q, sp.Integer(0)) for q in model.q}  # coordinates not given are 0
+    full = {**point, **{v: sp.Integer(0) for v in model.qd}}
     forcing = sp.Matrix(model.forcing)
     residual = [sp.simplify(f.xreplace(full)) for f in forcing]
     values = dict(values if values is not None else model.parameter_values())

@@ -210,7 +210,7 @@ def test_symbolic_output_is_that_of_the_undefined_function(tmp_path: Path, comma
 def test_check_passes_with_the_general_answers() -> None:
     result = runner.invoke(app, ["check", str(CENTRAL)])
     assert result.exit_code == 0, result.output
-    assert "1 files: 1 passed" in result.stdout
+    assert "1 file: 1 passed" in result.stdout
 
 
 # -- numbers use the definition ----------------------------------------------------------------------

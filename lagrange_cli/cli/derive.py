@@ -93,7 +93,7 @@ def check(
             table.add_row(report.path, result.entry, "[green]pass[/green]" if result.passed else "[red]FAIL[/red]", result.method)
     Console(highlight=False).print(table)
     counts = {status: sum(1 for r in reports if r.status == status) for status in ("pass", "fail", "error")}
-    Console(highlight=False).print(f"{len(reports)} files: {counts['pass']} passed, {counts['fail']} failed, {counts['error']} with errors")
+    Console(highlight=False).print(f"{len(reports)} file{'s' * (len(reports) != 1)}: {counts['pass']} passed, {counts['fail']} failed, {counts['error']} with errors")
     raise typer.Exit(checker.exit_code(reports))
 
 
