@@ -286,14 +286,23 @@ def _report_stress(report: Report, to_stderr: bool) -> None:
 
 
 def _naive(outcome: Outcome, target: float) -> str:
-    """scipy's RK45 at its default tolerances, then at the loosest tolerance that met the accuracy (if any)."""
+    """scipy's RK45 at its default tolerances (its error and run time, and how many times the
+    recommended run time it costs when it meets the accuracy only by brute force), then at the
+    loosest tolerance that met the accuracy (if any)."""
     from lagrange_cli.numeric.accuracy import tol_text
 
     first, best = outcome.naive_default, outcome.naive
     if first is None:
         return _brief(best, target)
-    text = f"default rtol {tol_text(first.tolerance)}: " + (f"{_e(first.error)} ({'ok' if first.error <= target else 'misses'})" if first.ok else first.status)
-    if best is not None and not (first.ok and first.error <= target):
+    if first.ok:
+        verdict = "ok" if first.error <= target else "misses"
+        rec = outcome.recommended
+        if first.error <= target and rec is not None and rec.seconds > 0 and first.seconds >= 10 * rec.seconds:
+            verdict = f"ok, but {first.seconds / rec.seconds:.0f}x the recommended run time"
+        text = f"default rtol {tol_text(first.tolerance)}: {_e(first.error)} in {_seconds(first.seconds)} ({verdict})"
+    else:
+        text = f"default rtol {tol_text(first.tolerance)}: {first.status}"
+    if best is not None and best is not first and best.ok and not (first.ok and first.error <= target):
         text += f"; {_brief(best, target)}"
     return text
 
