@@ -1,0 +1,55 @@
+"""`lagrange accuracy` and `lagrange stress` work on every bundled system.
+
+Short windows and few methods: what is checked is that each command runs end to end on each
+file, its reference is confirmed, and every regime finds a method meeting the accuracy over a
+short window. Compiled code goes to the user's cache as usual (a fresh machine compiles each
+system once). The full-length runs of every system are in BENCHMARKS.md
+(`benchmarks/every_system.py`)."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import pytest
+from typer.testing import CliRunner
+
+from lagrange_cli.cli import app
+
+from .conftest import ROOT
+
+runner = CliRunner()
+SYSTEMS = sorted(p.stem for p in (ROOT / "systems").glob("*.yaml"))
+
+
+def test_every_bundled_system_is_covered() -> None:
+    assert len(SYSTEMS) >= 28
+
+
+@pytest.mark.parametrize("name", SYSTEMS)
+def test_accuracy_runs_on(name: str) -> None:
+    result = runner.invoke(app, ["accuracy", name, "--method", "DOP853,Radau", "--tolerances", "1e-4,1e-7", "--t-end", "0.5", "--repeats", "0", "--samples", "11", "--json", "-"])
+    assert result.exit_code == 0, result.output
+    document = json.loads(result.stdout)
+    assert document["t_end"] == pytest.approx(0.5)
+    reference = document["reference"]
+    assert reference["kind"] == "exact" or (reference["own_error"] is not None and reference["own_error"] < 1e-7), reference
+    points = {(p["method"], p["setting"]): p for p in document["points"]}
+    assert len(points) == 4
+    tight = points[("DOP853", "rtol 1e-07")]
+    assert tight["status"] == "finished" and tight["final_error"] < 1e-4, tight
+    assert all(p["status"] == "finished" and math.isfinite(p["rms_error"]) for p in points.values()), points
+
+
+@pytest.mark.parametrize("name", SYSTEMS)
+def test_stress_runs_on(name: str) -> None:
+    result = runner.invoke(app, ["stress", name, "--method", "RK45:python,DOP853", "--t-end", "0.5", "--long", "2", "--accuracy", "1e-6", "--json", "-"])
+    assert result.exit_code == 0, result.output
+    document = json.loads(result.stdout)
+    assert document["passed"] is True
+    regimes = document["regimes"]
+    assert [r["regime"].split(" ")[0] for r in regimes[:3]] == ["defaults", "long", "high"]
+    for regime in regimes:
+        assert regime["naive_default"] is not None and regime["naive_default"]["setting"] == "rtol 1e-03"
+        assert regime["recommended"]["error"] <= 1e-6, regime
+        assert math.isfinite(regime["max_mass_condition"]), regime
