@@ -61,6 +61,15 @@ def test_stiff_damped_spring_shows_the_naive_method_losing_and_radau_winning() -
     assert outcome.naive is not None and outcome.naive.steps > 10 * outcome.recommended.steps
 
 
+@pytest.mark.parametrize(("name", "scale", "fast"), [("stiff_spring_pendulum", "g", True), ("spherical_coordinates_particle", "m", False), ("simple_pendulum", "g", False)])
+def test_two_time_scales_only_where_a_fast_mode_turns_many_times(name: str, scale: str, fast: bool) -> None:
+    """A slowest rate passing through 0 at a turning point is not a second time scale."""
+    model = model_from(ROOT / "systems" / f"{name}.yaml")
+    report = stress.stress(model, scales=[(scale, [next(p.value for p in model.parameters if p.name == scale)])], target=1e-4, candidates=[Candidate("DOP853", "python")])
+    (outcome,) = report.outcomes
+    assert any(f.startswith("two time scales") for f in outcome.diagnosis.findings) == fast, outcome.diagnosis.findings
+
+
 def test_near_pole_passage_is_diagnosed_as_a_coordinate_singularity() -> None:
     model = model_from(ROOT / "systems" / "spherical_pendulum_near_pole.yaml")
     report = stress.stress(model, scales=[("g", [9.81])], target=1e-4, candidates=[Candidate("DOP853", "python")], t_end=3.0)

@@ -51,6 +51,8 @@ STALLED = 2.0
 method's ladder; errors above SATURATED (a phase lost entirely) may not shrink for a while."""
 SATURATED = 0.01
 EXPLOSION = 10.0  # explicit steps / implicit steps above which the explicit step count has exploded
+SCALES = 100.0  # fastest rate / typical slowest rate above which a run has two time scales
+FAST_RADIANS = 1000.0  # ... provided the fast motion turns through this many radians over the run
 
 
 @dataclass(frozen=True)
@@ -294,7 +296,11 @@ def diagnose(model: Model, setup: Setup, reference: Reference, points: Sequence[
     decay = max((x.decay for x in spectra), default=0.0)
     rate = max((x.rate for x in spectra), default=0.0)
     stiffness = max((x.stiffness_ratio for x in spectra), default=1.0)
-    scales = max((x.scale_ratio for x in spectra), default=1.0)
+    # the slow scale is the typical slowest rate along the run: at a turning point or an
+    # inflection (g cos(theta) = 0) one state's slowest rate passes through 0, which says nothing
+    # about time scales
+    slow = [x.slowest for x in spectra if x.slowest > 0]
+    scales = rate / float(np.median(slow)) if slow else 1.0
     growth = max((x.growth for x in spectra), default=0.0)
     findings = []
     if horizon is not None:
@@ -313,7 +319,7 @@ def diagnose(model: Model, setup: Setup, reference: Reference, points: Sequence[
         findings.append(
             f"stiff{cheap}: a mode decays at up to {decay:.3g}/s (x t_end = {decay * setup.t_end:.3g}), stiffness ratio {stiffness:.3g}, about {steps:.3g} stability-limited explicit steps"
         )
-    elif scales > 100:
+    elif scales > SCALES and rate * setup.t_end > FAST_RADIANS:
         findings.append(f"two time scales (highly oscillatory, not dissipative): fastest rate {rate:.3g}/s, {scales:.3g} x the slowest")
     if growth * setup.t_end > diagnostics.STIFF:
         findings.append(f"unstable modes: growth rate up to {growth:.3g}/s (a saddle, chaos or constraint drift; not stiffness: decays matched by growth are not counted)")
