@@ -50,6 +50,14 @@ def test_errors_against_the_exact_solution_shrink_with_the_tolerance() -> None:
         assert point.seconds == min(p.seconds for p in result.points if p.ok and p.error <= level)
 
 
+def test_the_summary_claims_no_level_the_reference_cannot_vouch_for() -> None:
+    """A run can agree with a reference to 1e-12 while the reference itself is off by 1e-9: the
+    fastest-per-level summary stops at 10x the reference's own error."""
+    exact = accuracy.Point("DOP853", "DOP853 (compiled)", 1e-12, None, "finished", "", 1e-12, 1e-12, 0.0, None, 0.01, 1, 0.0, 10, 0, 5)
+    assert [level for level, _ in accuracy.fastest([exact])][-1] == 1e-12
+    assert [level for level, _ in accuracy.fastest([exact], floor=1e-8)][-1] == 1e-8
+
+
 def test_a_computed_reference_is_confirmed_by_a_second_method() -> None:
     """Without an exact solution the reference runs 1000 times tighter, confirmed by another method."""
     model = model_from(ROOT / "systems" / "simple_pendulum.yaml")

@@ -19,7 +19,9 @@ Errors compare the samples at evenly spaced times (dense output) with the refere
 time t the error is max_i |y_i - y_ref,i| / s_i, with s_i = max(1, max_t |y_ref,i|) the size of
 component i (coordinates and velocities): an absolute error for quantities of order one, a
 relative one for large ones. `final_error` is that at the last time, `rms_error` its root mean
-square over the times. `energy_error` is max_t |E - E_ref| / max(max_t |E_ref|, 1e-300),
+square over the times. `energy_error` is max_t |E - E_ref| divided by the larger of max_t |E_ref|
+and the largest |sum p q_dot| of the run (twice its kinetic energy, for a natural system), so
+that an energy near 0 still gives a relative error;
 `constraint_drift` the largest residual of a kept constraint.
 
 Timing: the first run is the warm-up (its one-time compile/load cost is reported apart); then
@@ -201,14 +203,17 @@ class Study:
 
     @property
     def fastest(self) -> tuple[tuple[float, Point], ...]:
-        """For each decade of error reached by some run, the fastest run reaching it."""
-        return fastest(self.points)
+        """For each decade of error reached by some run, the fastest run reaching it; only
+        levels the reference can vouch for (at least 10x its own error)."""
+        return fastest(self.points, floor=10 * self.reference.own_error)
 
 
-def fastest(points: Sequence[Point]) -> tuple[tuple[float, Point], ...]:
+def fastest(points: Sequence[Point], floor: float = 0.0) -> tuple[tuple[float, Point], ...]:
     result = []
     for k in range(1, 15):
         level = 10.0**-k
+        if level < floor:
+            break
         reaching = [p for p in points if p.ok and p.error <= level]
         if reaching:
             result.append((level, min(reaching, key=lambda p: p.seconds)))
@@ -325,7 +330,8 @@ def errors(trajectory: Trajectory, reference: Reference, scale: np.ndarray) -> t
     if len(trajectory.t) != len(reference.t) or not np.all(np.isfinite(trajectory.y)):
         return math.nan, math.nan, math.nan
     e = scaled_errors(trajectory.y, reference.y, scale)
-    size = max(float(np.max(np.abs(reference.energy))), 1e-300)
+    kinetic = next((i.scale for i in trajectory.invariants if i.name == "energy"), 0.0)  # the largest |sum p q_dot|
+    size = max(float(np.max(np.abs(reference.energy))), kinetic, 1e-300)
     return float(e[-1]), float(np.sqrt(np.mean(e**2))), float(np.max(np.abs(trajectory.energy - reference.energy)) / size)
 
 
