@@ -218,3 +218,29 @@ def test_stress_in_quick_mode(name: str, t_end: str) -> None:
     for section in ("defaults: t_end = ", "long horizon (t_end x 2)", "high energy", "summary", "recommended: "):
         assert section in output, (section, output)
     assert "every regime has a method that meets it" in output
+
+
+def test_stress_regimes_are_built_in_the_systems_own_units() -> None:
+    """An SI orbit (r = 7e6 m): the near-singular start is 1% of r from the centre, not 1 cm."""
+    from lagrange_cli.numeric import stress
+
+    satellite = model_from(UNSEEN / "satellite_orbit_si.yaml")
+    near = next(r for r in stress.regimes(satellite, []) if r.name.startswith("near singular"))
+    assert near.initial == {"r": pytest.approx(7e4)}
+    pendulum = model_from(ROOT / "systems" / "spherical_pendulum.yaml")
+    near = next(r for r in stress.regimes(pendulum, []) if r.name.startswith("near singular"))
+    assert near.initial == {"theta": pytest.approx(0.01)}
+
+
+def test_mass_condition_does_not_depend_on_the_units() -> None:
+    """diag(m, m r^2) at r = 7e6 m is as well conditioned as at r = 1: no coordinate singularity."""
+    from lagrange_cli.numeric import diagnostics
+    from lagrange_cli.numeric.settings import resolve
+
+    satellite = model_from(UNSEEN / "satellite_orbit_si.yaml")
+    s = resolve(satellite)
+    condition = diagnostics.mass_condition(satellite, s.p, s.y0)
+    assert condition(0.0, np.array(s.y0)) == pytest.approx(1.0)
+    near = np.array(s.y0)
+    near[0] = 7e4
+    assert condition(0.0, near) == pytest.approx(1e4)

@@ -9,9 +9,10 @@
   gives (see its docstring): stiff only when a decay is both fast over the run and unmatched
   by growth, and Radau only when an explicit method's stability-limited step count is too
   large, against Radau's estimated steps, to be cheaper compiled.
-- `mass_condition(model, p)`: the 2-norm condition number of M(q, t), which grows without
-  bound near a coordinate singularity (Euler angles at theta = 0, the pole of spherical
-  coordinates).
+- `mass_condition(model, p, y0)`: the 2-norm condition number of M in coordinates measured in
+  their own sizes at y0 (q_i / max(1, |q0_i|)), which grows without bound near a coordinate
+  singularity (Euler angles at theta = 0, the pole of spherical coordinates) but not with the
+  units (diag(m, m r^2) at r = 7e6 m is well conditioned).
 - `jacobian(rhs, t, y)`: a forward-difference Jacobian of any right-hand side.
 """
 
@@ -157,8 +158,10 @@ def jacobian(rhs: Callable[[float, np.ndarray], np.ndarray | None], t: float, y:
     return np.array(columns).T
 
 
-def mass_condition(model: Model, p: Sequence[float]) -> Callable[[float, np.ndarray], float]:
-    """cond(M(q, t)) at (t, y) with y = [q..., q_dot...]; inf where M is singular or undefined."""
+def mass_condition(model: Model, p: Sequence[float], y0: Sequence[float] | None = None) -> Callable[[float, np.ndarray], float]:
+    """cond(L M(q, t) L) at (t, y) with y = [q..., q_dot...], L = diag(max(1, |q0_i|)) from the
+    state y0 (the identity without it): M for the coordinates q_i / L_i, so that a coordinate
+    of size 7e6 counts like one of size 1; inf where M is singular or undefined."""
     import sympy as sp
 
     values = {parameter.symbol: value for parameter, value in zip(model.parameters, p, strict=False)}
@@ -166,15 +169,21 @@ def mass_condition(model: Model, p: Sequence[float]) -> Callable[[float, np.ndar
     evaluate = sp.lambdify([model.t, *model.q], matrix.tolist(), modules="math")
     n = model.n
 
-    def condition(t: float, y: np.ndarray) -> float:
+    def mass(t: float, y: Sequence[float] | np.ndarray) -> np.ndarray | None:
         try:
-            m = np.array(evaluate(t, *y[:n].tolist()), dtype=float)
+            m = np.array(evaluate(t, *[float(v) for v in y[:n]]), dtype=float)
         except (ZeroDivisionError, OverflowError, ValueError):
-            return math.inf
-        if not np.all(np.isfinite(m)):
+            return None
+        return m if np.all(np.isfinite(m)) else None
+
+    scale = np.ones(n) if y0 is None else np.maximum(1.0, np.abs(np.array(y0[:n], dtype=float)))
+
+    def condition(t: float, y: np.ndarray) -> float:
+        m = mass(t, y)
+        if m is None:
             return math.inf
         with np.errstate(all="ignore"):
-            value = float(np.linalg.cond(m))
+            value = float(np.linalg.cond(scale[:, None] * m * scale[None, :]))
         return value if math.isfinite(value) else math.inf
 
     return condition

@@ -156,7 +156,8 @@ def _high_energy(model: Model, p: Sequence[float], y0: Sequence[float], factor: 
         from lagrange_cli.numeric.settings import initial_spectrum
 
         found = initial_spectrum(model, tuple(p), tuple(y0))
-        v = np.full(n, found.slowest if found is not None and found.slowest > 0 else 1.0)
+        rate = found.slowest if found is not None and found.slowest > 0 else 1.0
+        v = rate * np.maximum(1.0, np.abs(np.array(y0[:n], dtype=float)))  # in the coordinates' own units: r = 7e6 m moves by metres, not 1e-6 of itself
     v = factor * v
     if model.constraints:
         import sympy as sp
@@ -169,8 +170,10 @@ def _high_energy(model: Model, p: Sequence[float], y0: Sequence[float], factor: 
 
 
 def _near_singular(model: Model, p: Sequence[float], y0: Sequence[float]) -> tuple[str, dict[str, float]] | None:
-    """Where cond M is largest when one coordinate is set to 0, +-pi/2 or pi: a start 0.01 from it."""
-    condition = diagnostics.mass_condition(model, p)
+    """Where cond M is largest when one coordinate is set to 0, +-pi/2 or pi: a start 0.01 from it
+    (from 0, 0.01 of the coordinate's initial size when that is above 1: r = 7e6 m starts at
+    7e4 m, not at 1 cm)."""
+    condition = diagnostics.mass_condition(model, p, y0)
     best: tuple[float, int, float] | None = None
     for i in range(model.n):
         for value in (0.0, math.pi / 2, -math.pi / 2, math.pi):
@@ -183,9 +186,10 @@ def _near_singular(model: Model, p: Sequence[float], y0: Sequence[float]) -> tup
         return None
     _, i, value = best
     y = np.array(y0, dtype=float)
-    y[i] = value + 0.01
+    start = value + (0.01 * max(1.0, abs(float(y0[i]))) if value == 0.0 else 0.01)
+    y[i] = start
     name = model.coordinates[i]
-    return f"near singular ({name} = {value + 0.01:.3g}, cond M = {condition(0.0, y):.1e})", {name: value + 0.01}
+    return f"near singular ({name} = {start:.3g}, cond M = {condition(0.0, y):.1e})", {name: start}
 
 
 def default_candidates(model: Model) -> tuple[Candidate, ...]:
@@ -291,7 +295,8 @@ def diagnose(model: Model, setup: Setup, reference: Reference, points: Sequence[
             found = None
         if found is not None:
             spectra.append(found)
-    condition = diagnostics.mass_condition(model, s.p[: len(model.parameters)])
+    base = resolve(model, method="DOP853", backend="python", t_end=setup.t_end, parameters=setup.parameters).y0  # the file's start sets the coordinates' sizes
+    condition = diagnostics.mass_condition(model, s.p[: len(model.parameters)], base)
     worst = max((condition(float(t), y) for t, y in zip(reference.t, reference.y, strict=True)), default=math.nan)
     decay = max((x.decay for x in spectra), default=0.0)
     rate = max((x.rate for x in spectra), default=0.0)
