@@ -36,15 +36,9 @@ CONSERVES_ENERGY = {
     "zero_start_springs",
 }
 DISSIPATES = {"mems_resonator", "projectile_quadratic_drag", "rayleigh_two_masses"}  # autonomous, dE/dt = -2R <= 0
-PYTHON_SINGULAR = {"satellite_orbit_si"}  # see test_satellite_runs_on_the_python_backend
 
 
-@pytest.fixture(autouse=True, scope="module")
-def cache(tmp_path_factory: pytest.TempPathFactory) -> None:
-    patch = pytest.MonkeyPatch()
-    patch.setenv("LAGRANGE_CACHE_DIR", str(tmp_path_factory.mktemp("lagrange-cache")))
-    yield
-    patch.undo()
+pytestmark = pytest.mark.usefixtures("private_cache")
 
 
 def invoke(*args: str) -> tuple[int, str]:
@@ -86,8 +80,7 @@ def test_the_derivation_agrees_about_energy() -> None:
 @pytest.mark.parametrize("path", FILES, ids=lambda p: p.stem)
 def test_simulate_with_the_files_defaults(path: Path, tmp_path: Path) -> None:
     out = tmp_path / "run.csv"
-    backend = "compiled" if path.stem in PYTHON_SINGULAR else "python"
-    code, output = invoke("simulate", str(path), "--backend", backend, "--samples", "101", "-o", str(out))
+    code, output = invoke("simulate", str(path), "--backend", "python", "--samples", "101", "-o", str(out))
     assert code == 0 and "finished: reached t = " in output, output
     data = trajectory(out)
     t_end = model_from(path).simulate.get("t_end", 10.0)
@@ -244,3 +237,22 @@ def test_mass_condition_does_not_depend_on_the_units() -> None:
     near = np.array(s.y0)
     near[0] = 7e4
     assert condition(0.0, near) == pytest.approx(1e4)
+
+
+def test_a_compiled_run_returns_to_its_caller_before_the_first_percent() -> None:
+    """A near-collision orbit (r = 7e4 m, nearly radial) takes millions of tiny steps: the compiled
+    loop pauses every kernels.PAUSE_STEPS steps, so a time budget can stop it early."""
+    from lagrange_cli.numeric import simulate
+
+    class Stop(Exception):
+        pass
+
+    fractions: list[float] = []
+
+    def progress(fraction: float) -> None:
+        fractions.append(fraction)
+        raise Stop
+
+    with pytest.raises(Stop):
+        simulate(model_from(UNSEEN / "satellite_orbit_si.yaml"), method="DOP853", backend="compiled", rtol=1e-6, initial={"r": 7e4}, progress=progress)
+    assert len(fractions) == 1 and fractions[0] < 0.01

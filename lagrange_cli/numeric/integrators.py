@@ -75,10 +75,14 @@ def _stats(raw: np.ndarray, nlu: int = 0) -> Stats:
 
 
 def _drive(advance: Callable[[float], int], now: Callable[[], float], problem: Problem, progress: Progress | None) -> int:
-    """Call a compiled loop (`advance(t_stop)` -> status) until it stops, returning to Python
-    about every PROGRESS_PERIOD seconds to report progress (once, without a callback)."""
+    """Call a compiled loop (`advance(t_stop)` -> status, -1 while running: at t_stop or after
+    kernels.PAUSE_STEPS steps) until it stops, returning to Python about every PROGRESS_PERIOD
+    seconds to report progress."""
     if progress is None:
-        return advance(problem.t_end)
+        status = advance(problem.t_end)
+        while status == -1:  # paused after kernels.PAUSE_STEPS steps
+            status = advance(problem.t_end)
+        return status
     span = problem.t_end - problem.t0
     target = problem.t0 + span / 100
     while True:

@@ -28,6 +28,10 @@ from lagrange_cli.numeric.tableaux import DOP853_A, DOP853_B, DOP853_C, DOP853_D
 
 # Status codes shared with integrators.py.
 RUNNING, DONE, EVENT, SINGULAR, NONFINITE, STEP_COLLAPSE, NO_CONVERGENCE = -1, 0, 1, 2, 3, 4, 5
+PAUSE_STEPS = 20000
+"""A loop returns RUNNING after this many steps even before t_stop, so that the caller can report
+progress and stop a run over its time budget (a near-collision orbit may take minutes of
+1e-10 s steps to reach the first 1% of its time span)."""
 # Counters in `stats`: evaluations, Jacobians, steps, rejected steps, smallest and largest step.
 NFEV, NJEV, NSTEPS, NREJECT, HMIN, HMAX = 0, 1, 2, 3, 4, 5
 # The Gauss stage equations are solved until the estimated remaining error is below this,
@@ -355,7 +359,9 @@ def erk_run(dop, y, f, state, ts, ys, counters, p, rtol, atol, max_step, t_bound
     y_new, work = np.empty(n), np.empty(n)
     exponent = -1.0 / 8.0 if dop else -1.0 / 5.0
     t, h_abs = state[0], state[1]
-    while t < t_stop and t < t_bound:
+    taken = 0
+    while t < t_stop and t < t_bound and taken < PAUSE_STEPS:
+        taken += 1
         min_step = 10.0 * abs(np.nextafter(t, np.inf) - t)
         h_abs = min(max(h_abs, min_step), max_step)
         rejected, bad = False, False
@@ -579,7 +585,9 @@ def gauss_run(s, z, state, ts, zs, counters, p, h, steps, t0, t_end, t_stop, use
     done = int(state[1])
     t = state[0]
     fresh, refreshed = False, False
-    while done < steps and t < t_stop:
+    taken = 0
+    while done < steps and t < t_stop and taken < PAUSE_STEPS:
+        taken += 1
         if not fresh:
             if _jacobian(hamilton, t, z, p, x, a, jac, f0, work, fw, sizes, stats) or _newton_matrix(s, h, jac, m, pivots):
                 return SINGULAR
