@@ -109,6 +109,8 @@ class Setup:
     parameters: Mapping[str, float] = field(default_factory=dict)
     initial: Mapping[str, float] = field(default_factory=dict)
     budget: float = 20.0
+    reference_budget: float = 120.0
+    """Seconds each of the two reference runs may take (at least `budget`)."""
 
 
 @dataclass(frozen=True)
@@ -379,7 +381,7 @@ def reference_candidates(model: Model, setup: Setup, tolerance: float) -> tuple[
 def computed_reference(model: Model, setup: Setup, tolerance: float) -> Reference:
     """The primary reference run confirmed by the second; raises LagrangeError if the primary fails."""
     primary, second = reference_candidates(model, setup, tolerance)
-    long = replace(setup, budget=max(setup.budget, 120.0))
+    long = replace(setup, budget=max(setup.budget, setup.reference_budget))
     began = time.perf_counter()
     try:
         main = run(model, primary, tolerance, long)
@@ -407,7 +409,7 @@ def horizon(model: Model, setup: Setup, tolerance: float) -> Horizon | None:
     """Two primary reference runs started delta = tolerance apart (every component moved by
     delta times its size): whether they part exponentially, and when."""
     primary, _ = reference_candidates(model, setup, tolerance)
-    long = replace(setup, budget=max(setup.budget, 120.0))
+    long = replace(setup, budget=max(setup.budget, setup.reference_budget))
     try:
         base = run(model, primary, tolerance, long)
         if base.failed:

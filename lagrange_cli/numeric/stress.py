@@ -196,6 +196,9 @@ def default_candidates(model: Model) -> tuple[Candidate, ...]:
     return (NAIVE, *study.default_candidates(model), Candidate("auto"))
 
 
+REFERENCE_BUDGET = 6.0
+"""A regime's reference runs may take this many times the per-run budget (30 s by default): a
+reference that needs longer leaves no method a chance within the budget anyway."""
 REFERENCE_FACTOR = 1e-8
 """The reference runs at this times the accuracy asked for (at least TIGHTEST)."""
 WINDOW_FACTOR = 1e-3
@@ -241,7 +244,7 @@ def stress(
 
 
 def _regime(model: Model, regime: Regime, target: float, candidates: Sequence[Candidate], budget: float, progress: Callable[[str], None] | None) -> Outcome:
-    setup = Setup(regime.t_end, tuple(np.linspace(0.0, regime.t_end, SAMPLES).tolist()), dict(regime.parameters), dict(regime.initial), budget)
+    setup = Setup(regime.t_end, tuple(np.linspace(0.0, regime.t_end, SAMPLES).tolist()), dict(regime.parameters), dict(regime.initial), budget, REFERENCE_BUDGET * budget)
     ref_tol = reference_tolerance(target)
     say = (lambda text: progress(f"{regime.name}: {text}")) if progress else None
     try:
