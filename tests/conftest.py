@@ -1,5 +1,6 @@
 from __future__ import annotations
 
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -15,3 +16,13 @@ def pytest_addoption(parser: pytest.Parser) -> None:
 @pytest.fixture
 def update_golden(request: pytest.FixtureRequest) -> bool:
     return bool(request.config.getoption("--update-golden"))
+
+
+@pytest.fixture(scope="module")
+def private_cache(tmp_path_factory: pytest.TempPathFactory) -> Iterator[None]:
+    """Generated modules and machine code go to a directory of this test module (use with
+    `pytestmark = pytest.mark.usefixtures("private_cache")`)."""
+    patch = pytest.MonkeyPatch()
+    patch.setenv("LAGRANGE_CACHE_DIR", str(tmp_path_factory.mktemp("lagrange-cache")))
+    yield
+    patch.undo()

@@ -24,12 +24,7 @@ runner = CliRunner()
 SCIPY = [Candidate("RK45", "python"), Candidate("DOP853", "python"), Candidate("Radau")]
 
 
-@pytest.fixture(autouse=True, scope="module")
-def cache(tmp_path_factory: pytest.TempPathFactory) -> None:
-    patch = pytest.MonkeyPatch()
-    patch.setenv("LAGRANGE_CACHE_DIR", str(tmp_path_factory.mktemp("lagrange-cache")))
-    yield
-    patch.undo()
+pytestmark = pytest.mark.usefixtures("private_cache")
 
 
 def test_errors_against_the_exact_solution_shrink_with_the_tolerance() -> None:

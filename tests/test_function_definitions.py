@@ -30,13 +30,7 @@ CENTRAL = ROOT / "systems" / "central_potential.yaml"
 DEFINED = "functions:\n  U: {arguments: [s], definition: -k/s, description: the potential energy at distance s from the centre}\n"
 
 
-@pytest.fixture(autouse=True, scope="module")
-def cache(tmp_path_factory: pytest.TempPathFactory) -> None:
-    """Generated modules and machine code go to a directory of this test run."""
-    patch = pytest.MonkeyPatch()
-    patch.setenv("LAGRANGE_CACHE_DIR", str(tmp_path_factory.mktemp("lagrange-cache")))
-    yield
-    patch.undo()
+pytestmark = pytest.mark.usefixtures("private_cache")
 
 
 def undefined_copy(folder: Path) -> Path:

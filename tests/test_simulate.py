@@ -21,13 +21,7 @@ from .helpers import model_from, model_of
 runner = CliRunner()
 
 
-@pytest.fixture(autouse=True, scope="module")
-def cache(tmp_path_factory: pytest.TempPathFactory) -> None:
-    """Generated modules and machine code go to a directory of this test run."""
-    patch = pytest.MonkeyPatch()
-    patch.setenv("LAGRANGE_CACHE_DIR", str(tmp_path_factory.mktemp("lagrange-cache")))
-    yield
-    patch.undo()
+pytestmark = pytest.mark.usefixtures("private_cache")
 
 
 @pytest.mark.parametrize("path", SYSTEMS, ids=lambda p: p.stem)

@@ -22,12 +22,7 @@ runner = CliRunner()
 SCIPY = [Candidate("RK45", "python"), Candidate("Radau"), Candidate("DOP853", "python")]
 
 
-@pytest.fixture(autouse=True, scope="module")
-def cache(tmp_path_factory: pytest.TempPathFactory) -> None:
-    patch = pytest.MonkeyPatch()
-    patch.setenv("LAGRANGE_CACHE_DIR", str(tmp_path_factory.mktemp("lagrange-cache")))
-    yield
-    patch.undo()
+pytestmark = pytest.mark.usefixtures("private_cache")
 
 
 def test_scales_parse_into_decades_and_lists() -> None:
