@@ -26,6 +26,7 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/run.py
 	$(BIN)/python benchmarks/simulate_bench.py --write
 	$(BIN)/python benchmarks/study_bench.py
+	$(BIN)/python benchmarks/every_system.py --write  # about an hour: accuracy and stress on every file in systems/
 
 golden: $(STAMP)
 	$(BIN)/python -m pytest -q tests/test_golden.py --update-golden

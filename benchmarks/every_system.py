@@ -48,7 +48,8 @@ def accuracy_cell(code: int, seconds: float, document: dict[str, object] | None,
     fastest = document["fastest"]
     assert isinstance(fastest, list)
     best = {f["error"]: f for f in fastest}
-    parts = [f"{level:.0e}: {best[level]['method']} {best[level]['seconds'] * 1e3:.3g} ms" for level in (1e-4, 1e-6, 1e-8) if level in best]
+    levels = [level for level in (1e-4, 1e-6, 1e-8) if level in best] or sorted(best)[:1]  # else the tightest reached
+    parts = [f"{level:.0e}: {best[level]['method']} {best[level]['seconds'] * 1e3:.3g} ms" for level in levels]
     horizon = document.get("horizon")
     chaotic = f" (chaotic, to t = {document['t_end']:.3g})" if isinstance(horizon, dict) and horizon.get("chaotic") else ""
     return f"exit {code}, {seconds:.0f} s{chaotic}; " + ("; ".join(parts) or "no level reached")
