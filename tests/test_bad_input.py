@@ -275,3 +275,39 @@ def test_long_sum_is_not_mistaken_for_deep_nesting(tmp_path: Path) -> None:
     result = runner.invoke(app, ["derive", str(path)])
     assert result.exit_code == 0, result.output
     assert "x_ddot" in result.stdout
+
+
+OUTPUTS = [
+    ["derive", "simple_pendulum", "-o", "{bad}/eq.tex"],
+    ["info", "simple_pendulum", "-o", "{bad}/info.txt"],
+    ["check", "systems/simple_pendulum.yaml", "--junit", "{bad}/report.xml"],
+    ["simulate", "simple_pendulum", "-o", "{good}/run.csv", "--plot", "{bad}/run.png"],
+    ["accuracy", "simple_pendulum", "--method", "DOP853", "--tolerances", "1e-3", "--csv", "{good}/study.csv", "--plot", "{bad}/study.png"],
+    ["stress", "simple_pendulum", "--json", "{bad}/stress.json"],
+]
+
+
+@pytest.mark.parametrize("args", OUTPUTS, ids=lambda a: a[0])
+def test_an_output_in_a_missing_directory_is_refused_before_any_work(args: list[str], tmp_path: Path) -> None:
+    """Exit 2 naming the path and the missing directory; no traceback, and no other output written."""
+    bad = tmp_path / "missing"
+    filled = [a.format(bad=bad, good=tmp_path) for a in args]
+    result = runner.invoke(app, filled)
+    assert result.exit_code == 2, result.output
+    assert f"the directory {bad} does not exist" in result.output and "Traceback" not in result.output
+    assert not isinstance(result.exception, Exception) or isinstance(result.exception, SystemExit)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_an_output_that_is_a_directory_is_refused(tmp_path: Path) -> None:
+    result = runner.invoke(app, ["derive", "simple_pendulum", "-o", str(tmp_path)])
+    assert result.exit_code == 2 and "it is a directory" in result.output
+
+
+def test_a_write_that_fails_late_is_an_error_not_a_traceback(tmp_path: Path) -> None:
+    from lagrange_cli.errors import LagrangeError
+    from lagrange_cli.files import write_text
+
+    with pytest.raises(LagrangeError, match="cannot write"):
+        write_text(tmp_path / "missing" / "file.txt", "text")
+    assert list(tmp_path.iterdir()) == []

@@ -37,6 +37,20 @@ def fail_with(error: LagrangeError) -> NoReturn:
     raise typer.Exit(error.exit_code)
 
 
+def check_outputs(*paths: Path | None) -> None:
+    """Exit 2 with a clear message unless every output path given (not None, not - for stdout)
+    can be written; commands call it before doing any work."""
+    from lagrange_cli.errors import LagrangeError
+    from lagrange_cli.files import check_writable
+
+    for path in paths:
+        if path is not None and str(path) != "-":
+            try:
+                check_writable(path)
+            except LagrangeError as error:
+                fail_with(error)
+
+
 def write_atomically(path: Path, text: str) -> None:
     """Write `text` to `path` so that readers see the old file or the whole new one, never half."""
     from lagrange_cli.files import write_text
@@ -52,7 +66,13 @@ def output(text: str, path: Path | None) -> None:
 
 
 def main() -> None:
-    app()
+    from lagrange_cli.errors import LagrangeError
+
+    try:
+        app()
+    except LagrangeError as error:  # one a command did not catch itself (an output that failed late)
+        sys.stderr.write(f"{error}\n")
+        sys.exit(error.exit_code)
 
 
 # Each module registers its commands on `app`; they import only typer at module level.

@@ -8,7 +8,7 @@ from typing import TYPE_CHECKING, Annotated
 
 import typer
 
-from lagrange_cli.cli import app, fail_with, output
+from lagrange_cli.cli import app, check_outputs, fail_with, output
 
 if TYPE_CHECKING:
     import sympy as sp
@@ -31,6 +31,7 @@ def info(
     output_path: Annotated[Path | None, typer.Option("-o", "--output", help="Write here (atomically).")] = None,
 ) -> None:
     """Degrees of freedom, generalized momenta, ignorable coordinates, the energy function and the Hamiltonian."""
+    check_outputs(output_path)
     from lagrange_cli import analysis, report
     from lagrange_cli.errors import LagrangeError
 

@@ -7,7 +7,7 @@ from typing import Annotated
 
 import typer
 
-from lagrange_cli.cli import Form, app, fail_with, output, write_atomically
+from lagrange_cli.cli import Form, app, check_outputs, fail_with, output, write_atomically
 
 
 @app.command()
@@ -22,6 +22,7 @@ def derive(
     output_path: Annotated[Path | None, typer.Option("-o", "--output", help="Write here (atomically) instead of to stdout.")] = None,
 ) -> None:
     """Derive the equations of motion of a system."""
+    check_outputs(output_path)
     from lagrange_cli.errors import LagrangeError, fail
 
     try:
@@ -60,6 +61,7 @@ def check(
 
     Exit code 0: all pass; 1: some answer is wrong; 2: bad input.
     """
+    check_outputs(junit)
     from rich.console import Console
     from rich.table import Table
 

@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
 
-from lagrange_cli.cli import app, fail_with, write_atomically
+from lagrange_cli.cli import app, check_outputs, fail_with, write_atomically
 
 if TYPE_CHECKING:
     from lagrange_cli.model import Model
@@ -36,6 +36,7 @@ def simulate(
     plot: Annotated[Path | None, typer.Option(help="Plot coordinates, phase portrait and energy error: .png, .svg or .pdf.")] = None,
 ) -> None:
     """Simulate a system and report energy, momenta and constraint drift (exit 1 if the run fails)."""
+    check_outputs(output_path, plot)
     from lagrange_cli.errors import LagrangeError
 
     try:

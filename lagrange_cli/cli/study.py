@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING, Annotated
 
 import typer
 
-from lagrange_cli.cli import app, fail_with, write_atomically
+from lagrange_cli.cli import app, check_outputs, fail_with, write_atomically
 
 if TYPE_CHECKING:
     from rich.console import Console
@@ -85,6 +85,7 @@ def accuracy(
     plot: Annotated[Path | None, typer.Option(help="Plot error against run time and against evaluations: .png, .svg or .pdf.")] = None,
 ) -> None:
     """Error against run time for every method over a ladder of tolerances, against an exact or confirmed reference."""
+    check_outputs(csv, json, plot)
     from lagrange_cli.errors import LagrangeError
 
     try:
@@ -206,6 +207,7 @@ def stress(
     json: Annotated[Path | None, typer.Option("--json", help="Write the report as JSON (- for stdout).")] = None,
 ) -> None:
     """Push a system towards its hard regimes; diagnose stiffness, singular coordinates, drift and blow-ups; recommend a method."""
+    check_outputs(json)
     from lagrange_cli.errors import LagrangeError
 
     try:
