@@ -211,7 +211,7 @@ class _Builder:
         if name in FUNCTIONS or name in self.scope.functions or name in DERIVATIVES:
             raise fail(self.at(node), f"function '{name}' used without arguments", f"a call such as `{name}(x)`")
         hint = _closest(name, [*self.scope.symbols, "t", *CONSTANTS])
-        raise fail(self.at(node), f"unknown name '{name}'", f"{self.scope.what} or a function" + (f"; did you mean '{hint}'?" if hint else ""))
+        raise fail(self.at(node), f"unknown name '{name}'", self.scope.what + (" or a function" if "function" not in self.scope.what else "") + (f"; did you mean '{hint}'?" if hint else ""))
 
     def _UnaryOp(self, node: ast.UnaryOp, depth: int) -> sp.Expr:
         operand = self.build(node.operand, depth)
