@@ -7,6 +7,7 @@ from __future__ import annotations
 from itertools import combinations
 
 import sympy as sp
+from sympy.core.function import AppliedUndef
 
 from lagrange_cli._symengine import se, to_symengine
 from lagrange_cli.errors import DerivationError
@@ -166,6 +167,12 @@ def pivot_ratio(matrix: sp.Matrix, model: Model, seed: int = 1) -> float:
     rng = random.Random(seed)
     point = {to_symengine(s): se.RealDouble(p.value if p.value else rng.uniform(0.5, 2.0)) for p in model.parameters for s in (p.symbol,)}
     point.update({to_symengine(s): se.RealDouble(rng.uniform(0.2, 1.3)) for s in (*model.q, *model.qd, model.t)})
+    # a function left general (U(r), its derivatives) is generic too: a random value of its own
+    # (xreplace matches Derivative(U(x), x) before the U(x) inside it)
+    unknowns = sorted(matrix.atoms(sp.Derivative, sp.Subs), key=sp.default_sort_key) + sorted(matrix.atoms(AppliedUndef), key=sp.default_sort_key)
+    generic = {u: sp.Float(rng.uniform(0.5, 2.0)) for u in unknowns}
+    if generic:
+        matrix = matrix.xreplace(generic)
     rows = [[float(to_symengine(matrix[i, j]).subs(point)) if matrix[i, j] != 0 else 0.0 for j in range(matrix.cols)] for i in range(matrix.rows)]
     pivots = []
     for row in rows:

@@ -103,6 +103,7 @@ def constraint_notes(model: Model, p: Sequence[float], y0: Sequence[float]) -> l
     the run then starts off the constrained motion (the stabilisation pulls it back)."""
     if not model.constraints:
         return []
+    model = model.with_definitions()  # the rows are evaluated: defined functions written out
     if id(model) not in _ROWS:
         import sympy as sp
 
@@ -142,7 +143,7 @@ def check(model: Model) -> None:
     raises `LagrangeError` saying what is missing."""
     if id(model) not in _CHECKED:
         require_defined(model, "simulation")
-        check_invertible(model)
+        check_invertible(model.with_definitions())
         _CHECKED[id(model)] = model
 
 
