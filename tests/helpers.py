@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import importlib.util
 import random
 from pathlib import Path
+from types import ModuleType
 
 import sympy as sp
 
@@ -31,3 +33,13 @@ def random_point(model: Model, seed: int) -> dict[sp.Symbol, float]:
         point[v] = rng.uniform(-1.0, 1.0)
     point[model.t] = rng.uniform(0.0, 2.0)
     return point
+
+
+def load_module(code: str, path: Path) -> ModuleType:
+    """Write `code` to `path` and import it as a module."""
+    path.write_text(code)
+    found = importlib.util.spec_from_file_location(path.stem, path)
+    assert found and found.loader
+    module = importlib.util.module_from_spec(found)
+    found.loader.exec_module(module)
+    return module

@@ -4,11 +4,9 @@ numbers are needed (`derive --python`, `simulate`)."""
 
 from __future__ import annotations
 
-import importlib.util
 import math
 import random
 from pathlib import Path
-from types import ModuleType
 
 import numpy as np
 import pytest
@@ -22,7 +20,7 @@ from lagrange_cli.errors import SpecError
 from lagrange_cli.numeric import compile, simulate
 
 from .conftest import ROOT
-from .helpers import model_from, model_of
+from .helpers import load_module, model_from, model_of
 from .test_bad_input import Bad, assert_located, derive_bad, position
 
 runner = CliRunner()
@@ -40,15 +38,6 @@ def undefined_copy(folder: Path) -> Path:
     path = folder / CENTRAL.name
     path.write_text(text.replace(DEFINED, "functions: [U]\n"))
     return path
-
-
-def load_module(code: str, path: Path) -> ModuleType:
-    path.write_text(code)
-    found = importlib.util.spec_from_file_location(path.stem, path)
-    assert found and found.loader
-    module = importlib.util.module_from_spec(found)
-    found.loader.exec_module(module)
-    return module
 
 
 # -- reading --------------------------------------------------------------------------------------
@@ -304,3 +293,34 @@ def test_without_a_definition_numbers_are_refused_by_name(tmp_path: Path, comman
     result = runner.invoke(app, [*command, str(path)])
     assert result.exit_code == 2 and "Traceback" not in result.output
     assert "U is left undefined" in result.stderr and result.stdout == ""
+
+
+BEAD = """title: Bead on a curve y = H(x)
+coordinates: [x, y]
+parameters: {m: 1.0, g: 9.81}
+functions:
+  H: {arguments: [s]DEFINITION}
+gravity: [0, -g]
+particles:
+  bead: {mass: m, position: [x, y]}
+constraints:
+  curve: y = H(x)
+initial: {x: 0.5, y: 0.125, x_dot: 0.0, y_dot: 0.0}
+simulate: {t_end: 2}
+"""
+
+
+def test_a_kept_constraint_through_a_defined_function_simulates(tmp_path: Path) -> None:
+    """The constraint rows (and the augmented matrix checked for invertibility) hold H'(x)."""
+    path = tmp_path / "bead.yaml"
+    path.write_text(BEAD.replace("DEFINITION", ", definition: s**2/2"))
+    result = runner.invoke(app, ["simulate", str(path), "--samples", "11"])
+    assert result.exit_code == 0 and "finished: reached t = 2" in result.output, result.output
+
+
+def test_the_solved_form_of_a_general_function_in_the_mass_matrix(tmp_path: Path) -> None:
+    """Invertibility at a generic point gives H' and H'' generic values of their own."""
+    path = tmp_path / "bead.yaml"
+    path.write_text(BEAD.replace("DEFINITION", ""))
+    result = runner.invoke(app, ["derive", str(path), "--form", "solved"])
+    assert result.exit_code == 0 and "lambda_curve = " in result.output and "Derivative(H(x), x)" in result.output, result.output

@@ -2,13 +2,11 @@
 
 from __future__ import annotations
 
-import importlib.util
 import inspect
 import shutil
 import subprocess
 import sys
 from pathlib import Path
-from types import ModuleType
 
 import numpy as np
 import pytest
@@ -20,16 +18,7 @@ from lagrange_cli.errors import DerivationError
 from lagrange_cli.model import Model
 
 from .conftest import ROOT, SYSTEMS
-from .helpers import model_from, model_of, random_point
-
-
-def load_module(code: str, path: Path) -> ModuleType:
-    path.write_text(code)
-    module_spec = importlib.util.spec_from_file_location(path.stem, path)
-    assert module_spec and module_spec.loader
-    module = importlib.util.module_from_spec(module_spec)
-    module_spec.loader.exec_module(module)
-    return module
+from .helpers import load_module, model_from, model_of, random_point
 
 
 def reference_accelerations(model: Model, point: dict[sp.Symbol, float]) -> np.ndarray:
