@@ -142,20 +142,23 @@ def choose(found: Spectrum | None, t_end: float, compiled: bool = True) -> tuple
 
 
 def jacobian(rhs: Callable[[float, np.ndarray], np.ndarray | None], t: float, y: np.ndarray) -> np.ndarray | None:
-    """Forward differences of `rhs` (which returns None where it cannot be evaluated)."""
+    """Forward differences of `rhs` (which returns None where it cannot be evaluated); None also
+    where a difference is not finite. Each component moves by 1.5e-8 of its size (of 1 when it is
+    0), so that r = 7e6 m and x = 1e-8 m are both differentiated in their own units."""
     f0 = rhs(t, y)
     if f0 is None:
         return None
     columns = []
     for j in range(len(y)):
-        h = 1e-7 * max(1.0, abs(y[j]))
+        h = 1.5e-8 * (abs(y[j]) or 1.0)
         shifted = y.copy()
         shifted[j] += h
         f1 = rhs(t, shifted)
         if f1 is None:
             return None
         columns.append((f1 - f0) / h)
-    return np.array(columns).T
+    result = np.array(columns).T
+    return result if np.all(np.isfinite(result)) else None
 
 
 def mass_condition(model: Model, p: Sequence[float], y0: Sequence[float] | None = None) -> Callable[[float, np.ndarray], float]:

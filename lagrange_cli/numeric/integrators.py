@@ -20,6 +20,7 @@ from typing import Any
 
 import numpy as np
 
+from lagrange_cli.numeric import diagnostics
 from lagrange_cli.numeric.compile import Functions
 
 # How a run ended (the kernels' status codes map onto these).
@@ -209,25 +210,12 @@ def python_jac(module: Any, p: Sequence[float]) -> Callable[[float, np.ndarray],
         except np.linalg.LinAlgError:
             raise _Failure(SINGULAR) from None
         except (ZeroDivisionError, OverflowError, ValueError):
-            return _differences(rhs, t, y)
+            found = diagnostics.jacobian(lambda t, y: np.array(rhs(t, y)), t, y)  # rhs raises _Failure where f fails
+            if found is None:
+                raise _Failure(NONFINITE) from None
+            return found
 
     return jacobian
-
-
-def _differences(rhs: Callable[[float, np.ndarray], list[float]], t: float, y: np.ndarray) -> np.ndarray:
-    """df/dy by forward differences, each component moved by 1.5e-8 of its size (of 1 when it is
-    0); raises `_Failure` when f itself cannot be evaluated there."""
-    f0 = np.array(rhs(t, y))
-    columns = []
-    for k, value in enumerate(y.tolist()):
-        step = 1.5e-8 * (abs(value) or 1.0)
-        moved = y.copy()
-        moved[k] = value + step
-        columns.append((np.array(rhs(t, moved)) - f0) / step)
-    result = np.column_stack(columns)
-    if not np.all(np.isfinite(result)):
-        raise _Failure(NONFINITE)
-    return result
 
 
 def run_scipy(functions: Functions, problem: Problem, method: str, rtol: float, atol: float, max_step: float, progress: Progress | None = None) -> Run:
