@@ -161,6 +161,12 @@ def jacobian(rhs: Callable[[float, np.ndarray], np.ndarray | None], t: float, y:
     return result if np.all(np.isfinite(result)) else None
 
 
+def coordinate_sizes(y0: Sequence[float], n: int) -> np.ndarray:
+    """The size of each coordinate at the state y0, max(1, |q0_i|): the unit in which stress
+    measures, perturbs and moves it (r = 7e6 m counts in metres times 7e6, an angle in radians)."""
+    return np.maximum(1.0, np.abs(np.array(y0[:n], dtype=float)))
+
+
 def mass_condition(model: Model, p: Sequence[float], y0: Sequence[float] | None = None) -> Callable[[float, np.ndarray], float]:
     """cond(L M(q, t) L) at (t, y) with y = [q..., q_dot...], L = diag(max(1, |q0_i|)) from the
     state y0 (the identity without it): M for the coordinates q_i / L_i, so that a coordinate
@@ -179,7 +185,7 @@ def mass_condition(model: Model, p: Sequence[float], y0: Sequence[float] | None 
             return None
         return m if np.all(np.isfinite(m)) else None
 
-    scale = np.ones(n) if y0 is None else np.maximum(1.0, np.abs(np.array(y0[:n], dtype=float)))
+    scale = np.ones(n) if y0 is None else coordinate_sizes(y0, n)
 
     def condition(t: float, y: np.ndarray) -> float:
         m = mass(t, y)

@@ -157,7 +157,7 @@ def _high_energy(model: Model, p: Sequence[float], y0: Sequence[float], factor: 
 
         found = initial_spectrum(model, tuple(p), tuple(y0))
         rate = found.slowest if found is not None and found.slowest > 0 else 1.0
-        v = rate * np.maximum(1.0, np.abs(np.array(y0[:n], dtype=float)))  # in the coordinates' own units: r = 7e6 m moves by metres, not 1e-6 of itself
+        v = rate * diagnostics.coordinate_sizes(y0, n)  # r = 7e6 m moves by metres per second, not by 1e-6 of itself
     v = factor * v
     if model.constraints:
         import sympy as sp
@@ -186,7 +186,7 @@ def _near_singular(model: Model, p: Sequence[float], y0: Sequence[float]) -> tup
         return None
     _, i, value = best
     y = np.array(y0, dtype=float)
-    start = value + (0.01 * max(1.0, abs(float(y0[i]))) if value == 0.0 else 0.01)
+    start = value + (0.01 * float(diagnostics.coordinate_sizes(y0, model.n)[i]) if value == 0.0 else 0.01)
     y[i] = start
     name = model.coordinates[i]
     return f"near singular ({name} = {start:.3g}, cond M = {condition(0.0, y):.1e})", {name: start}
