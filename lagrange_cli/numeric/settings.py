@@ -232,7 +232,7 @@ def parse_until(model: Model, text: str) -> sp.Expr:
     symbols.update({p.name: p.symbol for p in model.parameters})
 
     def no_derivative(expr: sp.Expr) -> sp.Expr:
-        raise SpecError([])
+        raise LagrangeError("time derivatives are not allowed in a stop condition; write velocities as `<q>_dot` and accelerations as `<q>_ddot`")  # shown with a caret
 
     scope = Scope(symbols, {}, model.t, no_derivative, "a coordinate, velocity, acceleration (`<q>_ddot`), multiplier, parameter or `t`")
     try:
