@@ -187,6 +187,12 @@ def test_other_special_outputs_are_refused(tmp_path: Path) -> None:
     assert code == 2 and "too long" in output
     code, output = run("derive", "simple_pendulum", "-o", str(tmp_path / "not-a-dir" / "x"))
     assert code == 2
+    for name, problem in ((f"{tmp_path}/a\0b", "nul"), (f"{tmp_path}/caf\udce9", "not valid utf-8")):  # typer itself refuses a NUL in a Path option
+        for args in (["derive", "simple_pendulum", "-o", name], ["check", "simple_pendulum", "--junit", name], ["stress", "simple_pendulum", "--json", name]):
+            code, output = run(*args)
+            assert code == 2 and problem in output.lower() and "\0" not in output
+    code, output = run("derive", "simple_pendulum", "-o", "/dev/full")
+    assert code == 2 and "cannot write /dev/full: No space left on device" in output
     assert list(tmp_path.iterdir()) == []
 
 

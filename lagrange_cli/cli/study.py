@@ -200,7 +200,7 @@ def _report_study(result: Study, to_stderr: bool) -> None:
         table.add_row(inert(name), inert(p.setting), _e(p.final_error), _e(p.rms_error), _e(p.energy_error), _e(p.constraint_drift), _seconds(p.seconds), str(p.runs), evals, str(p.steps), status)
     console.print(table)
     costs = ", ".join(f"{name} {_seconds(value)}" for name, value in compile_costs.items() if value > 0.01)
-    console.print(f"one-time costs (code generation, import, compile or load), not in the run times: {costs or 'none above 10 ms'}")
+    console.print(f"one-time costs (code generation, import, compile or load), not in the run times: {inert(costs) or 'none above 10 ms'}")
     fastest = result.fastest
     if fastest:
         summary = Table(title="fastest method for each accuracy (error = max of final and RMS)", title_justify="left")
