@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING, Annotated
 import typer
 
 from lagrange_cli.cli import app, check_outputs, fail_with, write_atomically
-from lagrange_cli.cli.boundary import check_positive, check_repeats, check_samples, inert, plain
+from lagrange_cli.cli.boundary import check_fraction, check_positive, check_repeats, check_samples, inert, plain
 
 if TYPE_CHECKING:
     from rich.console import Console
@@ -218,7 +218,7 @@ def stress(
     file: Annotated[str, typer.Argument(help="A system file, or the name of a bundled system (e.g. stiff_spring_pendulum_damped).")],
     scale: Annotated[list[str] | None, typer.Option("--scale", help="Sweep a parameter: k=1e2..1e8 (every decade) or k=1,10,100 (repeatable).")] = None,
     accuracy_: Annotated[
-        float | None, typer.Option("--accuracy", help="Required error; exit 1 when in some regime no method meets it (default: 1e-6, reported only).", callback=check_positive)
+        float | None, typer.Option("--accuracy", help="Required error; exit 1 when in some regime no method meets it (default: 1e-6, reported only).", callback=check_fraction)
     ] = None,
     method: Annotated[list[str] | None, typer.Option("--method", help="Methods to try (default: RK45:python, every method, auto).")] = None,
     t_end: Annotated[float | None, typer.Option("--t-end", help="Final time (default: the file's).", callback=check_positive)] = None,
