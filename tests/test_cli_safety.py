@@ -87,6 +87,8 @@ def test_every_numeric_option_refuses_nan_infinity_and_negative_values(command: 
         (["stress", "simple_pendulum", "--scale", "g=nan"], "--scale"),
         (["stress", "simple_pendulum", "--scale", "g=1,inf"], "--scale"),
         (["stress", "simple_pendulum", "--scale", "g=-1..10"], "--scale"),
+        (["stress", "simple_pendulum", "--scale", "g=1..inf"], "--scale"),
+        (["stress", "simple_pendulum", "--scale", "g=1e400..1"], "--scale"),
         (["stress", "simple_pendulum", "--scale", "g=1e-300..1e300"], "--scale"),
     ],
 )
@@ -170,6 +172,16 @@ def test_hostile_text_inside_a_file_is_inert_in_error_messages(tmp_path: Path) -
     path.write_text('coordinates: [x]\nkinetic: "x_dot**2 \u202e\\e[2J" +\n', encoding="utf-8")
     code, output = invoke("derive", str(path))
     assert code == 2 and not UNPRINTABLE.search(output) and "\\u202e" in output
+
+
+def test_every_error_is_labelled(monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]) -> None:
+    """A library message without a place gets `error: ` in front; one with a place keeps its own."""
+    from lagrange_cli.errors import LagrangeError, fail
+
+    for error, first in ((LagrangeError("unknown method 'x'"), "error: unknown method 'x'"), (fail(Span("f.yaml", 1, 1, "x"), "bad"), "f.yaml:1:1: error: bad")):
+        with pytest.raises(typer.Exit):
+            cli.fail_with(error)
+        assert capsys.readouterr().err.splitlines()[0] == first
 
 
 def test_fail_with_escapes_any_library_message(monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]) -> None:

@@ -32,9 +32,9 @@ class Form(str, Enum):
 
 def fail_with(error: LagrangeError) -> NoReturn:
     """Print `error` on stderr (control characters from file text shown as escapes) and exit with its code."""
-    from lagrange_cli.cli.boundary import console, plain
+    from lagrange_cli.cli.boundary import console, message
 
-    console(stderr=True).print(plain(error), markup=False)
+    console(stderr=True).print(message(error), markup=False)
     raise typer.Exit(error.exit_code)
 
 
@@ -92,9 +92,9 @@ def main() -> None:
     try:
         app()
     except LagrangeError as error:  # one a command did not catch itself (an output that failed late)
-        from lagrange_cli.errors import printable
+        from lagrange_cli.cli.boundary import message
 
-        sys.stderr.write(f"{printable(str(error))}\n")
+        sys.stderr.write(f"{message(error)}\n")
         sys.exit(error.exit_code)
     except Exception as error:  # outside every command (each one has its own net)
         _last_resort(error)

@@ -10,6 +10,7 @@ from __future__ import annotations
 import functools
 import math
 import os
+import re
 import sys
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any, TypeVar
@@ -68,6 +69,16 @@ def plain(text: object) -> str:
     from lagrange_cli.errors import printable
 
     return printable(str(text))
+
+
+_LABELLED = re.compile(r"([^\n]*: )?error: ")
+
+
+def message(error: BaseException) -> str:
+    """An error as printed: control characters shown as escapes, and an `error: ` label in front
+    unless it already has one (`file:line:col: error: ...`), so that every message looks alike."""
+    text = plain(error)
+    return text if _LABELLED.match(text) else f"error: {text}"
 
 
 def console(stderr: bool = False, width: int | None = None) -> Console:

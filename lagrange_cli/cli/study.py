@@ -66,13 +66,22 @@ def _scales(items: list[str]) -> list[tuple[str, tuple[float, ...]]]:
 
     result = []
     for item in items:
-        name, values = parse_scale(item)
-        if not values or not all(math.isfinite(v) for v in values):
+        given = item.partition("=")[2].replace("..", ",").split(",")
+        if not all(math.isfinite(_number(v)) for v in given):  # before the decades of low..high are counted
             raise LagrangeError(f"error: --scale {plain(repr(item))}: every value must be a finite number\n  expected: name=low..high (both positive) or name=v1,v2,..., e.g. --scale k=1e2..1e8")
+        name, values = parse_scale(item)
         if len(values) > MAX_LADDER:
             raise LagrangeError(f"error: --scale {plain(repr(item))}: {len(values)} values\n  expected: at most {MAX_LADDER}")
         result.append((name, values))
     return result
+
+
+def _number(text: str) -> float:
+    """`text` as a float, or 0.0 when it is not a number (the caller's parser says why)."""
+    try:
+        return float(text)
+    except ValueError:
+        return 0.0
 
 
 def _status(message: str) -> None:
