@@ -198,7 +198,7 @@ def atomic_write(path: str | os.PathLike[str], write: Callable[[IO[bytes]], obje
     if found is not None and not stat.S_ISREG(found.st_mode):
         check_writable(name)  # raises: a directory, a block device, a socket
     target = os.path.realpath(name)  # through a symbolic link: the link stays, its target is replaced
-    mode = stat.S_IMODE(found.st_mode) if found is not None else 0o666 & ~_umask()
+    mode = found.st_mode & 0o777 if found is not None else 0o666 & ~_umask()  # never set-id or sticky bits
     try:
         handle, temporary = tempfile.mkstemp(dir=os.path.dirname(target), prefix=f".{os.path.basename(target)}.", suffix=".tmp")
     except OSError as error:
@@ -222,7 +222,7 @@ def _write_in_place(name: str, data: bytes) -> None:
     try:
         descriptor = os.open(name, os.O_WRONLY | os.O_NONBLOCK | os.O_NOCTTY | getattr(os, "O_CLOEXEC", 0))
     except OSError as error:
-        if error.errno == errno.ENXIO:
+        if error.errno == errno.ENXIO and stat.S_ISFIFO(os.stat(name).st_mode):
             raise _error(f"cannot write {_bare(name)}: it is a FIFO that no process is reading", "a regular file, or a FIFO with a reader") from None
         raise _error(f"cannot write {_bare(name)}: {error.strerror}") from None
     try:

@@ -216,6 +216,14 @@ def test_a_replaced_output_keeps_its_mode(tmp_path: Path, mode: int) -> None:
     assert stat.S_IMODE(target.stat().st_mode) == mode
 
 
+def test_set_id_bits_are_not_copied(tmp_path: Path) -> None:
+    target = tmp_path / "tool"
+    target.write_text("old\n")
+    target.chmod(0o4755)
+    write_text(target, "new\n")
+    assert stat.S_IMODE(target.stat().st_mode) == 0o755
+
+
 def test_a_link_to_an_output_stays_a_link(tmp_path: Path) -> None:
     real = tmp_path / "real.txt"
     real.write_text("old\n")
