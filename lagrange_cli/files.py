@@ -183,11 +183,12 @@ def check_outputs(outputs: Iterable[tuple[str, str | os.PathLike[str]]], inputs:
                 raise _error(f"{other} and {option} both write {shown(path)}", "a different file for each output")
 
 
-def atomic_write(path: str | os.PathLike[str], write: Callable[[IO[bytes]], object]) -> None:
+def atomic_write(path: str | os.PathLike[str], write: Callable[[IO[bytes]], object], *, private: bool = False) -> None:
     """Write through `write(stream)` to a temporary file beside `path`, then rename it over `path`
     with the old file's permission bits (or `0666 & ~umask` for a new file); a character device or
     a FIFO is written in place instead (after the whole content is made). An operating-system
-    error (no such directory, no space, no permission) is a `LagrangeError`."""
+    error (no such directory, no space, no permission) is a `LagrangeError`. `private`: mode 0600
+    whatever was there (a cache of generated code)."""
     name = check_name(path, "write")
     found = _stat(name)
     if found is not None and (stat.S_ISCHR(found.st_mode) or stat.S_ISFIFO(found.st_mode)):
@@ -198,7 +199,7 @@ def atomic_write(path: str | os.PathLike[str], write: Callable[[IO[bytes]], obje
     if found is not None and not stat.S_ISREG(found.st_mode):
         check_writable(name)  # raises: a directory, a block device, a socket
     target = os.path.realpath(name)  # through a symbolic link: the link stays, its target is replaced
-    mode = found.st_mode & 0o777 if found is not None else 0o666 & ~_umask()  # never set-id or sticky bits
+    mode = 0o600 if private else found.st_mode & 0o777 if found is not None else 0o666 & ~_umask()  # never set-id or sticky bits
     try:
         handle, temporary = tempfile.mkstemp(dir=os.path.dirname(target), prefix=f".{os.path.basename(target)}.", suffix=".tmp")
     except OSError as error:
@@ -245,6 +246,6 @@ def _umask() -> int:
     return mask
 
 
-def write_text(path: str | os.PathLike[str], text: str) -> None:
-    """`text` (UTF-8) to `path`, atomically."""
-    atomic_write(path, lambda stream: stream.write(text.encode("utf-8")))
+def write_text(path: str | os.PathLike[str], text: str, *, private: bool = False) -> None:
+    """`text` (UTF-8) to `path`, atomically (`private`: mode 0600)."""
+    atomic_write(path, lambda stream: stream.write(text.encode("utf-8")), private=private)

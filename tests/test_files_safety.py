@@ -216,6 +216,14 @@ def test_a_replaced_output_keeps_its_mode(tmp_path: Path, mode: int) -> None:
     assert stat.S_IMODE(target.stat().st_mode) == mode
 
 
+def test_a_private_file_is_0600(tmp_path: Path) -> None:
+    target = tmp_path / "cached.py"
+    target.write_text("old\n")
+    target.chmod(0o644)
+    write_text(target, "new\n", private=True)
+    assert stat.S_IMODE(target.stat().st_mode) == 0o600
+
+
 def test_set_id_bits_are_not_copied(tmp_path: Path) -> None:
     target = tmp_path / "tool"
     target.write_text("old\n")
