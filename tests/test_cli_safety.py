@@ -141,6 +141,18 @@ def test_printable_escapes_what_steers_a_terminal() -> None:
     assert source.index('"') == caret.index("^")  # the caret stays under its column
 
 
+@pytest.mark.parametrize("text", ["\\[bold]x", "a\\", "[bold]x[/bold]", "[/]", "[/x]", "[link=http://x]y[/link]", ":smile: :red_heart:", "[#ff0000]z", "[@click]q", "x\\\\[/x]"])
+def test_inert_text_prints_as_itself_inside_markup(text: str) -> None:
+    import io
+
+    from lagrange_cli.cli.boundary import console, inert
+
+    out = console(width=200)
+    out.file = io.StringIO()
+    out.print(f"[bold]{inert(text)}[/bold]: tail")
+    assert out.file.getvalue().rstrip("\n") == f"{text}: tail"
+
+
 def test_hostile_title_is_inert_in_every_report(tmp_path: Path) -> None:
     """A title with escape sequences, a carriage return, a bidi override, rich markup and an emoji
     code: printed as visible text by every command that shows it."""
