@@ -21,7 +21,7 @@ import sympy as sp
 from sympy.printing.latex import LatexPrinter
 
 from lagrange_cli.algebra import check_invertible, solved_accelerations
-from lagrange_cli.emit.common import constraint_equations, lagrange_terms
+from lagrange_cli.emit.common import constraint_equations, lagrange_terms, printable
 from lagrange_cli.emit.text import join_terms
 from lagrange_cli.errors import DerivationError
 from lagrange_cli.model import Model
@@ -127,17 +127,9 @@ def _broken(parts: list[str], tail: str) -> str:
 
 def comment(text: str) -> str:
     """`text` as one `%` comment line: every run of whitespace (newlines, form feeds, U+2028,
-    ...) becomes one space, and every other control, format or unassigned character is shown
-    as `U+XXXX`, so that nothing can end the comment and start live LaTeX."""
-    out = []
-    for char in text:
-        if char.isspace():
-            out.append(" ")
-        elif unicodedata.category(char)[0] in "CZ":
-            out.append(f"U+{ord(char):04X}")
-        else:
-            out.append(char)
-    return "% " + re.sub(" +", " ", "".join(out)).strip() + "\n"
+    ...) becomes one space, and every other control or format character is shown as `U+XXXX`
+    (`common.printable`), so that nothing can end the comment and start live LaTeX."""
+    return "% " + re.sub(" +", " ", printable(text)).strip() + "\n"
 
 
 # Text-mode replacements for the ten special characters (and a few ASCII characters that OT1
