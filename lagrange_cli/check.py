@@ -318,7 +318,7 @@ class FileReport:
 
     @property
     def status(self) -> str:
-        """ "error" (bad input), "fail", "pass", or "skip" for a file with nothing to check."""
+        """One of error (bad input), fail, pass, or skip (a file with nothing to check)."""
         if self.error:
             return "error"
         if not self.results:

@@ -8,6 +8,7 @@ import math
 import sympy as sp
 
 from lagrange_cli.analysis import Info, Linearization
+from lagrange_cli.emit.common import printable
 from lagrange_cli.emit.latex import comment
 from lagrange_cli.emit.latex import names as latex_names
 from lagrange_cli.model import Model
@@ -27,7 +28,7 @@ def info_text(model: Model, info: Info) -> str:
     lines.append(f"energy function h = sum p q_dot - L = {info.energy}")
     lines.append(f"h is conserved: {_yes(info.energy_conserved)}")
     lines.append(f"Hamiltonian H(q, p) = {info.hamiltonian}" if info.hamiltonian is not None else f"Hamiltonian: {info.hamiltonian_note}")
-    return "\n".join(lines) + "\n"
+    return "\n".join(map(printable, lines)) + "\n"
 
 
 def info_latex(model: Model, info: Info) -> str:

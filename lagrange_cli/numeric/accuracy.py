@@ -596,7 +596,7 @@ def write_plot(result: Study, path: object) -> None:
         axes.grid(True, which="both", alpha=0.3)
         axes.legend()
     window = f"t = 0..{result.t_end:.3g}" + (" (predictability horizon)" if result.t_end < result.full_t_end else "")
-    figure.suptitle(f"{plot_text(result.title)}: work-precision, {window}")
+    figure.suptitle(f"{plot_text(result.title)}: work-precision, {window}", parse_math=False)
     figure.tight_layout()
     try:
         atomic_write(target, lambda stream: figure.savefig(stream, format=target.suffix.lstrip(".").lower()))

@@ -56,14 +56,21 @@ def write_npz(trajectory: Trajectory, path: Path) -> None:
 
 @contextlib.contextmanager
 def plain_text() -> Iterator[None]:
-    """Inside (or in a function decorated with `@plain_text()`): every text matplotlib makes is
-    shown as written, never parsed as mathtext (`$...$`) or sent to LaTeX (a user's
-    `text.usetex`), and a character the font lacks is drawn as a box without a warning."""
+    """Inside (or in a function decorated with `@plain_text()`): no text goes to LaTeX (whatever
+    the user's `text.usetex`), and a character the font lacks is drawn as a box without a
+    warning. File text itself goes in as `plot_text(...)` on a Text with `parse_math=False`
+    (see `inert`), so that `$` and `\\` are shown, not parsed as mathtext."""
     import matplotlib
 
-    with matplotlib.rc_context({"text.usetex": False, "text.parse_math": False}), warnings.catch_warnings():
+    with matplotlib.rc_context({"text.usetex": False}), warnings.catch_warnings():
         warnings.filterwarnings("ignore", message=r"Glyph \d+ .*missing from", category=UserWarning)
         yield
+
+
+def inert(*texts: Any) -> None:
+    """Show these matplotlib Texts as written: no mathtext (matplotlib's own tick labels keep it)."""
+    for text in texts:
+        text.set_parse_math(False)
 
 
 def plot_text(text: str) -> str:
@@ -89,9 +96,9 @@ def write_plot(trajectory: Trajectory, path: Path) -> None:
     left.set(xlabel="t", title="coordinates")
     middle.set(xlabel="q", ylabel="q_dot", title="phase portrait")
     for axes in (left, middle):
-        axes.legend(loc="best", fontsize="small")
+        inert(*axes.legend(loc="best", fontsize="small").get_texts())
     _energy_panel(right, trajectory)
-    figure.suptitle(f"{plot_text(trajectory.title)} ({trajectory.settings.method}, {trajectory.status})")
+    figure.suptitle(f"{plot_text(trajectory.title)} ({trajectory.settings.method}, {trajectory.status})", parse_math=False)
     suffix = path.suffix.lower().lstrip(".")
     atomic_write(path, lambda stream: figure.savefig(stream, format=suffix, dpi=120))
 
