@@ -42,6 +42,7 @@ import numpy as np
 from lagrange_cli.errors import LagrangeError
 from lagrange_cli.model import Model
 from lagrange_cli.numeric import compile
+from lagrange_cli.numeric.output import plain_text, plot_text
 from lagrange_cli.numeric.settings import METHODS, initial_spectrum, resolve
 from lagrange_cli.numeric.settings import _symplectic_step as symplectic_step
 from lagrange_cli.numeric.simulate import Trajectory, simulate
@@ -567,6 +568,7 @@ def json_text(result: Study) -> str:
     return json.dumps(document, indent=2, allow_nan=False) + "\n"
 
 
+@plain_text()
 def write_plot(result: Study, path: object) -> None:
     """Two log-log panels, error against run time and against evaluations, one line per method;
     written atomically."""
@@ -594,7 +596,7 @@ def write_plot(result: Study, path: object) -> None:
         axes.grid(True, which="both", alpha=0.3)
         axes.legend()
     window = f"t = 0..{result.t_end:.3g}" + (" (predictability horizon)" if result.t_end < result.full_t_end else "")
-    figure.suptitle(f"{result.title}: work-precision, {window}")
+    figure.suptitle(f"{plot_text(result.title)}: work-precision, {window}", parse_math=False)
     figure.tight_layout()
     try:
         atomic_write(target, lambda stream: figure.savefig(stream, format=target.suffix.lstrip(".").lower()))
