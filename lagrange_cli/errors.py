@@ -3,30 +3,33 @@
 from __future__ import annotations
 
 import re
+import unicodedata
 from collections.abc import Iterable
 from dataclasses import dataclass
 
-# Characters that steer a terminal or reorder text rather than show as themselves: C0 controls and
-# DEL, C1 controls, lone surrogates (an undecodable file name), the bidi embeddings, overrides,
-# marks and isolates, and the Unicode line and paragraph separators.
-_UNPRINTABLE = re.compile("[\x00-\x1f\x7f-\x9f\u061c\u200e\u200f\u2028\u2029\u202a-\u202e\u2066-\u2069\ud800-\udfff]")
+# Characters that steer a terminal or change how text reads rather than show as themselves: the
+# controls (C0, DEL, C1), the format characters (bidi embeddings, overrides, marks and isolates,
+# zero-width spaces and joiners, the BOM), lone surrogates (an undecodable file name), and the
+# line and paragraph separators. Candidates are found by a fast pattern, then told by category.
+_CANDIDATE = re.compile(r"[^\x20-\x7e]")
+_STEERING = frozenset(("Cc", "Cf", "Cs", "Zl", "Zp"))
 
 
 def printable(text: str, *, keep: str = "\n\t") -> str:
-    """`text` with every character that could steer a terminal (an escape sequence, a carriage
-    return, a backspace, a bidi override, a C1 control, an undecodable byte) written as a visible
-    escape such as `\\x1b` or `\\u202e`, so that file text shown to a user is only ever text.
-    The characters in `keep` stay: newlines and tabs in a message; none in a name or a path
-    (`keep=""`), so that a name cannot start a fake line of output."""
+    """`text` with every character that could steer a terminal or disguise text (an escape
+    sequence, a carriage return, a backspace, a bidi override, a zero-width space, a C1 control,
+    an undecodable byte) written as a visible escape such as `\\x1b` or `\\u202e`, so that file
+    text shown to a user is only ever text. The characters in `keep` stay: newlines and tabs in a
+    message; none in a name or a path (`keep=""`), so that a name cannot start a fake line."""
 
     def visible(match: re.Match[str]) -> str:
         char = match.group()
-        if char in keep:
+        if char in keep or unicodedata.category(char) not in _STEERING:
             return char
         code = ord(char)
-        return {9: "\\t", 10: "\\n", 13: "\\r"}.get(code) or (f"\\x{code:02x}" if code < 0x100 else f"\\u{code:04x}")
+        return {9: "\\t", 10: "\\n", 13: "\\r"}.get(code) or (f"\\x{code:02x}" if code < 0x100 else f"\\u{code:04x}" if code < 0x10000 else f"\\U{code:08x}")
 
-    return _UNPRINTABLE.sub(visible, text)
+    return _CANDIDATE.sub(visible, text)
 
 
 @dataclass(frozen=True)

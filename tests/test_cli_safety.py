@@ -135,6 +135,7 @@ def test_printable_escapes_what_steers_a_terminal() -> None:
     assert printable("a\x1b[2Jb\rc\bd\x07\x85\x9b\u202e\u2066\udcff\x7f") == "a\\x1b[2Jb\\rc\\x08d\\x07\\x85\\x9b\\u202e\\u2066\\udcff\\x7f"
     assert printable("line\n\tindented") == "line\n\tindented" and printable("line\n\t", keep="") == "line\\n\\t"
     assert printable("ordinary text: é, ü, θ, 中, ✓") == "ordinary text: é, ü, θ, 中, ✓"
+    assert printable("pa\u200bssed\ufeff\U000e0041") == "pa\\u200bssed\\ufeff\\U000e0041"  # zero-width and tag characters
     rendered = Diagnostic(Span("x\x1b.yaml", 1, 8, 'title: "\x1b[2J"\t# c'), "bad \x1b[31m", "no \u202e").render()
     assert not UNPRINTABLE.search(rendered) and "x\\x1b.yaml:1:8" in rendered and "\\u202e" in rendered
     source, caret = rendered.splitlines()[1:3]
