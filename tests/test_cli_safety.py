@@ -228,7 +228,8 @@ def test_a_bug_is_one_line_and_exit_2(monkeypatch: pytest.MonkeyPatch, error: Ba
         result = runner.invoke(app, args)
         assert result.exit_code == 2 and isinstance(result.exception, SystemExit), (args, result.output)
         lines = [line for line in result.output.splitlines() if line.strip()]
-        assert lines == [f"error: internal error while processing simple_pendulum: {printable(f'{type(error).__name__}: {error}', keep='')} (please report this)"], result.output
+        described = f"{type(error).__name__}: {error}" if str(error) else type(error).__name__
+        assert lines == [f"error: internal error while processing simple_pendulum: {printable(described, keep='')} (please report this)"], result.output
         assert "Traceback" not in result.output and "\x1b" not in result.output
 
 

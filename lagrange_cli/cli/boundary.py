@@ -97,7 +97,7 @@ def internal_error(where: str, error: BaseException) -> str:
     """The one line a user sees for a bug: what was being done, the exception, and a request."""
     from lagrange_cli.errors import printable
 
-    text = printable(f"{type(error).__name__}: {error}", keep="")
+    text = printable(f"{type(error).__name__}: {error}" if str(error) else type(error).__name__, keep="")
     if len(text) > 500:
         text = text[:500] + "..."
     return f"error: {INTERNAL_ERROR} while processing {printable(where, keep='')}: {text} (please report this)"
