@@ -126,8 +126,8 @@ def accuracy(
 
         if plot is not None:
             out.check_suffix(plot, out.PLOT_SUFFIXES, "plot")
+        ladder = _tolerances(tolerances)  # before any work
         model = _model(file)
-        ladder = _tolerances(tolerances)
         result = core.study(
             model,
             candidates=_candidates(method),
@@ -243,10 +243,11 @@ def stress(
     try:
         from lagrange_cli.numeric import stress as core
 
+        scales = _scales(scale or [])  # before any work
         model = _model(file)
         report = core.stress(
             model,
-            scales=_scales(scale or []),
+            scales=scales,
             target=accuracy_ if accuracy_ is not None else 1e-6,
             candidates=_candidates(method),
             t_end=t_end,
