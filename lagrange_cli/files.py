@@ -20,7 +20,6 @@ Promises (the README's "Files" paragraph):
 from __future__ import annotations
 
 import errno
-import fcntl
 import io
 import os
 import stat
@@ -220,6 +219,8 @@ def atomic_write(path: str | os.PathLike[str], write: Callable[[IO[bytes]], obje
 def _write_in_place(name: str, data: bytes) -> None:
     """`data` into an existing character device or FIFO, which stays what it is; a FIFO that no
     process reads is refused rather than waited on."""
+    import fcntl  # POSIX only, like FIFOs
+
     try:
         descriptor = os.open(name, os.O_WRONLY | os.O_NONBLOCK | os.O_NOCTTY | getattr(os, "O_CLOEXEC", 0))
     except OSError as error:
