@@ -9,7 +9,8 @@ Promises (the README's "Files" paragraph):
   gets `0666 & ~umask`, as `open()` would give it;
 - an output that names a character device (`/dev/null`, a terminal) or a FIFO with a reader is
   written in place, never replaced by a regular file; a FIFO with no reader, a block device or a
-  socket is refused;
+  socket is refused; `/dev/stdout`, `/dev/stderr`, `/dev/fd/N` are written through that open
+  descriptor, wherever the shell pointed it;
 - `-` as an output is standard output (the CLI handles it; here it is an ordinary name);
 - an output that is one of the command's inputs, or that two outputs of one command share, is
   refused before any work;
@@ -22,6 +23,7 @@ from __future__ import annotations
 import errno
 import io
 import os
+import re
 import stat
 import tempfile
 from collections.abc import Callable, Iterable
@@ -30,6 +32,8 @@ from typing import IO
 
 from lagrange_cli.errors import Diagnostic, LagrangeError, fail, printable
 
+# Names of this process's open descriptors: written through the descriptor itself.
+_DESCRIPTOR = re.compile(r"/dev/((?P<std>stdout|stderr)|fd/(?P<fd>[0-9]+))\Z|/proc/(?P<pid>self|[0-9]+)/fd/(?P<pfd>[0-9]+)\Z")
 NAME_MAX = 255  # bytes in one path component (Linux, macOS)
 PATH_MAX = 4095  # bytes in a whole path
 
@@ -190,10 +194,14 @@ def atomic_write(path: str | os.PathLike[str], write: Callable[[IO[bytes]], obje
     whatever was there (a cache of generated code)."""
     name = check_name(path, "write")
     found = _stat(name)
-    if found is not None and (stat.S_ISCHR(found.st_mode) or stat.S_ISFIFO(found.st_mode)):
+    descriptor = _descriptor(name)
+    if found is not None and (stat.S_ISCHR(found.st_mode) or stat.S_ISFIFO(found.st_mode) or descriptor is not None):
         buffer = io.BytesIO()
         write(buffer)
-        _write_in_place(name, buffer.getvalue())
+        if descriptor is not None:
+            _write_descriptor(name, descriptor, buffer.getvalue())
+        else:
+            _write_in_place(name, buffer.getvalue())
         return
     if found is not None and not stat.S_ISREG(found.st_mode):
         check_writable(name)  # raises: a directory, a block device, a socket
@@ -214,6 +222,34 @@ def atomic_write(path: str | os.PathLike[str], write: Callable[[IO[bytes]], obje
     except BaseException:
         Path(temporary).unlink(missing_ok=True)
         raise
+
+
+def _descriptor(name: str) -> int | None:
+    """The descriptor number that `name` stands for in this process (`/dev/stdout`, `/dev/fd/3`,
+    `/proc/self/fd/3`), or None."""
+    found = _DESCRIPTOR.match(os.path.abspath(name))
+    if found is None or found.group("pid") not in (None, "self", str(os.getpid())):
+        return None
+    return {"stdout": 1, "stderr": 2}.get(found.group("std") or "", int(found.group("fd") or found.group("pfd") or 0))
+
+
+def _write_descriptor(name: str, number: int, data: bytes) -> None:
+    """`data` through the already open descriptor `number`, as the shell set it up (a pipe, a
+    terminal, a file opened for appending or truncated): nothing is reopened or replaced."""
+    import sys
+
+    stream = {1: sys.stdout, 2: sys.stderr}.get(number)
+    try:
+        if stream is not None:
+            stream.flush()
+            stream.buffer.write(data)
+            stream.flush()
+            return
+        view = memoryview(data)
+        while view:
+            view = view[os.write(number, view) :]
+    except (OSError, ValueError, AttributeError) as error:
+        raise _error(f"cannot write {_bare(name)}: {getattr(error, 'strerror', None) or error}") from None
 
 
 def _write_in_place(name: str, data: bytes) -> None:

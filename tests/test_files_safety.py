@@ -159,6 +159,22 @@ def test_dev_null_is_written_in_place_and_stays_a_device() -> None:
     assert stat.S_ISCHR(os.stat("/dev/null").st_mode)
 
 
+def test_dev_stdout_writes_through_the_open_descriptor(tmp_path: Path) -> None:
+    """`-o /dev/stdout` with stdout redirected to a file: the output lands where the shell's
+    descriptor points (after what was written before), and the file is not replaced."""
+    target = tmp_path / "log.txt"
+    environment = {**os.environ, "PYTHONPATH": str(ROOT)}
+    with target.open("wb") as stream:
+        stream.write(b"first\n")
+        stream.flush()
+        inode = os.fstat(stream.fileno()).st_ino
+        done = subprocess.run([sys.executable, "-m", "lagrange_cli", "derive", "simple_pendulum", "-o", "/dev/stdout"], stdout=stream, stderr=subprocess.PIPE, timeout=120, env=environment)
+        stream.write(b"last\n")
+    assert done.returncode == 0, done.stderr
+    lines = target.read_text().splitlines()
+    assert lines[0] == "first" and "theta_ddot" in lines[1] and lines[-1] == "last" and target.stat().st_ino == inode
+
+
 def test_a_fifo_without_a_reader_is_refused_and_stays_a_fifo(tmp_path: Path) -> None:
     fifo = tmp_path / "out.txt"
     os.mkfifo(fifo)
