@@ -34,7 +34,10 @@ def _checker(kind: str, test: Callable[[float], bool]) -> Callable[[Any], Any]:
     def check(value: Any) -> Any:
         if value is None:
             return None
-        number = float(value)
+        try:
+            number = float(value)
+        except OverflowError:  # an int of hundreds of digits
+            number = math.inf
         if not (math.isfinite(number) and test(number)):
             raise typer.BadParameter(f"must be {kind}, got {value!r}")
         return value
