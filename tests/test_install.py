@@ -9,6 +9,7 @@ bundled system from there. The fast tests take numba and matplotlib away inside 
 from __future__ import annotations
 
 import os
+import re
 import subprocess
 import sys
 from collections.abc import Callable, Iterator
@@ -60,6 +61,14 @@ def test_without_numba_the_symplectic_method_names_the_extra(without: Callable[[
     without("numba")
     result = runner.invoke(app, ["simulate", "simple_pendulum", "--t-end", "0.5", "--method", "symplectic"])
     assert result.exit_code == 2 and "lagrange-cli[fast]" in result.output and "Traceback" not in result.output
+
+
+def test_without_numba_accuracy_runs_the_rest_and_names_the_extra_for_symplectic(without: Callable[[str], None]) -> None:
+    without("numba")
+    result = runner.invoke(app, ["accuracy", "simple_pendulum", "--t-end", "0.2", "--repeats", "0", "--tolerances", "1e-3", "--method", "symplectic,RK45"])
+    assert result.exit_code == 0, result.output
+    assert "lagrange-cli[fast]" in result.output and "--backend python" not in result.output
+    assert re.search(r"^ *RK45 \(python\) .* ok *$", result.output, re.MULTILINE), result.output
 
 
 def run(venv: Path, cwd: Path, *args: str) -> subprocess.CompletedProcess[str]:
