@@ -142,7 +142,8 @@ class Group(TyperGroup):
             try:
                 return super().invoke(ctx)
             finally:  # what is still buffered goes out now, so that a closed pipe shows here
-                sys.stdout.flush()
+                if sys.stdout is not None:
+                    sys.stdout.flush()
         except BrokenPipeError:
             _stdout_gone()
         except SystemExit as exit:  # rich's Console.on_broken_pipe exits 1 in place of the BrokenPipeError
