@@ -48,7 +48,7 @@ def simulate(
         if output_path is not None and str(output_path) != "-":
             out.check_suffix(output_path, out.DATA_SUFFIXES, "output")
         if plot is not None:
-            out.check_suffix(plot, out.PLOT_SUFFIXES, "plot")
+            out.check_plot(plot)
         model = core.derive(spec.load(spec.resolve(file)))
         parameters, values = _assignments(model, set_ or [], "--set"), _assignments(model, initial or [], "--initial")
         with _Progress() as progress:
@@ -113,6 +113,7 @@ def _write(trajectory: Trajectory, output_path: Path | None, plot: Path | None) 
 def _report(trajectory: Trajectory, to_stderr: bool) -> None:
     """What ran, how it ended, the work and time it took, and every monitored invariant."""
     from rich.console import Console
+    from rich.markup import escape
     from rich.table import Table
 
     console = Console(stderr=to_stderr, highlight=False, soft_wrap=True)
@@ -120,7 +121,7 @@ def _report(trajectory: Trajectory, to_stderr: bool) -> None:
     accuracy = f"step {s.step:.3g}" if s.method == "symplectic" and s.step else f"rtol {s.rtol:g}, atol {s.atol:g}"
     console.print(f"[bold]{trajectory.title}[/bold]: {s.method} ({s.backend}), t = {s.t0:g} .. {s.t_end:g}, {accuracy}")
     for note in trajectory.notes:
-        console.print(f"  [dim]{note}[/dim]")
+        console.print(f"  [dim]{escape(note)}[/dim]")
     if trajectory.failed:
         Console(stderr=True, highlight=False, soft_wrap=True).print(f"error: {trajectory.message}; the trajectory up to there is kept", markup=False)
     else:

@@ -94,7 +94,7 @@ def accuracy(
         from lagrange_cli.numeric import output as out
 
         if plot is not None:
-            out.check_suffix(plot, out.PLOT_SUFFIXES, "plot")
+            out.check_plot(plot)
         if repeats < 0 or budget <= 0:
             raise LagrangeError("--repeats must be at least 0 and --budget positive")
         model = _model(file)
@@ -165,7 +165,7 @@ def _report_study(result: Study, to_stderr: bool) -> None:
         else:
             console.print(f"not chaotic: runs started {tol_text(h.delta)} apart separate by {h.growth * h.delta:.1e} by the end (no exponential growth)")
     for note in result.notes:
-        console.print(f"  [dim]{note}[/dim]", markup=True)
+        console.print(f"  [dim]{escape(note)}[/dim]", markup=True)
     table = Table(title="runs", title_justify="left", box=None, padding=(0, 1))
     for column in ("method", "setting", "final err", "RMS err", "energy", "constraint", "run time", "runs", "evals (jac)", "steps", "status"):
         table.add_column(column, justify="left" if column in ("method", "setting", "status") else "right")

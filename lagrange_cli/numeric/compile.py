@@ -40,6 +40,8 @@ for _name, _value in list(globals().items()):
         globals()[_name] = _njit(cache=True, error_model="numpy")(_value)
 """
 
+NUMBA_HINT = "install it with `pip install 'lagrange-cli[fast]'`"
+
 _LOADED: dict[str, ModuleType] = {}
 _FINGERPRINTS: dict[tuple[int, str, bool, str], tuple[Model, str]] = {}
 
@@ -95,7 +97,7 @@ def fingerprint(model: Model, target: str, jacobian: bool, event: sp.Expr | None
 def build(model: Model, target: str, jacobian: bool = False, event: sp.Expr | None = None) -> Functions:
     """The system's functions for `target` ("numba" or "python"), generated only when not cached."""
     if target == "numba" and not numba_available():
-        raise LagrangeError("the compiled path needs numba: install it with `pip install 'lagrange-cli[numeric]'`, or use `--backend python`")
+        raise LagrangeError(f"the compiled path needs numba: {NUMBA_HINT}, or use `--backend python`")
     start = time.perf_counter()
     kernels = kernels_module() if target == "numba" else None
     key = fingerprint(model, target, jacobian, event)
