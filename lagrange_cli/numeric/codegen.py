@@ -67,6 +67,18 @@ def stabilised_bias(model: Model) -> list[sp.Expr]:
     return result
 
 
+def real_diff(expr: sp.Expr, variable: sp.Symbol) -> sp.Expr:
+    """d expr / d variable for real quantities (by symengine): d|u| = sign(u) du, d sign(u) = 0
+    (as derive.py takes them), never an unprintable Derivative(Abs(u), x)."""
+    result = sp.sympify(to_symengine(expr).diff(to_symengine(variable)))
+    if result.has(sp.Derivative):
+        result = result.replace(
+            lambda e: isinstance(e, sp.Derivative) and isinstance(e.expr, (sp.Abs, sp.sign)),
+            lambda e: sp.sign(e.expr.args[0]) * sp.diff(e.expr.args[0], *e.variables) if isinstance(e.expr, sp.Abs) else sp.Integer(0),
+        )
+    return result
+
+
 class Generator:
     """Writes the functions of one model, its defined functions written out, for one target ("numba" or "python")."""
 
@@ -147,8 +159,7 @@ class Generator:
         model, n = self.model, self.n
         entries, places = self.augmented()
         phi = self.residual()
-        derivatives = [to_symengine(f).diff(to_symengine(v)) for f in phi for v in (*model.q, *model.qd)]
-        columns = [sp.sympify(d) for d in derivatives]
+        columns = [real_diff(f, v) for f in phi for v in (*model.q, *model.qd)]
         exprs = [*entries, *columns]
         block = self.block(exprs)
         unpack_x = [f"_acc{i} = _x[{i}]" for i in range(n)] + [f"_lam{r} = _x[{n + r}]" for r in range(self.k)]
@@ -177,8 +188,7 @@ class Generator:
         zero = dict.fromkeys(model.qd, sp.Integer(0))
         offsets = [sp.sympify(m).xreplace(zero) for m in model.momenta]
         mass = [model.mass_matrix[i, j] for i, j in self.upper]
-        lagrangian, dissipation = to_symengine(model.lagrangian), to_symengine(model.dissipation)
-        force = [sp.sympify(lagrangian.diff(to_symengine(q)) - dissipation.diff(to_symengine(qd))) + model.generalized_forces[i] for i, (q, qd) in enumerate(zip(model.q, model.qd, strict=True))]
+        force = [real_diff(model.lagrangian, q) - real_diff(model.dissipation, qd) + model.generalized_forces[i] for i, (q, qd) in enumerate(zip(model.q, model.qd, strict=True))]
         first = self.block([*mass, *offsets])
         body = [*self.unpack([*mass, *offsets, *force], "_z", velocities=False), *first.lines]
         places = [(e, i, j) for e, (i, j) in enumerate(self.upper)] + [(e, j, i) for e, (i, j) in enumerate(self.upper) if i != j]
