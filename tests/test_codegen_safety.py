@@ -8,6 +8,7 @@ import builtins
 import dataclasses
 import keyword
 import math
+import os
 from pathlib import Path
 
 import numpy as np
@@ -120,6 +121,25 @@ def test_a_damaged_cached_module_is_regenerated_never_imported(damage: str, cach
     assert not (cache / "EXECUTED").exists()
     assert path.read_text(encoding="utf-8") == text
     assert functions.module._accel(0.0, [0.3, 0.0], [1.0, 2.0, 9.81])[0] == pytest.approx(-9.81 / 2.0 * math.sin(0.3))
+
+
+@pytest.mark.parametrize("kind", ["symlink", "fifo"])
+def test_a_cached_path_that_is_no_regular_file_is_replaced_not_read(kind: str, cache: Path, tmp_path: Path) -> None:
+    """A symlink at the module's name is replaced, not written through (its target stays as it
+    was), and a FIFO is not read (which would hang): both become the regular file of the source."""
+    model = model_of(PENDULUM)
+    path = cache / f"lagrange_python_{compile.fingerprint(model, 'python', False, None)}.py"
+    cache.mkdir()
+    target = tmp_path / "target.py"
+    target.write_text("raise SystemExit(3)\n")
+    if kind == "symlink":
+        path.symlink_to(target)
+    else:
+        os.mkfifo(path)
+    functions = compile.build(model, "python")
+    assert path.is_file() and not path.is_symlink() and path.read_text(encoding="utf-8") == compile.module_source(model, "python", False, None)
+    assert target.read_text() == "raise SystemExit(3)\n"
+    assert functions.module._N == 1
 
 
 def test_an_intact_cached_module_is_reused(cache: Path) -> None:
@@ -247,6 +267,14 @@ def test_fractional_powers_of_negative_bases_fail_cleanly_never_go_complex(tmp_p
     module = load_module(python.emit(root), tmp_path / "cube_root.py")
     point = {root.q[0]: -0.7, root.qd[0]: 0.0, root.parameters[0].symbol: 2.0}
     assert module.rhs(0.0, [-0.7, 0.0])[1] == pytest.approx(float(root.forcing[0].xreplace(point).evalf(20)), rel=1e-12)
+
+
+def test_large_exact_numbers_are_printed_as_floats() -> None:
+    """numba has no integers beyond 64 bits: a coefficient such as 10**30 is written 1e+30."""
+    model = model_of("coordinates: [x]\nparameters: {k: 2.0}\nkinetic: x_dot**2/2\npotential: 10**30*k*x**2 + x**4/(3*10**20)\n")
+    for code in (python.emit(model), compile.module_source(model, "numba", False, None), compile.module_source(model, "python", True, None)):
+        assert all(abs(node.value) < 2**53 for node in ast.walk(ast.parse(code)) if isinstance(node, ast.Constant) and type(node.value) is int)
+        assert "e+30" in code
 
 
 @pytest.mark.parametrize("formula", ["sqrt(x)", "log(x)", "acos(x - 2)", "asin(x - 2)", "x**(1/5)", "x**k"])

@@ -19,6 +19,7 @@ import functools
 import hashlib
 import importlib.util
 import os
+import stat
 import sys
 import time
 from dataclasses import dataclass
@@ -173,15 +174,21 @@ def _numba_version(target: str) -> str:
 
 
 def _cached(path: Path, text: str) -> bool:
-    """True when `path` holds exactly `text`; otherwise (missing, truncated, corrupted or
-    tampered with) it is written anew, atomically, so that no wrong file stays in the cache."""
+    """True when `path` is a regular file holding exactly `text`; otherwise (missing, truncated,
+    corrupted, tampered with, a symlink, a FIFO or a device) it is replaced, atomically, by a
+    file of `text`, so that no wrong file stays in the cache. Only a regular file of the right
+    size is read. The cache folder is created private to the user (0700)."""
+    data = text.encode("utf-8")
     try:
-        if path.read_bytes() == text.encode("utf-8"):
-            return True
+        found = path.lstat()
     except OSError:
-        pass
+        found = None
+    if found is not None and stat.S_ISREG(found.st_mode) and found.st_size == len(data) and path.read_bytes() == data:
+        return True
     try:
-        path.parent.mkdir(parents=True, exist_ok=True)
+        if found is not None and not stat.S_ISREG(found.st_mode):
+            path.unlink()  # the link itself, never what it points to: the new file is written in its place
+        path.parent.mkdir(mode=0o700, parents=True, exist_ok=True)
         write_text(path, text)
     except (OSError, LagrangeError) as error:
         reason = error.strerror if isinstance(error, OSError) else str(error)
