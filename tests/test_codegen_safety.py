@@ -302,3 +302,16 @@ def test_numba_target_with_hostile_names_agrees_and_gives_nan_for_a_negative_bas
     assert not np.all(np.isfinite(x))
     with pytest.raises(ValueError):
         plain._accel(0.0, y.tolist(), p.tolist())
+
+
+def test_a_hostile_file_simulates_without_running_anything(cache: Path) -> None:
+    """End to end: a title that would end the cached module's docstring, and names that would
+    shadow what the generated code uses, through `simulate` (scipy, the Python target)."""
+    from lagrange_cli.numeric import simulate
+
+    title = f'"""\n{PAYLOAD}\n"""'.replace("__file__", repr(str(cache / "x")))
+    names = ["float", "numpy", "copysign", "p", "p_", "abs", "range", "y"]
+    model = dataclasses.replace(model_of(system(names), name="C:\\Users\\x\\sys.yaml"), title=title)
+    trajectory = simulate(model, t_end=0.05, method="RK45", backend="python", samples=3, initial={"float": 0.4, "numpy": -0.9, "copysign": 1.1})
+    assert trajectory.status == "finished" and trajectory.title == title
+    assert not (cache / "EXECUTED").exists()
