@@ -315,3 +315,19 @@ def test_a_hostile_file_simulates_without_running_anything(cache: Path) -> None:
     trajectory = simulate(model, t_end=0.05, method="RK45", backend="python", samples=3, initial={"float": 0.4, "numpy": -0.9, "copysign": 1.1})
     assert trajectory.status == "finished" and trajectory.title == title
     assert not (cache / "EXECUTED").exists()
+
+
+ROD = "coordinates: [x, y]\nparameters: {m: 1.5, l: 2.0, g: 9.81}\ngravity: [0, -g]\nparticles:\n  bob: {mass: m, position: [x, y]}\nconstraints:\n  rod: x**2 + y**2 = l**2\n"
+
+
+def test_a_constrained_system_with_shadowing_names_agrees_with_plain_names(tmp_path: Path, cache: Path) -> None:
+    """Coordinates, parameters and a constraint (multiplier lambda_rhs) named like generated code."""
+    renamed = "coordinates: [float, numpy]\nparameters: {p: 1.5, p_: 2.0, copysign: 9.81}\ngravity: [0, -copysign]\nparticles:\n  bob: {mass: p, position: [float, numpy]}\n"
+    renamed += "constraints:\n  rhs: float**2 + numpy**2 = p_**2\n"
+    plain, hostile = model_of(ROD), model_of(renamed)
+    y = [1.2, -1.6, 0.3, 0.225]
+    one, two = load_module(python.emit(plain), tmp_path / "plain.py"), load_module(python.emit(hostile), tmp_path / "hostile.py")
+    assert two.accelerations(0.0, y) == pytest.approx(one.accelerations(0.0, y), rel=1e-14)
+    assert two.constraint_residuals(y[:2], y[2:]) == pytest.approx(one.constraint_residuals(y[:2], y[2:]), abs=1e-14)
+    p = [1.5, 2.0, 9.81, 0.3]
+    assert compile.build(hostile, "python").module._accel(0.0, y, p) == pytest.approx(compile.build(plain, "python").module._accel(0.0, y, p), rel=1e-14)
