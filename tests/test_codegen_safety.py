@@ -220,7 +220,7 @@ def test_every_name_works(start: int, tmp_path: Path, cache: Path) -> None:
     check_against_sympy(names, tmp_path)
 
 
-@settings(max_examples=15, derandomize=True, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@settings(max_examples=15, derandomize=True, database=None, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(names=st.lists(st.sampled_from(POOL) | st.tuples(st.sampled_from(DANGEROUS), st.integers(0, 3)).map(lambda t: t[0] + "_" * t[1]), min_size=SIZE, max_size=SIZE, unique=True))
 def test_any_names_work(names: list[str], tmp_path: Path, cache: Path) -> None:
     check_against_sympy(names, tmp_path)
