@@ -13,15 +13,25 @@ from typing import TYPE_CHECKING, NoReturn
 
 import typer
 
+from lagrange_cli.cli._app import Group, Typer, print_version
+
 if TYPE_CHECKING:
     from lagrange_cli.errors import LagrangeError
 
-app = typer.Typer(
+app = Typer(
+    cls=Group,
     help="Equations of motion from a small YAML description of a mechanical system.",
     no_args_is_help=True,
     add_completion=False,
     pretty_exceptions_enable=False,
+    rich_markup_mode=None,
+    context_settings={"help_option_names": ["-h", "--help"]},
 )
+
+
+@app.callback()
+def _root(version: bool = typer.Option(False, "--version", callback=print_version, is_eager=True, help="Print the version and exit.")) -> None:
+    """Equations of motion from a small YAML description of a mechanical system."""
 
 
 class Form(str, Enum):

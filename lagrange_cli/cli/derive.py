@@ -30,6 +30,8 @@ def derive(
             raise fail(None, "choose one of --text, --latex, --python", "a single output format")
         if numba and not python:
             raise fail(None, "--numba applies to --python output", "--python --numba")
+        if standalone and not latex:
+            raise fail(None, "--standalone applies to --latex output", "--latex --standalone")
         from lagrange_cli import derive as core
         from lagrange_cli import spec
 

@@ -49,7 +49,7 @@ def simulate(
         if output_path is not None and str(output_path) != "-":
             out.check_suffix(output_path, out.DATA_SUFFIXES, "output")
         if plot is not None:
-            out.check_suffix(plot, out.PLOT_SUFFIXES, "plot")
+            out.check_plot(plot)
         model = core.derive(spec.load(spec.resolve(file)))
         parameters, values = _assignments(model, set_ or [], "--set"), _assignments(model, initial or [], "--initial")
         with _Progress() as progress:

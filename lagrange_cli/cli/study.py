@@ -125,7 +125,7 @@ def accuracy(
         from lagrange_cli.numeric import output as out
 
         if plot is not None:
-            out.check_suffix(plot, out.PLOT_SUFFIXES, "plot")
+            out.check_plot(plot)
         ladder = _tolerances(tolerances)  # before any work
         model = _model(file)
         result = core.study(

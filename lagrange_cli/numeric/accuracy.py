@@ -96,7 +96,9 @@ def backend_for(candidate: Candidate) -> str:
     """The backend a candidate runs on: RK45/DOP853 compiled when numba is available."""
     if candidate.backend != "auto":
         return candidate.backend
-    if candidate.method in ("RK45", "DOP853", "symplectic"):
+    if candidate.method == "symplectic":  # compiled only (without numba: a hint naming the extra)
+        return "compiled"
+    if candidate.method in ("RK45", "DOP853"):
         return "compiled" if compile.numba_available() else "python"
     return "auto" if candidate.method == "auto" else "python"
 

@@ -9,6 +9,7 @@ phase portrait, and the relative energy error.
 from __future__ import annotations
 
 import contextlib
+import importlib.util
 import re
 import unicodedata
 import warnings
@@ -122,3 +123,11 @@ def check_suffix(path: Path, allowed: tuple[str, ...], what: str) -> None:
     """A LagrangeError unless `path` ends in one of `allowed`."""
     if path.suffix.lower() not in allowed:
         raise LagrangeError(f"{path}: cannot tell the {what} format from the name; use one of {', '.join(allowed)}")
+
+
+def check_plot(path: Path) -> None:
+    """A LagrangeError, before any work, unless a figure can be written to `path`: a known
+    suffix, and matplotlib (optional: the `plot` extra) installed."""
+    check_suffix(path, PLOT_SUFFIXES, "plot")
+    if importlib.util.find_spec("matplotlib") is None:
+        raise LagrangeError("--plot needs matplotlib, which is not installed: `pip install 'lagrange-cli[plot]'`")
