@@ -250,7 +250,9 @@ def _choose(
     notes: list[str] = []
     if method == "symplectic" and any(not c.holonomic for c in model.constraints):
         name = next(c.name for c in model.constraints if not c.holonomic)
-        raise LagrangeError(f"{model.source}: the symplectic method cannot integrate velocity constraint '{name}': a nonholonomic system has no canonical (q, p) form; use another --method (DOP853, RK45, Radau)")
+        raise LagrangeError(
+            f"{model.source}: the symplectic method cannot integrate velocity constraint '{name}': a nonholonomic system has no canonical (q, p) form; use another --method (DOP853, RK45, Radau)"
+        )
     if method == "symplectic" and model.constraints:
         raise LagrangeError(f"{model.source}: the symplectic method needs a system without kept constraints; eliminate them (`eliminate:`) or use another --method")
     if step is not None and method not in ("auto", "symplectic"):
