@@ -47,19 +47,19 @@ def along(y: np.ndarray, n: int = 3) -> tuple[np.ndarray, np.ndarray]:
 
 def knife(t: float, z: np.ndarray) -> list[float]:
     """Knife edge on the incline in (x, y, phi, v, omega): v_dot = g sin(alpha) cos(phi), omega constant."""
-    x, y, phi, v, w = z
+    _, _, phi, v, w = z
     return [v * math.cos(phi), v * math.sin(phi), w, G * math.sin(ALPHA_INCLINE) * math.cos(phi), 0.0]
 
 
 def coin(t: float, z: np.ndarray) -> list[float]:
     """Upright rolling coin in (x, y, phi, theta, phi_dot, theta_dot): both rates constant."""
-    x, y, phi, theta, w, s = z
+    _, _, phi, _, w, s = z
     return [R_COIN * s * math.cos(phi), R_COIN * s * math.sin(phi), w, s, 0.0, 0.0]
 
 
 def sleigh(t: float, z: np.ndarray) -> list[float]:
     """Chaplygin sleigh in (x, y, phi, v, omega): v_dot = a omega^2, (I + m a^2) omega_dot = -m a v omega."""
-    x, y, phi, v, w = z
+    _, _, phi, v, w = z
     return [v * math.cos(phi), v * math.sin(phi), w, A_SLEIGH * w * w, -M_SLEIGH * A_SLEIGH * v * w / (I_SLEIGH + M_SLEIGH * A_SLEIGH**2)]
 
 
@@ -190,7 +190,7 @@ initial: {x_dot: 1.0, y_dot: 0.3, phi_dot: 0.5, z_dot: 1.0}
 
 def mixed(t: float, s: np.ndarray) -> list[float]:
     """In (x, y, phi, v): u = 0.3 cos(1.5 t) across the blade, v_dot = phi_dot u (no force along it)."""
-    x, y, phi, v = s
+    _, _, phi, v = s
     u = 0.3 * math.cos(1.5 * t)
     return [v * math.cos(phi) - u * math.sin(phi), v * math.sin(phi) + u * math.cos(phi), 0.5, 0.5 * u]
 
@@ -248,7 +248,7 @@ def test_analytic_jacobian_matches_finite_differences(name: str) -> None:
 
 def test_symplectic_method_refuses_a_velocity_constraint() -> None:
     """No canonical (q, p) form exists for a nonholonomic system: exit 2 naming method and constraint."""
-    with pytest.raises(LagrangeError, match="symplectic.*'blade'"):
+    with pytest.raises(LagrangeError, match=r"symplectic.*'blade'"):
         simulate(_model("chaplygin_sleigh"), method="symplectic")
     result = runner.invoke(app, ["simulate", "rolling_coin", "--method", "symplectic"])
     assert result.exit_code == 2, result.output
