@@ -273,3 +273,23 @@ def test_accuracy_and_stress_run_end_to_end() -> None:
     assert result.exit_code == 0, result.output
     document = json.loads(result.stdout)
     assert document["passed"] is True and all(r["recommended"]["error"] <= 1e-6 for r in document["regimes"])
+
+
+def test_the_sleighs_multiplier_is_the_textbook_side_force() -> None:
+    """lambda_blade = m I v omega/(I + m a^2): a stop condition on it ends the run where the closed
+    form says (on the way down, after its maximum at tanh(u) = 1/sqrt(2))."""
+    from scipy.optimize import brentq
+
+    j, v0, w0 = I_SLEIGH + M_SLEIGH * A_SLEIGH**2, 0.2, 2.0
+    speed = math.sqrt(v0**2 + j * w0**2 / M_SLEIGH)
+    k, c0 = M_SLEIGH * A_SLEIGH * speed / j, math.atanh(v0 / speed)
+
+    def side_force(t: float) -> float:
+        u = k * t + c0
+        v, w = speed * math.tanh(u), math.sqrt(M_SLEIGH / j) * speed / math.cosh(u)
+        return M_SLEIGH * I_SLEIGH * v * w / j - 0.1
+
+    crossing = brentq(side_force, (math.atanh(1 / math.sqrt(2)) - c0) / k, 10.0, xtol=1e-14)
+    trajectory = simulate(_model("chaplygin_sleigh"), method="DOP853", backend="python", rtol=1e-11, atol=1e-12, until="lambda_blade - 0.1")
+    assert trajectory.status == "event", trajectory.message
+    assert trajectory.t_last == pytest.approx(crossing, abs=1e-7)
