@@ -87,6 +87,19 @@ def test_every_command_has_an_invocation() -> None:
     assert not set(INVOCATIONS) - set(commands()), "INVOCATIONS names commands the app no longer has"
 
 
+def test_a_new_command_joins_the_matrix(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A command registered on the app gets a column of cells, which fail until INVOCATIONS has it."""
+    import copy
+
+    extra = copy.copy(app.registered_commands[0])
+    extra.name = "brand-new"
+    monkeypatch.setattr(app, "registered_commands", [*app.registered_commands, extra])
+    new = [p for p in cells() if p.values[1] == "brand-new"]  # type: ignore[attr-defined]
+    assert len(new) == len(FEATURES) and "brand-new" not in INVOCATIONS
+    with pytest.raises(pytest.fail.Exception, match=r"no entry in tests/test_matrix\.py INVOCATIONS"):
+        test_cell(next(iter(FEATURES)), "brand-new", "(no entry)", Path("."), Path("."))
+
+
 def test_each_refusal_pattern_matches_its_example() -> None:
     """The patterns are not so loose that they match anything."""
     assert not any(p.match("error: internal error while processing x.yaml: NameError: name 'x_dot' is not defined (please report this)") for p in REFUSALS)
@@ -113,6 +126,7 @@ def test_cell(feature: str, command: str, variant: str, cache: Path, tmp_path: P
         pytest.fail(f"traceback:\n{''.join(traceback.format_exception(result.exception))}\n{shown}")
     assert "Traceback" not in result.output and INTERNAL_ERROR not in result.output, shown
     if result.exit_code == 0:
+        assert result.stdout.strip(), f"exit 0 with nothing on stdout\n{shown}"
         return
     assert result.exit_code == 2, f"exit {result.exit_code} (only 0, or 2 with a documented refusal, is allowed here)\n{shown}"
     first = (result.stderr.strip().splitlines() or [""])[0]
