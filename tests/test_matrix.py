@@ -34,12 +34,21 @@ INVOCATIONS: dict[str, dict[str, list[str]]] = {
     "check": {"": []},
     "info": {"text": [], "latex": ["--latex"], "json": ["--json"]},
     "equilibria": {"": []},
-    "linearize": {"": []},
+    "linearize": {"text": [], "json": ["--json"]},
     "simulate": {"": [*SHORT, "--backend", "python", "--method", "DOP853", "--samples", "11"]},
     "accuracy": {"": ["--method", "DOP853:python", "--tolerances", "1e-4,1e-6", "--repeats", "0", "--samples", "11", *SHORT]},
     "stress": {"": ["--method", "DOP853:python", *SHORT, "--long", "2", "--energy", "2"]},
 }
 """How each command is run in the matrix: variant name -> arguments after the file."""
+
+SHOWS = {
+    ("check", ""): "1 file: 1 passed",  # the feature's `expect` was checked, not skipped
+    ("derive", "python"): "def rhs(",
+    **{("derive", f"latex-{form}-standalone"): "\\end{document}" for form in ("lagrange", "matrix", "solved")},
+    ("info", "json"): '"hamiltonian"',
+    ("simulate", ""): "invariants",
+}
+"""What a cell that works must print (on stdout), where a word says it did its job."""
 
 ABOUT = {
     "holonomic_kept": "x=0,y=-1",
@@ -127,6 +136,7 @@ def test_cell(feature: str, command: str, variant: str, cache: Path, tmp_path: P
     assert "Traceback" not in result.output and INTERNAL_ERROR not in result.output, shown
     if result.exit_code == 0:
         assert result.stdout.strip(), f"exit 0 with nothing on stdout\n{shown}"
+        assert SHOWS.get((command, variant), "") in result.stdout, f"exit 0 without {SHOWS[command, variant]!r} on stdout\n{shown}"
         return
     assert result.exit_code == 2, f"exit {result.exit_code} (only 0, or 2 with a documented refusal, is allowed here)\n{shown}"
     first = (result.stderr.strip().splitlines() or [""])[0]
