@@ -37,7 +37,9 @@ def require_defined(model: Model, what: str) -> None:
     """Numeric code needs every function defined, by a `definition` in the file (numeric code
     evaluates `model.with_definitions()`); undefined ones (e.g. U(r)) cannot be emitted."""
     numeric = model.with_definitions()
-    undefined = sorted({str(f.func) for f in sp.Matrix([*numeric.mass_matrix, *numeric.forcing, numeric.energy]).atoms(sp.core.function.AppliedUndef)})
+    rows = [part for c in numeric.constraints for part in (c.expr, *c.jacobian, c.bias, c.acceleration_bias)]
+    exprs = [*numeric.mass_matrix, *numeric.forcing, numeric.energy, *numeric.momenta, *rows]
+    undefined = sorted({str(f.func) for e in exprs for f in sp.sympify(e).atoms(sp.core.function.AppliedUndef)})
     if undefined:
         one = len(undefined) == 1
         raise DerivationError(
