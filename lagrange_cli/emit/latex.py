@@ -122,22 +122,27 @@ def align(rows: Sequence[Row]) -> str:
 def _matrix_form(model: Model, doprint: layout.Printer) -> str:
     """`M q_ddot = F (+ A^T lambda)` with whole matrices when they fit the line, else entry by
     entry: `\\mathbf{M}_{ij}` for i <= j (M is symmetric), `\\mathbf{F}_{i}`, ... Bold names
-    cannot be confused with a parameter (`M`)."""
-    qdd = sp.Matrix(model.qdd)
-    lhs = doprint(sp.Matrix(model.mass_matrix)) + " " + doprint(qdd)
-    rhs = doprint(sp.Matrix(model.forcing))
-    if model.constraints:
-        rhs += " + " + doprint(model.constraint_matrix.T) + " " + doprint(sp.Matrix(model.multipliers))
-    rows = [(lhs, rhs)]
-    if model.constraints:
-        bias = sp.Matrix([row.acceleration_bias for row in model.constraints])
-        rows.append((f"{doprint(model.constraint_matrix)} {doprint(qdd)} + {doprint(bias)}", "0"))
-    if all(layout.width(f"{a} = {b}") <= layout.LINE_WIDTH for a, b in rows):
-        return "\\begin{align*}\n" + " \\\\\n".join(f"{a} &= {b}" for a, b in rows) + "\n\\end{align*}\n"
-    return _matrix_entries(model, doprint)
+    cannot be confused with a parameter (`M`). Each entry is printed and measured once."""
+    n, k = model.n, len(model.constraints)
+    factored = {(i, j): sp.factor_terms(model.mass_matrix[i, j]) for i in range(n) for j in range(i, n)}
+    entries = {ij: (entry, doprint(entry)) for ij, entry in factored.items()}
+    columns = [max(layout.width(entries[min(i, j), max(i, j)][1]) for i in range(n)) for j in range(n)]
+    if sum(columns) + 2.0 * (n + 4) + (4.0 * (n + 2) if k else 0.0) <= layout.LINE_WIDTH:
+        qdd = sp.Matrix(model.qdd)
+        lhs = doprint(sp.Matrix(model.mass_matrix)) + " " + doprint(qdd)
+        rhs = doprint(sp.Matrix(model.forcing))
+        if k:
+            rhs += " + " + doprint(model.constraint_matrix.T) + " " + doprint(sp.Matrix(model.multipliers))
+        rows = [(lhs, rhs)]
+        if k:
+            bias = sp.Matrix([row.acceleration_bias for row in model.constraints])
+            rows.append((f"{doprint(model.constraint_matrix)} {doprint(qdd)} + {doprint(bias)}", "0"))
+        if all(layout.width(f"{a} = {b}") <= layout.LINE_WIDTH for a, b in rows):
+            return "\\begin{align*}\n" + " \\\\\n".join(f"{a} &= {b}" for a, b in rows) + "\n\\end{align*}\n"
+    return _matrix_entries(model, doprint, entries)
 
 
-def _matrix_entries(model: Model, doprint: layout.Printer) -> str:
+def _matrix_entries(model: Model, doprint: layout.Printer, entries: dict[tuple[int, int], tuple[sp.Expr, str]]) -> str:
     n, k = model.n, len(model.constraints)
     bold_q = r"\ddot{\mathbf{q}}"
     statement = [layout.piece(r"\mathbf{F}")]
@@ -151,12 +156,14 @@ def _matrix_entries(model: Model, doprint: layout.Printer) -> str:
 
     for i in range(n):
         for j in range(i, n):
-            rows.append(Row(rf"\mathbf{{M}}_{{{index(i, j)}}}", layout.pieces(sp.factor_terms(model.mass_matrix[i, j]), doprint, _ROOM)))
+            entry, tex = entries[i, j]
+            fits = layout.width(tex) <= _ROOM
+            rows.append(Row(rf"\mathbf{{M}}_{{{index(i, j)}}}", [layout.piece(tex)] if fits else layout.pieces(entry, doprint, _ROOM)))
     rows.append(Row("", [layout.piece(r"\mathbf{M}_{ji} = \mathbf{M}_{ij}")]))
-    rows += [Row(rf"\mathbf{{F}}_{{{index(i)}}}", layout.pieces(tidy(model.forcing[i]), doprint, _ROOM)) for i in range(n)]
+    rows += [Row(rf"\mathbf{{F}}_{{{index(i)}}}", layout.pieces(model.forcing[i], doprint, _ROOM)) for i in range(n)]
     for r, c in enumerate(model.constraints):
         rows += [Row(rf"\mathbf{{A}}_{{{index(r, j)}}}", layout.pieces(sp.factor_terms(a), doprint, _ROOM)) for j, a in enumerate(c.jacobian) if a != 0]
-        rows.append(Row(rf"\mathbf{{c}}_{{{index(r)}}}", layout.pieces(tidy(c.acceleration_bias), doprint, _ROOM)))
+        rows.append(Row(rf"\mathbf{{c}}_{{{index(r)}}}", layout.pieces(c.acceleration_bias, doprint, _ROOM)))
     return align(rows)
 
 
