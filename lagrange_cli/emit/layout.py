@@ -305,7 +305,9 @@ def terms(summands: Sequence[sp.Expr], doprint: Printer, room: float) -> list[Pi
         negative = term.could_extract_minus_sign()
         inner = pieces(-term if negative else term, doprint, room)
         sign = "- " if negative else "+ " if out else ""
-        first = piece(sign + inner[0].tex) if sign else inner[0]
+        first = inner[0]
+        if sign:  # measured alone its operator is unary; between terms it is binary, wider
+            first = Piece(sign + first.tex, width(sign + first.tex) + (_BINARY["+"] - _UNARY if out else 0.0))
         out += [first, *inner[1:]]
     return out
 
@@ -366,7 +368,10 @@ def lines(parts: Sequence[Piece], first: float, rest: float) -> list[str]:
         else:
             out.append([part.tex])
             used = part.width
-    return _balanced([" ".join(line) for line in out]) or ["0"]
+    texts = [" ".join(line) for line in out]
+    # `{}` before the operator that starts a continuation line keeps it binary (spaced).
+    texts[1:] = ["{}" + text if text.startswith(("+ ", "- ")) else text for text in texts[1:]]
+    return _balanced(texts) or ["0"]
 
 
 _LEFT_RIGHT = re.compile(r"\\(left|right)(?![A-Za-z])")
