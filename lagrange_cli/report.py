@@ -10,7 +10,7 @@ import sympy as sp
 from lagrange_cli.analysis import Info, Linearization
 from lagrange_cli.emit import layout
 from lagrange_cli.emit.common import printable, tidy
-from lagrange_cli.emit.latex import Row, align, comment
+from lagrange_cli.emit.latex import Row, align, comment, room
 from lagrange_cli.emit.latex import names as latex_names
 from lagrange_cli.model import Model
 
@@ -36,11 +36,11 @@ def info_latex(model: Model, info: Info) -> str:
     """Momenta, the energy function and the Hamiltonian as an `align*` laid out like `derive
     --latex` (every line fits a standard article)."""
     doprint = latex_names(model, info.momentum_symbols).printer().doprint
-    room = layout.LINE_WIDTH * 0.7
-    rows = [Row(doprint(s), layout.pieces(p, doprint, room)) for s, p in zip(info.momentum_symbols, info.momenta, strict=True)]
-    rows.append(Row("h", layout.pieces(info.energy, doprint, room)))
+    space = room([doprint(s) for s in info.momentum_symbols])
+    rows = [Row(doprint(s), layout.pieces(p, doprint, space)) for s, p in zip(info.momentum_symbols, info.momenta, strict=True)]
+    rows.append(Row("h", layout.pieces(info.energy, doprint, space)))
     if info.hamiltonian is not None:
-        rows.append(Row("H", layout.pieces(tidy(info.hamiltonian), doprint, room)))
+        rows.append(Row("H", layout.pieces(tidy(info.hamiltonian), doprint, space)))
     momenta = dict(zip(model.coordinates, info.momentum_symbols, strict=True))
     conserved = ", ".join(f"${doprint(momenta[c])}$" for c in info.ignorable) or "none"
     return comment(f"{model.title}: momenta and conserved quantities") + align(rows) + comment(f"conserved momenta: {conserved}; h conserved: {_yes(info.energy_conserved)}")

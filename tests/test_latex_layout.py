@@ -199,3 +199,27 @@ def test_hamiltonian_common_factors_pulled_out() -> None:
     assert tidy(h) == -g * length * m * (sp.cos(phi) + 2 * sp.cos(theta))
     model = model_from(next(p for p in SYSTEMS if p.stem == "double_pendulum"))
     assert "-g*l*m*(cos(phi) + 2*cos(theta))" in report.info_text(model, info(model))
+
+
+def _nested_fractions(tex: str) -> list[str]:
+    """Each `\\frac` argument that holds another `\\frac` (a fraction at script size)."""
+    found = []
+    for match in re.finditer(r"\\frac\{", tex):
+        depth, end = 1, match.end()
+        for _ in range(2):
+            while depth and end < len(tex):
+                depth += {"{": 1, "}": -1}.get(tex[end], 0)
+                end += 1
+            depth, end = (1, end + 1) if tex.startswith("{", end) else (0, end)
+        if "\\frac{" in tex[match.end() : end]:
+            found.append(tex[match.start() : end])
+    return found
+
+
+@pytest.mark.parametrize("name", ["kepler", "charged_particle_magnetic", "harmonic_oscillator", "damped_oscillator_rayleigh"])
+def test_hamiltonian_has_no_fraction_inside_a_fraction(name: str, models: dict[str, Model]) -> None:
+    model = models[name]
+    tex = report.info_latex(model, info(model))
+    assert not _nested_fractions(tex), _nested_fractions(tex)
+    hamiltonian = info(model).hamiltonian
+    assert hamiltonian is not None and sp.simplify(tidy(hamiltonian) - hamiltonian) == 0

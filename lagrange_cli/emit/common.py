@@ -37,7 +37,8 @@ def tidy(expr: sp.Expr) -> sp.Expr:
     """`expr` as a reader expects it, by bounded, targeted steps (never a blanket simplify): the
     terms without a denominator expanded and their common factors pulled out
     (`-g l m (cos(phi) + cos(theta)) - g l m cos(theta)` -> `-g l m (cos(phi) + 2 cos(theta))`),
-    and every quotient with positive leading denominators (`positive_denominator`). Left as it
+    every quotient over a single denominator, with positive leading denominators
+    (`positive_denominator`). Left as it
     is when larger than `TIDY_OPS` operations."""
     if sp.count_ops(expr) > TIDY_OPS:
         return expr
@@ -45,7 +46,17 @@ def tidy(expr: sp.Expr) -> sp.Expr:
     quotients: list[sp.Expr] = []
     for term in sp.Add.make_args(expr):
         (plain if sp.fraction(term)[1] == 1 else quotients).append(term)
-    return sp.Add(sp.factor_terms(expand_bounded(sp.Add(*plain))), *(positive_denominator(q) for q in quotients))
+    return sp.Add(sp.factor_terms(expand_bounded(sp.Add(*plain))), *(positive_denominator(_unnested(q)) for q in quotients))
+
+
+def _unnested(quotient: sp.Expr) -> sp.Expr:
+    """A quotient over one denominator when its numerator or denominator holds quotients
+    itself (`(-k + (p**2 + ...)/(2*m*r))/r` -> `(-2*k*m*r + p**2 + ...)/(2*m*r**2)`), so that
+    no fraction is printed inside another at script size."""
+    parts = sp.fraction(quotient)
+    if any(sp.fraction(term)[1] != 1 for part in parts for term in sp.Add.make_args(part)):
+        return sp.together(quotient)
+    return quotient
 
 
 def positive_denominator(expr: sp.Expr) -> sp.Expr:

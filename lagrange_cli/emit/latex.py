@@ -45,15 +45,17 @@ def emit(model: Model, form: str = "lagrange", standalone: bool = False) -> str:
     every line fits a standard article (see `layout`)."""
     doprint = names(model).printer().doprint
     if form == "lagrange":
-        rows = [Row("", layout.terms(terms, doprint, _ROOM), zero=True) for terms in lagrange_terms(model)]
-        rows += [Row("", layout.pieces(expr, doprint, _ROOM), zero=True) for _, expr in constraint_equations(model)]
+        space = room()
+        rows = [Row("", layout.terms(terms, doprint, space), zero=True) for terms in lagrange_terms(model)]
+        rows += [Row("", layout.pieces(expr, doprint, space), zero=True) for _, expr in constraint_equations(model)]
         body = align(rows)
     elif form == "matrix":
         check_invertible(model)
         body = _matrix_form(model, doprint)
     else:
         values = [tidy(v) for v in solved_accelerations(model)]
-        body = align([Row(doprint(s), layout.pieces(v, doprint, _ROOM)) for s, v in zip((*model.qdd, *model.multipliers), values, strict=True)])
+        lhs = [doprint(s) for s in (*model.qdd, *model.multipliers)]
+        body = align([Row(name, layout.pieces(v, doprint, room(lhs))) for name, v in zip(lhs, values, strict=True)])
     header = comment(f"{model.title}: {'Lagrange' if form == 'lagrange' else form} form, from {Path(model.source).name}")
     if not standalone:
         return header + body
@@ -66,9 +68,15 @@ def emit(model: Model, form: str = "lagrange", standalone: bool = False) -> str:
 
 # --- layout ------------------------------------------------------------------------------------
 
-# The room a piece may take before the line breaker splits it further (a quarter of the line
-# goes to the left-hand side and the indent).
-_ROOM = layout.LINE_WIDTH * 0.7
+_EQUALS = layout.width("a = 0") - layout.width("a")
+
+
+def room(lhs: Sequence[str] = ()) -> float:
+    """The width of a continuation line in an `align` whose left-hand sides are `lhs` (none: rows
+    `... &= 0`): a piece wider than this is split further."""
+    if not lhs:
+        return layout.LINE_WIDTH - _EQUALS - layout.QUAD
+    return layout.LINE_WIDTH - max(layout.width(tex) for tex in lhs) - layout.QUAD
 
 
 @dataclass(frozen=True)
@@ -88,7 +96,7 @@ def align(rows: Sequence[Row]) -> str:
     aligned block of lines (`\\begin{aligned}[b]`) left of the `=`. Lines are broken so that
     the widest left column plus any line fits `layout.LINE_WIDTH`. Between rows of a long
     environment, a page may break."""
-    equals = layout.width("a = 0") - layout.width("a")
+    equals = _EQUALS
     left = max((layout.width(row.lhs) for row in rows if row.lhs), default=0.0)
     if any(row.zero for row in rows):
         left = max(left, layout.LINE_WIDTH - equals)
@@ -154,16 +162,18 @@ def _matrix_entries(model: Model, doprint: layout.Printer, entries: dict[tuple[i
     def index(*ij: int) -> str:
         return ("," if max(n, k) > 9 else "").join(str(i + 1) for i in ij)
 
+    space = room([rf"\mathbf{{M}} {bold_q}", rf"\mathbf{{M}}_{{{index(n - 1, n - 1)}}}", rf"\mathbf{{A}}_{{{index(max(k - 1, 0), n - 1)}}}"])
+
     for i in range(n):
         for j in range(i, n):
             entry, tex = entries[i, j]
-            fits = layout.width(tex) <= _ROOM
-            rows.append(Row(rf"\mathbf{{M}}_{{{index(i, j)}}}", [layout.piece(tex)] if fits else layout.pieces(entry, doprint, _ROOM)))
+            fits = layout.width(tex) <= space
+            rows.append(Row(rf"\mathbf{{M}}_{{{index(i, j)}}}", [layout.piece(tex)] if fits else layout.pieces(entry, doprint, space)))
     rows.append(Row("", [layout.piece(r"\mathbf{M}_{ji} = \mathbf{M}_{ij}")]))
-    rows += [Row(rf"\mathbf{{F}}_{{{index(i)}}}", layout.pieces(model.forcing[i], doprint, _ROOM)) for i in range(n)]
+    rows += [Row(rf"\mathbf{{F}}_{{{index(i)}}}", layout.pieces(model.forcing[i], doprint, space)) for i in range(n)]
     for r, c in enumerate(model.constraints):
-        rows += [Row(rf"\mathbf{{A}}_{{{index(r, j)}}}", layout.pieces(sp.factor_terms(a), doprint, _ROOM)) for j, a in enumerate(c.jacobian) if a != 0]
-        rows.append(Row(rf"\mathbf{{c}}_{{{index(r)}}}", layout.pieces(c.acceleration_bias, doprint, _ROOM)))
+        rows += [Row(rf"\mathbf{{A}}_{{{index(r, j)}}}", layout.pieces(sp.factor_terms(a), doprint, space)) for j, a in enumerate(c.jacobian) if a != 0]
+        rows.append(Row(rf"\mathbf{{c}}_{{{index(r)}}}", layout.pieces(c.acceleration_bias, doprint, space)))
     return align(rows)
 
 
