@@ -60,7 +60,7 @@ def emit(model: Model, form: str = "lagrange", standalone: bool = False) -> str:
     if not standalone:
         return header + body
     return (
-        f"{header}\\documentclass{{article}}\n\\usepackage{{amsmath}}\n\\usepackage[margin=2cm]{{geometry}}\n\\begin{{document}}\n\\section*{{{escape_text(model.title)}}}\n"
+        f"{header}\\documentclass{{article}}\n\\usepackage{{amsmath}}\n\\usepackage[margin=2cm]{{geometry}}\n\\allowdisplaybreaks\n\\begin{{document}}\n\\section*{{{escape_text(model.title)}}}\n"
         + body
         + "\\end{document}\n"
     )
