@@ -151,6 +151,16 @@ def test_delimiters_balance_on_every_line() -> None:
         assert row.count(r"\left") == row.count(r"\right"), row
 
 
+@pytest.mark.parametrize("sign", [1, -1])
+def test_a_broken_quotient_keeps_its_sign_in_front(sign: int) -> None:
+    x = sp.symbols("x0:30")
+    expr = sign * sp.Symbol("m") * sp.Add(*(xi * sp.cos(xi) for xi in x)) / (x[0] + x[1])
+    doprint = LatexPrinter().doprint
+    text = " ".join(layout.lines(layout.pieces(expr, doprint, 40.0), 50.0, 45.0))
+    assert text.startswith(r"- \frac{1}{x_{0} + x_{1}} m \left(" if sign < 0 else r"\frac{1}{x_{0} + x_{1}} m \left(")
+    assert text.count(" - ") == 0
+
+
 def test_layout_is_linear_in_the_output(models: dict[str, Model]) -> None:
     """Each term is printed once: laying out takes one doprint call per term (plus the few
     sums and products it looks inside), not one per line or per pair of terms."""

@@ -291,6 +291,9 @@ def pieces(expr: sp.Expr, doprint: Printer, room: float) -> list[Piece]:
     measured = piece(doprint(expr))
     if measured.width <= room:
         return [measured]
+    if expr.could_extract_minus_sign():  # the sign goes in front: - \frac{1}{D} (...), not \frac{1}{D} - (...)
+        inner = _term(-expr, doprint, room)
+        return [Piece("- " + inner[0].tex, inner[0].width + _UNARY), *inner[1:]] if inner else [measured]
     return _term(expr, doprint, room) or [measured]
 
 
@@ -329,9 +332,11 @@ def _term(expr: sp.Expr, doprint: Printer, room: float) -> list[Piece] | None:
             return None
         bottom_tex = doprint(denominator)
         if width(bottom_tex) <= room / 2:
-            return _wrap(top, rf"\frac{{1}}{{{bottom_tex}}} ", "")
+            prefix = rf"\frac{{1}}{{{bottom_tex}}} "
+            # a sum is wrapped in parentheses; a product's pieces already hold its own
+            return _wrap(top, prefix, "") if isinstance(numerator, sp.Add) else [piece(prefix + top[0].tex), *top[1:]]
         bottom = pieces(denominator, doprint, room)
-        return [*_wrap(top, "", ""), *_wrap(bottom, "/ ", "")]
+        return [*(_wrap(top, "", "") if isinstance(numerator, sp.Add) else top), *_wrap(bottom, "/ ", "")]
     if not isinstance(expr, sp.Mul):
         if isinstance(expr, sp.Pow) and isinstance(expr.base, sp.Add) and expr.exp.is_Integer and expr.exp > 0:
             return _wrap(_sum(expr.base, doprint, room), "", f"^{{{doprint(expr.exp)}}}")
