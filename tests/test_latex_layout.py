@@ -1,7 +1,7 @@
-"""LaTeX fits the page: every bundled system and a 6-link chain with its own masses and lengths,
-in every form and through `info --latex`, compiled inside a standard `article` (default margins)
-and as `--standalone` documents, leave no `Overfull \\hbox` over 1 pt in pdflatex's log. Then,
-without pdflatex, the width estimate and the line breaker."""
+"""LaTeX fits the page: every bundled system (and those of tests/unseen) and a 6-link chain with
+its own masses and lengths, in every form and through `info --latex`, compiled inside a standard
+`article` (default margins) and as `--standalone` documents, leave no `Overfull \\hbox` over 1 pt
+in pdflatex's log. Then, without pdflatex, the width estimate and the line breaker."""
 
 from __future__ import annotations
 
@@ -42,7 +42,8 @@ def chain(n: int) -> str:
 
 @pytest.fixture(scope="module")
 def models() -> dict[str, Model]:
-    found = {path.stem: model_from(path) for path in SYSTEMS}
+    unseen = sorted((Path(__file__).parent / "unseen").glob("*.yaml"))  # e.g. a spring whose length is a square root
+    found = {path.stem: model_from(path) for path in [*SYSTEMS, *unseen]}
     found["chain_6_own"] = model_of(chain(6), "chain_6_own.yaml")
     return found
 

@@ -328,17 +328,20 @@ def _term(expr: sp.Expr, doprint: Printer, room: float) -> list[Piece] | None:
     numerator, denominator = sp.fraction(expr, exact=True)
     if denominator != 1:
         top = pieces(numerator, doprint, room)
-        if len(top) == 1:
-            return None
+        # a sum is wrapped in parentheses; a product's pieces already hold their own
+        wrapped = _wrap(top, "", "") if isinstance(numerator, sp.Add) else top
         bottom_tex = doprint(denominator)
         if width(bottom_tex) <= room / 2:
+            if len(top) == 1:
+                return None
             prefix = rf"\frac{{1}}{{{bottom_tex}}} "
-            # a sum is wrapped in parentheses; a product's pieces already hold its own
             return _wrap(top, prefix, "") if isinstance(numerator, sp.Add) else [piece(prefix + top[0].tex), *top[1:]]
         bottom = pieces(denominator, doprint, room)
-        return [*(_wrap(top, "", "") if isinstance(numerator, sp.Add) else top), *_wrap(bottom, "/ ", "")]
+        if len(top) == 1 and len(bottom) == 1:
+            return None
+        return [*wrapped, *(_wrap(bottom, "/ ", "") if isinstance(denominator, sp.Add) or len(bottom) == 1 else [piece("/ " + bottom[0].tex), *bottom[1:]])]
     if not isinstance(expr, sp.Mul):
-        if isinstance(expr, sp.Pow) and isinstance(expr.base, sp.Add) and expr.exp.is_Integer and expr.exp > 0:
+        if isinstance(expr, sp.Pow) and isinstance(expr.base, sp.Add) and expr.exp.is_Rational and expr.exp > 0:
             return _wrap(_sum(expr.base, doprint, room), "", f"^{{{doprint(expr.exp)}}}")
         return None
     factors = list(expr.args)
@@ -348,7 +351,7 @@ def _term(expr: sp.Expr, doprint: Printer, room: float) -> list[Piece] | None:
     prefix = "" if rest == 1 else "- " if rest == -1 else doprint(rest) + " "
     if isinstance(target, sp.Add):
         return _wrap(_sum(target, doprint, room), prefix, "")
-    if isinstance(target, sp.Pow) and isinstance(target.base, sp.Add) and target.exp.is_Integer and target.exp > 0:
+    if isinstance(target, sp.Pow) and isinstance(target.base, sp.Add) and target.exp.is_Rational and target.exp > 0:
         return _wrap(_sum(target.base, doprint, room), prefix, f"^{{{doprint(target.exp)}}}")
     return None
 
