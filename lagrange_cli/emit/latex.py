@@ -164,17 +164,31 @@ def _matrix_entries(model: Model, doprint: layout.Printer, entries: dict[tuple[i
 
     space = room([rf"\mathbf{{M}} {bold_q}", rf"\mathbf{{M}}_{{{index(n - 1, n - 1)}}}", rf"\mathbf{{A}}_{{{index(max(k - 1, 0), n - 1)}}}"])
 
+    zero = False
     for i in range(n):
         for j in range(i, n):
             entry, tex = entries[i, j]
+            if entry == 0:
+                zero = True
+                continue
             fits = layout.width(tex) <= space
             rows.append(Row(rf"\mathbf{{M}}_{{{index(i, j)}}}", [layout.piece(tex)] if fits else layout.pieces(entry, doprint, space)))
-    rows.append(Row("", [layout.piece(r"\mathbf{M}_{ji} = \mathbf{M}_{ij}")]))
-    rows += [Row(rf"\mathbf{{F}}_{{{index(i)}}}", layout.pieces(model.forcing[i], doprint, space)) for i in range(n)]
+    rows.append(Row("", [layout.piece(r"\mathbf{M}_{ji} = \mathbf{M}_{ij}" + (r", \quad \mathrm{other}\ \mathbf{M}_{ij} = 0" if zero else ""))]))
+    rows += [Row(rf"\mathbf{{F}}_{{{index(i)}}}", layout.pieces(_compact(model.forcing[i]), doprint, space)) for i in range(n)]
     for r, c in enumerate(model.constraints):
         rows += [Row(rf"\mathbf{{A}}_{{{index(r, j)}}}", layout.pieces(sp.factor_terms(a), doprint, space)) for j, a in enumerate(c.jacobian) if a != 0]
-        rows.append(Row(rf"\mathbf{{c}}_{{{index(r)}}}", layout.pieces(c.acceleration_bias, doprint, space)))
+        rows.append(Row(rf"\mathbf{{c}}_{{{index(r)}}}", layout.pieces(_compact(c.acceleration_bias), doprint, space)))
     return align(rows)
+
+
+# Common factors are pulled out of matrix entries up to this many nodes (factor_terms is
+# near-linear but not free: the forcing of a 15-link chain would cost seconds).
+COMPACT_NODES = 500
+
+
+def _compact(expr: sp.Expr) -> sp.Expr:
+    small = all(k < COMPACT_NODES for k, _ in enumerate(sp.preorder_traversal(expr)))
+    return sp.factor_terms(expr) if small else expr
 
 
 def _vector(symbols: Sequence[sp.Symbol], doprint: layout.Printer) -> list[layout.Piece]:
