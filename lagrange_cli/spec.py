@@ -158,19 +158,32 @@ def resolve(name: str) -> Path:
     raise fail(None, f"no such file: {shown(name)}, and no bundled system of that name", f"a path to a .yaml file or one of: {', '.join(known)}" + (f" (did you mean '{hint}'?)" if hint else ""))
 
 
+def shown_name(path: str | Path) -> str:
+    """How messages and reports name a system file: a bundled one (an absolute path into the
+    installed package, as `resolve` finds it) as `systems/<name>.yaml`, any other path as given."""
+    text = str(path)
+    if os.path.isabs(text):
+        folder = bundled_systems()
+        if Path(text).parent == folder:
+            return f"{folder.name}/{Path(text).name}"
+    return text
+
+
 def load(path: str | Path) -> SystemSpec:
     """Read and validate a system file; raises `SpecError` listing every problem. Only a regular
-    file is read (a FIFO, a device or a directory is refused) and at most MAX_FILE_BYTES of it."""
+    file is read (a FIFO, a device or a directory is refused) and at most MAX_FILE_BYTES of it.
+    Messages and the spec name it by `shown_name`."""
     from lagrange_cli.files import read_limited
 
     raw = read_limited(path, MAX_FILE_BYTES)
+    name = shown_name(path)
     if len(raw) > MAX_FILE_BYTES:
-        raise fail(Span(str(path), 1, 1), f"file is over {MAX_FILE_BYTES} bytes", f"a system file under {MAX_FILE_BYTES} bytes")
+        raise fail(Span(name, 1, 1), f"file is over {MAX_FILE_BYTES} bytes", f"a system file under {MAX_FILE_BYTES} bytes")
     try:
         text = raw.decode("utf-8")
     except UnicodeDecodeError as exc:
-        raise fail(Span(str(path), 1, 1), f"file is not UTF-8 (byte {exc.start})", "a UTF-8 text file") from None
-    return parse(text, str(path))
+        raise fail(Span(name, 1, 1), f"file is not UTF-8 (byte {exc.start})", "a UTF-8 text file") from None
+    return parse(text, name)
 
 
 def parse(text: str, filename: str = "<string>") -> SystemSpec:

@@ -14,7 +14,6 @@ if TYPE_CHECKING:
     import sympy as sp
 
     from lagrange_cli import analysis
-    from lagrange_cli.errors import Span
     from lagrange_cli.model import Model
 
 
@@ -48,7 +47,9 @@ def info(
 @app.command()
 def equilibria(
     file: Annotated[str, typer.Argument(help="A system file, or the name of a bundled system.")],
-    ranges: Annotated[list[str] | None, typer.Option("--range", help="Search range for a numeric search, e.g. theta=-3.2..3.2 (default -pi..pi).")] = None,
+    ranges: Annotated[
+        list[str] | None, typer.Option("--range", help="Search ranges for a numeric search: name=low..high, repeated or separated by commas, e.g. theta=-3.2..3.2 (default -pi..pi).")
+    ] = None,
     as_json: Annotated[bool, typer.Option("--json", help="JSON instead of text.")] = False,
 ) -> None:
     """Equilibrium points (symbolic where possible, else numeric), each with its stability."""
@@ -59,7 +60,7 @@ def equilibria(
 
     try:
         model = _model(file)
-        bounds = {_coordinate(model, name): (low, high) for name, low, high in (_range(r) for r in ranges or [])}
+        bounds = _ranges(model, ranges)
         points = analysis.equilibria(model, bounds)
         steady = analysis.steady_motions(model)
         results: list[tuple[dict[sp.Symbol, sp.Expr], analysis.Linearization | str]] = []
@@ -87,7 +88,7 @@ def equilibria(
 @app.command()
 def linearize(
     file: Annotated[str, typer.Argument(help="A system file, or the name of a bundled system.")],
-    about: Annotated[str, typer.Option("--about", help="The equilibrium, e.g. theta=0,phi=pi (unnamed coordinates are 0).")] = "",
+    about: Annotated[list[str] | None, typer.Option("--about", help="The equilibrium: name=value, repeated or separated by commas, e.g. theta=0,phi=pi (unnamed coordinates are 0).")] = None,
     as_json: Annotated[bool, typer.Option("--json", help="JSON instead of text.")] = False,
 ) -> None:
     """The linearization M0 x_ddot + C0 x_dot + K0 x = 0 about an equilibrium, its stability and normal modes."""
@@ -104,54 +105,31 @@ def linearize(
     output(json.dumps(report.linearization_json(model, lin), indent=2) + "\n" if as_json else report.linearization_text(model, lin), None)
 
 
-def _coordinate(model: Model, name: str) -> sp.Symbol:
+def _point(model: Model, about: list[str] | None) -> dict[sp.Symbol, sp.Expr]:
+    """The coordinates' values of `--about` (exact: pi stays pi)."""
+    from lagrange_cli.cli.boundary import assignments, check_names, constant
+
+    items = assignments("--about", about, f"{model.coordinates[0]}=0")
+    check_names(items, list(model.coordinates), "coordinate", model.source)
+    return {model.q[model.coordinates.index(item.name)]: constant(item, f"the value of '{item.name}'")[0] for item in items}
+
+
+def _ranges(model: Model, ranges: list[str] | None) -> dict[sp.Symbol, tuple[float, float]]:
+    """The search box of `--range name=low..high`, each range checked to be finite and not empty."""
+    from lagrange_cli.cli.boundary import assignments, check_names, constant
     from lagrange_cli.errors import fail
 
-    if name not in model.coordinates:
-        raise fail(None, f"'{name}' is not a coordinate of {model.source}", "one of " + ", ".join(model.coordinates))
-    return model.q[model.coordinates.index(name)]
-
-
-def _value(text: str, what: str, span: Span) -> sp.Expr:
-    """A constant such as 0, pi/2 or -1.5, parsed safely; `span` places `text` in its option's
-    value, so that a mistake is shown with the option's name and a caret."""
-    import sympy as sp
-
-    from lagrange_cli.errors import fail
-    from lagrange_cli.expr import Scope, numeric_value, parse_expression
-
-    value = parse_expression(text, span, Scope({}, {}, sp.Symbol("t"), lambda e: e, what="numbers, pi and E"))
-    if not value.is_number:
-        raise fail(span, f"{what} must be a number, got '{text.strip()}'", "a number such as 0, pi/2 or -1.5")
-    try:
-        numeric_value(value)
-    except (ValueError, OverflowError, TypeError):
-        raise fail(span, f"{what} must be a finite real number, got '{text.strip()}'", "a number such as 0, pi/2 or -1.5") from None
-    return value
-
-
-def _point(model: Model, about: str) -> dict[sp.Symbol, sp.Expr]:
-    from lagrange_cli.errors import Span, fail
-
-    point = {}
-    for item in filter(None, (part.strip() for part in about.split(","))):
-        name, sep, text = item.partition("=")
-        if not sep:
-            raise fail(Span("--about", 1, 1, item), f"'{item}' in --about is not of the form name=value", "e.g. --about theta=0,phi=pi")
-        point[_coordinate(model, name.strip())] = _value(text, f"the value of '{name.strip()}'", Span("--about", 1, len(name) + 2, item))
-    return point
-
-
-def _range(text: str) -> tuple[str, float, float]:
-    from lagrange_cli.errors import Span, fail
-    from lagrange_cli.expr import numeric_value
-
-    name, sep, span = text.partition("=")
-    low, dots, high = span.partition("..")
-    if not sep or not dots:
-        raise fail(Span("--range", 1, 1, text), f"'{text}' is not a range", "name=low..high, e.g. theta=-3.2..3.2")
-    first = numeric_value(_value(low, "a range bound", Span("--range", 1, len(name) + 2, text)))
-    second = numeric_value(_value(high, "a range bound", Span("--range", 1, len(name) + len(low) + 4, text)))
-    if not first < second:
-        raise fail(Span("--range", 1, len(name) + 2, text), f"the range {text!r} is empty: its low end must be below its high end", "name=low..high with low < high, e.g. theta=-3.2..3.2")
-    return name.strip(), first, second
+    items = assignments("--range", ranges, f"{model.coordinates[0]}=-3.2..3.2")
+    check_names(items, list(model.coordinates), "coordinate", model.source)
+    bounds = {}
+    expected = "name=low..high with low < high, e.g. theta=-3.2..3.2"
+    for item in items:
+        low, dots, high = item.value.partition("..")
+        if not dots:
+            raise fail(item.span(), f"'{item.value.strip()}' is not a range", expected)
+        first = constant(item, "a range bound", low)[1]
+        second = constant(item, "a range bound", high, len(low) + 2)[1]
+        if not first < second:
+            raise fail(item.span(), f"the range '{item.name}={item.value.strip()}' is empty: its low end must be below its high end", expected)
+        bounds[model.q[model.coordinates.index(item.name)]] = (first, second)
+    return bounds

@@ -122,17 +122,21 @@ def _system_files(paths: list[str]) -> list[Path]:
 
 
 def _check_file(checker: Any, path: Path) -> Any:
-    """`check.check_file`, with a bug in it reported for this file (exit 2) instead of a traceback."""
+    """`check.check_file`, with a bug in it reported for this file (exit 2) instead of a traceback;
+    the report names the file as messages do (a bundled system as `systems/<name>.yaml`)."""
+    import dataclasses
     import os
 
     from lagrange_cli.cli.boundary import DEBUG_VARIABLE, internal_error
+    from lagrange_cli.spec import shown_name
 
+    name = shown_name(path)
     try:
-        return checker.check_file(str(path))
+        return dataclasses.replace(checker.check_file(str(path)), path=name)
     except Exception as error:  # the safety net, per file
         if os.environ.get(DEBUG_VARIABLE) == "1":
             raise
-        return checker.FileReport(str(path), error=internal_error(str(path), error))
+        return checker.FileReport(name, error=internal_error(name, error))
 
 
 def escape(text: str) -> str:

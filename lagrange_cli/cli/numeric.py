@@ -23,8 +23,8 @@ PROGRESS_AFTER = 1.0  # seconds before a progress bar appears (on a terminal onl
 def simulate(
     file: Annotated[str, typer.Argument(help="A system file, or the name of a bundled system (e.g. double_pendulum).")],
     t_end: Annotated[float | None, typer.Option("--t-end", help="Final time (default: the file's simulate.t_end, else 10).", callback=check_positive)] = None,
-    set_: Annotated[list[str] | None, typer.Option("--set", help="Override a parameter: name=value (repeatable).")] = None,
-    initial: Annotated[list[str] | None, typer.Option("--initial", help="Override initial values: q=value,q_dot=value (repeatable).")] = None,
+    set_: Annotated[list[str] | None, typer.Option("--set", help="Override parameters: name=value, repeated or separated by commas (k=1,m=2).")] = None,
+    initial: Annotated[list[str] | None, typer.Option("--initial", help="Override initial values: q=value,q_dot=value, repeated or separated by commas.")] = None,
     method: Annotated[str | None, typer.Option(help="auto, RK45, DOP853, Radau, BDF, LSODA or symplectic.")] = None,
     backend: Annotated[str, typer.Option(help="auto, compiled (numba) or python (scipy).")] = "auto",
     rtol: Annotated[float | None, typer.Option(help="Relative tolerance of adaptive methods (default 1e-8).", callback=check_fraction)] = None,
@@ -77,24 +77,17 @@ def simulate(
 
 
 def _assignments(model: Model, items: list[str], option: str) -> dict[str, float]:
-    """`name=value` pairs (comma-separated or repeated); values are constant expressions such as pi/2."""
-    import sympy as sp
+    """`name=value` pairs (repeated or separated by commas) of `--set` (parameters) or `--initial`
+    (coordinates and velocities); values are constant expressions such as pi/2."""
+    from lagrange_cli.cli.boundary import assignments, check_names, constant
 
-    from lagrange_cli.errors import LagrangeError, Span
-    from lagrange_cli.expr import Scope, numeric_value, parse_expression
-
-    result: dict[str, float] = {}
-    scope = Scope({}, {}, sp.Symbol("t"), lambda e: e, what="a number, `pi`, `E` or a function of them")
-    for item in (part.strip() for entry in items for part in entry.split(",")):
-        name, equals, text = item.partition("=")
-        if not equals or not name.strip() or not text.strip():
-            raise LagrangeError(f"{option} {item!r}: expected name=value, e.g. {option} {(model.coordinates[0] if option == '--initial' else 'g')}=1.5")
-        expr = parse_expression(text, Span(option, 1, len(name) + 2, item), scope)
-        try:
-            result[name.strip()] = numeric_value(expr)
-        except (ValueError, OverflowError) as error:
-            raise LagrangeError(f"{option} {item!r}: the value is not a finite real number ({error})") from None
-    return result
+    if option == "--initial":
+        names, kind, example = [*model.coordinates, *(f"{c}_dot" for c in model.coordinates)], "coordinate or velocity", f"{model.coordinates[0]}=0.5,{model.coordinates[0]}_dot=0"
+    else:
+        names, kind, example = [p.name for p in model.parameters], "parameter", f"{model.parameters[0].name if model.parameters else 'g'}=1.5"
+    parsed = assignments(option, items, example)
+    check_names(parsed, names, kind, model.source)
+    return {item.name: constant(item, f"the value of '{item.name}'")[1] for item in parsed}
 
 
 def _write(trajectory: Trajectory, output_path: Path | None, plot: Path | None) -> None:

@@ -15,6 +15,7 @@ from lagrange_cli.cli.boundary import check_fraction, check_positive, check_repe
 if TYPE_CHECKING:
     from rich.console import Console
 
+    from lagrange_cli.cli.boundary import Item
     from lagrange_cli.model import Model
     from lagrange_cli.numeric.accuracy import Candidate, Study
     from lagrange_cli.numeric.stress import Outcome, Report
@@ -59,20 +60,23 @@ def _tolerances(text: str | None) -> list[float] | None:
     return values
 
 
-def _scales(items: list[str]) -> list[tuple[str, tuple[float, ...]]]:
-    """Each `--scale name=values` parsed, its values finite and at most MAX_LADDER of them."""
+def _scales(entries: list[str]) -> list[tuple[Item, tuple[float, ...]]]:
+    """Each `--scale name=values` item (repeated or separated by commas: `k=1e2..1e8,m=1,2`) parsed,
+    its values finite and at most MAX_LADDER of them."""
+    from lagrange_cli.cli.boundary import assignments
     from lagrange_cli.errors import LagrangeError
     from lagrange_cli.numeric.stress import parse_scale
 
     result = []
-    for item in items:
-        given = item.partition("=")[2].replace("..", ",").split(",")
+    for item in assignments("--scale", entries, "k=1e2..1e8", lists=True):
+        text = f"{item.name}={item.value.strip()}"
+        given = item.value.replace("..", ",").split(",")
         if not all(math.isfinite(_number(v)) for v in given):  # before the decades of low..high are counted
-            raise LagrangeError(f"error: --scale {plain(repr(item))}: every value must be a finite number\n  expected: name=low..high (both positive) or name=v1,v2,..., e.g. --scale k=1e2..1e8")
-        name, values = parse_scale(item)
+            raise LagrangeError(f"error: --scale {plain(repr(text))}: every value must be a finite number\n  expected: name=low..high (both positive) or name=v1,v2,..., e.g. --scale k=1e2..1e8")
+        values = parse_scale(text)[1]
         if len(values) > MAX_LADDER:
-            raise LagrangeError(f"error: --scale {plain(repr(item))}: {len(values)} values\n  expected: at most {MAX_LADDER}")
-        result.append((name, values))
+            raise LagrangeError(f"error: --scale {plain(repr(text))}: {len(values)} values\n  expected: at most {MAX_LADDER}")
+        result.append((item, values))
     return result
 
 
@@ -106,8 +110,8 @@ def accuracy(
     method: Annotated[list[str] | None, typer.Option("--method", help="Methods to study (repeatable or comma-separated; METHOD:python forces scipy). Default: all.")] = None,
     tolerances: Annotated[str | None, typer.Option(help="rtol ladder, e.g. 1e-3..1e-8 (every decade) or 1e-4,1e-6 (default 1e-3..1e-8).")] = None,
     t_end: Annotated[float | None, typer.Option("--t-end", help="Final time (default: the file's).", callback=check_positive)] = None,
-    set_: Annotated[list[str] | None, typer.Option("--set", help="Override a parameter: name=value (repeatable).")] = None,
-    initial: Annotated[list[str] | None, typer.Option("--initial", help="Override initial values: q=value (repeatable).")] = None,
+    set_: Annotated[list[str] | None, typer.Option("--set", help="Override parameters: name=value, repeated or separated by commas (k=1,m=2).")] = None,
+    initial: Annotated[list[str] | None, typer.Option("--initial", help="Override initial values: q=value,q_dot=value, repeated or separated by commas.")] = None,
     samples: Annotated[int, typer.Option(help="Evenly spaced times the RMS error is taken over.", callback=check_samples)] = 201,
     repeats: Annotated[int, typer.Option(help="Timed runs after the warm-up (fewer for slow runs).", callback=check_repeats)] = 3,
     budget: Annotated[float, typer.Option(help="Seconds after which one run is stopped and reported as over budget.", callback=check_positive)] = 20.0,
@@ -225,7 +229,7 @@ def _report_study(result: Study, to_stderr: bool) -> None:
 @app.command()
 def stress(
     file: Annotated[str, typer.Argument(help="A system file, or the name of a bundled system (e.g. stiff_spring_pendulum_damped).")],
-    scale: Annotated[list[str] | None, typer.Option("--scale", help="Sweep a parameter: k=1e2..1e8 (every decade) or k=1,10,100 (repeatable).")] = None,
+    scale: Annotated[list[str] | None, typer.Option("--scale", help="Sweep parameters: k=1e2..1e8 (every decade) or k=1,10,100, repeated or separated by commas (k=1..100,m=1,2).")] = None,
     accuracy_: Annotated[
         float | None, typer.Option("--accuracy", help="Required error; exit 1 when in some regime no method meets it (default: 1e-6, reported only).", callback=check_fraction)
     ] = None,
@@ -241,13 +245,15 @@ def stress(
     from lagrange_cli.errors import LagrangeError
 
     try:
+        from lagrange_cli.cli.boundary import check_names
         from lagrange_cli.numeric import stress as core
 
         scales = _scales(scale or [])  # before any work
         model = _model(file)
+        check_names([item for item, _ in scales], [p.name for p in model.parameters], "parameter", model.source)
         report = core.stress(
             model,
-            scales=scales,
+            scales=[(item.name, values) for item, values in scales],
             target=accuracy_ if accuracy_ is not None else 1e-6,
             candidates=_candidates(method),
             t_end=t_end,

@@ -10,7 +10,9 @@ same `cse_block` as the Python emitter:
   Aug dx = d(r - Aug x) = dPhi, Phi = [F + A^T lambda - M q_ddot; -c_s - A q_ddot];
 - `hamilton`: (q_dot, p_dot) at (q, p) for the symplectic integrator: M q_dot = p - p(q, 0, t),
   p_dot = dL/dq - dR/dq_dot + Q;
-- `energy`, `momenta`, `residuals`, `event`: the monitored quantities and the stop condition.
+- `energy`, `momenta`, `residuals`, `event`: the monitored quantities and the stop condition; a
+  constraint's residual (its drift) is f(q, t) when holonomic and a(q, t) . q_dot + b(q, t) for a
+  velocity constraint, whose `expr` is that expression (and so needs the velocities bound).
 
 Generated names start with `_`; user names are given identifiers by `emit.python.mangle`, which
 keeps them apart from each other, from Python's keywords and builtins, from `math` and from the
@@ -241,7 +243,7 @@ class Generator:
             parts += [
                 self.scalar("_energy", "The energy function h = sum p q_dot - L.", model.energy, False),
                 self.vector("_momenta", "The momenta of the ignorable coordinates.", [model.momenta[i] for i in ignorable(model)] or [sp.Integer(0)]),
-                self.vector("_residuals", "Each kept constraint's residual.", [c.expr for c in model.constraints] or [sp.Integer(0)]),
+                self.vector("_residuals", "Each kept constraint's residual: f(q, t), or a . q_dot + b for a velocity constraint.", [c.expr for c in model.constraints] or [sp.Integer(0)]),
                 self.vector("_canonical", "The momenta p = dL/dq_dot of every coordinate.", model.momenta),
             ]
         parts.append(stop)

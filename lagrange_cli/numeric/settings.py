@@ -107,7 +107,7 @@ def constraint_notes(model: Model, p: Sequence[float], y0: Sequence[float]) -> l
     if id(model) not in _ROWS:
         import sympy as sp
 
-        rows = [[c.expr, *c.jacobian, c.bias] for c in model.constraints]
+        rows = [[c.expr if c.holonomic else sp.Integer(0), *c.jacobian, c.bias] for c in model.constraints]  # a velocity row's expr has q_dot
         _ROWS[id(model)] = (model, sp.lambdify([model.t, *model.q, *(par.symbol for par in model.parameters)], rows, modules="math"))
     n = model.n
     q, qd = np.array(y0[:n], dtype=float), np.array(y0[n:], dtype=float)
@@ -248,6 +248,11 @@ def _choose(
 ) -> tuple[str, str, float | None, float, tuple[str, ...]]:
     """Resolve `auto` (method and backend) and the symplectic step, saying why in notes."""
     notes: list[str] = []
+    if method == "symplectic" and any(not c.holonomic for c in model.constraints):
+        name = next(c.name for c in model.constraints if not c.holonomic)
+        raise LagrangeError(
+            f"{model.source}: the symplectic method cannot integrate velocity constraint '{name}': a nonholonomic system has no canonical (q, p) form; use another --method (DOP853, RK45, Radau)"
+        )
     if method == "symplectic" and model.constraints:
         raise LagrangeError(f"{model.source}: the symplectic method needs a system without kept constraints; eliminate them (`eliminate:`) or use another --method")
     if step is not None and method not in ("auto", "symplectic"):
