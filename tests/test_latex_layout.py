@@ -1,4 +1,4 @@
-"""LaTeX fits the page: every bundled system (and those of tests/unseen) and a 6-link chain with
+"""LaTeX fits the page: every bundled system (and those of tests/unseen and tests/matrix) and a 6-link chain with
 its own masses and lengths, in every form and through `info --latex`, compiled inside a standard
 `article` (default margins) and as `--standalone` documents, leave no `Overfull \\hbox` over 1 pt
 in pdflatex's log. Then, without pdflatex, the width estimate and the line breaker."""
@@ -42,8 +42,9 @@ def chain(n: int) -> str:
 
 @pytest.fixture(scope="module")
 def models() -> dict[str, Model]:
-    unseen = sorted((Path(__file__).parent / "unseen").glob("*.yaml"))  # e.g. a spring whose length is a square root
-    found = {path.stem: model_from(path) for path in [*SYSTEMS, *unseen]}
+    # tests/unseen (a spring whose length is a square root, ...) and the feature systems of tests/matrix
+    more = sorted((Path(__file__).parent / "unseen").glob("*.yaml")) + sorted((Path(__file__).parent / "matrix").glob("*.yaml"))
+    found = {f"{path.parent.name}-{path.stem}": model_from(path) for path in [*SYSTEMS, *more]}
     found["chain_6_own"] = model_of(chain(6), "chain_6_own.yaml")
     return found
 
@@ -104,7 +105,7 @@ def test_three_link_chain_solved_form_fits(tmp_path: Path) -> None:
 @pytest.mark.latex
 @needs_pdflatex
 def test_standalone_documents_fit(models: dict[str, Model], tmp_path: Path) -> None:
-    documents = {f"{name}-{form}": latex.emit(models[name], form, standalone=True) for name in ("chain_6_own", "heavy_top") for form in ("lagrange", "matrix")}
+    documents = {f"{name}-{form}": latex.emit(models[name], form, standalone=True) for name in ("chain_6_own", "systems-heavy_top") for form in ("lagrange", "matrix")}
     too_wide = {name: width for name, width in overflows(tmp_path, "standalone", documents, standalone=True).items() if width > 1.0}
     assert not too_wide, too_wide
 
@@ -113,8 +114,9 @@ def test_standalone_documents_fit(models: dict[str, Model], tmp_path: Path) -> N
 
 
 def test_width_grows_with_the_text(models: dict[str, Model]) -> None:
-    doprint = latex.names(models["heavy_top"]).printer().doprint
-    pieces = [doprint(term) for term in sp.Add.make_args(sp.expand(models["heavy_top"].forcing[0] + models["heavy_top"].forcing[1]))]
+    top = models["systems-heavy_top"]
+    doprint = latex.names(top).printer().doprint
+    pieces = [doprint(term) for term in sp.Add.make_args(sp.expand(top.forcing[0] + top.forcing[1]))]
     sums = [" + ".join(pieces[:k]) for k in range(len(pieces) + 1)]
     for texts in [sums, *([tex[:end] for end in range(len(tex) + 1) if end == len(tex) or tex[end] == " "] for tex in [*pieces, " + ".join(pieces)])]:
         widths = [layout.width(t) for t in texts]
@@ -229,7 +231,7 @@ def _nested_fractions(tex: str) -> list[str]:
 
 @pytest.mark.parametrize("name", ["kepler", "charged_particle_magnetic", "harmonic_oscillator", "damped_oscillator_rayleigh"])
 def test_hamiltonian_has_no_fraction_inside_a_fraction(name: str, models: dict[str, Model]) -> None:
-    model = models[name]
+    model = models[f"systems-{name}"]
     tex = report.info_latex(model, info(model))
     assert not _nested_fractions(tex), _nested_fractions(tex)
     hamiltonian = info(model).hamiltonian

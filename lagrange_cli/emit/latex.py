@@ -145,7 +145,8 @@ def _matrix_form(model: Model, doprint: layout.Printer) -> str:
         if k:
             bias = sp.Matrix([row.acceleration_bias for row in model.constraints])
             rows.append((f"{doprint(model.constraint_matrix)} {doprint(qdd)} + {doprint(bias)}", "0"))
-        if all(layout.width(f"{a} = {b}") <= layout.LINE_WIDTH for a, b in rows):
+        # an align* is as wide as its widest left side plus its widest right side
+        if max(layout.width(a) for a, _ in rows) + _EQUALS + max(layout.width(b) for _, b in rows) <= layout.LINE_WIDTH:
             return "\\begin{align*}\n" + " \\\\\n".join(f"{a} &= {b}" for a, b in rows) + "\n\\end{align*}\n"
     return _matrix_entries(model, doprint, entries)
 
