@@ -8,8 +8,9 @@ import math
 import sympy as sp
 
 from lagrange_cli.analysis import Info, Linearization
-from lagrange_cli.emit.common import printable
-from lagrange_cli.emit.latex import comment
+from lagrange_cli.emit import layout
+from lagrange_cli.emit.common import printable, tidy
+from lagrange_cli.emit.latex import Row, align, comment, room
 from lagrange_cli.emit.latex import names as latex_names
 from lagrange_cli.model import Model
 
@@ -27,25 +28,22 @@ def info_text(model: Model, info: Info) -> str:
         lines.append("ignorable coordinates: none")
     lines.append(f"energy function h = sum p q_dot - L = {info.energy}")
     lines.append(f"h is conserved: {_yes(info.energy_conserved)}")
-    lines.append(f"Hamiltonian H(q, p) = {info.hamiltonian}" if info.hamiltonian is not None else f"Hamiltonian: {info.hamiltonian_note}")
+    lines.append(f"Hamiltonian H(q, p) = {tidy(info.hamiltonian)}" if info.hamiltonian is not None else f"Hamiltonian: {info.hamiltonian_note}")
     return "\n".join(map(printable, lines)) + "\n"
 
 
 def info_latex(model: Model, info: Info) -> str:
-    printer = latex_names(model, info.momentum_symbols).printer()
-    rows = [f"{printer.doprint(s)} &= {printer.doprint(p)}" for s, p in zip(info.momentum_symbols, info.momenta, strict=True)]
-    rows.append(f"h &= {printer.doprint(info.energy)}")
+    """Momenta, the energy function and the Hamiltonian as an `align*` laid out like `derive
+    --latex` (every line fits a standard article)."""
+    doprint = latex_names(model, info.momentum_symbols).printer().doprint
+    space = room([doprint(s) for s in info.momentum_symbols])
+    rows = [Row(doprint(s), layout.pieces(p, doprint, space)) for s, p in zip(info.momentum_symbols, info.momenta, strict=True)]
+    rows.append(Row("h", layout.pieces(info.energy, doprint, space)))
     if info.hamiltonian is not None:
-        rows.append(f"H &= {printer.doprint(info.hamiltonian)}")
+        rows.append(Row("H", layout.pieces(tidy(info.hamiltonian), doprint, space)))
     momenta = dict(zip(model.coordinates, info.momentum_symbols, strict=True))
-    conserved = ", ".join(f"${printer.doprint(momenta[c])}$" for c in info.ignorable) or "none"
-    return (
-        comment(f"{model.title}: momenta and conserved quantities")
-        + "\\begin{align*}\n"
-        + " \\\\\n".join(rows)
-        + "\n\\end{align*}\n"
-        + comment(f"conserved momenta: {conserved}; h conserved: {_yes(info.energy_conserved)}")
-    )
+    conserved = ", ".join(f"${doprint(momenta[c])}$" for c in info.ignorable) or "none"
+    return comment(f"{model.title}: momenta and conserved quantities") + align(rows) + comment(f"conserved momenta: {conserved}; h conserved: {_yes(info.energy_conserved)}")
 
 
 def info_json(model: Model, info: Info) -> str:
@@ -57,7 +55,7 @@ def info_json(model: Model, info: Info) -> str:
         "ignorable": list(info.ignorable),
         "energy_function": str(info.energy),
         "energy_conserved": info.energy_conserved,
-        "hamiltonian": str(info.hamiltonian) if info.hamiltonian is not None else None,
+        "hamiltonian": str(tidy(info.hamiltonian)) if info.hamiltonian is not None else None,
         "hamiltonian_note": info.hamiltonian_note or None,
         "autonomous": info.autonomous,
         "conservative": info.conservative,

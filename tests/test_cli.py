@@ -26,7 +26,7 @@ def test_derive_formats_to_stdout() -> None:
         result = runner.invoke(app, ["derive", "double_pendulum", flag])
         assert result.exit_code == 0 and marker in result.stdout
     result = runner.invoke(app, ["derive", "double_pendulum", "--form", "matrix"])
-    assert "M =" in result.stdout and "F =" in result.stdout
+    assert "mass matrix =" in result.stdout and "forcing =" in result.stdout
 
 
 def test_output_file_written_atomically(tmp_path: Path) -> None:

@@ -28,6 +28,57 @@ def ordered_terms(expr: sp.Expr) -> list[sp.Expr]:
     return [] if expr == 0 else list(expr.as_ordered_terms())
 
 
+# Tidying (factor_terms, sign flips) is skipped above this many operations: it is cheap but
+# never needed to read an expression that size.
+TIDY_OPS = 3000
+
+
+def tidy(expr: sp.Expr) -> sp.Expr:
+    """`expr` as a reader expects it, by bounded, targeted steps (never a blanket simplify): the
+    terms without a denominator expanded and their common factors pulled out
+    (`-g l m (cos(phi) + cos(theta)) - g l m cos(theta)` -> `-g l m (cos(phi) + 2 cos(theta))`),
+    every quotient over a single denominator, with positive leading denominators
+    (`positive_denominator`). Left as it
+    is when larger than `TIDY_OPS` operations."""
+    if sp.count_ops(expr) > TIDY_OPS:
+        return expr
+    plain: list[sp.Expr] = []
+    quotients: list[sp.Expr] = []
+    for term in sp.Add.make_args(expr):
+        (plain if sp.fraction(term)[1] == 1 else quotients).append(term)
+    return sp.Add(sp.factor_terms(expand_bounded(sp.Add(*plain))), *(positive_denominator(_unnested(q)) for q in quotients))
+
+
+def _unnested(quotient: sp.Expr) -> sp.Expr:
+    """A quotient over one denominator when its numerator or denominator holds quotients
+    itself (`(-k + (p**2 + ...)/(2*m*r))/r` -> `(-2*k*m*r + p**2 + ...)/(2*m*r**2)`), so that
+    no fraction is printed inside another at script size."""
+    parts = sp.fraction(quotient)
+    if any(sp.fraction(term)[1] != 1 for part in parts for term in sp.Add.make_args(part)):
+        return sp.together(quotient)
+    return quotient
+
+
+def positive_denominator(expr: sp.Expr) -> sp.Expr:
+    """A quotient with each sum in its denominator written with a positive leading term, and its
+    numerator's common factors pulled out: `(a - b)/(-M + m)` -> `-(a - b)/(M - m)`."""
+    if sp.count_ops(expr) > TIDY_OPS:
+        return expr
+    numerator, denominator = sp.fraction(sp.factor_terms(expr))
+    sign, factors = 1, []
+    for factor in sp.Mul.make_args(denominator):
+        base, exponent = factor.as_base_exp()
+        if isinstance(base, sp.Add) and exponent.is_Integer and base.as_ordered_terms()[0].could_extract_minus_sign():
+            factors.append(sp.Pow(-base, exponent))
+            sign *= (-1) ** int(exponent)
+        else:
+            factors.append(factor)
+    if factors == list(sp.Mul.make_args(denominator)):
+        return expr
+    # unevaluated, so that a number and a sum (2 (x + y)) are not multiplied out
+    return sp.factor_terms(sign * numerator) / sp.Mul(*factors, evaluate=False)
+
+
 def constraint_equations(model: Model) -> list[tuple[str, sp.Expr]]:
     """Each kept constraint as written (holonomic f(q, t) or velocity a . q_dot + b)."""
     return [(c.name, expand_bounded(c.expr)) for c in model.constraints]

@@ -21,12 +21,11 @@ import sympy as sp
 from sympy.printing.latex import LatexPrinter
 
 from lagrange_cli.algebra import check_invertible, solved_accelerations
-from lagrange_cli.emit.common import constraint_equations, lagrange_terms, printable
-from lagrange_cli.emit.text import join_terms
+from lagrange_cli.emit import layout
+from lagrange_cli.emit.common import constraint_equations, lagrange_terms, printable, tidy
 from lagrange_cli.errors import DerivationError
 from lagrange_cli.model import Model
 
-TERMS_PER_LINE = 4
 # Greek letters by their full name, as plain LaTeX (amsmath not needed) defines them.
 _GREEK_NAMES = (
     "alpha beta gamma delta epsilon varepsilon zeta eta theta vartheta iota kappa lambda mu nu xi pi varpi rho varrho sigma varsigma tau upsilon "
@@ -42,45 +41,163 @@ MATHIT = r"\mathit{"
 
 
 def emit(model: Model, form: str = "lagrange", standalone: bool = False) -> str:
-    printer = names(model).printer()
-    rows: list[str] = []
+    """The equations of `model` in `form` (`lagrange`, `matrix` or `solved`) as an `align*` whose
+    every line fits a standard article (see `layout`)."""
+    doprint = names(model).printer().doprint
     if form == "lagrange":
-        for terms in lagrange_terms(model):
-            rows.append(_broken([printer.doprint(term) for term in terms], "&= 0"))
-        rows += [f"{printer.doprint(expr)} &= 0" for _, expr in constraint_equations(model)]
+        space = room()
+        rows = [Row("", layout.terms(terms, doprint, space), zero=True) for terms in lagrange_terms(model)]
+        rows += [Row("", layout.pieces(expr, doprint, space), zero=True) for _, expr in constraint_equations(model)]
+        body = align(rows)
     elif form == "matrix":
         check_invertible(model)
-        qdd = sp.Matrix(model.qdd)
-        lhs = printer.doprint(sp.Matrix(model.mass_matrix)) + " " + printer.doprint(qdd)
-        rhs = printer.doprint(sp.Matrix(model.forcing))
-        if model.constraints:
-            rhs += " + " + printer.doprint(model.constraint_matrix.T) + " " + printer.doprint(sp.Matrix(model.multipliers))
-        rows.append(f"{lhs} &= {rhs}")
-        if model.constraints:
-            c = sp.Matrix([row.acceleration_bias for row in model.constraints])
-            rows.append(f"{printer.doprint(model.constraint_matrix)} {printer.doprint(qdd)} + {printer.doprint(c)} &= 0")
+        body = _matrix_form(model, doprint)
     else:
-        values = solved_accelerations(model)
-        for symbol, value in zip((*model.qdd, *model.multipliers), values, strict=True):
-            rows.append(f"{printer.doprint(symbol)} &= {printer.doprint(value)}")
-    body = "\\begin{align*}\n" + " \\\\\n".join(rows) + "\n\\end{align*}\n"
+        values = [tidy(v) for v in solved_accelerations(model)]
+        lhs = [doprint(s) for s in (*model.qdd, *model.multipliers)]
+        body = align([Row(name, layout.pieces(v, doprint, room(lhs))) for name, v in zip(lhs, values, strict=True)])
     header = comment(f"{model.title}: {'Lagrange' if form == 'lagrange' else form} form, from {Path(model.source).name}")
     if not standalone:
         return header + body
     return (
-        f"{header}\\documentclass{{article}}\n\\usepackage{{amsmath}}\n\\usepackage[margin=2cm]{{geometry}}\n\\begin{{document}}\n\\section*{{{escape_text(model.title)}}}\n"
+        f"{header}\\documentclass{{article}}\n\\usepackage{{amsmath}}\n\\usepackage[margin=2cm]{{geometry}}\n\\allowdisplaybreaks\n\\begin{{document}}\n\\section*{{{escape_text(model.title)}}}\n"
         + body
         + "\\end{document}\n"
     )
 
 
-def _broken(parts: list[str], tail: str) -> str:
-    """Join terms; a long equation is broken into left-aligned lines of a few terms each."""
-    lines = [join_terms(parts[i : i + TERMS_PER_LINE]) for i in range(0, len(parts), TERMS_PER_LINE)]
-    if len(lines) == 1:
-        return f"{lines[0]} {tail}"
-    rest = [("" if line.startswith("-") else "+ ") + line for line in lines[1:]]
-    return "&" + lines[0] + "".join(f" \\\\\n&\\quad {line}" for line in rest) + " " + tail.removeprefix("&")
+# --- layout ------------------------------------------------------------------------------------
+
+_EQUALS = layout.width("a = 0") - layout.width("a")
+
+
+def room(lhs: Sequence[str] = ()) -> float:
+    """The width of a continuation line in an `align` whose left-hand sides are `lhs` (none: rows
+    `... &= 0`): a piece wider than this is split further."""
+    if not lhs:
+        return layout.LINE_WIDTH - _EQUALS - layout.QUAD
+    return layout.LINE_WIDTH - max(layout.width(tex) for tex in lhs) - layout.QUAD
+
+
+@dataclass(frozen=True)
+class Row:
+    """One equation of an `align*`, its right-hand side as pieces that the line breaker packs
+    into lines: `lhs &= rhs`, or with `zero` (and no `lhs`) `rhs &= 0`, or with neither a line
+    of its own starting at the alignment point."""
+
+    lhs: str
+    rhs: Sequence[layout.Piece]
+    zero: bool = False
+
+
+def align(rows: Sequence[Row]) -> str:
+    """An `align*` whose rows all align on their `=`: `lhs &= ...` with continuation lines
+    `&\\quad ...` under the `=`; an equation `... &= 0` too long for a line becomes a bottom-
+    aligned block of lines (`\\begin{aligned}[b]`) left of the `=`. Lines are broken so that
+    the widest left column plus any line fits `layout.LINE_WIDTH`. Between rows of a long
+    environment, a page may break."""
+    equals = _EQUALS
+    left = max((layout.width(row.lhs) for row in rows if row.lhs), default=0.0)
+    if any(row.zero for row in rows):
+        left = max(left, layout.LINE_WIDTH - equals)
+    chunks = []
+    for row in rows:
+        if row.zero:
+            lines = layout.lines(row.rhs, layout.LINE_WIDTH - equals, layout.LINE_WIDTH - equals - layout.QUAD)
+            if len(lines) == 1:
+                chunks.append([f"{lines[0]} &= 0"])
+            else:
+                block = " \\\\\n".join([f"&{lines[0]}", *(rf"&\quad {line}" for line in lines[1:])])
+                chunks.append([f"\\begin{{aligned}}[b]\n{block}\n\\end{{aligned}} &= 0"])
+            continue
+        first = layout.LINE_WIDTH - left - (equals if row.lhs else 0.0)
+        lines = layout.lines(row.rhs, first, layout.LINE_WIDTH - left - layout.QUAD)
+        head = f"{row.lhs} &= " if row.lhs else "&"
+        chunks.append([head + lines[0], *(rf"&\quad {line}" for line in lines[1:])])
+    # An align* never breaks across pages: a long one is split between rows into several.
+    groups: list[list[str]] = [[]]
+    used = 0
+    for chunk in chunks:
+        size = len(chunk) + chunk[0].count("\\\\")
+        if groups[-1] and used + size > layout.BREAKABLE_LINES:
+            groups.append([])
+            used = 0
+        groups[-1].append(" \\\\\n".join(chunk))
+        used += size
+    return "".join("\\begin{align*}\n" + " \\\\\n".join(group) + "\n\\end{align*}\n" for group in groups)
+
+
+def _matrix_form(model: Model, doprint: layout.Printer) -> str:
+    """`M q_ddot = F (+ A^T lambda)` with whole matrices when they fit the line, else entry by
+    entry: `\\mathbf{M}_{ij}` for i <= j (M is symmetric), `\\mathbf{F}_{i}`, ... Bold names
+    cannot be confused with a parameter (`M`). Each entry is printed and measured once."""
+    n, k = model.n, len(model.constraints)
+    factored = {(i, j): sp.factor_terms(model.mass_matrix[i, j]) for i in range(n) for j in range(i, n)}
+    entries = {ij: (entry, doprint(entry)) for ij, entry in factored.items()}
+    columns = [max(layout.width(entries[min(i, j), max(i, j)][1]) for i in range(n)) for j in range(n)]
+    if sum(columns) + 2.0 * (n + 4) + (4.0 * (n + 2) if k else 0.0) <= layout.LINE_WIDTH:
+        qdd = sp.Matrix(model.qdd)
+        lhs = doprint(sp.Matrix(model.mass_matrix)) + " " + doprint(qdd)
+        rhs = doprint(sp.Matrix(model.forcing))
+        if k:
+            rhs += " + " + doprint(model.constraint_matrix.T) + " " + doprint(sp.Matrix(model.multipliers))
+        rows = [(lhs, rhs)]
+        if k:
+            bias = sp.Matrix([row.acceleration_bias for row in model.constraints])
+            rows.append((f"{doprint(model.constraint_matrix)} {doprint(qdd)} + {doprint(bias)}", "0"))
+        # an align* is as wide as its widest left side plus its widest right side
+        if max(layout.width(a) for a, _ in rows) + _EQUALS + max(layout.width(b) for _, b in rows) <= layout.LINE_WIDTH:
+            return "\\begin{align*}\n" + " \\\\\n".join(f"{a} &= {b}" for a, b in rows) + "\n\\end{align*}\n"
+    return _matrix_entries(model, doprint, entries)
+
+
+def _matrix_entries(model: Model, doprint: layout.Printer, entries: dict[tuple[int, int], tuple[sp.Expr, str]]) -> str:
+    n, k = model.n, len(model.constraints)
+    bold_q = r"\ddot{\mathbf{q}}"
+    statement = [layout.piece(r"\mathbf{F}")]
+    if k:
+        multipliers = _vector(model.multipliers, doprint) if k > 1 else [layout.piece(doprint(model.multipliers[0]))]
+        statement += [layout.piece(r"+ \mathbf{A}^{T}"), *multipliers[:-1], layout.piece(multipliers[-1].tex + ","), layout.piece(rf"\quad \mathbf{{A}} {bold_q} + \mathbf{{c}} = 0")]
+    rows = [Row(rf"\mathbf{{M}} {bold_q}", statement), Row(bold_q, _vector(model.qdd, doprint))]
+
+    def index(*ij: int) -> str:
+        return ("," if max(n, k) > 9 else "").join(str(i + 1) for i in ij)
+
+    space = room([rf"\mathbf{{M}} {bold_q}", rf"\mathbf{{M}}_{{{index(n - 1, n - 1)}}}", rf"\mathbf{{A}}_{{{index(max(k - 1, 0), n - 1)}}}"])
+
+    zero = False
+    for i in range(n):
+        for j in range(i, n):
+            entry, tex = entries[i, j]
+            if entry == 0:
+                zero = True
+                continue
+            fits = layout.width(tex) <= space
+            rows.append(Row(rf"\mathbf{{M}}_{{{index(i, j)}}}", [layout.piece(tex)] if fits else layout.pieces(entry, doprint, space)))
+    rows.append(Row("", [layout.piece(r"\mathbf{M}_{ji} = \mathbf{M}_{ij}" + (r", \quad \mathrm{other}\ \mathbf{M}_{ij} = 0" if zero else ""))]))
+    rows += [Row(rf"\mathbf{{F}}_{{{index(i)}}}", layout.pieces(_compact(model.forcing[i]), doprint, space)) for i in range(n)]
+    for r, c in enumerate(model.constraints):
+        rows += [Row(rf"\mathbf{{A}}_{{{index(r, j)}}}", layout.pieces(sp.factor_terms(a), doprint, space)) for j, a in enumerate(c.jacobian) if a != 0]
+        rows.append(Row(rf"\mathbf{{c}}_{{{index(r)}}}", layout.pieces(_compact(c.acceleration_bias), doprint, space)))
+    return align(rows)
+
+
+# Common factors are pulled out of matrix entries up to this many nodes (factor_terms is
+# near-linear but not free: the forcing of a 15-link chain would cost seconds).
+COMPACT_NODES = 500
+
+
+def _compact(expr: sp.Expr) -> sp.Expr:
+    small = all(k < COMPACT_NODES for k, _ in enumerate(sp.preorder_traversal(expr)))
+    return sp.factor_terms(expr) if small else expr
+
+
+def _vector(symbols: Sequence[sp.Symbol], doprint: layout.Printer) -> list[layout.Piece]:
+    """`(s_1, s_2, ...)^T` as pieces, broken between components."""
+    parts = [layout.piece(doprint(s) + ("," if i < len(symbols) - 1 else "")) for i, s in enumerate(symbols)]
+    parts[0] = layout.piece(r"\left(" + parts[0].tex)
+    parts[-1] = layout.piece(parts[-1].tex + r"\right)^{T}")
+    return parts
 
 
 # --- file text -------------------------------------------------------------------------------

@@ -6,7 +6,7 @@ from __future__ import annotations
 from sympy.printing.str import StrPrinter
 
 from lagrange_cli.algebra import check_invertible, solved_accelerations
-from lagrange_cli.emit.common import constraint_equations, lagrange_terms, printable
+from lagrange_cli.emit.common import constraint_equations, lagrange_terms, printable, tidy
 from lagrange_cli.model import Model
 
 
@@ -19,21 +19,24 @@ def emit(model: Model, form: str = "lagrange") -> str:
         lines += [f"{printer.doprint(expr)} = 0" for _, expr in constraint_equations(model)]
     elif form == "matrix":
         check_invertible(model)
-        lines.append("M*q_ddot = F" + (" + A^T*lambda,  A*q_ddot + c = 0" if model.constraints else ""))
-        lines.append("q_ddot = [" + ", ".join(map(str, model.qdd)) + "]")
+        # Names of several words, which no parameter can have (a parameter may be called `M`).
+        lines.append("mass matrix * accelerations = forcing" + (" + constraint matrix^T * multipliers" if model.constraints else ""))
         if model.constraints:
-            lines.append("lambda = [" + ", ".join(map(str, model.multipliers)) + "]")
-        lines.append("M =")
+            lines.append("constraint matrix * accelerations + constraint bias = 0")
+        lines.append("accelerations = [" + ", ".join(map(str, model.qdd)) + "]")
+        if model.constraints:
+            lines.append("multipliers = [" + ", ".join(map(str, model.multipliers)) + "]")
+        lines.append("mass matrix =")
         lines += ["  [" + ", ".join(printer.doprint(x) for x in model.mass_matrix.row(i)) + "]" for i in range(model.n)]
-        lines.append("F =")
+        lines.append("forcing =")
         lines += [f"  [{printer.doprint(x)}]" for x in model.forcing]
         if model.constraints:
-            lines.append("A =")
+            lines.append("constraint matrix =")
             lines += ["  [" + ", ".join(printer.doprint(a) for a in c.jacobian) + "]" for c in model.constraints]
-            lines.append("c =")
+            lines.append("constraint bias =")
             lines += [f"  [{printer.doprint(c.acceleration_bias)}]" for c in model.constraints]
     else:
-        values = solved_accelerations(model)
+        values = [tidy(v) for v in solved_accelerations(model)]
         for symbol, value in zip((*model.qdd, *model.multipliers), values, strict=True):
             lines.append(f"{symbol} = {printer.doprint(value)}")
     return "\n".join(map(printable, lines)) + "\n"

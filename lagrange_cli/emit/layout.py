@@ -1,0 +1,398 @@
+"""Equations that fit the page: an estimate of the printed width of LaTeX math, and a line
+breaker that splits a sympy expression at its terms (and, when one term is still too wide,
+inside its parentheses and fractions) so that every line of an `align*` fits the `\\linewidth`
+of a standard `article` (345 pt at 10 pt).
+
+The estimate reads the LaTeX text once (linear in its length) and counts in units of about
+one math-italic letter; each term is printed and measured once, so laying out an equation
+costs about as much as printing it.
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+import sympy as sp
+
+# One unit is about the width of an average math-italic letter at 10 pt (calibrated against
+# pdflatex on the bundled systems' terms; see tests/test_latex_layout.py).
+UNIT_PT = 5.0
+# \linewidth of a standard article at 10 pt, in units, with a margin for the estimate's error.
+LINE_WIDTH = 345.0 / UNIT_PT * 0.92
+QUAD = 2.0  # \quad (1 em)
+# Between logical rows of an environment with more lines than this, a page may break.
+BREAKABLE_LINES = 24
+
+_SCALE = (1.0, 1.0, 0.7, 0.5)  # display, text, script, scriptscript
+_SCRIPT = (2, 2, 3, 3)  # the style of a superscript or subscript
+_FRACTION = (1, 2, 3, 3)  # the style of a numerator or denominator
+_BINARY = {"+": 2.45, "-": 2.45, "=": 2.7, "<": 2.7, ">": 2.7, "cdot": 1.55, "times": 2.45, "pm": 2.45, "mp": 2.45, "le": 2.7, "ge": 2.7}
+_UNARY = 1.56
+_SPACES = {",": 0.33, ":": 0.44, ";": 0.56, "!": -0.33, "quad": QUAD, "qquad": 2 * QUAD, " ": 0.66}
+_DELIMITER = 0.78
+_SIZED = {"bigl": 0.9, "bigr": 0.9, "Bigl": 1.15, "Bigr": 1.15, "big": 0.9, "Big": 1.15, "biggl": 1.4, "biggr": 1.4}
+_WRAPPERS = frozenset(["mathit", "mathrm", "mathbf", "boldsymbol", "mathcal", "mathscr", "mathsf", "text", "operatorname", "dot", "ddot", "hat", "bar", "tilde", "vec", "overline"])
+_UPRIGHT = frozenset(["sin", "cos", "tan", "cot", "sec", "csc", "arcsin", "arccos", "arctan", "sinh", "cosh", "tanh", "coth", "log", "ln", "exp", "det", "min", "max"])
+_MATRICES = frozenset(["matrix", "pmatrix", "bmatrix", "vmatrix", "Bmatrix", "smallmatrix", "array"])
+# Widths of math-italic letters and digits at 10 pt (cmmi10, cmr10), in points.
+_LETTERS_PT = dict(
+    zip(
+        "abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ",
+        (
+            5.3,
+            4.3,
+            4.3,
+            5.2,
+            4.7,
+            4.9,
+            4.8,
+            5.8,
+            3.5,
+            4.1,
+            5.2,
+            3.0,
+            8.8,
+            6.0,
+            4.9,
+            5.0,
+            4.5,
+            4.5,
+            4.7,
+            3.6,
+            5.7,
+            4.9,
+            7.2,
+            5.7,
+            4.9,
+            4.7,
+            7.5,
+            7.6,
+            7.2,
+            8.3,
+            7.4,
+            6.4,
+            7.9,
+            8.3,
+            4.4,
+            5.5,
+            8.5,
+            6.8,
+            9.7,
+            8.0,
+            7.6,
+            6.4,
+            7.9,
+            7.6,
+            6.1,
+            5.8,
+            6.8,
+            5.8,
+            9.4,
+            8.3,
+            5.8,
+            6.8,
+        ),
+        strict=True,
+    )
+)
+_COMMAND = re.compile(r"\\([A-Za-z]+|.)")
+
+
+def width(tex: str) -> float:
+    """The estimated width of the math `tex` in display style, in units (`UNIT_PT` points).
+    Monotone: appending anything never makes it narrower."""
+    return _Reader(tex).sequence(0)
+
+
+class _Reader:
+    """A one-pass reader of the LaTeX that sympy's printer and this package write."""
+
+    def __init__(self, tex: str) -> None:
+        self.tex = tex
+        self.i = 0
+
+    def sequence(self, style: int, stop: str = "}") -> float:
+        """Read up to an unmatched `stop` (consumed) or the end; return the width."""
+        total = 0.0
+        operand = False  # the previous atom is an operand: a following + or - is binary
+        tex, scale = self.tex, _SCALE[style]
+        while self.i < len(tex):
+            char = tex[self.i]
+            if char in stop:
+                self.i += 1
+                return max(total, 0.0)
+            self.i += 1
+            if char == "{":
+                total += self.sequence(style)
+                operand = True
+            elif char in "^_":
+                total += self.argument(_SCRIPT[style])
+            elif char == "\\":
+                name = self.command()
+                added, operand = self.macro(name, style, operand)
+                total += added
+            elif char in "+-=<>":
+                total += (_BINARY[char] if operand and style < 2 else _UNARY if char in "+-" else 1.56) * scale
+                operand = False
+            elif char in "()[]|":
+                total += _DELIMITER * scale
+                operand = char in ")]|"
+            elif char == ",":
+                total += 0.55 * scale
+                operand = False
+            elif char in " &\n\t~'":
+                total += 0.55 * scale if char == "'" else 0.0
+            else:
+                total += _LETTERS_PT.get(char, 5.0) * 1.04 / UNIT_PT * scale
+                operand = True
+        return max(total, 0.0)
+
+    def command(self) -> str:
+        match = _COMMAND.match(self.tex, self.i - 1)
+        if match is None:
+            return ""
+        self.i = match.end()
+        return match.group(1)
+
+    def argument(self, style: int) -> float:
+        """One argument: a `{...}` group, a command, or a character."""
+        while self.i < len(self.tex) and self.tex[self.i] == " ":
+            self.i += 1
+        if self.i >= len(self.tex):
+            return 0.0
+        char = self.tex[self.i]
+        self.i += 1
+        if char == "{":
+            return self.sequence(style)
+        if char == "\\":
+            return self.macro(self.command(), style, False)[0]
+        return _LETTERS_PT.get(char, 5.0) * 1.04 / UNIT_PT * _SCALE[style]
+
+    def delimiter(self) -> None:
+        while self.i < len(self.tex) and self.tex[self.i] == " ":
+            self.i += 1
+        if self.i < len(self.tex):
+            self.i += 1
+            if self.tex[self.i - 1] == "\\":
+                self.command()
+
+    def macro(self, name: str, style: int, operand: bool) -> tuple[float, bool]:
+        """The width of the command `name` (its arguments read) and whether it is an operand."""
+        scale = _SCALE[style]
+        if name in ("frac", "dfrac", "tfrac"):
+            inner = _FRACTION[0 if name == "dfrac" else 1 if name == "tfrac" else style]
+            return max(self.argument(inner), self.argument(inner)) + 0.4 * scale, True
+        if name in ("left", "right"):
+            self.delimiter()
+            return 1.0 * scale, name == "right"
+        if name in _SIZED:
+            self.delimiter()
+            return _SIZED[name] * scale, name.endswith("r")
+        if name in _BINARY:
+            return (_BINARY[name] if operand and style < 2 else 1.0) * scale, False
+        if name in _SPACES:
+            return _SPACES[name] * scale, operand
+        if name in _WRAPPERS:
+            return self.argument(style) * (0.95 if name in ("text", "mathrm", "operatorname") else 1.0) + (0.33 * scale if name == "operatorname" else 0.0), True
+        if name in _UPRIGHT:
+            return (0.85 * len(name) + 0.33) * scale, True
+        if name == "begin":
+            return self.environment(style), True
+        if name in ("ldots", "cdots", "dots"):
+            return 2.8 * scale, True
+        if name == "displaybreak":
+            if self.tex.startswith("[", self.i):
+                self.i = self.tex.find("]", self.i) + 1 or len(self.tex)
+            return 0.0, operand
+        if name in ("limits", "nolimits", "displaystyle", "textstyle"):
+            return 0.0, operand
+        return (1.55 if name == "perp" else 1.25) * scale, True  # a Greek letter, \perp, \{, ...
+
+    def environment(self, style: int) -> float:
+        """A matrix: the sum of its widest cell per column, plus the gaps between columns."""
+        match = re.match(r"\{(\w+\*?)\}", self.tex[self.i :])
+        if match is None:
+            return 0.0
+        env = match.group(1)
+        self.i += match.end()
+        end = self.tex.find(f"\\end{{{env}}}", self.i)
+        body = self.tex[self.i : end if end >= 0 else len(self.tex)]
+        self.i = end + len(f"\\end{{{env}}}") if end >= 0 else len(self.tex)
+        if env.rstrip("*") not in _MATRICES:
+            return width(body)
+        if env == "array":
+            body = re.sub(r"^\{[^}]*\}", "", body)
+        inner = 2 if env == "smallmatrix" else 1 if style == 0 else style
+        columns: list[float] = []
+        for row in _split_top(body, "\\\\"):
+            for k, cell in enumerate(_split_top(row, "&")):
+                reader = _Reader(cell)
+                cell_width = reader.sequence(inner)
+                if k < len(columns):
+                    columns[k] = max(columns[k], cell_width)
+                else:
+                    columns.append(cell_width)
+        return sum(columns) + 2.0 * max(len(columns) - 1, 0) * _SCALE[style] + (1.6 if env != "matrix" else 0.0)
+
+
+def _split_top(text: str, separator: str) -> list[str]:
+    """`text` split at `separator` outside braces and nested environments."""
+    parts, depth, start, i = [], 0, 0, 0
+    while i < len(text):
+        if text.startswith("\\begin", i):
+            depth += 1
+        elif text.startswith("\\end", i):
+            depth -= 1
+        char = text[i]
+        if char == "\\" and not text.startswith(separator, i):
+            i += 2
+            continue
+        if char == "{":
+            depth += 1
+        elif char == "}":
+            depth -= 1
+        elif depth == 0 and text.startswith(separator, i):
+            parts.append(text[start:i])
+            i += len(separator)
+            start = i
+            continue
+        i += 1
+    parts.append(text[start:])
+    return parts
+
+
+# --- breaking -----------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Piece:
+    """A run of printed math that is never broken, and its estimated width. A piece after the
+    first of a sum starts with its operator (`+ ...`, `- ...`)."""
+
+    tex: str
+    width: float
+
+
+Printer = Callable[[sp.Basic], str]
+
+
+def piece(tex: str) -> Piece:
+    return Piece(tex, width(tex))
+
+
+def pieces(expr: sp.Expr, doprint: Printer, room: float) -> list[Piece]:
+    """`expr` as pieces that a line of `room` units can hold where possible: the terms of a
+    sum, and inside a term too wide for a line, the terms of its widest parenthesized sum or of
+    its numerator (`\\frac{1}{D} \\left( N \\right)`)."""
+    if isinstance(expr, sp.Add):
+        return _sum(expr, doprint, room)
+    measured = piece(doprint(expr))
+    if measured.width <= room:
+        return [measured]
+    if expr.could_extract_minus_sign():  # the sign goes in front: - \frac{1}{D} (...), not \frac{1}{D} - (...)
+        inner = _term(-expr, doprint, room)
+        return [Piece("- " + inner[0].tex, inner[0].width + _UNARY), *inner[1:]] if inner else [measured]
+    return _term(expr, doprint, room) or [measured]
+
+
+def _sum(expr: sp.Add, doprint: Printer, room: float) -> list[Piece]:
+    return terms(_ordered(expr, doprint), doprint, room)
+
+
+def terms(summands: Sequence[sp.Expr], doprint: Printer, room: float) -> list[Piece]:
+    """The sum of `summands`, in their order, as pieces (see `pieces`)."""
+    out: list[Piece] = []
+    for term in summands:
+        negative = term.could_extract_minus_sign()
+        inner = pieces(-term if negative else term, doprint, room)
+        sign = "- " if negative else "+ " if out else ""
+        first = inner[0]
+        if sign:  # measured alone its operator is unary; between terms it is binary, wider
+            first = Piece(sign + first.tex, width(sign + first.tex) + (_BINARY["+"] - _UNARY if out else 0.0))
+        out += [first, *inner[1:]]
+    return out
+
+
+def _ordered(expr: sp.Add, doprint: Printer) -> list[sp.Expr]:
+    """The terms of a sum in the order sympy's printer writes them."""
+    owner = getattr(doprint, "__self__", None)
+    if owner is not None and hasattr(owner, "_as_ordered_terms"):
+        return list(owner._as_ordered_terms(expr, order=None))
+    return list(expr.as_ordered_terms())
+
+
+def _term(expr: sp.Expr, doprint: Printer, room: float) -> list[Piece] | None:
+    """A too-wide product or quotient broken inside its widest sum, or None."""
+    numerator, denominator = sp.fraction(expr, exact=True)
+    if denominator != 1:
+        top = pieces(numerator, doprint, room)
+        # a sum is wrapped in parentheses; a product's pieces already hold their own
+        wrapped = _wrap(top, "", "") if isinstance(numerator, sp.Add) else top
+        bottom_tex = doprint(denominator)
+        if width(bottom_tex) <= room / 2:
+            if len(top) == 1:
+                return None
+            prefix = rf"\frac{{1}}{{{bottom_tex}}} "
+            return _wrap(top, prefix, "") if isinstance(numerator, sp.Add) else [piece(prefix + top[0].tex), *top[1:]]
+        bottom = pieces(denominator, doprint, room)
+        if len(top) == 1 and len(bottom) == 1:
+            return None
+        return [*wrapped, *(_wrap(bottom, "/ ", "") if isinstance(denominator, sp.Add) or len(bottom) == 1 else [piece("/ " + bottom[0].tex), *bottom[1:]])]
+    if not isinstance(expr, sp.Mul):
+        if isinstance(expr, sp.Pow) and isinstance(expr.base, sp.Add) and expr.exp.is_Rational and expr.exp > 0:
+            return _wrap(_sum(expr.base, doprint, room), "", f"^{{{doprint(expr.exp)}}}")
+        return None
+    factors = list(expr.args)
+    widest = max(range(len(factors)), key=lambda k: len(doprint(factors[k])) if isinstance(factors[k], (sp.Add, sp.Pow)) else -1)
+    target = factors[widest]
+    rest = sp.Mul(*(factors[:widest] + factors[widest + 1 :]), evaluate=False) if len(factors) > 1 else sp.Integer(1)
+    prefix = "" if rest == 1 else "- " if rest == -1 else doprint(rest) + " "
+    if isinstance(target, sp.Add):
+        return _wrap(_sum(target, doprint, room), prefix, "")
+    if isinstance(target, sp.Pow) and isinstance(target.base, sp.Add) and target.exp.is_Rational and target.exp > 0:
+        return _wrap(_sum(target.base, doprint, room), prefix, f"^{{{doprint(target.exp)}}}")
+    return None
+
+
+def _wrap(inner: list[Piece], prefix: str, suffix: str) -> list[Piece]:
+    """`prefix ( inner ) suffix`; when `inner` spans pieces, its parentheses may end up on
+    different lines, which `lines` balances with `\\right.` and `\\left.`."""
+    if len(inner) == 1:
+        return [piece(rf"{prefix}\left({inner[0].tex}\right){suffix}")]
+    return [piece(prefix + r"\left(" + inner[0].tex), *inner[1:-1], piece(inner[-1].tex + rf"\right){suffix}")]
+
+
+def lines(parts: Sequence[Piece], first: float, rest: float) -> list[str]:
+    """Pack pieces greedily into lines, the first `first` units wide and the others `rest`.
+    Never an empty line: a piece wider than its line stands alone on it."""
+    out: list[list[str]] = []
+    used = 0.0
+    for part in parts:
+        if out and used + part.width <= (first if len(out) == 1 else rest):
+            out[-1].append(part.tex)
+            used += part.width
+        else:
+            out.append([part.tex])
+            used = part.width
+    texts = [" ".join(line) for line in out]
+    # `{}` before the operator that starts a continuation line keeps it binary (spaced).
+    texts[1:] = ["{}" + text if text.startswith(("+ ", "- ")) else text for text in texts[1:]]
+    return _balanced(texts) or ["0"]
+
+
+_LEFT_RIGHT = re.compile(r"\\(left|right)(?![A-Za-z])")
+
+
+def _balanced(texts: list[str]) -> list[str]:
+    """Close the `\\left` delimiters still open at the end of a line with `\\right.` and open
+    them again on the next line with `\\left.` (each line of an `align*` is typeset alone)."""
+    out, carried = [], 0
+    for text in texts:
+        depth = carried
+        for match in _LEFT_RIGHT.finditer(text):
+            depth += 1 if match.group(1) == "left" else -1
+        out.append(r"\left. " * carried + text + r" \right." * max(depth, 0))
+        carried = max(depth, 0)
+    return out
