@@ -22,6 +22,8 @@
 from __future__ import annotations
 
 import contextlib
+import copy
+import functools
 import importlib.util
 import io
 import json
@@ -29,6 +31,7 @@ import os
 import re
 import signal
 import sys
+import time
 import traceback
 import xml.etree.ElementTree as ET
 from collections.abc import Callable, Iterator
@@ -107,6 +110,7 @@ def texts() -> dict[Path, str]:
 # --- expressions ------------------------------------------------------------------------------
 
 
+@functools.cache
 def expressions(names: tuple[str, ...], max_leaves: int = 12) -> st.SearchStrategy[str]:
     """Expression text from the parser's grammar over `names` (coordinates, parameters, t)."""
     leaves = st.sampled_from([*names, "t"]) | st.sampled_from(LITERALS) if names else st.sampled_from(LITERALS)
@@ -115,9 +119,10 @@ def expressions(names: tuple[str, ...], max_leaves: int = 12) -> st.SearchStrate
         binary = st.tuples(inner, st.sampled_from(("+", "-", "*", "/")), inner).map(lambda t: f"({t[0]} {t[1]} {t[2]})")
         power = st.tuples(inner, st.sampled_from(EXPONENTS)).map(lambda t: f"({t[0]})**{t[1]}")
         zero_division = st.tuples(inner, inner).map(lambda t: f"{t[0]}/({t[1]} - {t[1]})")
-        call = st.sampled_from(sorted(FUNCTIONS)).flatmap(lambda f: st.lists(inner, min_size=FUNCTIONS[f], max_size=FUNCTIONS[f]).map(lambda args: f"{f}({', '.join(args)})"))
+        unary = st.tuples(st.sampled_from(sorted(f for f, n in FUNCTIONS.items() if n == 1)), inner).map(lambda t: f"{t[0]}({t[1]})")
+        binary_call = st.tuples(inner, inner).map(lambda t: f"atan2({t[0]}, {t[1]})")
         negate = inner.map(lambda e: f"-({e})")
-        return binary | power | call | zero_division | negate
+        return binary | power | unary | binary_call | zero_division | negate
 
     return st.recursive(leaves, extend, max_leaves=max_leaves)
 
@@ -237,12 +242,17 @@ def dump(data: Any) -> str:
     return re.sub(r'"\\0dup\\0([^"]*)"', r"\1", text)
 
 
+@functools.cache
+def _data(path: Path) -> Any:
+    return yaml.safe_load(path.read_text(encoding="utf-8"))
+
+
 @st.composite
 def mutated_systems(draw: st.DrawFn, max_mutations: int = 3, path: Path | None = None, rotate: int = 0) -> str:
     """A bundled system file (`path`, else any) with one to `max_mutations` hostile changes, as
     text; `rotate` shifts the order of the choices (see `rotated`)."""
     path = path if path is not None else draw(st.sampled_from(SYSTEMS))
-    data = yaml.safe_load(path.read_text(encoding="utf-8"))
+    data = copy.deepcopy(_data(path))
     for i in range(draw(st.integers(1, max_mutations))):
         data, _ = draw(mutation(data, rotate + 3 * i))
     return dump(data)
@@ -298,6 +308,8 @@ class Outcome:
     steps: dict[str, str] = field(default_factory=dict)
     """step -> "ok" or "error: <first line of the LagrangeError>"."""
     failures: list[Failure] = field(default_factory=list)
+    seconds: dict[str, float] = field(default_factory=dict)
+    """step -> seconds it took (for benchmarks/fuzz.py's profile)."""
 
     @property
     def failed(self) -> bool:
@@ -307,13 +319,13 @@ class Outcome:
         return "\n".join(f"{f.step}: {f.kind} at {f.where}: {f.detail}" for f in self.failures)
 
 
-CONTROL = re.compile(r"[\x00-\x08\x0b\x0c\x0e-\x1f\x7f\x80-\x9f\u2028\u2029]")
+CONTROL = re.compile(r"[\x00-\x08\x0b\x0c\x0e-\x1f\x7f-\x9f]")  # C0 but tab and line ends, DEL, C1 (\x9b is CSI)
 LATEX_PRIMITIVES = re.compile(r"\\(input|include|openout|openin|write|immediate|read|csname|catcode|def|edef|gdef|let|newcommand|renewcommand|special|end\{document\})")
 
 
 def innermost(error: BaseException) -> str:
     """The innermost frame in lagrange_cli (or in a generated module): file:function."""
-    if isinstance(error, SyntaxError) and error.filename and not error.filename.endswith(".yaml"):
+    if isinstance(error, SyntaxError):  # the expression parser turns its own into SpecError: this one is a generated module's
         return "<generated>:import"
     frames = traceback.extract_tb(error.__traceback__)
     for frame in reversed(frames):
@@ -357,6 +369,7 @@ class Runner:
         from lagrange_cli.errors import LagrangeError
 
         before = self.written()
+        start = time.perf_counter()
         try:
             with alarm(self.limit):
                 result = action()
@@ -379,6 +392,8 @@ class Runner:
         except Exception as error:
             self.fail(name, type(error).__name__, f"{error}"[:300], innermost(error))
             return None
+        finally:
+            self.outcome.seconds[name] = time.perf_counter() - start
         self.outcome.steps[name] = "ok"
         return result
 
@@ -394,15 +409,17 @@ class Runner:
         write_text(self.out / name, text)
 
 
-def run_case(text: str, folder: Path, limit: float = LIMIT, simulate: bool = True) -> Outcome:
-    """Everything a user can do with the system file `text`, in this process (see the module docstring)."""
+def run_case(text: str, folder: Path, limit: float = LIMIT, simulate: bool = True, full: bool = True) -> Outcome:
+    """Everything a user can do with the system file `text`, in this process (see the module
+    docstring); with `full=False` only the cheap steps: load, derive, the Lagrange form in text and
+    LaTeX, standalone LaTeX, Python and its rhs (`simulate` needs `full`)."""
     folder.mkdir(parents=True, exist_ok=True)
     saved_cwd, saved_cache = os.getcwd(), os.environ.get("LAGRANGE_CACHE_DIR")
     os.chdir(folder)
     os.environ["LAGRANGE_CACHE_DIR"] = str(folder / "cache")
     runner = Runner(folder, limit)
     try:
-        _steps(runner, text, simulate)
+        _steps(runner, text, simulate and full, full)
     finally:
         os.chdir(saved_cwd)
         if saved_cache is None:
@@ -416,7 +433,7 @@ def run_case(text: str, folder: Path, limit: float = LIMIT, simulate: bool = Tru
     return runner.outcome
 
 
-def _steps(runner: Runner, text: str, simulate: bool) -> None:
+def _steps(runner: Runner, text: str, simulate: bool, full: bool) -> None:
     from lagrange_cli import analysis, derive, report, spec
     from lagrange_cli import check as checker
     from lagrange_cli.emit import latex, python
@@ -430,7 +447,7 @@ def _steps(runner: Runner, text: str, simulate: bool) -> None:
     model = runner.step("derive", lambda: derive.derive(system))
     if model is None:
         return
-    for form in ("lagrange", "matrix", "solved"):
+    for form in ("lagrange", "matrix", "solved") if full else ("lagrange",):
         result = runner.step(f"text:{form}", lambda form=form: plain.emit(model, form))
         if result is not None:
             _terminal(runner, f"text:{form}", result)
@@ -448,7 +465,9 @@ def _steps(runner: Runner, text: str, simulate: bool) -> None:
         runner.step("write:python", lambda: runner.write("module.py", module))
         if runner.outcome.steps.get("write:python") == "ok":
             _rhs(runner, model)
-    reports = runner.step("check", lambda: [checker.check_file(str(path))])
+    if not full:
+        return
+    reports = runner.step("check", lambda: [checker.FileReport(str(path), tuple(checker.check(system, model)))])  # what check_file does after load and derive
     if reports is not None:
         for item in reports:
             if item.error:
