@@ -319,7 +319,7 @@ class Outcome:
         return "\n".join(f"{f.step}: {f.kind} at {f.where}: {f.detail}" for f in self.failures)
 
 
-CONTROL = re.compile(r"[\x00-\x08\x0b\x0c\x0e-\x1f\x7f-\x9f]")  # C0 but tab and line ends, DEL, C1 (\x9b is CSI)
+CONTROL = re.compile(r"[\x00-\x08\x0b-\x1f\x7f-\x9f]")  # C0 but tab and newline (\r rewrites the line), DEL, C1 (\x9b is CSI)
 LATEX_PRIMITIVES = re.compile(r"\\(input|include|openout|openin|write|immediate|read|csname|catcode|def|edef|gdef|let|newcommand|renewcommand|special|end\{document\})")
 
 

@@ -4,8 +4,8 @@ Every case runs in its own temporary folder (also the working directory, and the
 in one subprocess that runs each applicable command line in turn (tests/hostile_driver.py), and
 must show, for every command:
 
-- exit code 0 or 2 (1 only from `simulate`, a failed run, and `check`, a wrong answer), or the one
-  the case's header pins;
+- exit code 0 or 2 (1 only from `simulate`, `accuracy` and `stress`, a failed run, and `check`, a
+  wrong answer), or the one the case's header pins;
 - no `Traceback` and no `internal error` in its output, no terminal control character that came
   from the file;
 - on exit 2, a message that names the file; and no output file left behind (a JUnit report is
@@ -57,13 +57,19 @@ COMMANDS: dict[str, tuple[tuple[str, ...], str | None]] = {
     "check": (("--junit", "out/check.xml"), "out/check.xml"),
     "check-json": (("--json",), None),
     "info": (("-o", "out/info.txt"), "out/info.txt"),
+    "info-latex": (("--latex", "-o", "out/info.tex"), "out/info.tex"),
+    "info-json": (("--json", "-o", "out/info.json"), "out/info.json"),
     "equilibria": ((), None),
+    "linearize": ((), None),
+    "accuracy": (("--method", "RK45:python", "--tolerances", "1e-3", "--t-end", "0.1", "--repeats", "1", "--samples", "11", "--csv", "out/accuracy.csv"), "out/accuracy.csv"),
+    "stress": (("--method", "RK45:python", "--t-end", "0.1", "--budget", "2", "--json", "out/stress.json"), "out/stress.json"),
     "simulate": (("--t-end", "0.1", "--backend", "python", "-o", "out/simulate.csv"), "out/simulate.csv"),
     "simulate-file": (("--backend", "python", "-o", "out/simulate-file.csv"), "out/simulate-file.csv"),
+    "simulate-file-auto": (("-o", "out/simulate-file-auto.csv"), "out/simulate-file-auto.csv"),
     "simulate-numba": (("--t-end", "0.1", "--backend", "compiled", "--method", "DOP853", "-o", "out/simulate-numba.csv"), "out/simulate-numba.csv"),
     "simulate-plot": (("--t-end", "0.1", "--backend", "python", "--plot", "out/simulate.png"), "out/simulate.png"),
 }
-CONTROL = re.compile(r"[\x00-\x08\x0b\x0c\x0e-\x1f\x7f\x80-\x9f\u2028\u2029]")
+CONTROL = re.compile(r"[\x00-\x08\x0b-\x1f\x7f-\x9f]")  # C0 but tab and newline (\r rewrites the line), DEL, C1 (\x9b is CSI)
 
 
 @dataclass
@@ -159,7 +165,7 @@ def judge(case: Case, name: str, result: dict, work: Path) -> list[str]:
     """What is wrong with one command's outcome."""
     code, out, err = result["code"], result["stdout"], result["stderr"]
     problems = []
-    allowed = {case.exits[name]} if name in case.exits else {0, 1, 2} if name.startswith(("simulate", "check")) else {0, 2}
+    allowed = {case.exits[name]} if name in case.exits else {0, 1, 2} if name.startswith(("simulate", "check", "accuracy", "stress")) else {0, 2}
     if code not in allowed:
         problems.append(f"exit {code}, expected {' or '.join(map(str, sorted(allowed)))}")
     for text, where in ((out, "stdout"), (err, "stderr")):
@@ -177,7 +183,7 @@ def judge(case: Case, name: str, result: dict, work: Path) -> list[str]:
                 ET.parse(work / written)
             except ET.ParseError as error:
                 problems.append(f"{written} is not well-formed XML: {error}")
-        elif code == 2 or (code != 0 and not name.startswith("simulate")):
+        elif code == 2 or (code != 0 and not name.startswith(("simulate", "accuracy", "stress"))):
             problems.append(f"{written} was written although the command failed (exit {code})")
     return problems
 
@@ -202,6 +208,7 @@ def follow_up(case: Case, work: Path, tmp: Path) -> list[str]:
     if shutil.which("pdflatex"):
         problems += compile_latex(work, "standalone.tex", None)
         problems += compile_latex(work, "derive.tex", WRAPPER)
+        problems += compile_latex(work, "info.tex", WRAPPER)
     return problems
 
 
