@@ -348,7 +348,7 @@ def alarm(seconds: float) -> Iterator[None]:
         yield
         return
     previous = signal.signal(signal.SIGALRM, expire)
-    signal.setitimer(signal.ITIMER_REAL, seconds)
+    signal.setitimer(signal.ITIMER_REAL, seconds, 1.0)  # again every second: an exception raised in a gc callback is dropped
     try:
         yield
     finally:

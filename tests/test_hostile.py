@@ -48,6 +48,7 @@ DEFAULT_COMMANDS = ("derive-text", "derive-latex", "derive-standalone", "derive-
 # name -> (arguments after the file, the output it writes or None)
 COMMANDS: dict[str, tuple[tuple[str, ...], str | None]] = {
     "derive-text": (("-o", "out/derive.txt"), "out/derive.txt"),
+    "derive-stdout": ((), None),
     "derive-matrix": (("--form", "matrix", "-o", "out/matrix.txt"), "out/matrix.txt"),
     "derive-solved": (("--form", "solved", "-o", "out/solved.txt"), "out/solved.txt"),
     "derive-latex": (("--latex", "-o", "out/derive.tex"), "out/derive.tex"),
@@ -57,6 +58,7 @@ COMMANDS: dict[str, tuple[tuple[str, ...], str | None]] = {
     "check": (("--junit", "out/check.xml"), "out/check.xml"),
     "check-json": (("--json",), None),
     "info": (("-o", "out/info.txt"), "out/info.txt"),
+    "info-stdout": ((), None),
     "info-latex": (("--latex", "-o", "out/info.tex"), "out/info.tex"),
     "info-json": (("--json", "-o", "out/info.json"), "out/info.json"),
     "equilibria": ((), None),
