@@ -33,6 +33,7 @@ import signal
 import sys
 import time
 import traceback
+import warnings
 import xml.etree.ElementTree as ET
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
@@ -419,7 +420,9 @@ def run_case(text: str, folder: Path, limit: float = LIMIT, simulate: bool = Tru
     os.environ["LAGRANGE_CACHE_DIR"] = str(folder / "cache")
     runner = Runner(folder, limit)
     try:
-        _steps(runner, text, simulate and full, full)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # as on the command line, a warning (numpy's overflow, say) is not a failure, also under pytest's "error" filter
+            _steps(runner, text, simulate and full, full)
     finally:
         os.chdir(saved_cwd)
         if saved_cache is None:
