@@ -36,6 +36,8 @@ class Tally:
     simulated: int = 0
     failing_cases: int = 0
     seconds: float = 0.0
+    cpu: float = 0.0
+    """CPU seconds of the workers (the rate per CPU second does not depend on the machine's load)."""
     failures: dict[str, tuple[int, str, str]] = field(default_factory=dict)
     """key -> (count, first detail, first file text)."""
 
@@ -45,6 +47,7 @@ class Tally:
         self.simulated += other.simulated
         self.failing_cases += other.failing_cases
         self.seconds = max(self.seconds, other.seconds)
+        self.cpu += other.cpu
         for key, (count, detail, text) in other.failures.items():
             mine = self.failures.get(key)
             self.failures[key] = (count + (mine[0] if mine else 0), mine[1] if mine else detail, mine[2] if mine else text)
@@ -59,7 +62,7 @@ def work(job: tuple[int, int, int, int, float, int]) -> Tally:
     from tests.fuzzing import cases, run_case
 
     tally = Tally()
-    start = time.perf_counter()
+    start, cpu = time.perf_counter(), time.process_time()
     with tempfile.TemporaryDirectory(prefix="lagrange-fuzz-") as scratch:
 
         @with_seed(seed)
@@ -83,7 +86,7 @@ def work(job: tuple[int, int, int, int, float, int]) -> Tally:
             shutil.rmtree(Path(scratch) / str(tally.executions - 1), ignore_errors=True)
 
         one()
-    tally.seconds = time.perf_counter() - start
+    tally.seconds, tally.cpu = time.perf_counter() - start, time.process_time() - cpu
     return tally
 
 
@@ -118,6 +121,7 @@ def main() -> int:
     wall = time.perf_counter() - start
     rate = total.executions / wall if wall else 0.0
     print(f"{total.executions} executions ({total.full} with every step, {total.simulated} with a simulation) in {wall:.0f} s on {args.workers} worker(s): {rate:.1f}/s")
+    print(f"{total.cpu:.0f} CPU seconds in the workers: {total.executions / max(total.cpu, 1e-9):.1f} executions per CPU second")
     print(f"{total.failing_cases} failing cases, {len(total.failures)} distinct failures")
     for key, (count, detail, _) in sorted(total.failures.items(), key=lambda kv: -kv[1][0]):
         print(f"  {count:6d}  {key}: {detail[:160]}")
@@ -130,6 +134,11 @@ def main() -> int:
     return 1 if total.failures else 0
 
 
+def _cell(text: str) -> str:
+    """Text for a Markdown table cell: no pipes, line breaks or HTML."""
+    return text.replace("|", "\\|").replace("\n", " ").replace("<", "&lt;").replace(">", "&gt;")
+
+
 def write_section(args: argparse.Namespace, total: Tally, wall: float, rate: float) -> None:
     import subprocess
 
@@ -140,14 +149,15 @@ def write_section(args: argparse.Namespace, total: Tally, wall: float, rate: flo
         f"on {platform.machine()} / Python {platform.python_version()}.",
         "",
         f"- executions: {total.executions} ({total.full} with every step, {total.simulated} with a simulation), in {wall:.0f} s: {rate:.1f} executions/s",
+        f"- CPU time of the workers: {total.cpu:.0f} s, {total.executions / max(total.cpu, 1e-9):.1f} executions per CPU second (independent of the machine's load)",
         f"- failing cases: {total.failing_cases}",
         f"- distinct failures: {len(total.failures)}",
     ]
     if total.failures:
         lines += ["", "| count | failure (step: kind at innermost frame) | first detail |", "|---:|---|---|"]
         for key, (count, detail, _) in sorted(total.failures.items(), key=lambda kv: -kv[1][0]):
-            cell = detail[:120].replace("|", "\\|").replace("\n", " ")
-            name = key.replace("|", "\\|")
+            cell = _cell(detail[:120])
+            name = _cell(key)
             lines.append(f"| {count} | {name} | {cell} |")
     lines.append(END)
     path = ROOT / "FUZZ.md"
