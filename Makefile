@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: demo test lint bench golden latex-deps clean
+.PHONY: demo test lint bench fuzz golden latex-deps clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -27,6 +27,12 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/simulate_bench.py --write
 	$(BIN)/python benchmarks/study_bench.py
 	$(BIN)/python benchmarks/every_system.py --write  # about an hour: accuracy and stress on every file in systems/
+
+# Hostile system files by the ten thousand (tests/fuzzing.py's cases); results go to FUZZ.md.
+# FUZZ_COUNT=100000 for the full run (about 20 minutes on two quiet cores).
+FUZZ_COUNT ?= 20000
+fuzz: $(STAMP)
+	$(BIN)/python benchmarks/fuzz.py --count $(FUZZ_COUNT) --workers 2 --write
 
 golden: $(STAMP)
 	$(BIN)/python -m pytest -q tests/test_golden.py --update-golden
