@@ -15,7 +15,7 @@ which splits each equation into `M q_ddot - F`. Symengine does the differentiati
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 
 import sympy as sp
@@ -245,12 +245,6 @@ def total_derivative(expr: sp.Expr, q: tuple[sp.Symbol, ...], qd: tuple[sp.Symbo
     return real_derivative(expr, chain)
 
 
-MAX_SOLVE_OPS = 60
-"""Largest constraint (in `sympy.count_ops`) handed to `sympy.solve`; a larger one is solved only when linear."""
-MAX_SOLVE_DEGREE = 4
-"""Highest degree of a polynomial constraint handed to `sympy.solve` (higher ones have no closed form)."""
-MAX_SIMPLIFY_OPS = 40
-"""Largest solution that `sympy.simplify` tidies; a larger one is kept as solved (correct, only longer)."""
 MAX_SOLVES = 64
 """Most (constraint, coordinate) pairs `eliminate` tries to solve, so that its work is bounded for any file."""
 
@@ -310,12 +304,10 @@ def _attempt(constraint: Constraint, symbol: sp.Symbol, spec: SystemSpec) -> _At
     """Solve `constraint` for `symbol`: unique, in the supported functions, and differentiable twice."""
     solutions, why = _solve(constraint.expr, symbol)
     if not solutions:
-        return _Attempt(None, why or f"constraint '{constraint.name}' cannot be solved for '{symbol}'")
+        return _Attempt(None, f"constraint '{constraint.name}' cannot be solved for '{symbol}'" + (f": {why}" if why else ""))
     if len(solutions) > 1:
-        shown = ", ".join(_short(s) for s in solutions[:3]) + (", ..." if len(solutions) > 3 else "")
-        return _Attempt(
-            None, f"constraint '{constraint.name}' has {len(solutions)} solutions for '{symbol}' ({shown})", "a constraint with a single solution for the eliminated coordinate, or keep the multiplier"
-        )
+        message = f"constraint '{constraint.name}' has {len(solutions)} solutions for '{symbol}' ({why})"
+        return _Attempt(None, message, "a constraint with a single solution for the eliminated coordinate, or keep the multiplier")
     variables = [v for v in (*spec.q, spec.t) if v != symbol]
     found = first_refusal(f"the solution {symbol} = {_short(solutions[0])} of constraint '{constraint.name}'", solutions, variables, spec.definitions)
     if found is not None:
@@ -353,26 +345,92 @@ def _check_remaining(spec: SystemSpec, name: str, used: Constraint) -> None:
 
 
 def _solve(expr: sp.Expr, symbol: sp.Symbol) -> tuple[list[sp.Expr], str]:
-    """The solutions of expr = 0 for `symbol`, or [] and why not; every step bounded in size."""
+    """The solutions of expr = 0 for `symbol`, or [] and why not, in a number of steps bounded by
+    the size of `expr` (no `sympy.solve` or `sympy.simplify`, which can take minutes on a constraint of a few dozen operations): a linear
+    constraint is solved directly, a polynomial of degree n has n solutions, and otherwise the one
+    place where `symbol` occurs is isolated by undoing the functions around it (`_isolate`)."""
     if sp.diff(expr, symbol, 2) == 0:
         slope = sp.diff(expr, symbol)
         if slope == 0:
             return [], ""
-        solution = -expr.subs(symbol, 0) / slope
-        return [sp.simplify(solution) if sp.count_ops(solution) <= MAX_SIMPLIFY_OPS else solution], ""
-    ops = sp.count_ops(expr)
-    if ops > MAX_SOLVE_OPS:
-        return [], f"the constraint is non-linear in '{symbol}' and too large to solve ({ops} operations, at most {MAX_SOLVE_OPS})"
-    try:
-        degree = sp.Poly(expr, symbol).degree()
-    except sp.PolynomialError:
-        degree = None
-    if degree is not None and degree > MAX_SOLVE_DEGREE:
-        return [], f"the constraint is a polynomial of degree {degree} in '{symbol}' (at most {MAX_SOLVE_DEGREE} is solved)"
-    try:
-        return list(sp.solve(expr, symbol)), ""
-    except (NotImplementedError, ValueError):
-        return [], ""
+        return [sp.factor_terms(-expr.subs(symbol, 0) / slope)], ""
+    degree = _degree(expr, symbol)
+    if degree is not None and degree > 1:
+        return _several(degree), f"it is a polynomial of degree {degree} in '{symbol}'"
+    return _isolate(expr, sp.Integer(0), symbol)
+
+
+def _several(count: int) -> list[sp.Expr]:
+    """Stand-ins for `count` solutions that are not worth computing: only their number is reported."""
+    return [sp.Symbol(f"root{i}") for i in range(count)]
+
+
+def _degree(expr: sp.Expr, symbol: sp.Symbol) -> int | None:
+    """The degree of a polynomial in `symbol` as written (without expanding), None if not a polynomial."""
+    if not expr.has(symbol):
+        return 0
+    if expr == symbol:
+        return 1
+    if isinstance(expr, (sp.Add, sp.Mul)):
+        degrees = [_degree(a, symbol) for a in expr.args]
+        if any(d is None for d in degrees):
+            return None
+        known = [d for d in degrees if d is not None]
+        return max(known) if isinstance(expr, sp.Add) else sum(known)
+    if isinstance(expr, sp.Pow) and expr.exp.is_Integer and expr.exp > 0:
+        base = _degree(expr.base, symbol)
+        return None if base is None else base * int(expr.exp)
+    return None
+
+
+_INVERSES: dict[type, tuple[Callable[[sp.Expr], sp.Expr] | None, str]] = {
+    sp.exp: (sp.log, ""),
+    sp.log: (sp.exp, ""),
+    sp.tan: (sp.atan, ""),
+    sp.atan: (sp.tan, ""),
+    sp.asin: (sp.sin, ""),
+    sp.acos: (sp.cos, ""),
+    sp.sin: (None, "sin takes each value twice in a period"),
+    sp.cos: (None, "cos takes each value twice in a period"),
+    sp.sec: (None, "sec takes each value twice in a period"),
+    sp.csc: (None, "csc takes each value twice in a period"),
+    sp.cosh: (None, "cosh takes each value twice"),
+    sp.Abs: (None, "Abs takes each value twice"),
+    sp.cot: (None, "its inverse acot is not one of the supported functions"),
+    sp.sinh: (None, "its inverse asinh is not one of the supported functions"),
+    sp.tanh: (None, "its inverse atanh is not one of the supported functions"),
+    sp.sign: (None, "sign takes only the values -1, 0 and 1"),
+}
+
+
+def _isolate(lhs: sp.Expr, rhs: sp.Expr, symbol: sp.Symbol) -> tuple[list[sp.Expr], str]:
+    """Solve lhs = rhs where `symbol` occurs in one place of lhs: peel off sums, products, powers
+    and invertible functions around it, one layer per step, keeping only inverses that give a
+    unique solution in the supported functions (LambertW, Piecewise or a polynomial's RootOf
+    never arise)."""
+    while lhs != symbol:
+        if isinstance(lhs, (sp.Add, sp.Mul)):
+            inside = [a for a in lhs.args if a.has(symbol)]
+            if len(inside) > 1:
+                return [], f"'{symbol}' appears in more than one {'term' if isinstance(lhs, sp.Add) else 'factor'} of {_short(lhs)}, which has no solution in the supported functions"
+            rest = lhs.func(*(a for a in lhs.args if not a.has(symbol)))
+            rhs = rhs - rest if isinstance(lhs, sp.Add) else rhs / rest
+            lhs = inside[0]
+        elif isinstance(lhs, sp.Pow) and not lhs.exp.has(symbol):
+            exponent = lhs.exp
+            if not (exponent.is_Rational and abs(exponent.p) == 1):
+                return _several(2), f"the power {_short(lhs)} takes some values more than once"
+            lhs, rhs = lhs.base, rhs ** (1 / exponent)
+        elif isinstance(lhs, sp.Pow) and lhs.base.is_number and lhs.base.is_positive:
+            lhs, rhs = lhs.exp, sp.log(rhs) / sp.log(lhs.base)
+        elif type(lhs) in _INVERSES and len(lhs.args) == 1:
+            inverse, why = _INVERSES[type(lhs)]
+            if inverse is None:
+                return (_several(2) if "twice" in why else []), f"'{symbol}' is inside {type(lhs).__name__}, and {why}"
+            lhs, rhs = lhs.args[0], inverse(rhs)
+        else:
+            return [], f"'{symbol}' is inside {_short(lhs)}, which cannot be inverted in the supported functions"
+    return [rhs], ""
 
 
 def _short(expr: sp.Expr) -> str:
