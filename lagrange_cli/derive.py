@@ -26,7 +26,7 @@ from lagrange_cli.errors import Span, fail
 from lagrange_cli.expr import numeric_value, real_derivative
 from lagrange_cli.model import ConstraintRow, Model
 from lagrange_cli.spec import Body, Constraint, Particle, SystemSpec, time_derivative
-from lagrange_cli.validate import Source, first_refusal, validate
+from lagrange_cli.validate import Source, first_refusal, refusal, validate
 
 Vector = list[se.Basic]
 
@@ -116,6 +116,8 @@ def sources(spec: SystemSpec) -> list[Source]:
         add(f"the exact solution for '{name}'", spec.sources.get(f"exact.{name}"), exact)
     for name, definition in spec.definitions.items():
         add(f"the definition of '{name}'", spec.sources.get(f"functions.{name}"), definition.expr)
+        if found and found[-1].what == f"the definition of '{name}'":
+            found[-1] = dataclasses.replace(found[-1], variables=tuple(definition.variables))
     return found
 
 
@@ -295,8 +297,9 @@ def eliminate(spec: SystemSpec) -> SystemSpec:
             raise _unsolvable(spec, name, span, failures.get(name, []))
         name = min(options, key=lambda n: (len(options[n]), spec.coordinates.index(n)))
         constraint, solution = options[name][0]
+        span = next(s for n, s in spec.eliminate if n == name)
         spec = _substitute(spec, spec.coordinates.index(name), solution, constraint)
-        _check_remaining(spec, name, constraint)
+        _check_substituted(spec, name, span, solution, constraint)
     return spec
 
 
@@ -329,8 +332,18 @@ def _unsolvable(spec: SystemSpec, name: str, span: Span, failures: list[tuple[Co
     return fail(span, f"no holonomic constraint can be solved for '{name}'", f"a holonomic constraint under `constraints` that involves '{name}' and can be solved for it{hint}")
 
 
-def _check_remaining(spec: SystemSpec, name: str, used: Constraint) -> None:
-    """A kept constraint that the substitution made 0 = 0 (it repeats `used`) or c = 0 (it contradicts it)."""
+def _check_substituted(spec: SystemSpec, name: str, span: Span, solution: sp.Expr, used: Constraint) -> None:
+    """After substituting name = solution: no entry became undefined (`1/(x - y)` with x = y), and
+    no kept constraint became 0 = 0 (it repeats `used`) or c = 0 (it contradicts it)."""
+    for source in sources(spec):
+        for expr in source.exprs:
+            found = refusal(expr, spec.definitions)
+            if found is not None:
+                raise fail(
+                    span,
+                    f"eliminating '{name}' = {_short(solution)} (from constraint '{used.name}') turns {source.what} into an expression with {_short(found.node)} ({found.reason})",
+                    "an elimination that keeps every expression defined, or keep the constraint with its multiplier",
+                )
     for constraint in spec.constraints:
         if constraint.expr == 0:
             raise fail(
@@ -471,7 +484,8 @@ def _substitute(spec: SystemSpec, k: int, solution: sp.Expr, used: Constraint) -
         eliminate=tuple(e for e in spec.eliminate if e[0] != spec.coordinates[k]),
         initial={key: v for key, v in spec.initial.items() if key not in (spec.coordinates[k], f"{spec.coordinates[k]}_dot")},
     )
-    object.__setattr__(changed, "_eliminated", (*getattr(spec, "_eliminated", ()), (spec.coordinates[k], solution)))
+    earlier = tuple((name, sub(e)) for name, e in getattr(spec, "_eliminated", ()))  # in the coordinates that remain
+    object.__setattr__(changed, "_eliminated", (*earlier, (spec.coordinates[k], solution)))
     return changed
 
 

@@ -203,7 +203,14 @@ class _Builder:
             return sp.Integer(value)
         if not math.isfinite(value):
             raise fail(self.at(node), "number is not finite", "a finite real number")
+        if value == 0.0 and any(c in "123456789" for c in self.literal(node).lower().split("e")[0]):
+            raise fail(self.at(node), f"number {self.literal(node)} underflows to 0 in double precision", "numbers between 1e-300 and 1e300 in size (or 0)")
         return sp.Float(value)
+
+    def literal(self, node: ast.AST) -> str:
+        """The source text of `node` (a number literal)."""
+        start, end = getattr(node, "col_offset", 0), getattr(node, "end_col_offset", None)
+        return self.encoded[start:end].decode("utf-8", errors="ignore")
 
     def _Name(self, node: ast.Name, depth: int) -> sp.Expr:
         name = node.id

@@ -14,6 +14,7 @@ column.
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
 
@@ -22,7 +23,7 @@ from sympy.core.function import AppliedUndef
 
 from lagrange_cli.errors import Span, fail
 from lagrange_cli.expr import SUPPORTED_FUNCTIONS, float_problem, real_derivative
-from lagrange_cli.model import Model
+from lagrange_cli.model import Model, apply_definitions
 
 MAX_EXPONENT = 10_000
 """Largest integer exponent a derived power may have (the parser allows 1000; products of such powers add up)."""
@@ -56,6 +57,8 @@ class Source:
     what: str
     span: Span | None
     exprs: tuple[sp.Expr, ...]
+    variables: tuple[sp.Symbol, ...] | None = None
+    """What it is differentiated by, when not the coordinates, velocities and time (a definition's arguments)."""
 
 
 @dataclass(frozen=True)
@@ -168,22 +171,32 @@ def validate(model: Model, sources: Sequence[Source], variables: Sequence[sp.Sym
         for part, expr in model_parts(written):
             found = refusal(expr)
             if found is not None:
-                raise _located(written, part + " (with the functions' definitions written out)", found, sources, variables, set())
+                # the definitions first: a refused node there is found in the definition, where it is written
+                spelled = [dataclasses.replace(s, exprs=tuple(apply_definitions(e, model.definitions) for e in s.exprs)) for s in sorted(sources, key=lambda s: s.variables is None)]
+                raise _located(written, part + " (with the functions' definitions written out)", found, spelled, variables, set())
 
 
 def _located(model: Model, part: str, found: Refusal, sources: Sequence[Source], variables: Sequence[sp.Symbol], defined: set[str]) -> Exception:
-    """The error for a refused node: at the first entry that has it, or whose derivative has it."""
+    """The error for a refused node: at the first entry that has it, or whose derivative has it
+    (an entry with a refused node of the same kind first, then any)."""
+    fallback = None
     for source, derivative, respect in _candidates(sources, variables):
         local = refusal(derivative, defined)
-        if local is not None:
-            return fail(source.span, f"{_phrase(source.what, respect)} contains {_short(local.node)} ({local.reason}), which the equations cannot use", local.hint)
+        if local is None:
+            continue
+        error = fail(source.span, f"{_phrase(source.what, respect)} contains {_short(local.node)} ({local.reason}), which the equations cannot use", local.hint)
+        if type(local.node) is type(found.node) or local.reason == found.reason:
+            return error
+        fallback = fallback or error
+    if fallback is not None:
+        return fallback
     return fail(None, f"{model.source}: {part} contains {_short(found.node)} ({found.reason}), which the equations cannot use", found.hint)
 
 
 def first_refusal(what: str, exprs: Sequence[sp.Expr], variables: Sequence[sp.Symbol], defined: Iterable[str] = ()) -> tuple[str, Refusal] | None:
     """The first refused node of `exprs` or of their first and second derivatives, with a phrase
     saying where it is ('the second derivative of <what> with respect to x'); None if all is well."""
-    for _, derivative, respect in _candidates([Source(what, None, tuple(exprs))], variables):
+    for _, derivative, respect in _candidates([Source(what, None, tuple(exprs), tuple(variables))], variables):
         found = refusal(derivative, defined)
         if found is not None:
             return _phrase(what, respect), found
@@ -207,12 +220,13 @@ def _candidates(sources: Sequence[Source], variables: Sequence[sp.Symbol]) -> It
             yield source, expr, ""
     for source in sources:
         for expr in source.exprs:
-            for first, v in _derivatives(expr, variables):
+            for first, v in _derivatives(expr, source.variables or variables):
                 yield source, first, f"with respect to {v}"
     for source in sources:
+        by = source.variables or variables
         for expr in source.exprs:
-            for first, v in _derivatives(expr, variables):
-                for second, w in _derivatives(first, variables):
+            for first, v in _derivatives(expr, by):
+                for second, w in _derivatives(first, by):
                     yield source, second, f"with respect to {v} and {w}"
 
 
