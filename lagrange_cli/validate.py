@@ -15,6 +15,7 @@ column.
 from __future__ import annotations
 
 import dataclasses
+import itertools
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
 
@@ -25,6 +26,9 @@ from lagrange_cli.errors import Span, fail
 from lagrange_cli.expr import SUPPORTED_FUNCTIONS, float_problem, real_derivative
 from lagrange_cli.model import Model, apply_definitions
 
+MAX_CANDIDATES = 400
+"""Most expressions and derivatives examined to find the entry a refused node comes from (only on the
+error path); beyond them the error names the part of the model instead of a line."""
 MAX_EXPONENT = 10_000
 """Largest integer exponent a derived power may have (the parser allows 1000; products of such powers add up)."""
 
@@ -180,7 +184,8 @@ def _located(model: Model, part: str, found: Refusal, sources: Sequence[Source],
     """The error for a refused node: at the first entry that has it, or whose derivative has it
     (an entry with a refused node of the same kind first, then any)."""
     fallback = None
-    for source, derivative, respect in _candidates(sources, variables):
+    suspects = [s for s in sources if _may_produce(s, found.node)]
+    for source, derivative, respect in itertools.islice(_candidates(suspects, variables), MAX_CANDIDATES):
         local = refusal(derivative, defined)
         if local is None:
             continue
@@ -191,6 +196,19 @@ def _located(model: Model, part: str, found: Refusal, sources: Sequence[Source],
     if fallback is not None:
         return fallback
     return fail(None, f"{model.source}: {part} contains {_short(found.node)} ({found.reason}), which the equations cannot use", found.hint)
+
+
+def _may_produce(source: Source, node: sp.Basic) -> bool:
+    """Whether differentiating `source` can give `node`: a Dirac delta needs a sign or Abs, a
+    derivative of a general function needs a general function, and a node with free symbols needs
+    one of them (anything may give an undefined value). Keeps the search for the culprit short."""
+    exprs = source.exprs
+    if isinstance(node, (sp.DiracDelta, sp.Heaviside)) and not any(e.has(sp.sign, sp.Abs) for e in exprs):
+        return False
+    if isinstance(node, (sp.Subs, sp.Derivative)) and not any(e.has(AppliedUndef) for e in exprs):
+        return False
+    names = {str(s) for s in getattr(node, "free_symbols", ())}
+    return not names or source.variables is not None or any(str(s) in names for e in exprs for s in e.free_symbols)
 
 
 def first_refusal(what: str, exprs: Sequence[sp.Expr], variables: Sequence[sp.Symbol], defined: Iterable[str] = ()) -> tuple[str, Refusal] | None:
