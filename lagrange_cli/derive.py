@@ -123,17 +123,19 @@ def sources(spec: SystemSpec) -> list[Source]:
 
 def check_masses(spec: SystemSpec) -> None:
     """A mass or inertia written non-zero must not be 0 where the equations are computed (in
-    double precision): a `1e-170*m*1e-170` would silently leave a coordinate without inertia."""
+    double precision): `m*exp(-800)` would silently leave a coordinate without inertia. Its
+    written constants are evaluated with every parameter at 1 (a parameter's own value is the
+    user's to choose)."""
     for item in _masses(spec):
         values = [("mass", item.mass)] + ([("inertia", i) for i in item.inertia] if isinstance(item, Body) else [])
         for key, value in values:
             if value == 0:
                 continue
-            computed = to_symengine(value)
-            vanishes = computed == 0
-            if not vanishes and value.is_number:
+            vanishes = to_symengine(value) == 0
+            ones = value.xreplace({s: sp.Integer(1) for s in value.free_symbols})  # its written constants, at parameters of 1
+            if not vanishes and ones.is_number:
                 try:
-                    vanishes = numeric_value(value) == 0.0
+                    vanishes = numeric_value(ones) == 0.0
                 except (OverflowError, ValueError):
                     vanishes = False
             if vanishes:
