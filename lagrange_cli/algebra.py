@@ -18,6 +18,8 @@ MAX_TERMS = 2000
 expression is kept as it is, which is correct, only less tidy."""
 MAX_POWER = 6
 """Largest integer power of a sum that is multiplied out (`(a + b)**7` stays a power)."""
+MAX_NODES = 5_000
+"""Largest expression (distinct nodes) that is expanded at all: beyond it, the estimate itself stops early."""
 
 
 def expansion_size(expr: object, limit: int = MAX_TERMS) -> int:
@@ -26,7 +28,8 @@ def expansion_size(expr: object, limit: int = MAX_TERMS) -> int:
     its terms' counts, a product multiplies them, a power n of a k-term sum has C(n + k - 1, k - 1)
     terms. Saturates at `limit + 1`; works on sympy and symengine expressions alike.
 
-    The walk visits each distinct node once, so it is linear in the size of the expression."""
+    The walk visits each distinct node once and stops at the first sub-expression over `limit`,
+    or after `MAX_NODES` nodes (counted as over the limit), so it costs at most O(MAX_NODES)."""
     sizes: dict[object, int] = {}
     largest = 1
     stack: list[tuple[object, bool]] = [(expr, False)]
@@ -34,6 +37,8 @@ def expansion_size(expr: object, limit: int = MAX_TERMS) -> int:
         node, ready = stack.pop()
         if node in sizes:
             continue
+        if len(sizes) > MAX_NODES or largest > limit:
+            return limit + 1
         args = node.args  # type: ignore[attr-defined]
         if not ready and args:
             stack.append((node, True))

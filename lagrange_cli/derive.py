@@ -34,6 +34,7 @@ Vector = list[se.Basic]
 def derive(spec: SystemSpec) -> Model:
     """File to equations: eliminate constraints, build L and R, apply Lagrange's equation, and
     validate the result (`validate.validate`), so that every later stage sees a sound model."""
+    check_size(spec, input_work(spec), MAX_INPUT_WORK, "the file's expressions, each times the number of coordinates and velocities in it,")
     spec = eliminate(spec)
     check_masses(spec)
     model = _derive(spec)
@@ -52,6 +53,7 @@ def _derive(spec: SystemSpec) -> Model:
         raise fail(None, f"{spec.path}: the Lagrangian depends on accelerations", "a Lagrangian of coordinates, velocities and time")
     p = momenta(lagrangian, qd)
     mass, force = euler_lagrange(lagrangian, dissipation, forces, q, qd, t)
+    check_size(spec, tree_size([*(m for row in mass for m in row), *force, kinetic, dissipation, *p], MAX_EQUATION_NODES), MAX_EQUATION_NODES, "the equations of motion")
     for i, name in enumerate(spec.coordinates):
         if all(m == 0 for m in mass[i]) and force[i] == 0 and not any(_has(c.expr, se.Symbol(name)) or _has(c.expr, qd[i]) for c in map(_se_constraint, spec.constraints)):
             raise fail(
@@ -84,6 +86,37 @@ def _derive(spec: SystemSpec) -> Model:
         spans=spec.spans,
         definitions=spec.definitions,
     )
+
+
+MAX_INPUT_WORK = 100_000
+"""Largest sum over the file's expressions of (terms and factors) x (coordinates and velocities in it + 1)."""
+MAX_EQUATION_NODES = 250_000
+"""Largest number of terms and factors of the derived equations (about 5 s to turn into sympy here; the
+bundled systems have at most a few hundred)."""
+
+
+def tree_size(expr: object, limit: int = 10**9) -> int:
+    """The number of nodes of an expression tree (sympy or symengine; a list counts its items'
+    trees), counting stops just past `limit`."""
+    count, stack = 0, list(expr) if isinstance(expr, list) else [expr]
+    while stack and count <= limit:
+        node = stack.pop()
+        count += 1
+        stack.extend(node.args)  # type: ignore[union-attr]
+    return count
+
+
+def input_work(spec: SystemSpec) -> int:
+    """What differentiation multiplies: the size of each term of each entry times (the coordinates
+    and velocities it has + 1); a term without a coordinate differentiates to nothing."""
+    state = {*spec.q, *spec.qd}
+    return sum(tree_size(term) * (len(term.free_symbols & state) + 1) for source in sources(spec) for e in source.exprs for term in sp.Add.make_args(e))
+
+
+def check_size(spec: SystemSpec, size: int, limit: int, what: str) -> None:
+    """Refuse a file whose derivation would be too large to finish in seconds (counted, not timed)."""
+    if size > limit:
+        raise fail(None, f"{spec.path}: {what} amount to more than {limit} terms and factors", "a smaller system: fewer or shorter expressions, or fewer coordinates")
 
 
 def sources(spec: SystemSpec) -> list[Source]:

@@ -39,6 +39,7 @@ SIMULATE_KEYS = ("t_end", "method", "rtol", "atol", "step", "samples")
 METHODS = ("auto", "RK45", "DOP853", "Radau", "BDF", "LSODA", "symplectic")  # as in numeric/settings.py
 DEFAULT_T_END = 10.0  # numeric/settings.py's default
 MAX_STEPS = 10**8
+MAX_COORDINATES = 300
 LIMITS = {
     "t_end": (1e-9, 1e9, "the end time of a run, in the system's units"),
     "step": (1e-12, 1e9, "the fixed step of the symplectic method"),
@@ -603,6 +604,8 @@ class _Reader:
         items = self.sequence(node, "'coordinates'")
         if isinstance(node, yaml.SequenceNode) and not items:
             self.problem(node, "'coordinates' is empty", "at least one generalized coordinate")
+        if len(items) > MAX_COORDINATES:
+            self.problem(node, f"'coordinates' lists {len(items)} coordinates", f"at most {MAX_COORDINATES} (the mass matrix has one entry per pair)")
         names = [self.name(item, "coordinate", taken) for item in items]
         self.spans.update({n: self.span(item) for n, item in zip(names, items, strict=True) if n})
         return tuple(n for n in names if n)

@@ -281,3 +281,37 @@ def test_the_cli_reports_located_errors_without_a_traceback(tmp_path: object, ex
     assert result.returncode == 2
     assert "Traceback" not in result.stderr and result.stdout == ""
     assert result.stderr.startswith(f"{path}:{line}:{column}: error: ") and says in result.stderr
+
+
+# -- the size of a derivation ---------------------------------------------------------------------
+
+
+def test_the_input_and_the_equations_are_counted_before_the_slow_steps(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A file whose derivation would be too large is refused by counting terms and factors: the
+    file's expressions (each times the coordinates in it) before differentiating, the equations
+    before they are converted to sympy. The bundled systems are far below both bounds."""
+    text = LINE + "potential: k*(x - y)**4 + sin(x*y)\n"
+    system = spec.parse(text, "sys.yaml")
+    work = derive.input_work(system)
+    assert 0 < work < derive.MAX_INPUT_WORK / 100
+    monkeypatch.setattr(derive, "MAX_INPUT_WORK", work - 1)
+    with pytest.raises(SpecError, match="the file's expressions.*amount to more than"):
+        derive.derive(system)
+    monkeypatch.setattr(derive, "MAX_INPUT_WORK", work)
+    monkeypatch.setattr(derive, "MAX_EQUATION_NODES", 20)
+    with pytest.raises(SpecError, match="the equations of motion amount to more than 20 terms and factors"):
+        derive.derive(system)
+
+
+def test_the_tree_size_count_stops_at_its_limit() -> None:
+    big = sp.Add(*(sp.Symbol(f"a{i}") * sp.Symbol(f"b{i}") for i in range(1000)))
+    assert derive.tree_size(big) == 1 + 3 * 1000
+    assert derive.tree_size(big, 50) <= 51 + 3
+
+
+def test_too_many_coordinates_are_refused_where_listed() -> None:
+    names = ", ".join(f"q{i}" for i in range(spec.MAX_COORDINATES + 1))
+    with pytest.raises(SpecError) as caught:
+        spec.parse(f"coordinates: [{names}]\n", "sys.yaml")
+    problem = caught.value.diagnostics[0]
+    assert f"lists {spec.MAX_COORDINATES + 1} coordinates" in problem.message and problem.span is not None and (problem.span.line, problem.span.column) == (1, 14)
