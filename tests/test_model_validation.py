@@ -295,7 +295,7 @@ def test_the_input_and_the_equations_are_counted_before_the_slow_steps(monkeypat
     work = derive.input_work(system)
     assert 0 < work < derive.MAX_INPUT_WORK / 100
     monkeypatch.setattr(derive, "MAX_INPUT_WORK", work - 1)
-    with pytest.raises(SpecError, match="the file's expressions.*amount to more than"):
+    with pytest.raises(SpecError, match=r"the file's expressions.*amount to more than"):
         derive.derive(system)
     monkeypatch.setattr(derive, "MAX_INPUT_WORK", work)
     monkeypatch.setattr(derive, "MAX_EQUATION_NODES", 20)
