@@ -67,6 +67,8 @@ class Source:
 
 @dataclass(frozen=True)
 class Refusal:
+    """A refused node, why (for the message) and what would be right (for `expected:`)."""
+
     node: sp.Basic
     reason: str
     hint: str
@@ -261,8 +263,3 @@ def _derivatives(expr: sp.Expr, variables: Sequence[sp.Symbol]) -> Iterator[tupl
 def _short(node: sp.Basic) -> str:
     text = str(node)
     return text if len(text) <= 80 else text[:77] + "..."
-
-
-def sources_of(entries: Mapping[str, tuple[Span | None, Sequence[sp.Expr]]]) -> list[Source]:
-    """Sources from a map `what -> (span, expressions)`, skipping empty ones."""
-    return [Source(what, span, tuple(e for e in exprs if e is not None)) for what, (span, exprs) in entries.items() if exprs]
