@@ -341,7 +341,7 @@ def float_problem(number: sp.Expr) -> str:
     if not math.isfinite(value):
         return "overflows double precision"
     if value == 0.0 and not number.is_zero:
-        return f"({sp.Float(number, 3)}) underflows to 0 in double precision"
+        return "underflows to 0 in double precision"
     return ""
 
 

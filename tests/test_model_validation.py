@@ -69,6 +69,7 @@ MADE_AFTER_PARSING = [
     ("overflowing-product", ONE.replace("mass: m", "mass: 1e300*1e300"), "1e300*", "overflows double precision", "between 1e-300 and 1e300"),
     ("underflowing-product", ONE.replace("mass: m", "mass: 1e-200*1e-200"), "1e-200*", "underflows to 0", "between 1e-300 and 1e300"),
     ("underflowing-product-with-symbol", ONE.replace("mass: m", "mass: m*1e-200*1e-200"), "m*1e-200", "underflows to 0", "between 1e-300 and 1e300"),
+    ("underflowing-function-value", ONE.replace("position: [x]", "position: ['exp(1 - 1e300) + x']"), "exp(1", "this number underflows to 0", "between 1e-300 and 1e300"),
     ("underflowing-literal", ONE.replace("m: 1.0", "m: 1e-400"), "1e-400", "number 1e-400 underflows to 0", "between 1e-300 and 1e300"),
     ("mass-vanishing-in-doubles", ONE.replace("mass: m", "mass: m*exp(-800)"), "m*exp(-800)", "the mass of 'p' is written non-zero (m*exp(-800)) but is 0 in double precision", "between 1e-300"),
     (
