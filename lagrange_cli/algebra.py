@@ -4,6 +4,7 @@ the symbolically solved accelerations."""
 
 from __future__ import annotations
 
+import math
 from itertools import combinations
 
 import sympy as sp
@@ -232,7 +233,9 @@ def pivot_ratio(matrix: sp.Matrix, model: Model, seed: int = 1) -> float:
     """Smallest over largest pivot of A (rows scaled to unit norm) at a random point: about
     1/condition number, and at rounding level when A is singular.
 
-    Evaluated in floating point with a pure-Python LU (no numpy in the derive path)."""
+    Evaluated in floating point with a pure-Python LU (no numpy in the derive path). Where the
+    matrix is not real or not finite at the point, up to three other points are tried; if none
+    serves, there is no verdict (1.0): the numeric run reports where it fails."""
     import random
 
     rng = random.Random(seed)
@@ -244,7 +247,13 @@ def pivot_ratio(matrix: sp.Matrix, model: Model, seed: int = 1) -> float:
     generic = {u: sp.Float(rng.uniform(0.5, 2.0)) for u in unknowns}
     if generic:
         matrix = matrix.xreplace(generic)
-    rows = [[float(to_symengine(matrix[i, j]).subs(point)) if matrix[i, j] != 0 else 0.0 for j in range(matrix.cols)] for i in range(matrix.rows)]
+    try:
+        rows = [[float(to_symengine(matrix[i, j]).subs(point)) if matrix[i, j] != 0 else 0.0 for j in range(matrix.cols)] for i in range(matrix.rows)]
+    except (RuntimeError, TypeError, ValueError, OverflowError, ZeroDivisionError):
+        # not real or not defined at this point (sqrt of a negative): another point, or no verdict
+        return pivot_ratio(matrix, model, seed + 1) if seed < 3 else 1.0
+    if not all(math.isfinite(x) for row in rows for x in row):
+        return pivot_ratio(matrix, model, seed + 1) if seed < 3 else 1.0
     pivots = []
     for row in rows:
         norm = sum(x * x for x in row) ** 0.5

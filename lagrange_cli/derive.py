@@ -35,9 +35,15 @@ def derive(spec: SystemSpec) -> Model:
     """File to equations: eliminate constraints, build L and R, apply Lagrange's equation, and
     validate the result (`validate.validate`), so that every later stage sees a sound model."""
     check_size(spec, input_work(spec), MAX_INPUT_WORK, "the file's expressions, each times the number of coordinates and velocities in it,")
-    spec = eliminate(spec)
-    check_masses(spec)
-    model = _derive(spec)
+    try:
+        spec = eliminate(spec)
+        check_masses(spec)
+        model = _derive(spec)
+    except TypeError as exc:
+        if "NaN" not in str(exc):
+            raise
+        # sympy evaluating an undefined value on the way (atan2 of a zoo after a substitution)
+        raise fail(None, f"{spec.path}: an expression became undefined (not a number) while deriving the equations", "expressions with finite values wherever they are evaluated") from None
     validate(model, sources(spec), (*spec.q, *spec.qd, spec.t))
     return model
 
@@ -397,11 +403,14 @@ def _solve(expr: sp.Expr, symbol: sp.Symbol) -> tuple[list[sp.Expr], str]:
     the size of `expr` (no `sympy.solve` or `sympy.simplify`, which can take minutes on a constraint of a few dozen operations): a linear
     constraint is solved directly, a polynomial of degree n has n solutions, and otherwise the one
     place where `symbol` occurs is isolated by undoing the functions around it (`_isolate`)."""
-    if sp.diff(expr, symbol, 2) == 0:
-        slope = sp.diff(expr, symbol)
-        if slope == 0:
-            return [], ""
-        return [sp.factor_terms(-expr.subs(symbol, 0) / slope)], ""
+    try:
+        if sp.diff(expr, symbol, 2) == 0:
+            slope = sp.diff(expr, symbol)
+            if slope == 0:
+                return [], ""
+            return [sp.factor_terms(-expr.subs(symbol, 0) / slope)], ""
+    except (TypeError, ValueError, ZeroDivisionError):  # sympy compares a NaN (e.g. atan2(0, cot(0)))
+        return [], f"it is undefined at {symbol} = 0"
     degree = _degree(expr, symbol)
     if degree is not None and degree > 1:
         return _several(degree), f"it is a polynomial of degree {degree} in '{symbol}'"

@@ -146,3 +146,11 @@ def test_a_linear_solution_is_tidied_without_simplify() -> None:
     text = "coordinates: [y1, y2]\nparameters: {m1: 1.0, m2: 2.0, l: 3.0, g: 9.81}\ngravity: [-g]\nparticles:\n  a: {mass: m1, position: [y1]}\n  b: {mass: m2, position: [y2]}\n"
     model = derive.derive(spec.parse(text + "constraints:\n  string: y1 + y2 = l\neliminate: [y2]\n", "sys.yaml"))
     assert dict(model.eliminated)["y2"] == sp.Symbol("l") - sp.Symbol("y1")
+
+
+def test_a_constraint_undefined_at_zero_is_refused_not_a_nan_comparison() -> None:
+    """atan2(0, cot(x)) has derivative 0 in x, so the constraint looks linear; solving it evaluates
+    cot(0) (sympy then compares a NaN, a TypeError): a located refusal instead."""
+    text = PLANE + "constraints:\n  c: 'sqrt(atan2(0, 2*cot(x))) = x'\neliminate: [x]\n"
+    problem = refused(text)
+    assert problem.span is not None and (problem.span.line, problem.span.column) == position(text, "[x]\n", 1)
