@@ -171,10 +171,9 @@ def check_masses(spec: SystemSpec) -> None:
             if value == 0:
                 continue
             vanishes = to_symengine(value) == 0
-            ones = value.xreplace({s: sp.Integer(1) for s in value.free_symbols})  # its written constants, at parameters of 1
-            if not vanishes and ones.is_number:
-                try:
-                    vanishes = numeric_value(ones) == 0.0
+            if not vanishes:
+                try:  # its written constants, at parameters of 1, in floating point (no sympy evaluation of huge numbers)
+                    vanishes = numeric_value(value, dict.fromkeys(value.free_symbols, 1.0)) == 0.0
                 except (OverflowError, ValueError):
                     vanishes = False
             if vanishes:

@@ -375,28 +375,31 @@ _MATH: dict[Any, Callable[..., float]] = {
 }
 
 
-def numeric_value(expr: sp.Expr) -> float:
+def numeric_value(expr: sp.Expr, values: Mapping[sp.Basic, float] | None = None) -> float:
     """The value of a constant expression in floating point, computed bottom-up so that it
     never hangs (unlike `evalf` on `exp(exp(exp(9)))`). Raises `OverflowError` when it is
-    too large for a float and `ValueError` when it is not a real number."""
-    if expr.is_Rational or expr.is_Float:
+    too large for a float and `ValueError` when it is not a real number. Symbols take their
+    `values` (a symbol without one is not a number)."""
+    if values is not None and expr in values:
+        value = float(values[expr])
+    elif expr.is_Rational or expr.is_Float:
         value = float(expr)
     elif expr is sp.pi:
         value = math.pi
     elif expr is sp.E:
         value = math.e
     elif isinstance(expr, sp.Add):
-        value = math.fsum(numeric_value(a) for a in expr.args)
+        value = math.fsum(numeric_value(a, values) for a in expr.args)
     elif isinstance(expr, sp.Mul):
-        value = math.prod(numeric_value(a) for a in expr.args)
+        value = math.prod(numeric_value(a, values) for a in expr.args)
     elif isinstance(expr, sp.Pow):
-        base, exponent = numeric_value(expr.base), numeric_value(expr.exp)
+        base, exponent = numeric_value(expr.base, values), numeric_value(expr.exp, values)
         if base == 0 and exponent <= 0:
             raise ValueError("zero to a non-positive power")
         value = math.pow(base, exponent)
     elif type(expr) in _MATH:
         try:
-            value = _MATH[type(expr)](*(numeric_value(a) for a in expr.args))
+            value = _MATH[type(expr)](*(numeric_value(a, values) for a in expr.args))
         except ZeroDivisionError:
             raise ValueError("undefined") from None
     else:
