@@ -4,6 +4,7 @@ the symbolically solved accelerations."""
 
 from __future__ import annotations
 
+import math
 from itertools import combinations
 
 import sympy as sp
@@ -13,25 +14,96 @@ from lagrange_cli._symengine import se, to_symengine
 from lagrange_cli.errors import DerivationError
 from lagrange_cli.model import Model
 
+MAX_TERMS = 2000
+"""Largest number of terms an expansion may produce (estimated before expanding); beyond it the
+expression is kept as it is, which is correct, only less tidy."""
+MAX_POWER = 6
+"""Largest integer power of a sum that is multiplied out (`(a + b)**7` stays a power)."""
+MAX_NODES = 5_000
+"""Largest expression (distinct nodes) that is expanded at all: beyond it, the estimate itself stops early."""
 
-def expand_bounded(expr: sp.Expr, max_power: int = 6) -> sp.Expr:
-    """sympy's expand, except when a power of a sum above `max_power` would explode."""
-    if any(p.base.is_Add and p.exp.is_Integer and abs(int(p.exp)) > max_power for p in expr.atoms(sp.Pow)):
+
+def expansion_size(expr: object, limit: int = MAX_TERMS) -> int:
+    """An upper estimate of the number of terms `expand(expr)` makes (of any sub-expression,
+    since expand works inside function arguments too), counted without expanding: a sum adds
+    its terms' counts, a product multiplies them, a power n of a k-term sum has C(n + k - 1, k - 1)
+    terms. Saturates at `limit + 1`; works on sympy and symengine expressions alike.
+
+    The walk visits each distinct node once and stops at the first sub-expression over `limit`,
+    or after `MAX_NODES` nodes (counted as over the limit), so it costs at most O(MAX_NODES)."""
+    sizes: dict[object, int] = {}
+    largest = 1
+    stack: list[tuple[object, bool]] = [(expr, False)]
+    while stack:
+        node, ready = stack.pop()
+        if node in sizes:
+            continue
+        if len(sizes) > MAX_NODES or largest > limit:
+            return limit + 1
+        args = node.args  # type: ignore[attr-defined]
+        if not ready and args:
+            stack.append((node, True))
+            stack.extend((a, False) for a in args if a not in sizes)
+            continue
+        kind = type(node).__name__
+        if kind == "Add":
+            size = min(limit + 1, sum(sizes[a] for a in args))
+        elif kind == "Mul":
+            size = 1
+            for a in args:
+                size = min(limit + 1, size * sizes[a])
+        elif kind == "Pow" and args[1].is_Integer and sizes[args[0]] > 1:
+            size = _multinomial_terms(sizes[args[0]], abs(int(args[1])), limit)
+        else:
+            size = 1
+        sizes[node] = size
+        largest = max(largest, size)
+    return min(largest, limit + 1)
+
+
+def _multinomial_terms(k: int, n: int, limit: int) -> int:
+    """C(n + k - 1, k - 1), the number of terms of a k-term sum to the n-th power, saturating at limit + 1."""
+    if n > MAX_POWER:
+        return limit + 1
+    count = 1
+    for i in range(1, min(n, k - 1) + 1):
+        count = count * (n + k - 1 - i + 1) // i
+        if count > limit:
+            return limit + 1
+    return count
+
+
+def expandable(expr: object) -> bool:
+    """True when expanding `expr` stays within `MAX_TERMS` terms and multiplies out no power above `MAX_POWER`."""
+    return expansion_size(expr) <= MAX_TERMS
+
+
+def expand_bounded(expr: sp.Expr, max_power: int = MAX_POWER) -> sp.Expr:
+    """sympy's expand, unless the result would exceed `MAX_TERMS` terms or multiply out a power above `max_power`."""
+    if any(p.base.is_Add and p.exp.is_Integer and abs(int(p.exp)) > max_power for p in expr.atoms(sp.Pow)) or not expandable(expr):
         return expr
     return sp.expand(expr)
+
+
+def se_expand_bounded(expr: se.Basic) -> se.Basic:
+    """symengine's expand, within the same bounds as `expand_bounded`."""
+    return se.expand(expr) if expandable(expr) else expr
 
 
 def combine_trig(expr: se.Basic) -> se.Basic:
     """Targeted, linear-time trigonometric simplification of an expanded sum:
     c cos a cos b + c sin a sin b -> c cos(a - b), c cos a cos b - c sin a sin b -> c cos(a + b),
     c sin a cos b +- c cos a sin b -> c sin(a +- b), c sin^2 a + c cos^2 a -> c.
-    It only ever shortens the sum, so it is safe on expressions of any size."""
+    It only ever shortens the sum, so it is safe on expressions of any size; an expression whose
+    expansion would be too large (`expandable`) is returned as it is."""
+    if not expandable(expr):
+        return expr
     expr = se.expand(expr)
     for _ in range(6):
         combined = _combine_once(expr)
         if combined == expr:
             break
-        expr = se.expand(combined)
+        expr = se_expand_bounded(combined)
     return expr
 
 
@@ -161,7 +233,9 @@ def pivot_ratio(matrix: sp.Matrix, model: Model, seed: int = 1) -> float:
     """Smallest over largest pivot of A (rows scaled to unit norm) at a random point: about
     1/condition number, and at rounding level when A is singular.
 
-    Evaluated in floating point with a pure-Python LU (no numpy in the derive path)."""
+    Evaluated in floating point with a pure-Python LU (no numpy in the derive path). Where the
+    matrix is not real or not finite at the point, up to three other points are tried; if none
+    serves, there is no verdict (1.0): the numeric run reports where it fails."""
     import random
 
     rng = random.Random(seed)
@@ -173,7 +247,13 @@ def pivot_ratio(matrix: sp.Matrix, model: Model, seed: int = 1) -> float:
     generic = {u: sp.Float(rng.uniform(0.5, 2.0)) for u in unknowns}
     if generic:
         matrix = matrix.xreplace(generic)
-    rows = [[float(to_symengine(matrix[i, j]).subs(point)) if matrix[i, j] != 0 else 0.0 for j in range(matrix.cols)] for i in range(matrix.rows)]
+    try:
+        rows = [[float(to_symengine(matrix[i, j]).subs(point)) if matrix[i, j] != 0 else 0.0 for j in range(matrix.cols)] for i in range(matrix.rows)]
+    except (RuntimeError, TypeError, ValueError, OverflowError, ZeroDivisionError):
+        # not real or not defined at this point (sqrt of a negative): another point, or no verdict
+        return pivot_ratio(matrix, model, seed + 1) if seed < 3 else 1.0
+    if not all(math.isfinite(x) for row in rows for x in row):
+        return pivot_ratio(matrix, model, seed + 1) if seed < 3 else 1.0
     pivots = []
     for row in rows:
         norm = sum(x * x for x in row) ** 0.5

@@ -15,22 +15,40 @@ which splits each equation into `M q_ddot - F`. Symengine does the differentiati
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
+from dataclasses import dataclass
 
 import sympy as sp
 
 from lagrange_cli._symengine import se, to_symengine
-from lagrange_cli.algebra import combine_trig
-from lagrange_cli.errors import fail
+from lagrange_cli.algebra import combine_trig, expand_bounded, expandable
+from lagrange_cli.errors import Span, fail
+from lagrange_cli.expr import numeric_value, real_derivative
 from lagrange_cli.model import ConstraintRow, Model
 from lagrange_cli.spec import Body, Constraint, Particle, SystemSpec, time_derivative
+from lagrange_cli.validate import Source, first_refusal, refusal, validate
 
 Vector = list[se.Basic]
 
 
 def derive(spec: SystemSpec) -> Model:
-    """File to equations: eliminate constraints, build L and R, apply Lagrange's equation."""
-    spec = eliminate(spec)
+    """File to equations: eliminate constraints, build L and R, apply Lagrange's equation, and
+    validate the result (`validate.validate`), so that every later stage sees a sound model."""
+    check_size(spec, input_work(spec), MAX_INPUT_WORK, "the file's expressions, each times the number of coordinates and velocities in it,")
+    try:
+        spec = eliminate(spec)
+        check_masses(spec)
+        model = _derive(spec)
+    except TypeError as exc:
+        if "NaN" not in str(exc):
+            raise
+        # sympy evaluating an undefined value on the way (atan2 of a zoo after a substitution)
+        raise fail(None, f"{spec.path}: an expression became undefined (not a number) while deriving the equations", "expressions with finite values wherever they are evaluated") from None
+    validate(model, sources(spec), (*spec.q, *spec.qd, spec.t))
+    return model
+
+
+def _derive(spec: SystemSpec) -> Model:
     q, qd, t = _se(spec.q), _se(spec.qd), to_symengine(spec.t)
     kinetic = combine_trig(kinetic_energy(spec) + to_symengine(spec.kinetic))
     potential = potential_energy(spec)
@@ -41,6 +59,7 @@ def derive(spec: SystemSpec) -> Model:
         raise fail(None, f"{spec.path}: the Lagrangian depends on accelerations", "a Lagrangian of coordinates, velocities and time")
     p = momenta(lagrangian, qd)
     mass, force = euler_lagrange(lagrangian, dissipation, forces, q, qd, t)
+    check_size(spec, tree_size([*(m for row in mass for m in row), *force, kinetic, dissipation, *p], MAX_EQUATION_NODES), MAX_EQUATION_NODES, "the equations of motion")
     for i, name in enumerate(spec.coordinates):
         if all(m == 0 for m in mass[i]) and force[i] == 0 and not any(_has(c.expr, se.Symbol(name)) or _has(c.expr, qd[i]) for c in map(_se_constraint, spec.constraints)):
             raise fail(
@@ -73,6 +92,92 @@ def derive(spec: SystemSpec) -> Model:
         spans=spec.spans,
         definitions=spec.definitions,
     )
+
+
+MAX_INPUT_WORK = 100_000
+"""Largest sum over the file's expressions of (terms and factors) x (coordinates and velocities in it + 1)."""
+MAX_EQUATION_NODES = 250_000
+"""Largest number of terms and factors of the derived equations (about 5 s to turn into sympy here; the
+bundled systems have at most a few hundred)."""
+
+
+def tree_size(expr: object, limit: int = 10**9) -> int:
+    """The number of nodes of an expression tree (sympy or symengine; a list counts its items'
+    trees), counting stops just past `limit`."""
+    count, stack = 0, list(expr) if isinstance(expr, list) else [expr]
+    while stack and count <= limit:
+        node = stack.pop()
+        count += 1
+        stack.extend(node.args)  # type: ignore[union-attr]
+    return count
+
+
+def input_work(spec: SystemSpec) -> int:
+    """What differentiation multiplies: the size of each term of each entry times (the coordinates
+    and velocities it has + 1); a term without a coordinate differentiates to nothing."""
+    state = {*spec.q, *spec.qd}
+    return sum(tree_size(term) * (len(term.free_symbols & state) + 1) for source in sources(spec) for e in source.exprs for term in sp.Add.make_args(e))
+
+
+def check_size(spec: SystemSpec, size: int, limit: int, what: str) -> None:
+    """Refuse a file whose derivation would be too large to finish in seconds (counted, not timed)."""
+    if size > limit:
+        raise fail(None, f"{spec.path}: {what} amount to more than {limit} terms and factors", "a smaller system: fewer or shorter expressions, or fewer coordinates")
+
+
+def sources(spec: SystemSpec) -> list[Source]:
+    """Every entry of the file that goes into the equations, with where it is written."""
+    found: list[Source] = []
+
+    def add(what: str, span: Span | None, *exprs: sp.Expr | None) -> None:
+        kept = tuple(e for e in exprs if e is not None and e != 0)
+        if kept:
+            found.append(Source(what, span, kept))
+
+    for item in _masses(spec):
+        kind = "particle" if isinstance(item, Particle) else "body"
+        add(f"the mass of {kind} '{item.name}'", item.spans.get("mass"), item.mass)
+        add(f"the position of {kind} '{item.name}'", item.spans.get("position"), *item.position)
+        if isinstance(item, Particle):
+            add(f"the force on particle '{item.name}'", item.spans.get("force"), *(item.force or ()))
+            add(f"the damping of particle '{item.name}'", item.spans.get("damping"), item.damping)
+        else:
+            add(f"the inertia of body '{item.name}'", item.spans.get("inertia"), *item.inertia)
+            add(f"the angular velocity of body '{item.name}'", item.spans.get("angular_velocity"), *item.angular_velocity)
+    for key, what in (("kinetic", "'kinetic'"), ("potential", "the potential"), ("lagrangian", "'lagrangian'"), ("dissipation", "the dissipation function")):
+        add(what, spec.sources.get(key), getattr(spec, key))
+    add("'gravity'", spec.sources.get("gravity"), *(spec.gravity or ()))
+    for name, force in zip(spec.coordinates, spec.generalized_forces, strict=False):
+        add(f"the generalized force on '{name}'", spec.sources.get(f"forces.{name}"), force)
+    for constraint in spec.constraints:
+        add(f"constraint '{constraint.name}'", constraint.span, constraint.expr)
+    for name, exact in spec.exact.items():
+        add(f"the exact solution for '{name}'", spec.sources.get(f"exact.{name}"), exact)
+    for name, definition in spec.definitions.items():
+        add(f"the definition of '{name}'", spec.sources.get(f"functions.{name}"), definition.expr)
+        if found and found[-1].what == f"the definition of '{name}'":
+            found[-1] = dataclasses.replace(found[-1], variables=tuple(definition.variables))
+    return found
+
+
+def check_masses(spec: SystemSpec) -> None:
+    """A mass or inertia written non-zero must not be 0 where the equations are computed (in
+    double precision): `m*exp(-800)` would silently leave a coordinate without inertia. Its
+    written constants are evaluated with every parameter at 1 (a parameter's own value is the
+    user's to choose)."""
+    for item in _masses(spec):
+        values = [("mass", item.mass)] + ([("inertia", i) for i in item.inertia] if isinstance(item, Body) else [])
+        for key, value in values:
+            if value == 0:
+                continue
+            vanishes = to_symengine(value) == 0
+            if not vanishes:
+                try:  # its written constants, at parameters of 1, in floating point (no sympy evaluation of huge numbers)
+                    vanishes = numeric_value(value, dict.fromkeys(value.free_symbols, 1.0)) == 0.0
+                except (OverflowError, ValueError):
+                    vanishes = False
+            if vanishes:
+                raise fail(item.spans.get(key), f"the {key} of '{item.name}' is written non-zero ({value}) but is 0 in double precision", "a value between 1e-300 and 1e300 in size")
 
 
 def kinetic_energy(spec: SystemSpec) -> se.Basic:
@@ -149,19 +254,9 @@ def euler_lagrange(lagrangian: se.Basic, dissipation: se.Basic, forces: Sequence
 
 
 def _expand(expr: se.Basic) -> se.Basic:
-    """Expand so that like terms cancel, unless a high power of a sum would explode."""
-    if any(isinstance(a, se.Pow) and isinstance(a.args[0], se.Add) and a.args[1].is_Integer and abs(int(a.args[1])) > 6 for a in _atoms(expr)):
-        return expr
-    return se.expand(expr)
-
-
-def _atoms(expr: se.Basic) -> list[se.Basic]:
-    stack, seen = [expr], []
-    while stack:
-        node = stack.pop()
-        seen.append(node)
-        stack.extend(node.args)
-    return seen
+    """Expand so that like terms cancel, unless the expansion would explode (`algebra.expandable`:
+    a power of a sum above 6, or more than `algebra.MAX_TERMS` terms)."""
+    return se.expand(expr) if expandable(expr) else expr
 
 
 def energy_function(lagrangian: se.Basic, p: Sequence[se.Basic], qd: Sequence[se.Basic]) -> se.Basic:
@@ -174,57 +269,237 @@ def constraint_row(constraint: Constraint, spec: SystemSpec) -> ConstraintRow:
     a . q_ddot + c = 0 with c = (da/dt) . q_dot + db/dt."""
     q, qd, qdd, t = spec.q, spec.qd, spec.qdd, spec.t
     expr = constraint.expr
-    velocity_form = time_derivative(expr, q, qd, qdd, t) if constraint.holonomic else expr
-    a = tuple(sp.expand(sp.diff(velocity_form, v)) for v in qd)
-    b = sp.expand(velocity_form.subs({v: 0 for v in qd}))
-    c = time_derivative(sp.expand(velocity_form), q, qd, qdd, t).subs({v: 0 for v in qdd})
-    return ConstraintRow(constraint.name, expr, constraint.holonomic, sp.Symbol(f"lambda_{constraint.name}"), a, b, sp.expand(c))
+    velocity_form = total_derivative(expr, q, qd, qdd, t) if constraint.holonomic else expr
+    a = tuple(expand_bounded(sp.diff(velocity_form, v)) for v in qd)
+    b = expand_bounded(velocity_form.subs({v: 0 for v in qd}))
+    c = total_derivative(expand_bounded(velocity_form), q, qd, qdd, t).subs({v: 0 for v in qdd})
+    return ConstraintRow(constraint.name, expr, constraint.holonomic, sp.Symbol(f"lambda_{constraint.name}"), a, b, expand_bounded(c))
+
+
+def total_derivative(expr: sp.Expr, q: tuple[sp.Symbol, ...], qd: tuple[sp.Symbol, ...], qdd: tuple[sp.Symbol, ...], t: sp.Symbol) -> sp.Expr:
+    """d/dt expr by the chain rule (`spec.time_derivative`), with every quantity real, as in the
+    parser: sympy differentiates `Abs(x)` of a symbol of unknown kind into `re` and `im` terms."""
+
+    def chain(e: sp.Expr, real: Mapping[sp.Symbol, sp.Symbol]) -> sp.Expr:
+        rq, rqd, rqdd = (tuple(real.get(s, s) for s in v) for v in (q, qd, qdd))
+        return time_derivative(e, rq, rqd, rqdd, real.get(t, t))
+
+    return real_derivative(expr, chain)
+
+
+MAX_SOLVES = 64
+"""Most (constraint, coordinate) pairs `eliminate` tries to solve, so that its work is bounded for any file."""
+
+
+@dataclass(frozen=True)
+class _Attempt:
+    """Solving one constraint for one coordinate: the solution when it is unique and usable, else why not."""
+
+    solution: sp.Expr | None
+    why: str
+    expected: str = ""
 
 
 def eliminate(spec: SystemSpec) -> SystemSpec:
     """Remove each coordinate listed under `eliminate` by solving a holonomic constraint for it
     and substituting q = g(...), q_dot = dg/dt everywhere; its generalized force is carried over
-    by virtual work, Q_j += Q_q dg/dq_j."""
-    for name, span in spec.eliminate:
-        k = spec.coordinates.index(name)
-        qk = spec.q[k]
-        solution, used = None, None
-        for constraint in spec.constraints:
-            if constraint.holonomic and constraint.expr.has(qk):
-                solutions = _solve(constraint.expr, qk)
-                if len(solutions) == 1:
-                    solution, used = solutions[0], constraint
-                    break
-                if len(solutions) > 1:
-                    raise fail(
-                        span, f"constraint '{constraint.name}' has {len(solutions)} solutions for '{name}'", "a constraint with a single solution for the eliminated coordinate, or keep the multiplier"
-                    )
-        if solution is None or used is None:
-            velocity = [c.name for c in spec.constraints if not c.holonomic and c.expr.has(spec.qd[k])]
-            hint = f"; '{velocity[0]}' is a velocity constraint: if it integrates to a relation between coordinates, write that relation instead" if velocity else ""
-            raise fail(span, f"no holonomic constraint can be solved for '{name}'", f"a holonomic constraint under `constraints` that involves '{name}' and can be solved for it{hint}")
-        spec = _substitute(spec, k, solution, used)
+    by virtual work, Q_j += Q_q dg/dq_j.
+
+    The pairing of coordinates with constraints does not depend on the order of the list: at each
+    step every remaining (coordinate, constraint) pair is tried, and the coordinate with the fewest
+    constraints that determine it uniquely goes first (ties by the order of `coordinates`), solved
+    by the first such constraint in the file. The work is bounded: `MAX_SOLVES` attempts in all."""
+    cache: dict[tuple[sp.Expr, sp.Symbol], _Attempt] = {}
+    while spec.eliminate:
+        options: dict[str, list[tuple[Constraint, sp.Expr]]] = {}
+        failures: dict[str, list[tuple[Constraint, _Attempt]]] = {}
+        for name, span in spec.eliminate:
+            qk = spec.q[spec.coordinates.index(name)]
+            for constraint in spec.constraints:
+                if not (constraint.holonomic and constraint.expr.has(qk)):
+                    continue
+                key = (constraint.expr, qk)
+                if key not in cache:
+                    if len(cache) >= MAX_SOLVES:
+                        raise fail(
+                            span,
+                            f"eliminating these coordinates needs more than {MAX_SOLVES} attempts to solve a constraint",
+                            "fewer eliminated coordinates or constraints; keep the others with their multipliers",
+                        )
+                    cache[key] = _attempt(constraint, qk, spec)
+                attempt = cache[key]
+                if attempt.solution is not None:
+                    options.setdefault(name, []).append((constraint, attempt.solution))
+                else:
+                    failures.setdefault(name, []).append((constraint, attempt))
+        if not options:
+            name, span = spec.eliminate[0]
+            raise _unsolvable(spec, name, span, failures.get(name, []))
+        name = min(options, key=lambda n: (len(options[n]), spec.coordinates.index(n)))
+        constraint, solution = options[name][0]
+        span = next(s for n, s in spec.eliminate if n == name)
+        spec = _substitute(spec, spec.coordinates.index(name), solution, constraint)
+        _check_substituted(spec, name, span, solution, constraint)
     return spec
 
 
-def _solve(expr: sp.Expr, symbol: sp.Symbol) -> list[sp.Expr]:
-    if sp.diff(expr, symbol, 2) == 0:
-        slope = sp.diff(expr, symbol)
-        return [sp.simplify(-expr.subs(symbol, 0) / slope)] if slope != 0 else []
-    if sp.count_ops(expr) > 60:
-        return []
+def _attempt(constraint: Constraint, symbol: sp.Symbol, spec: SystemSpec) -> _Attempt:
+    """Solve `constraint` for `symbol`: unique, in the supported functions, and differentiable twice."""
+    solutions, why = _solve(constraint.expr, symbol)
+    if not solutions:
+        return _Attempt(None, f"constraint '{constraint.name}' cannot be solved for '{symbol}'" + (f": {why}" if why else ""))
+    if len(solutions) > 1:
+        message = f"constraint '{constraint.name}' has {len(solutions)} solutions for '{symbol}' ({why})"
+        return _Attempt(None, message, "a constraint with a single solution for the eliminated coordinate, or keep the multiplier")
+    variables = [v for v in (*spec.q, spec.t) if v != symbol]
+    found = first_refusal(f"the solution {symbol} = {_short(solutions[0])} of constraint '{constraint.name}'", solutions, variables, spec.definitions)
+    if found is not None:
+        where, problem = found
+        return _Attempt(None, f"{where} contains {_short(problem.node)} ({problem.reason})", "a constraint whose solution is a smooth expression of the supported functions, or keep the multiplier")
+    return _Attempt(solutions[0], "")
+
+
+def _unsolvable(spec: SystemSpec, name: str, span: Span, failures: list[tuple[Constraint, _Attempt]]) -> Exception:
+    """The error for a coordinate that no constraint determines: the most telling reason found."""
+    if failures:
+        best = next((a for _, a in failures if a.expected), failures[0][1])
+        others = len(failures) - 1
+        more = f" (and {others} other constraint{'s' * (others > 1)} {'do' if others > 1 else 'does'} not determine it either)" if others else ""
+        return fail(span, f"cannot eliminate '{name}': {best.why}{more}", best.expected or f"a holonomic constraint under `constraints` that involves '{name}' and can be solved for it")
+    k = spec.coordinates.index(name)
+    velocity = [c.name for c in spec.constraints if not c.holonomic and c.expr.has(spec.qd[k])]
+    hint = f"; '{velocity[0]}' is a velocity constraint: if it integrates to a relation between coordinates, write that relation instead" if velocity else ""
+    return fail(span, f"no holonomic constraint can be solved for '{name}'", f"a holonomic constraint under `constraints` that involves '{name}' and can be solved for it{hint}")
+
+
+def _check_substituted(spec: SystemSpec, name: str, span: Span, solution: sp.Expr, used: Constraint) -> None:
+    """After substituting name = solution: no entry became undefined (`1/(x - y)` with x = y), and
+    no kept constraint became 0 = 0 (it repeats `used`) or c = 0 (it contradicts it)."""
+    for source in sources(spec):
+        for expr in source.exprs:
+            found = refusal(expr, spec.definitions)
+            if found is not None:
+                raise fail(
+                    span,
+                    f"eliminating '{name}' = {_short(solution)} (from constraint '{used.name}') turns {source.what} into an expression with {_short(found.node)} ({found.reason})",
+                    "an elimination that keeps every expression defined, or keep the constraint with its multiplier",
+                )
+    for constraint in spec.constraints:
+        if constraint.expr == 0:
+            raise fail(
+                constraint.span, f"constraint '{constraint.name}' says nothing once '{name}' is eliminated with '{used.name}' (it repeats it)", f"each constraint once; remove '{constraint.name}'"
+            )
+        if constraint.expr.is_number:
+            raise fail(
+                constraint.span,
+                f"constraint '{constraint.name}' cannot hold once '{name}' is eliminated with '{used.name}' (it becomes {constraint.expr} = 0)",
+                "constraints that agree with each other",
+            )
+
+
+def _solve(expr: sp.Expr, symbol: sp.Symbol) -> tuple[list[sp.Expr], str]:
+    """The solutions of expr = 0 for `symbol`, or [] and why not, in a number of steps bounded by
+    the size of `expr` (no `sympy.solve` or `sympy.simplify`, which can take minutes on a constraint of a few dozen operations): a linear
+    constraint is solved directly, a polynomial of degree n has n solutions, and otherwise the one
+    place where `symbol` occurs is isolated by undoing the functions around it (`_isolate`)."""
     try:
-        return list(sp.solve(expr, symbol))
-    except NotImplementedError:
-        return []
+        if sp.diff(expr, symbol, 2) == 0:
+            slope = sp.diff(expr, symbol)
+            if slope == 0:
+                return [], ""
+            return [sp.factor_terms(-expr.subs(symbol, 0) / slope)], ""
+    except (TypeError, ValueError, ZeroDivisionError):  # sympy compares a NaN (e.g. atan2(0, cot(0)))
+        return [], f"it is undefined at {symbol} = 0"
+    degree = _degree(expr, symbol)
+    if degree is not None and degree > 1:
+        return _several(degree), f"it is a polynomial of degree {degree} in '{symbol}'"
+    return _isolate(expr, sp.Integer(0), symbol)
+
+
+def _several(count: int) -> list[sp.Expr]:
+    """Stand-ins for `count` solutions that are not worth computing: only their number is reported."""
+    return [sp.Symbol(f"root{i}") for i in range(count)]
+
+
+def _degree(expr: sp.Expr, symbol: sp.Symbol) -> int | None:
+    """The degree of a polynomial in `symbol` as written (without expanding), None if not a polynomial."""
+    if not expr.has(symbol):
+        return 0
+    if expr == symbol:
+        return 1
+    if isinstance(expr, (sp.Add, sp.Mul)):
+        degrees = [_degree(a, symbol) for a in expr.args]
+        if any(d is None for d in degrees):
+            return None
+        known = [d for d in degrees if d is not None]
+        return max(known) if isinstance(expr, sp.Add) else sum(known)
+    if isinstance(expr, sp.Pow) and expr.exp.is_Integer and expr.exp > 0:
+        base = _degree(expr.base, symbol)
+        return None if base is None else base * int(expr.exp)
+    return None
+
+
+_INVERSES: dict[type, tuple[Callable[[sp.Expr], sp.Expr] | None, str]] = {
+    sp.exp: (sp.log, ""),
+    sp.log: (sp.exp, ""),
+    sp.tan: (sp.atan, ""),
+    sp.atan: (sp.tan, ""),
+    sp.asin: (sp.sin, ""),
+    sp.acos: (sp.cos, ""),
+    sp.sin: (None, "sin takes each value twice in a period"),
+    sp.cos: (None, "cos takes each value twice in a period"),
+    sp.sec: (None, "sec takes each value twice in a period"),
+    sp.csc: (None, "csc takes each value twice in a period"),
+    sp.cosh: (None, "cosh takes each value twice"),
+    sp.Abs: (None, "Abs takes each value twice"),
+    sp.cot: (None, "its inverse acot is not one of the supported functions"),
+    sp.sinh: (None, "its inverse asinh is not one of the supported functions"),
+    sp.tanh: (None, "its inverse atanh is not one of the supported functions"),
+    sp.sign: (None, "sign takes only the values -1, 0 and 1"),
+}
+
+
+def _isolate(lhs: sp.Expr, rhs: sp.Expr, symbol: sp.Symbol) -> tuple[list[sp.Expr], str]:
+    """Solve lhs = rhs where `symbol` occurs in one place of lhs: peel off sums, products, powers
+    and invertible functions around it, one layer per step, keeping only inverses that give a
+    unique solution in the supported functions (LambertW, Piecewise or a polynomial's RootOf
+    never arise)."""
+    while lhs != symbol:
+        if isinstance(lhs, (sp.Add, sp.Mul)):
+            inside = [a for a in lhs.args if a.has(symbol)]
+            if len(inside) > 1:
+                return [], f"'{symbol}' appears in more than one {'term' if isinstance(lhs, sp.Add) else 'factor'} of {_short(lhs)}, which has no solution in the supported functions"
+            rest = lhs.func(*(a for a in lhs.args if not a.has(symbol)))
+            rhs = rhs - rest if isinstance(lhs, sp.Add) else rhs / rest
+            lhs = inside[0]
+        elif isinstance(lhs, sp.Pow) and not lhs.exp.has(symbol):
+            exponent = lhs.exp
+            if not (exponent.is_Rational and abs(exponent.p) == 1):
+                return _several(2), f"the power {_short(lhs)} takes some values more than once"
+            lhs, rhs = lhs.base, rhs ** (1 / exponent)
+        elif isinstance(lhs, sp.Pow) and lhs.base.is_number and lhs.base.is_positive:
+            lhs, rhs = lhs.exp, sp.log(rhs) / sp.log(lhs.base)
+        elif type(lhs) in _INVERSES and len(lhs.args) == 1:
+            inverse, why = _INVERSES[type(lhs)]
+            if inverse is None:
+                return (_several(2) if "twice" in why else []), f"'{symbol}' is inside {type(lhs).__name__}, and {why}"
+            lhs, rhs = lhs.args[0], inverse(rhs)
+        else:
+            return [], f"'{symbol}' is inside {_short(lhs)}, which cannot be inverted in the supported functions"
+    return [rhs], ""
+
+
+def _short(expr: sp.Expr) -> str:
+    text = str(expr)
+    return text if len(text) <= 60 else text[:57] + "..."
 
 
 def _substitute(spec: SystemSpec, k: int, solution: sp.Expr, used: Constraint) -> SystemSpec:
     q, qd, qdd, t = spec.q, spec.qd, spec.qdd, spec.t
     keep = [i for i in range(len(q)) if i != k]
     rq, rqd, rqdd = (tuple(v[i] for i in keep) for v in (q, qd, qdd))
-    rate = time_derivative(solution, rq, rqd, rqdd, t)
-    mapping = {q[k]: solution, qd[k]: rate, qdd[k]: time_derivative(rate, rq, rqd, rqdd, t)}
+    rate = total_derivative(solution, rq, rqd, rqdd, t)
+    mapping = {q[k]: solution, qd[k]: rate, qdd[k]: total_derivative(rate, rq, rqd, rqdd, t)}
 
     def sub(expr: sp.Expr) -> sp.Expr:
         return expr.xreplace(mapping)
@@ -252,7 +527,8 @@ def _substitute(spec: SystemSpec, k: int, solution: sp.Expr, used: Constraint) -
         eliminate=tuple(e for e in spec.eliminate if e[0] != spec.coordinates[k]),
         initial={key: v for key, v in spec.initial.items() if key not in (spec.coordinates[k], f"{spec.coordinates[k]}_dot")},
     )
-    object.__setattr__(changed, "_eliminated", (*getattr(spec, "_eliminated", ()), (spec.coordinates[k], solution)))
+    earlier = tuple((name, sub(e)) for name, e in getattr(spec, "_eliminated", ()))  # in the coordinates that remain
+    object.__setattr__(changed, "_eliminated", (*earlier, (spec.coordinates[k], solution)))
     return changed
 
 
@@ -269,14 +545,23 @@ def _se(values: Iterable[sp.Expr]) -> list[se.Basic]:
 
 
 def _sp(value: se.Basic) -> sp.Expr:
-    """Back to sympy; derivatives of Abs and sign (real arguments) taken explicitly."""
+    """Back to sympy; derivatives of Abs and sign (real arguments) taken explicitly: the
+    derivative of sign is a Dirac delta, which `validate` refuses at the entry it comes from."""
     result = sp.sympify(value)
     if result.has(sp.Derivative):
         result = result.replace(
             lambda e: isinstance(e, sp.Derivative) and isinstance(e.expr, (sp.Abs, sp.sign)),
-            lambda e: sp.sign(e.expr.args[0]) * sp.diff(e.expr.args[0], *e.variables) if isinstance(e.expr, sp.Abs) else sp.Integer(0),
+            _kink_derivative,
         )
     return result
+
+
+def _kink_derivative(e: sp.Derivative) -> sp.Expr:
+    """d|u|/dv = sign(u) du/dv; anything more (d sign(u)/dv, d^2|u|/dv^2) has a Dirac delta at u = 0."""
+    u = e.expr.args[0]
+    if isinstance(e.expr, sp.Abs) and len(e.variables) == 1:
+        return sp.sign(u) * sp.diff(u, e.variables[0])
+    return 2 * sp.DiracDelta(u) * sp.diff(u, e.variables[0])
 
 
 def _has(expr: se.Basic, symbol: se.Basic) -> bool:

@@ -145,11 +145,18 @@ class _Builder:
         return self.checked(node, result)
 
     def checked(self, node: ast.AST, value: sp.Expr) -> sp.Expr:
-        """`value`, unless it is undefined (`log(0)`) or a huge exact number."""
+        """`value`, unless it is undefined (`log(0)`), a huge exact number, or a number that
+        double precision cannot hold (`1e300*1e300` overflows, `1e-200*1e-200` underflows to 0).
+        Literals are folded as the tree is built, so each product or sum of numbers passes here:
+        looking at the number itself and at the numeric coefficient of a sum or product suffices."""
         if value in UNDEFINED:
             raise fail(self.at(node), f"this is undefined ({value})", "an expression with a finite value, e.g. no `log(0)` or `tan(pi/2)`")
         if value.is_Rational and max(abs(value.p), value.q).bit_length() > MAX_BITS:
             raise fail(self.at(node), "number is too large", "numbers below 1e300")
+        for number in (value, value.as_coeff_Mul()[0], value.as_coeff_Add()[0]) if value.is_Add or value.is_Mul else (value,):
+            problem = float_problem(number)
+            if problem:
+                raise fail(self.at(node), f"this number {problem}", "numbers between 1e-300 and 1e300 in size (or 0)")
         return value
 
     def real_number(self, node: ast.AST, value: sp.Expr, what: str) -> None:
@@ -196,7 +203,14 @@ class _Builder:
             return sp.Integer(value)
         if not math.isfinite(value):
             raise fail(self.at(node), "number is not finite", "a finite real number")
+        if value == 0.0 and any(c in "123456789" for c in self.literal(node).lower().split("e")[0]):
+            raise fail(self.at(node), f"number {self.literal(node)} underflows to 0 in double precision", "numbers between 1e-300 and 1e300 in size (or 0)")
         return sp.Float(value)
+
+    def literal(self, node: ast.AST) -> str:
+        """The source text of `node` (a number literal)."""
+        start, end = getattr(node, "col_offset", 0), getattr(node, "end_col_offset", None)
+        return self.encoded[start:end].decode("utf-8", errors="ignore")
 
     def _Name(self, node: ast.Name, depth: int) -> sp.Expr:
         name = node.id
@@ -249,6 +263,8 @@ class _Builder:
                 raise fail(self.at(node.right), f"exponent {right} is too large", f"an exponent of at most {MAX_EXPONENT} (and a result below 1e300)")
             if left == 0 and right.is_Number and right <= 0:
                 raise fail(self.at(node), "zero to a non-positive power", "a defined power")
+            if left == 0 and not right.is_Number:
+                raise fail(self.at(node), "zero to a variable power, which is undefined where the exponent is not positive and has no derivative", "a non-zero base, or 0")
             power = left**right
             if isinstance(power, sp.Pow) and power.exp.is_Number and abs(power.exp) > MAX_EXPONENT:
                 raise fail(self.at(node), f"this power amounts to an exponent of {power.exp}", f"an exponent of at most {MAX_EXPONENT}")
@@ -309,6 +325,26 @@ class _Builder:
         return real_derivative(expr, lambda e, real: sp.diff(e, real.get(variable, variable), int(order)))
 
 
+def float_problem(number: sp.Expr) -> str:
+    """What is wrong with a number in double precision ('overflows', 'underflows to 0'), or ''."""
+    if not (number.is_Float or number.is_Rational):
+        return ""
+    if number.is_Rational:
+        if max(abs(number.p), number.q).bit_length() > 4 * MAX_BITS:
+            return "is too large to compute with"
+        try:
+            value = float(number)
+        except OverflowError:
+            return "overflows double precision"
+    else:
+        value = float(number)
+    if not math.isfinite(value):
+        return "overflows double precision"
+    if value == 0.0 and not number.is_zero:
+        return "underflows to 0 in double precision"
+    return ""
+
+
 def real_derivative(expr: sp.Expr, differentiate: Callable[[sp.Expr, Mapping[sp.Symbol, sp.Symbol]], sp.Expr]) -> sp.Expr:
     """`differentiate(expr, real)` with every symbol of `expr` replaced by a real one (`real`
     maps each symbol to its stand-in), then put back: all quantities in a system file are real,
@@ -339,28 +375,31 @@ _MATH: dict[Any, Callable[..., float]] = {
 }
 
 
-def numeric_value(expr: sp.Expr) -> float:
+def numeric_value(expr: sp.Expr, values: Mapping[sp.Basic, float] | None = None) -> float:
     """The value of a constant expression in floating point, computed bottom-up so that it
     never hangs (unlike `evalf` on `exp(exp(exp(9)))`). Raises `OverflowError` when it is
-    too large for a float and `ValueError` when it is not a real number."""
-    if expr.is_Rational or expr.is_Float:
+    too large for a float and `ValueError` when it is not a real number. Symbols take their
+    `values` (a symbol without one is not a number)."""
+    if values is not None and expr in values:
+        value = float(values[expr])
+    elif expr.is_Rational or expr.is_Float:
         value = float(expr)
     elif expr is sp.pi:
         value = math.pi
     elif expr is sp.E:
         value = math.e
     elif isinstance(expr, sp.Add):
-        value = math.fsum(numeric_value(a) for a in expr.args)
+        value = math.fsum(numeric_value(a, values) for a in expr.args)
     elif isinstance(expr, sp.Mul):
-        value = math.prod(numeric_value(a) for a in expr.args)
+        value = math.prod(numeric_value(a, values) for a in expr.args)
     elif isinstance(expr, sp.Pow):
-        base, exponent = numeric_value(expr.base), numeric_value(expr.exp)
+        base, exponent = numeric_value(expr.base, values), numeric_value(expr.exp, values)
         if base == 0 and exponent <= 0:
             raise ValueError("zero to a non-positive power")
         value = math.pow(base, exponent)
     elif type(expr) in _MATH:
         try:
-            value = _MATH[type(expr)](*(numeric_value(a) for a in expr.args))
+            value = _MATH[type(expr)](*(numeric_value(a, values) for a in expr.args))
         except ZeroDivisionError:
             raise ValueError("undefined") from None
     else:

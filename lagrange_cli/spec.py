@@ -10,6 +10,7 @@ import dataclasses
 import keyword
 import os
 import re
+import sys
 from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -36,6 +37,18 @@ FUNCTION_KEYS = ("arguments", "definition", "description")
 BODY_KEYS = ("mass", "position", "inertia", "angular_velocity")
 EXPECT_KEYS = ("equations", "accelerations", "momenta", "conserved")
 SIMULATE_KEYS = ("t_end", "method", "rtol", "atol", "step", "samples")
+METHODS = ("auto", "RK45", "DOP853", "Radau", "BDF", "LSODA", "symplectic")  # as in numeric/settings.py
+DEFAULT_T_END = 10.0  # numeric/settings.py's default
+MAX_STEPS = 10**8
+MAX_COORDINATES = 300
+LIMITS = {
+    "t_end": (1e-9, 1e9, "the end time of a run, in the system's units"),
+    "step": (1e-12, 1e9, "the fixed step of the symplectic method"),
+    "rtol": (100 * sys.float_info.epsilon, 1.0, "the relative tolerance (below 100 machine epsilons double precision cannot deliver it)"),
+    "atol": (1e-300, 1e300, "the absolute tolerance"),
+    "samples": (2, 10**6, "the number of sample times in the output"),
+}
+"""Allowed ranges of the `simulate` settings (inclusive), each with what it means; see docs/format.md."""
 STANDARD_TAGS = {f"tag:yaml.org,2002:{kind}" for kind in ("str", "int", "float", "bool", "null", "seq", "map")}
 IMPLICIT_TAGS = {"tag:yaml.org,2002:timestamp": "a date", "tag:yaml.org,2002:merge": "a merge key", "tag:yaml.org,2002:value": "a value key"}
 LINE_BREAK = re.compile("\r\n|[\r\n\x85\u2028\u2029]")
@@ -54,6 +67,8 @@ class Particle:
     position: tuple[sp.Expr, ...]
     force: tuple[sp.Expr, ...] | None = None
     damping: sp.Expr | None = None
+    spans: Mapping[str, Span] = field(default_factory=dict, compare=False)
+    """Where each field (`mass`, `position`, ...) is written in the file."""
 
 
 @dataclass(frozen=True)
@@ -65,6 +80,8 @@ class Body:
     position: tuple[sp.Expr, ...]
     inertia: tuple[sp.Expr, ...]
     angular_velocity: tuple[sp.Expr, ...]
+    spans: Mapping[str, Span] = field(default_factory=dict, compare=False)
+    """Where each field (`mass`, `inertia`, ...) is written in the file."""
 
 
 @dataclass(frozen=True)
@@ -118,6 +135,10 @@ class SystemSpec:
     simulate: Mapping[str, Any] = field(default_factory=dict)
     exact: Mapping[str, sp.Expr] = field(default_factory=dict)
     spans: Mapping[str, Span] = field(default_factory=dict)
+    sources: Mapping[str, Span] = field(default_factory=dict)
+    """Where the other expressions are written: `potential`, `kinetic`, `lagrangian`, `dissipation`,
+    `gravity`, `forces.<q>`, `functions.<f>`, `exact.<q>` (so that a bad term found after
+    derivation is reported at its source)."""
     expect: Expect = Expect()
 
 
@@ -246,6 +267,7 @@ class _Reader:
         self.lines = text.splitlines()
         self.problems: list[Diagnostic] = []
         self.spans: dict[str, Span] = {}
+        self.sources: dict[str, Span] = {}
         self.split_head: int | None = None  # where the last reported `f(x` of a split `[f(x, y)]` ends
 
     # -- helpers ------------------------------------------------------------------------------
@@ -254,6 +276,10 @@ class _Reader:
         mark = node.start_mark
         line = self.lines[mark.line] if mark.line < len(self.lines) else ""
         return Span(self.filename, mark.line + 1, mark.column + 1, line)
+
+    def where(self, node: yaml.Node) -> Span:
+        """Where a value is written: the start of a scalar's text, or of a list or map."""
+        return self.text_span(node) if isinstance(node, yaml.ScalarNode) else self.span(node)
 
     def text_span(self, node: yaml.ScalarNode) -> Span:
         """Where the scalar's text starts (after an opening quote)."""
@@ -530,10 +556,14 @@ class _Reader:
 
         def expr(key: str, scope: Scope) -> sp.Expr:
             node = value(key)
+            if node is not None:
+                self.sources[key] = self.where(node)
             return (self.expression(node, f"'{key}'", scope) if node is not None else None) or sp.Integer(0)
 
         gravity_node = value("gravity")
         gravity = self.vector(gravity_node, "'gravity'", constants) if gravity_node is not None else None
+        if gravity_node is not None:
+            self.sources["gravity"] = self.where(gravity_node)
         particles = self.particles(value("particles"), config, state, constants)
         bodies = self.bodies(value("bodies"), config, state, constants)
         self.check_dimensions(gravity, particles, bodies, value)
@@ -544,6 +574,7 @@ class _Reader:
             description=self.string(value("description"), "'description'") or "",
             coordinates=coordinates,
             spans=self.spans,
+            sources=self.sources,
             q=q,
             qd=qd,
             qdd=qdd,
@@ -590,6 +621,8 @@ class _Reader:
         items = self.sequence(node, "'coordinates'")
         if isinstance(node, yaml.SequenceNode) and not items:
             self.problem(node, "'coordinates' is empty", "at least one generalized coordinate")
+        if len(items) > MAX_COORDINATES:
+            self.problem(node, f"'coordinates' lists {len(items)} coordinates", f"at most {MAX_COORDINATES} (the mass matrix has one entry per pair)")
         names = [self.name(item, "coordinate", taken) for item in items]
         self.spans.update({n: self.span(item) for n, item in zip(names, items, strict=True) if n})
         return tuple(n for n in names if n)
@@ -659,6 +692,7 @@ class _Reader:
             scope = _definition_scope(name, arguments, coordinates, parameters, declared)
             expr = self.expression(fields["definition"], f"the definition of '{key}'", scope) if "definition" in fields else None
             if expr is not None:
+                self.sources[f"functions.{name}"] = self.where(fields["definition"])
                 definitions[name] = sp.Lambda(tuple(sp.Symbol(a) for a in arguments), expr)
         return tuple(names), arities, definitions
 
@@ -699,7 +733,7 @@ class _Reader:
                 if force is not None and len(force) != len(position):
                     self.problem(fields["force"], f"the force on '{name}' has {len(force)} components but its position has {len(position)}", f"{len(position)} components")
                     continue
-                result.append(Particle(name, mass, position, force, damping))
+                result.append(Particle(name, mass, position, force, damping, {k: self.where(v) for k, v in fields.items()}))
         return tuple(result)
 
     def bodies(self, node: yaml.Node | None, config: Scope, state: Scope, constants: Scope) -> tuple[Body, ...]:
@@ -727,7 +761,7 @@ class _Reader:
                     fields["angular_velocity"], f"body '{name}': inertia has {len(inertia)} component(s) but angular_velocity has {len(omega)}", "both scalars (planar) or both 3-lists (spatial)"
                 )
                 continue
-            result.append(Body(name, mass, position, inertia, omega))
+            result.append(Body(name, mass, position, inertia, omega, {k: self.where(v) for k, v in fields.items()}))
         return tuple(result)
 
     def scalar_or_triple(self, node: yaml.Node, what: str, scope: Scope) -> tuple[sp.Expr, ...] | None:
@@ -756,6 +790,7 @@ class _Reader:
                     self.problem(key_node, f"'{coordinate}' is not a coordinate", "one of " + ", ".join(coordinates) + (f"; did you mean '{hint}'?" if hint else ""))
                     continue
                 expr = self.expression(force, f"the generalized force on '{coordinate}'", state)
+                self.sources[f"forces.{coordinate}"] = self.where(force)
                 if expr is not None:
                     forces[coordinates.index(coordinate)] = expr
         return tuple(forces)
@@ -789,7 +824,7 @@ class _Reader:
     def eliminate(self, node: yaml.Node | None, coordinates: tuple[str, ...]) -> tuple[tuple[str, Span], ...]:
         if node is None:
             return ()
-        result = []
+        result: list[tuple[str, Span]] = []
         for item in self.sequence(node, "'eliminate'"):
             if not isinstance(item, yaml.ScalarNode):
                 self.problem(item, f"an entry of 'eliminate' must be a coordinate name, got {_kind(item)}", "one of " + ", ".join(coordinates))
@@ -798,7 +833,18 @@ class _Reader:
                 hint = _closest(str(item.value), list(coordinates))
                 self.problem(item, f"'{item.value}' is not a coordinate", "one of " + ", ".join(coordinates) + (f"; did you mean '{hint}'?" if hint else ""))
                 continue
+            earlier = next((span for name, span in result if name == item.value), None)
+            if earlier is not None:
+                self.problem(item, f"'{item.value}' is listed twice in 'eliminate' (first at line {earlier.line}, column {earlier.column})", "each coordinate once")
+                continue
             result.append((str(item.value), self.span(item)))
+        if coordinates and len(result) == len(coordinates):
+            self.problem(
+                node.value[-1] if isinstance(node, yaml.SequenceNode) else node,
+                "'eliminate' lists every coordinate, which would leave no equation of motion",
+                "keep at least one coordinate: eliminate one coordinate per holonomic constraint, fewer than there are coordinates",
+            )
+            return ()
         return tuple(result)
 
     def initial(self, node: yaml.Node | None, coordinates: tuple[str, ...]) -> dict[str, float]:
@@ -817,18 +863,42 @@ class _Reader:
         return result
 
     def simulate(self, node: yaml.Node | None) -> dict[str, Any]:
+        """The `simulate` block, each value checked against its documented range (`LIMITS`), and
+        the number of fixed steps `t_end / step` against `MAX_STEPS`, so that no file can ask for
+        a run that never ends."""
         if node is None:
             return {}
         result: dict[str, Any] = {}
+        nodes: dict[str, yaml.Node] = {}
         for key, _, value in self.mapping(node, "'simulate'", SIMULATE_KEYS):
+            nodes[key] = value
             if key == "method":
-                result[key] = self.string(value, "'method'")
+                method = self.string(value, "'simulate.method'")
+                known = next((m for m in METHODS if method is not None and m.lower() == method.lower()), None)
+                if method is not None and known is None:
+                    hint = _closest(method, list(METHODS))
+                    self.problem(value, f"unknown method '{method}' in 'simulate.method'", "one of " + ", ".join(METHODS) + (f" (did you mean '{hint}'?)" if hint else ""))
+                elif known is not None:
+                    result[key] = known
+                continue
+            number = self.number(value, f"'simulate.{key}'")
+            if number is None:
+                continue
+            low, high, meaning = LIMITS[key]
+            if key == "samples" and number != int(number):
+                self.problem(value, f"'simulate.samples' must be a whole number, got {number:g}", f"a whole number from {low:g} to {high:g}: {meaning}")
+            elif not low <= number <= high:
+                self.problem(value, f"'simulate.{key}' is {number:g}, outside the allowed range", f"a number from {low:g} to {high:g}: {meaning}")
             else:
-                number = self.number(value, f"'simulate.{key}'")
-                if number is not None and number <= 0:
-                    self.problem(value, f"'simulate.{key}' must be positive", "a positive number")
-                elif number is not None:
-                    result[key] = int(number) if key == "samples" else number
+                result[key] = int(number) if key == "samples" else number
+        if "step" in result:
+            t_end = result.get("t_end", DEFAULT_T_END)
+            if t_end / result["step"] > MAX_STEPS:
+                self.problem(
+                    nodes["step"],
+                    f"'simulate.step' {result['step']:g} would take {t_end / result['step']:.3g} steps to reach t_end = {t_end:g}",
+                    f"at most {MAX_STEPS:.0e} steps: a step of at least {t_end / MAX_STEPS:.3g}, or a shorter t_end",
+                )
         return result
 
     def exact(self, node: yaml.Node | None, coordinates: tuple[str, ...], constants: Scope) -> dict[str, sp.Expr]:
@@ -840,6 +910,7 @@ class _Reader:
                 self.problem(key_node, f"'{key}' is not a coordinate", "one of " + ", ".join(coordinates))
                 continue
             expr = self.expression(value, f"the exact solution for '{key}'", constants)
+            self.sources[f"exact.{key}"] = self.where(value)
             if expr is not None:
                 result[key] = expr
         return result
