@@ -114,6 +114,7 @@ def assert_readable(figure: Any) -> None:
     for title in titles:
         assert inside(title.get_window_extent(renderer), frame), f"clipped title: {title.get_text()!r}"
         assert not any(overlaps(title.get_window_extent(renderer), a.get_tightbbox(renderer)) for a in axes_list), f"title over a panel: {title.get_text()!r}"
+        assert not any(overlaps(title.get_window_extent(renderer), legend.get_window_extent(renderer)) for legend in legends), f"title over a legend: {title.get_text()!r}"
 
 
 # --- which coordinates are angles ---------------------------------------------------------------
@@ -246,9 +247,17 @@ def test_kept_constraints_get_a_drift_panel(tmp_path: Path) -> None:
     assert_readable(figure)
 
 
+LONG_TITLE = "a very long title with $x^{$ in it " * 8 + "W" * 150
+
+
 def test_a_long_title_is_wrapped_not_clipped(tmp_path: Path) -> None:
-    model = model_of("title: '" + "a very long title " * 20 + "'\ncoordinates: [x]\nparameters: {m: 1.0}\nkinetic: m*x_dot**2/2\npotential: x**2/2\ninitial: {x: 1.0}\n")
-    assert_readable(figure_of(model, tmp_path, "title"))
+    """Broken into lines that fit (a word wider than the figure too), every character kept, `$` not mathtext."""
+    model = model_of(f"title: '{LONG_TITLE}'\ncoordinates: [x]\nparameters: {{m: 1.0}}\nkinetic: m*x_dot**2/2\npotential: x**2/2\ninitial: {{x: 1.0}}\n")
+    figure = figure_of(model, tmp_path, "title")
+    shown = figure.get_suptitle()
+    assert shown.count("\n") >= 3 and "".join(shown.split()) == "".join((LONG_TITLE + " (DOP853, python; finished)").split())
+    assert not figure._suptitle.get_parse_math()
+    assert_readable(figure)
 
 
 def test_the_command_plots_with_the_model(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
@@ -305,7 +314,7 @@ def test_accuracy_plot_tells_compiled_from_python_runs(tmp_path: Path) -> None:
     (legend,) = figure.legends
     labels = [t.get_text() for t in legend.get_texts()]
     assert labels == ["DOP853 (compiled)", "DOP853 (python)", "RK45 (python)", "reference's own error"]
-    assert legend.get_title().get_text() == "solid: compiled (numba)\ndashed: pure Python (scipy)"
+    assert legend.get_title().get_text() == "solid: compiled (numba); dashed: pure Python (scipy)"
     left, right = figure.axes
     lines = {line.get_label(): line for line in left.get_lines() if not line.get_label().startswith("_")}
     compiled, python = lines["DOP853 (compiled)"], lines["DOP853 (python)"]
@@ -328,7 +337,7 @@ def test_accuracy_labels_follow_what_ran() -> None:
 
 
 def test_accuracy_plot_with_a_long_title_and_no_finished_run(tmp_path: Path) -> None:
-    result = study("a long study title " * 20)
+    result = study(LONG_TITLE)
     failed = dataclasses.replace(result, points=tuple(dataclasses.replace(p, status="failed") for p in result.points))
     figure = study_figure_of(failed, tmp_path, "failed")
     assert "no run finished" in texts(figure)

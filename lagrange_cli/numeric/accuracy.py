@@ -44,7 +44,7 @@ import numpy as np
 from lagrange_cli.errors import LagrangeError
 from lagrange_cli.model import Model
 from lagrange_cli.numeric import compile
-from lagrange_cli.numeric.output import inert, plain_text, plot_text
+from lagrange_cli.numeric.output import figure_title, inert, plain_text, plot_text
 from lagrange_cli.numeric.settings import METHODS, initial_spectrum, resolve
 from lagrange_cli.numeric.settings import _symplectic_step as symplectic_step
 from lagrange_cli.numeric.simulate import Trajectory, simulate
@@ -598,6 +598,7 @@ def plot_label(point: Point) -> str:
     return label if requested == ran else f"{requested} -> {label}"
 
 
+@plain_text()
 def study_figure(result: Study) -> Figure:
     """Two log-log panels, error against run time and against right-hand side evaluations, one
     line per method and backend: compiled runs solid with filled circles, pure-Python runs dashed
@@ -644,12 +645,14 @@ def study_figure(result: Study) -> Figure:
             axes.text(0.5, 0.5, "no run finished", transform=axes.transAxes, ha="center", va="center")
     if finished:
         backends = sorted({run_backend(p) for p in result.points if p.ok} & set(BACKEND_NAMES))
-        key = "\n".join(f"{'solid' if b == 'compiled' else 'dashed'}: {BACKEND_NAMES[b]}" for b in backends)
+        key = "; ".join(f"{'solid' if b == 'compiled' else 'dashed'}: {BACKEND_NAMES[b]}" for b in backends)
         order = sorted(range(len(labels)), key=lambda i: (labels[i] == "reference's own error", labels[i]))
-        legend = figure.legend([handles[i] for i in order], [labels[i] for i in order], loc="outside right upper", fontsize="small", title=key or None, title_fontsize="small")
+        legend = figure.legend(
+            [handles[i] for i in order], [labels[i] for i in order], loc="outside lower center", ncols=min(len(labels), 4), fontsize="small", title=key or None, title_fontsize="small"
+        )
         inert(*legend.get_texts())
     window = f"t = 0..{result.t_end:.3g}" + (" (predictability horizon)" if result.t_end < result.full_t_end else "")
-    figure.suptitle(f"{plot_text(result.title)}: work-precision, {window}", parse_math=False, wrap=True)
+    figure_title(figure, f"{plot_text(result.title)}: work-precision, {window}")
     return figure
 
 

@@ -82,6 +82,48 @@ def inert(*texts: Any) -> None:
         text.set_parse_math(False)
 
 
+def fit_lines(text: str, width: float, fontsize: Any) -> str:
+    """`text` broken at spaces into lines at most `width` points wide in `fontsize` (a word wider
+    than a line is broken where it must be), measured as plain text: matplotlib's own `wrap=True`
+    measures `$...$` as mathtext, whatever the Text's `parse_math`."""
+    from matplotlib.font_manager import FontProperties
+    from matplotlib.textpath import text_to_path
+
+    prop = FontProperties(size=fontsize)
+
+    def fits(line: str) -> bool:
+        with warnings.catch_warnings():
+            warnings.filterwarnings("ignore", message=r"Glyph \d+ .*missing from", category=UserWarning)
+            return bool(text_to_path.get_text_width_height_descent(line, prop, ismath=False)[0] <= width)
+
+    lines: list[str] = []
+    current = ""
+    for word in text.split(" "):
+        if fits(f"{current} {word}" if current else word):
+            current = f"{current} {word}" if current else word
+            continue
+        if current:
+            lines.append(current)
+        current = word
+        while len(current) > 1 and not fits(current):
+            low, high = 1, len(current) - 1  # the longest head that fits (at least one character)
+            while low < high:
+                middle = (low + high + 1) // 2
+                low, high = (middle, high) if fits(current[:middle]) else (low, middle - 1)
+            lines.append(current[:low])
+            current = current[low:]
+    lines.append(current)
+    return "\n".join(lines)
+
+
+def figure_title(figure: Any, text: str) -> None:
+    """`text` (file text, plain) as the figure's title, in lines that fit its width."""
+    import matplotlib
+
+    size = matplotlib.rcParams["figure.titlesize"]
+    figure.suptitle(fit_lines(text, 0.96 * figure.get_figwidth() * 72, size), parse_math=False, fontsize=size)
+
+
 def plot_text(text: str) -> str:
     """File text for a figure: whitespace runs (newlines, U+2028, ...) one space, and control,
     format and unassigned characters dropped."""
@@ -204,6 +246,7 @@ def energy_change(model: Model | None) -> str:
     return ", ".join(causes) or "not conserved by these equations"
 
 
+@plain_text()
 def simulation_figure(trajectory: Trajectory, model: Model | None = None) -> Figure:
     """The figure of a run: on the left, the coordinates against time (one panel per kind of
     quantity, with its unit), the energy (its relative error when it is conserved, else h(t)
@@ -245,9 +288,9 @@ def simulation_figure(trajectory: Trajectory, model: Model | None = None) -> Fig
             axes.plot(y[:1, i], y[:1, n + i], "o", color="black", markersize=4)
         axes.set_xlabel(kinds[i].value(plot_text(names[i])), parse_math=False)
         axes.set_ylabel(kinds[i].rate(plot_text(names[i]), seconds), parse_math=False)
-    right.suptitle("phase portraits (dot: start)" if shown == n else f"phase portraits: first {shown} of {n} (dot: start)", fontsize="medium", wrap=True)
+    right.suptitle("phase portraits (dot: start)" if shown == n else f"phase portraits: first {shown} of {n} (dot: start)", fontsize="medium")
     s = trajectory.settings
-    figure.suptitle(f"{plot_text(trajectory.title)} ({s.method}, {s.backend}; {trajectory.status})", parse_math=False, wrap=True)
+    figure_title(figure, f"{plot_text(trajectory.title)} ({s.method}, {s.backend}; {trajectory.status})")
     return figure
 
 
