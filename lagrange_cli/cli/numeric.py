@@ -68,7 +68,7 @@ def simulate(
                 max_step=max_step,
                 progress=progress,
             )
-        _write(trajectory, output_path, plot)
+        _write(trajectory, output_path, plot, model)
     except LagrangeError as error:
         fail_with(error)
     _report(trajectory, to_stderr=output_path is not None and str(output_path) == "-")
@@ -90,8 +90,8 @@ def _assignments(model: Model, items: list[str], option: str) -> dict[str, float
     return {item.name: constant(item, f"the value of '{item.name}'")[1] for item in parsed}
 
 
-def _write(trajectory: Trajectory, output_path: Path | None, plot: Path | None) -> None:
-    """The trajectory (also the part before a failure) to its file or stdout, and the plot."""
+def _write(trajectory: Trajectory, output_path: Path | None, plot: Path | None, model: Model) -> None:
+    """The trajectory (also the part before a failure) to its file or stdout, and the plot (of `model`'s run)."""
     from lagrange_cli.numeric import output as out
 
     if output_path is not None and str(output_path) == "-":
@@ -101,7 +101,7 @@ def _write(trajectory: Trajectory, output_path: Path | None, plot: Path | None) 
     elif output_path is not None:
         write_atomically(output_path, out.csv_text(trajectory))
     if plot is not None:
-        out.write_plot(trajectory, plot)
+        out.write_plot(trajectory, plot, model)
 
 
 def _report(trajectory: Trajectory, to_stderr: bool) -> None:

@@ -33,19 +33,24 @@ and kept as a failure.
 from __future__ import annotations
 
 import math
+import re
 import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from lagrange_cli.errors import LagrangeError
 from lagrange_cli.model import Model
 from lagrange_cli.numeric import compile
-from lagrange_cli.numeric.output import plain_text, plot_text
+from lagrange_cli.numeric.output import figure_title, inert, plain_text, plot_text
 from lagrange_cli.numeric.settings import METHODS, initial_spectrum, resolve
 from lagrange_cli.numeric.settings import _symplectic_step as symplectic_step
 from lagrange_cli.numeric.simulate import Trajectory, simulate
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
 
 STUDY_METHODS = tuple(m for m in METHODS if m != "auto")
 TOLERANCES = (1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8)
@@ -570,10 +575,96 @@ def json_text(result: Study) -> str:
     return json.dumps(document, indent=2, allow_nan=False) + "\n"
 
 
+BACKEND_STYLES = {"compiled": ("-", "o", "full"), "python": ("--", "s", "none")}
+"""Line style, marker and marker fill of each backend, so that a method's compiled and pure-Python runs differ at a glance."""
+BACKEND_NAMES = {"compiled": "compiled (numba)", "python": "pure Python (scipy)"}
+
+
+def run_backend(point: Point) -> str:
+    """The backend a point ran on, "compiled" or "python" ("" when neither is named)."""
+    for text in (point.resolved, point.method):
+        found = re.search(r"\b(compiled|python)\b", text)
+        if found:
+            return found.group(1)
+    return ""
+
+
+def plot_label(point: Point) -> str:
+    """`DOP853 (compiled)`, `RK45 (python)`; `auto -> DOP853 (compiled)` when the request named another method."""
+    ran = re.split(r"[\s:(]", point.resolved.strip(), maxsplit=1)[0] or point.method
+    backend = run_backend(point)
+    label = f"{ran} ({backend})" if backend else ran
+    requested = point.method.split(":")[0]
+    return label if requested == ran else f"{requested} -> {label}"
+
+
+@plain_text()
+def study_figure(result: Study) -> Figure:
+    """Two log-log panels, error against run time and against right-hand side evaluations, one
+    line per method and backend: compiled runs solid with filled circles, pure-Python runs dashed
+    with open squares, one colour per method; the reference's own error dotted. The legend is
+    outside the panels. File text is shown as written."""
+    from matplotlib.figure import Figure
+    from matplotlib.lines import Line2D
+
+    figure = Figure(figsize=(12.0, 5.0), layout="constrained")
+    left, right = figure.subplots(1, 2)
+    colours: dict[str, str] = {}
+    cycle = [entry["color"] for entry in matplotlib_cycle()]
+    handles: list[Any] = []
+    labels: list[str] = []
+    for method in dict.fromkeys(p.method for p in result.points):
+        good = [p for p in result.points if p.method == method and p.ok and p.error > 0]
+        if not good:
+            continue
+        label, backend = plot_label(good[0]), run_backend(good[0])
+        if label in labels:
+            label = f"{label} [{plot_text(method)}]"
+        colour = colours.setdefault(label.split(" ")[0], cycle[len(colours) % len(cycle)])
+        style, marker, fill = BACKEND_STYLES.get(backend, (":", "^", "full"))
+        errors_ = [p.error for p in good]
+        options = {"color": colour, "linestyle": style, "marker": marker, "fillstyle": fill, "label": label}
+        (line,) = left.loglog([p.seconds for p in good], errors_, **options)
+        right.loglog([max(p.nfev, 1) for p in good], errors_, **options)
+        handles.append(line)
+        labels.append(label)
+    finished = bool(handles)
+    own = result.reference.own_error
+    if finished and math.isfinite(own) and own > 0:
+        for axes in (left, right):
+            axes.axhline(own, color="grey", linestyle=":", linewidth=1.0)
+        handles.append(Line2D([], [], color="grey", linestyle=":", linewidth=1.0))
+        labels.append("reference's own error")
+    titles = ("error against run time", "error against work (independent of the machine)")
+    for axes, xlabel, title in zip((left, right), ("run time [s] (one-time compile excluded)", "right-hand side evaluations"), titles, strict=True):
+        axes.set_xlabel(xlabel)
+        axes.set_ylabel("error (larger of final and RMS, scaled)")
+        axes.set_title(title, fontsize="medium")
+        axes.grid(True, which="both", alpha=0.3)
+        if not finished:
+            axes.text(0.5, 0.5, "no run finished", transform=axes.transAxes, ha="center", va="center")
+    if finished:
+        backends = sorted({run_backend(p) for p in result.points if p.ok} & set(BACKEND_NAMES))
+        key = "; ".join(f"{'solid' if b == 'compiled' else 'dashed'}: {BACKEND_NAMES[b]}" for b in backends)
+        order = sorted(range(len(labels)), key=lambda i: (labels[i] == "reference's own error", labels[i]))
+        legend = figure.legend(
+            [handles[i] for i in order], [labels[i] for i in order], loc="outside lower center", ncols=min(len(labels), 4), fontsize="small", title=key or None, title_fontsize="small"
+        )
+        inert(*legend.get_texts())
+    window = f"t = 0..{result.t_end:.3g}" + (" (predictability horizon)" if result.t_end < result.full_t_end else "")
+    figure_title(figure, f"{plot_text(result.title)}: work-precision, {window}")
+    return figure
+
+
+def matplotlib_cycle() -> list[dict[str, Any]]:
+    import matplotlib
+
+    return list(matplotlib.rcParams["axes.prop_cycle"])
+
+
 @plain_text()
 def write_plot(result: Study, path: object) -> None:
-    """Two log-log panels, error against run time and against evaluations, one line per method;
-    written atomically."""
+    """`study_figure`, written atomically (.png, .svg or .pdf)."""
     from pathlib import Path
 
     import matplotlib
@@ -581,26 +672,6 @@ def write_plot(result: Study, path: object) -> None:
     from lagrange_cli.files import atomic_write
 
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
     target = Path(str(path)).resolve()
-    figure, (left, right) = plt.subplots(1, 2, figsize=(12, 5))
-    for method in dict.fromkeys(p.method for p in result.points):
-        good = [p for p in result.points if p.method == method and p.ok and p.error > 0]
-        if not good:
-            continue
-        errors_ = [p.error for p in good]
-        (line,) = left.loglog([p.seconds for p in good], errors_, "o-", label=method)
-        right.loglog([max(p.nfev, 1) for p in good], errors_, "o-", color=line.get_color(), label=method)
-    for axes, xlabel in ((left, "run time (s)"), (right, "right-hand side evaluations")):
-        axes.set_xlabel(xlabel)
-        axes.set_ylabel("error (max of final and RMS, scaled)")
-        axes.grid(True, which="both", alpha=0.3)
-        axes.legend()
-    window = f"t = 0..{result.t_end:.3g}" + (" (predictability horizon)" if result.t_end < result.full_t_end else "")
-    figure.suptitle(f"{plot_text(result.title)}: work-precision, {window}", parse_math=False)
-    figure.tight_layout()
-    try:
-        atomic_write(target, lambda stream: figure.savefig(stream, format=target.suffix.lstrip(".").lower()))
-    finally:
-        plt.close(figure)
+    figure = study_figure(result)
+    atomic_write(target, lambda stream: figure.savefig(stream, format=target.suffix.lstrip(".").lower(), dpi=120))
