@@ -78,6 +78,11 @@ class Problem:
     max_steps: int = MAX_STEPS["python"]
 
 
+EVALUATIONS_PER_STEP = 20
+"""Right-hand side evaluations a scipy step may take on average (DOP853: 12, Radau: a few Newton
+iterations, plus rejected steps) before the run counts as over its budget."""
+
+
 class EvaluationError(Exception):
     """A generated function could not be evaluated at (t, y) to finite real numbers: `cause`
     says why (a math domain error, a division by zero, an overflow, a complex or NaN value)."""
@@ -233,10 +238,12 @@ class _Failure(Exception):
 
 class _Problems:
     """The last state where the right-hand side could not be evaluated (a solver that meets NaN
-    rejects the step and retries a smaller one; when it gives up, this says why)."""
+    rejects the step and retries a smaller one; when it gives up, this says why), and the
+    evaluations left: a solver retrying without end inside one step (a NaN step size) stops too."""
 
-    def __init__(self) -> None:
+    def __init__(self, evaluations: int = 20 * MAX_STEPS["python"]) -> None:
         self.last: EvaluationError | None = None
+        self.evaluations = evaluations
 
 
 def python_rhs(module: Any, p: Sequence[float], problems: _Problems | None = None) -> Callable[[float, np.ndarray], list[float]]:
@@ -246,6 +253,12 @@ def python_rhs(module: Any, p: Sequence[float], problems: _Problems | None = Non
     accel, n, params = module._accel, module._N, list(p)
 
     def rhs(t: float, y: np.ndarray) -> list[float]:
+        if problems is not None:
+            problems.evaluations -= 1
+            if problems.evaluations < 0:
+                raise _Failure(BUDGET)
+        if not math.isfinite(t):  # the step size became NaN after NaN values: scipy would retry forever
+            raise _Failure(NONFINITE, problems.last if problems is not None else None)
         values = y.tolist()
         try:
             x = evaluate(accel, t, values, params, "the equations of motion")
@@ -292,7 +305,7 @@ def run_scipy(functions: Functions, problem: Problem, method: str, rtol: float, 
     import scipy.integrate
 
     module, p = functions.module, problem.p.tolist()
-    problems = _Problems()
+    problems = _Problems(EVALUATIONS_PER_STEP * problem.max_steps + 1000)
     options: dict[str, Any] = {"rtol": rtol, "atol": atol, "max_step": max_step}
     if method in ("Radau", "BDF", "LSODA"):
         options["jac"] = python_jac(module, p, problems)
