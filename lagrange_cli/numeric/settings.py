@@ -115,7 +115,7 @@ def constraint_notes(model: Model, p: Sequence[float], y0: Sequence[float]) -> l
     q, qd = np.array(y0[:n], dtype=float), np.array(y0[n:], dtype=float)
     try:
         values = np.array(_ROWS[id(model)][1](0.0, *q, *p[: len(model.parameters)]), dtype=float)
-    except (ZeroDivisionError, OverflowError, ValueError):
+    except (ArithmeticError, ValueError, TypeError):
         return []
     notes = []
     for c, row in zip(model.constraints, values, strict=True):
@@ -335,7 +335,7 @@ def _safe_rhs(module: object, p: tuple[float, ...]) -> Callable[[float, np.ndarr
     def rhs(t: float, y: np.ndarray) -> np.ndarray | None:
         try:
             x = accel(t, y.tolist(), list(p))
-        except (ZeroDivisionError, OverflowError, ValueError):
+        except (ArithmeticError, ValueError, TypeError):
             return None
         return np.array(y.tolist()[n:] + x[:n])
 
