@@ -260,12 +260,14 @@ def python_rhs(module: Any, p: Sequence[float], problems: _Problems | None = Non
         if not math.isfinite(t):  # the step size became NaN after NaN values: scipy would retry forever
             raise _Failure(NONFINITE, problems.last if problems is not None else None)
         values = y.tolist()
+        if not all(map(math.isfinite, values)):  # a stage built from NaN values: it only propagates them
+            return [math.nan] * len(values)
         try:
             x = evaluate(accel, t, values, params, "the equations of motion")
         except EvaluationError as problem:
             if problem.cause.endswith("(a singular matrix)"):
                 raise _Failure(SINGULAR) from None
-            if problems is not None and np.all(np.isfinite(y)):  # a NaN state only propagates an earlier problem
+            if problems is not None:
                 problems.last = problem
             return [math.nan] * len(values)
         return values[n:] + x[:n]
