@@ -110,9 +110,40 @@ def test_a_run_without_end_stops_at_its_step_budget() -> None:
 
 
 def test_a_tiny_time_span_finishes() -> None:
-    calls: list[float] = []
-    trajectory = simulate(model_of(particle("k*x**2/2", v0=0.0)), backend="python", t_end=5e-324, progress=calls.append)
+    trajectory = simulate(model_of(particle("k*x**2/2", v0=0.0)), backend="python", t_end=5e-324, progress=lambda fraction: None)
     assert trajectory.status == "finished"
+
+
+class FakeLoop:
+    """A compiled loop's contract: advance(t_stop) moves t towards min(t_stop, t_end) by at most
+    `pause` steps of size h, returning 0 at t_end and -1 when paused or at t_stop."""
+
+    def __init__(self, t_end: float, h: float, pause: int = 20000) -> None:
+        self.t, self.t_end, self.h, self.pause, self.steps, self.calls = 0.0, t_end, h, pause, 0, 0
+
+    def advance(self, t_stop: float) -> int:
+        self.calls += 1
+        assert self.calls < 1000, "the driver calls the loop without end"
+        for _ in range(self.pause):
+            if self.t >= min(t_stop, self.t_end):
+                break
+            self.t, self.steps = min(self.t + self.h, self.t_end), self.steps + 1
+        return 0 if self.t >= self.t_end else -1
+
+
+@pytest.mark.parametrize("progress", [None, lambda fraction: None], ids=["quiet", "progress"])
+def test_the_compiled_driver_stops_at_the_step_budget(progress: object) -> None:
+    loop = FakeLoop(1e300, 1.0)
+    problem = integrators.Problem(0.0, 1e300, np.zeros(2), np.zeros(2), np.zeros(0), False, max_steps=100_000)
+    assert integrators._drive(loop.advance, lambda: loop.t, lambda: loop.steps, problem, progress) == 6  # type: ignore[arg-type]
+    assert 100_000 <= loop.steps < 200_000
+
+
+def test_the_compiled_driver_moves_ahead_when_the_span_underflows() -> None:
+    """span / 100 of t_end = 5e-324 is 0: the progress target never moved, and the driver looped."""
+    loop = FakeLoop(5e-324, 5e-324)
+    problem = integrators.Problem(0.0, 5e-324, np.zeros(2), np.zeros(2), np.zeros(0), False)
+    assert integrators._drive(loop.advance, lambda: loop.t, lambda: loop.steps, problem, lambda fraction: None) == 0
 
 
 @pytest.mark.parametrize("bad", [{"parameters": {"k": float("nan")}}, {"initial": {"x": float("inf")}}, {"initial": {"x": "one"}}, {"samples": 10**12}, {"max_steps": 0}])
