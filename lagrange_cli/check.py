@@ -9,9 +9,10 @@ equation to vanish there and the expected set to determine the same unknowns.
 from __future__ import annotations
 
 import random
+import re
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import sympy as sp
 
@@ -19,6 +20,9 @@ from lagrange_cli.algebra import augmented
 from lagrange_cli.errors import Span, SpecError, fail
 from lagrange_cli.model import Model
 from lagrange_cli.spec import SystemSpec
+
+if TYPE_CHECKING:
+    from xml.etree import ElementTree
 
 DIGITS = 40
 POINTS = 6
@@ -472,8 +476,11 @@ class FileReport:
 
     @property
     def status(self) -> str:
+        """One of error (bad input), fail, pass, or skip (a file with nothing to check)."""
         if self.error:
             return "error"
+        if not self.results:
+            return "skip"
         return "fail" if any(not r.passed for r in self.results) else "pass"
 
 
@@ -504,28 +511,54 @@ def to_json(reports: list[FileReport]) -> str:
             {"entry": r.entry, "passed": r.passed, "method": r.method, "detail": r.detail, "line": r.span.line if r.span else None, "column": r.span.column if r.span else None} for r in report.results
         ]
         files.append({"path": report.path, "status": report.status, "error": report.error or None, "results": entries})
-    counts = {status: sum(1 for r in reports if r.status == status) for status in ("pass", "fail", "error")}
+    counts = {status: sum(1 for r in reports if r.status == status) for status in ("pass", "fail", "error", "skip")}
     return json.dumps({"files": files, "summary": {"files": len(reports), **counts, "exit_code": exit_code(reports)}}, indent=2) + "\n"
 
 
 def to_junit(reports: list[FileReport]) -> str:
-    """JUnit XML: one test suite per file, one test case per `expect` entry."""
+    """JUnit XML: one test suite per file, one test case per `expect` entry; a file that cannot
+    be loaded is one case with an `<error>`, a file without `expect` one `<skipped>` case. Every
+    count attribute is the count of its cases, and all file text passes through `_xml_text`, so
+    the document is well-formed whatever the file's names, title or messages contain."""
     import xml.etree.ElementTree as ET
 
     root = ET.Element("testsuites", name="lagrange check")
     for report in reports:
-        suite = ET.SubElement(root, "testsuite", name=report.path, tests=str(max(len(report.results), 1)))
-        suite.set("failures", str(sum(1 for r in report.results if not r.passed)))
-        suite.set("errors", "1" if report.error else "0")
+        path = _xml_text(report.path)
+        suite = ET.SubElement(root, "testsuite", name=path)
         if report.error:
-            case = ET.SubElement(suite, "testcase", classname=report.path, name="load")
-            ET.SubElement(case, "error", message=report.error.splitlines()[0]).text = report.error
+            case = ET.SubElement(suite, "testcase", classname=path, name="load")
+            ET.SubElement(case, "error", message=_xml_text(report.error.splitlines()[0] if report.error.strip() else "error")).text = _xml_text(report.error)
+        elif not report.results:
+            case = ET.SubElement(suite, "testcase", classname=path, name="expect")
+            ET.SubElement(case, "skipped", message="no `expect` block: nothing to check")
         for result in report.results:
-            case = ET.SubElement(suite, "testcase", classname=report.path, name=result.entry)
+            case = ET.SubElement(suite, "testcase", classname=path, name=_xml_text(result.entry))
             if result.span:
-                case.set("file", result.span.file)
+                case.set("file", _xml_text(result.span.file))
                 case.set("line", str(result.span.line))
             if not result.passed:
-                ET.SubElement(case, "failure", message=result.detail).text = result.detail
+                ET.SubElement(case, "failure", message=_xml_text(result.detail)).text = _xml_text(result.detail)
+        _count(suite)
+    _count(root)
     ET.indent(root)
     return '<?xml version="1.0" encoding="utf-8"?>\n' + ET.tostring(root, encoding="unicode") + "\n"
+
+
+def _count(element: ElementTree.Element) -> None:
+    """tests, failures, errors and skipped of a suite (or of all suites): counted from its cases."""
+    cases = list(element.iter("testcase"))
+    element.set("tests", str(len(cases)))
+    for attribute, tag in (("failures", "failure"), ("errors", "error"), ("skipped", "skipped")):
+        element.set(attribute, str(sum(1 for case in cases if case.find(tag) is not None)))
+
+
+# XML 1.0 allows tab, newline, carriage return and U+0020..U+D7FF, U+E000..U+FFFD, U+10000 up;
+# of these, DEL and the C1 controls (U+007F..U+009F) are discouraged and replaced as well.
+_NOT_XML = re.compile("[^\t\n\r\u0020-\u007e\u00a0-\ud7ff\ue000-\ufffd\U00010000-\U0010ffff]")
+
+
+def _xml_text(text: str) -> str:
+    """`text` with every character XML 1.0 cannot hold or discourages (control characters other
+    than tab, newline and carriage return, lone surrogates, U+FFFE, U+FFFF) shown as `U+XXXX`."""
+    return _NOT_XML.sub(lambda match: f"U+{ord(match.group()):04X}", text)

@@ -6,10 +6,11 @@ import json
 import math
 
 import sympy as sp
-from sympy.printing.latex import LatexPrinter
 
 from lagrange_cli.analysis import Info, Linearization
-from lagrange_cli.emit.latex import symbol_names
+from lagrange_cli.emit.common import printable
+from lagrange_cli.emit.latex import comment
+from lagrange_cli.emit.latex import names as latex_names
 from lagrange_cli.model import Model
 
 
@@ -27,23 +28,23 @@ def info_text(model: Model, info: Info) -> str:
     lines.append(f"energy function h = sum p q_dot - L = {info.energy}")
     lines.append(f"h is conserved: {_yes(info.energy_conserved)}")
     lines.append(f"Hamiltonian H(q, p) = {info.hamiltonian}" if info.hamiltonian is not None else f"Hamiltonian: {info.hamiltonian_note}")
-    return "\n".join(lines) + "\n"
+    return "\n".join(map(printable, lines)) + "\n"
 
 
 def info_latex(model: Model, info: Info) -> str:
-    names = symbol_names(model)
-    printer = LatexPrinter({"symbol_names": names})
-    rows = [f"p_{{{sp.latex(q)}}} &= {printer.doprint(p)}" for q, p in zip(model.q, info.momenta, strict=True)]
+    printer = latex_names(model, info.momentum_symbols).printer()
+    rows = [f"{printer.doprint(s)} &= {printer.doprint(p)}" for s, p in zip(info.momentum_symbols, info.momenta, strict=True)]
     rows.append(f"h &= {printer.doprint(info.energy)}")
     if info.hamiltonian is not None:
-        momentum_names = {s: f"p_{{{sp.latex(q)}}}" for s, q in zip(info.momentum_symbols, model.q, strict=True)}
-        rows.append(f"H &= {sp.latex(info.hamiltonian, symbol_names={**names, **momentum_names})}")
-    conserved = ", ".join(f"$p_{{{sp.latex(sp.Symbol(c))}}}$" for c in info.ignorable) or "none"
+        rows.append(f"H &= {printer.doprint(info.hamiltonian)}")
+    momenta = dict(zip(model.coordinates, info.momentum_symbols, strict=True))
+    conserved = ", ".join(f"${printer.doprint(momenta[c])}$" for c in info.ignorable) or "none"
     return (
-        f"% {model.title}: momenta and conserved quantities\n\\begin{{align*}}\n"
+        comment(f"{model.title}: momenta and conserved quantities")
+        + "\\begin{align*}\n"
         + " \\\\\n".join(rows)
         + "\n\\end{align*}\n"
-        + f"% conserved momenta: {conserved}; h conserved: {_yes(info.energy_conserved)}\n"
+        + comment(f"conserved momenta: {conserved}; h conserved: {_yes(info.energy_conserved)}")
     )
 
 

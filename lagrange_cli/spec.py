@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import dataclasses
 import keyword
+import os
 import re
 from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, field
@@ -140,28 +141,31 @@ def bundled_systems() -> Path:
 
 
 def resolve(name: str) -> Path:
-    """A path to a system file: `name` itself if it exists, else a bundled system of that name."""
-    path = Path(name)
-    if path.exists():
-        return path
+    """A path to a system file: `name` itself if it exists, else a bundled system of that name.
+    A name no file can have (a NUL byte, too long, not UTF-8) is a `LagrangeError`, not a crash."""
+    from lagrange_cli.files import check_name, shown
+
+    path = Path(check_name(name))
+    if os.path.lexists(path):
+        return path  # whatever it is: `load` says why it cannot be read
     folder = bundled_systems()
-    for candidate in (folder / name, folder / f"{name}.yaml"):
-        if candidate.is_file():
-            return candidate
+    if "/" not in name and name not in ("", ".", ".."):
+        for candidate in (folder / name, folder / f"{name}.yaml"):
+            if candidate.is_file():
+                return candidate
     known = sorted(p.stem for p in folder.glob("*.yaml"))
     hint = _closest(path.stem, known)
-    raise fail(None, f"no such file: '{name}', and no bundled system of that name", f"a path to a .yaml file or one of: {', '.join(known)}" + (f" (did you mean '{hint}'?)" if hint else ""))
+    raise fail(None, f"no such file: {shown(name)}, and no bundled system of that name", f"a path to a .yaml file or one of: {', '.join(known)}" + (f" (did you mean '{hint}'?)" if hint else ""))
 
 
 def load(path: str | Path) -> SystemSpec:
-    """Read and validate a system file; raises `SpecError` listing every problem."""
-    path = Path(path)
-    try:
-        raw = path.read_bytes()
-    except OSError as exc:
-        raise fail(None, f"cannot read '{path}': {exc.strerror}", "a readable system file") from None
+    """Read and validate a system file; raises `SpecError` listing every problem. Only a regular
+    file is read (a FIFO, a device or a directory is refused) and at most MAX_FILE_BYTES of it."""
+    from lagrange_cli.files import read_limited
+
+    raw = read_limited(path, MAX_FILE_BYTES)
     if len(raw) > MAX_FILE_BYTES:
-        raise fail(Span(str(path), 1, 1), f"file is {len(raw)} bytes", f"a system file under {MAX_FILE_BYTES} bytes")
+        raise fail(Span(str(path), 1, 1), f"file is over {MAX_FILE_BYTES} bytes", f"a system file under {MAX_FILE_BYTES} bytes")
     try:
         text = raw.decode("utf-8")
     except UnicodeDecodeError as exc:

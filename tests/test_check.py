@@ -166,7 +166,7 @@ def test_junit_and_json_reports(tmp_path: Path) -> None:
     failure = suites[1].find("testcase/failure")
     assert failure is not None and "missing" in failure.get("message", "")
     report = json.loads(runner.invoke(app, ["check", str(wrong), "--json"]).stdout)
-    assert report["summary"] == {"files": 1, "pass": 0, "fail": 1, "error": 0, "exit_code": 1}
+    assert report["summary"] == {"files": 1, "pass": 0, "fail": 1, "error": 0, "skip": 0, "exit_code": 1}
     assert report["files"][0]["results"][0]["line"] is not None
 
 

@@ -14,6 +14,7 @@ if TYPE_CHECKING:
     import sympy as sp
 
     from lagrange_cli import analysis
+    from lagrange_cli.errors import Span
     from lagrange_cli.model import Model
 
 
@@ -31,7 +32,7 @@ def info(
     output_path: Annotated[Path | None, typer.Option("-o", "--output", help="Write here (atomically).")] = None,
 ) -> None:
     """Degrees of freedom, generalized momenta, ignorable coordinates, the energy function and the Hamiltonian."""
-    check_outputs(output_path)
+    check_outputs(output_path, reading=file)
     from lagrange_cli import analysis, report
     from lagrange_cli.errors import LagrangeError
 
@@ -111,36 +112,46 @@ def _coordinate(model: Model, name: str) -> sp.Symbol:
     return model.q[model.coordinates.index(name)]
 
 
-def _value(text: str, what: str) -> sp.Expr:
-    """A constant such as 0, pi/2 or -1.5, parsed safely."""
+def _value(text: str, what: str, span: Span) -> sp.Expr:
+    """A constant such as 0, pi/2 or -1.5, parsed safely; `span` places `text` in its option's
+    value, so that a mistake is shown with the option's name and a caret."""
     import sympy as sp
 
-    from lagrange_cli.errors import Span, fail
-    from lagrange_cli.expr import Scope, parse_expression
+    from lagrange_cli.errors import fail
+    from lagrange_cli.expr import Scope, numeric_value, parse_expression
 
-    value = parse_expression(text, Span("<command line>", 1, 1, text), Scope({}, {}, sp.Symbol("t"), lambda e: e, what="numbers, pi and E"))
+    value = parse_expression(text, span, Scope({}, {}, sp.Symbol("t"), lambda e: e, what="numbers, pi and E"))
     if not value.is_number:
-        raise fail(None, f"{what} must be a number, got '{text}'", "a number such as 0, pi/2 or -1.5")
+        raise fail(span, f"{what} must be a number, got '{text.strip()}'", "a number such as 0, pi/2 or -1.5")
+    try:
+        numeric_value(value)
+    except (ValueError, OverflowError, TypeError):
+        raise fail(span, f"{what} must be a finite real number, got '{text.strip()}'", "a number such as 0, pi/2 or -1.5") from None
     return value
 
 
 def _point(model: Model, about: str) -> dict[sp.Symbol, sp.Expr]:
-    from lagrange_cli.errors import fail
+    from lagrange_cli.errors import Span, fail
 
     point = {}
     for item in filter(None, (part.strip() for part in about.split(","))):
         name, sep, text = item.partition("=")
         if not sep:
-            raise fail(None, f"'{item}' in --about is not of the form name=value", "e.g. --about theta=0,phi=pi")
-        point[_coordinate(model, name.strip())] = _value(text, f"the value of '{name.strip()}'")
+            raise fail(Span("--about", 1, 1, item), f"'{item}' in --about is not of the form name=value", "e.g. --about theta=0,phi=pi")
+        point[_coordinate(model, name.strip())] = _value(text, f"the value of '{name.strip()}'", Span("--about", 1, len(name) + 2, item))
     return point
 
 
 def _range(text: str) -> tuple[str, float, float]:
-    from lagrange_cli.errors import fail
+    from lagrange_cli.errors import Span, fail
+    from lagrange_cli.expr import numeric_value
 
     name, sep, span = text.partition("=")
     low, dots, high = span.partition("..")
     if not sep or not dots:
-        raise fail(None, f"'{text}' is not a range", "name=low..high, e.g. theta=-3.2..3.2")
-    return name.strip(), float(_value(low, "a range bound")), float(_value(high, "a range bound"))
+        raise fail(Span("--range", 1, 1, text), f"'{text}' is not a range", "name=low..high, e.g. theta=-3.2..3.2")
+    first = numeric_value(_value(low, "a range bound", Span("--range", 1, len(name) + 2, text)))
+    second = numeric_value(_value(high, "a range bound", Span("--range", 1, len(name) + len(low) + 4, text)))
+    if not first < second:
+        raise fail(Span("--range", 1, len(name) + 2, text), f"the range {text!r} is empty: its low end must be below its high end", "name=low..high with low < high, e.g. theta=-3.2..3.2")
+    return name.strip(), first, second

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, Any
 
 import typer
 
@@ -22,7 +22,7 @@ def derive(
     output_path: Annotated[Path | None, typer.Option("-o", "--output", help="Write here (atomically) instead of to stdout.")] = None,
 ) -> None:
     """Derive the equations of motion of a system."""
-    check_outputs(output_path)
+    check_outputs(output_path, reading=file)
     from lagrange_cli.errors import LagrangeError, fail
 
     try:
@@ -30,6 +30,8 @@ def derive(
             raise fail(None, "choose one of --text, --latex, --python", "a single output format")
         if numba and not python:
             raise fail(None, "--numba applies to --python output", "--python --numba")
+        if standalone and not latex:
+            raise fail(None, "--standalone applies to --latex output", "--latex --standalone")
         from lagrange_cli import derive as core
         from lagrange_cli import spec
 
@@ -61,42 +63,76 @@ def check(
 
     Exit code 0: all pass; 1: some answer is wrong; 2: bad input.
     """
-    check_outputs(junit)
-    from rich.console import Console
-    from rich.table import Table
-
     from lagrange_cli import check as checker
-    from lagrange_cli import spec
+    from lagrange_cli.cli.boundary import console, inert, plain
     from lagrange_cli.errors import LagrangeError
 
     try:
-        files = list(spec.iter_files(paths))
+        files = _system_files(paths)
     except LagrangeError as error:
         fail_with(error)
-    reports = [checker.check_file(str(path)) for path in files]
+    check_outputs(junit, reading=files, options=("--junit",))
+    from rich.table import Table
+
+    reports = [_check_file(checker, path) for path in files]
     if junit is not None:
         write_atomically(junit, checker.to_junit(reports))
     if as_json:
         output(checker.to_json(reports), None)
         raise typer.Exit(checker.exit_code(reports))
-    errors = Console(stderr=True, highlight=False, soft_wrap=True)
+    errors = console(stderr=True)
     table = Table(title="lagrange check")
     for column in ("file", "entry", "result", "decided"):
         table.add_column(column)
     for report in reports:
         if report.error:
-            errors.print(report.error, markup=False)
-            table.add_row(report.path, "-", "[red]error[/red]", "bad input")
+            errors.print(plain(report.error), markup=False)
+            table.add_row(inert(report.path), "-", "[red]error[/red]", "bad input")
         elif not report.results:
-            table.add_row(report.path, "-", "[dim]no expect[/dim]", "")
+            table.add_row(inert(report.path), "-", "[dim]no expect[/dim]", "")
         for result in report.results:
             if not result.passed:
-                errors.print(f"[bold red]wrong[/bold red] {result.span or report.path}: [bold]{result.entry}[/bold]: {escape(result.detail)}")
-            table.add_row(report.path, result.entry, "[green]pass[/green]" if result.passed else "[red]FAIL[/red]", result.method)
-    Console(highlight=False).print(table)
+                errors.print(f"[bold red]wrong[/bold red] {inert(result.span or report.path)}: [bold]{inert(result.entry)}[/bold]: {escape(plain(result.detail))}")
+            table.add_row(inert(report.path), inert(result.entry), "[green]pass[/green]" if result.passed else "[red]FAIL[/red]", inert(result.method))
+    out = console(stderr=junit is not None and str(junit) == "-")
+    out.print(table)
     counts = {status: sum(1 for r in reports if r.status == status) for status in ("pass", "fail", "error")}
-    Console(highlight=False).print(f"{len(reports)} file{'s' * (len(reports) != 1)}: {counts['pass']} passed, {counts['fail']} failed, {counts['error']} with errors")
+    out.print(f"{len(reports)} file{'s' * (len(reports) != 1)}: {counts['pass']} passed, {counts['fail']} failed, {counts['error']} with errors")
     raise typer.Exit(checker.exit_code(reports))
+
+
+def _system_files(paths: list[str]) -> list[Path]:
+    """The files `check` reads: each argument (a file, a directory, a glob) must name at least one,
+    so that a mistyped glob or an empty directory is an error (exit 2), never a pass."""
+    from lagrange_cli import spec
+    from lagrange_cli.errors import fail
+    from lagrange_cli.files import check_name, shown
+
+    if not paths:
+        raise fail(None, "no system files given", "files, directories or globs, e.g. lagrange check 'systems/*.yaml'")
+    files: list[Path] = []
+    for item in paths:
+        check_name(item)
+        found = list(spec.iter_files([item]))
+        if not found:
+            what = "the directory" if Path(item).is_dir() else "the pattern"
+            raise fail(None, f"no system files matched {shown(item)}: {what} names no .yaml file", "a path, a directory with .yaml files, or a glob that matches some")
+        files += [path for path in found if path not in files]
+    return files
+
+
+def _check_file(checker: Any, path: Path) -> Any:
+    """`check.check_file`, with a bug in it reported for this file (exit 2) instead of a traceback."""
+    import os
+
+    from lagrange_cli.cli.boundary import DEBUG_VARIABLE, internal_error
+
+    try:
+        return checker.check_file(str(path))
+    except Exception as error:  # the safety net, per file
+        if os.environ.get(DEBUG_VARIABLE) == "1":
+            raise
+        return checker.FileReport(str(path), error=internal_error(str(path), error))
 
 
 def escape(text: str) -> str:

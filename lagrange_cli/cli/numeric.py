@@ -10,6 +10,7 @@ from typing import TYPE_CHECKING, Annotated, Any
 import typer
 
 from lagrange_cli.cli import app, check_outputs, fail_with, write_atomically
+from lagrange_cli.cli.boundary import check_fraction, check_positive, check_samples
 
 if TYPE_CHECKING:
     from lagrange_cli.model import Model
@@ -21,22 +22,22 @@ PROGRESS_AFTER = 1.0  # seconds before a progress bar appears (on a terminal onl
 @app.command()
 def simulate(
     file: Annotated[str, typer.Argument(help="A system file, or the name of a bundled system (e.g. double_pendulum).")],
-    t_end: Annotated[float | None, typer.Option("--t-end", help="Final time (default: the file's simulate.t_end, else 10).")] = None,
+    t_end: Annotated[float | None, typer.Option("--t-end", help="Final time (default: the file's simulate.t_end, else 10).", callback=check_positive)] = None,
     set_: Annotated[list[str] | None, typer.Option("--set", help="Override a parameter: name=value (repeatable).")] = None,
     initial: Annotated[list[str] | None, typer.Option("--initial", help="Override initial values: q=value,q_dot=value (repeatable).")] = None,
     method: Annotated[str | None, typer.Option(help="auto, RK45, DOP853, Radau, BDF, LSODA or symplectic.")] = None,
     backend: Annotated[str, typer.Option(help="auto, compiled (numba) or python (scipy).")] = "auto",
-    rtol: Annotated[float | None, typer.Option(help="Relative tolerance of adaptive methods (default 1e-8).")] = None,
-    atol: Annotated[float | None, typer.Option(help="Absolute tolerance of adaptive methods (default 1e-10).")] = None,
-    step: Annotated[float | None, typer.Option(help="Fixed step of the symplectic method.")] = None,
-    max_step: Annotated[float | None, typer.Option("--max-step", help="Largest step of adaptive methods.")] = None,
-    samples: Annotated[int | None, typer.Option(help="Number of evenly spaced output times (default 1001).")] = None,
+    rtol: Annotated[float | None, typer.Option(help="Relative tolerance of adaptive methods (default 1e-8).", callback=check_fraction)] = None,
+    atol: Annotated[float | None, typer.Option(help="Absolute tolerance of adaptive methods (default 1e-10).", callback=check_positive)] = None,
+    step: Annotated[float | None, typer.Option(help="Fixed step of the symplectic method.", callback=check_positive)] = None,
+    max_step: Annotated[float | None, typer.Option("--max-step", help="Largest step of adaptive methods.", callback=check_positive)] = None,
+    samples: Annotated[int | None, typer.Option(help="Number of evenly spaced output times (default 1001).", callback=check_samples)] = None,
     until: Annotated[str | None, typer.Option(help='Stop when this expression of the state crosses zero, e.g. "lambda_c" or "x - 1".')] = None,
     output_path: Annotated[Path | None, typer.Option("-o", "--output", help="Write the trajectory: .csv or .npz, or - for CSV on stdout.")] = None,
     plot: Annotated[Path | None, typer.Option(help="Plot coordinates, phase portrait and energy error: .png, .svg or .pdf.")] = None,
 ) -> None:
     """Simulate a system and report energy, momenta and constraint drift (exit 1 if the run fails)."""
-    check_outputs(output_path, plot)
+    check_outputs(output_path, plot, reading=file, options=("-o", "--plot"))
     from lagrange_cli.errors import LagrangeError
 
     try:
@@ -48,7 +49,7 @@ def simulate(
         if output_path is not None and str(output_path) != "-":
             out.check_suffix(output_path, out.DATA_SUFFIXES, "output")
         if plot is not None:
-            out.check_suffix(plot, out.PLOT_SUFFIXES, "plot")
+            out.check_plot(plot)
         model = core.derive(spec.load(spec.resolve(file)))
         parameters, values = _assignments(model, set_ or [], "--set"), _assignments(model, initial or [], "--initial")
         with _Progress() as progress:
@@ -101,7 +102,7 @@ def _write(trajectory: Trajectory, output_path: Path | None, plot: Path | None) 
     from lagrange_cli.numeric import output as out
 
     if output_path is not None and str(output_path) == "-":
-        sys.stdout.write(out.csv_text(trajectory))
+        write_atomically(output_path, out.csv_text(trajectory))
     elif output_path is not None and output_path.suffix.lower() == ".npz":
         out.write_npz(trajectory, output_path)
     elif output_path is not None:
@@ -112,19 +113,21 @@ def _write(trajectory: Trajectory, output_path: Path | None, plot: Path | None) 
 
 def _report(trajectory: Trajectory, to_stderr: bool) -> None:
     """What ran, how it ended, the work and time it took, and every monitored invariant."""
-    from rich.console import Console
     from rich.table import Table
 
-    console = Console(stderr=to_stderr, highlight=False, soft_wrap=True)
+    from lagrange_cli.cli.boundary import console as make_console
+    from lagrange_cli.cli.boundary import inert, plain
+
+    console = make_console(stderr=to_stderr)
     s, stats, timing = trajectory.settings, trajectory.stats, trajectory.timing
     accuracy = f"step {s.step:.3g}" if s.method == "symplectic" and s.step else f"rtol {s.rtol:g}, atol {s.atol:g}"
-    console.print(f"[bold]{trajectory.title}[/bold]: {s.method} ({s.backend}), t = {s.t0:g} .. {s.t_end:g}, {accuracy}")
+    console.print(f"[bold]{inert(trajectory.title)}[/bold]: {inert(s.method)} ({inert(s.backend)}), t = {s.t0:g} .. {s.t_end:g}, {accuracy}")
     for note in trajectory.notes:
-        console.print(f"  [dim]{note}[/dim]")
+        console.print(f"  [dim]{inert(note)}[/dim]")
     if trajectory.failed:
-        Console(stderr=True, highlight=False, soft_wrap=True).print(f"error: {trajectory.message}; the trajectory up to there is kept", markup=False)
+        make_console(stderr=True).print(plain(f"error: {trajectory.message}; the trajectory up to there is kept"), markup=False)
     else:
-        console.print(f"{trajectory.status}: {trajectory.message}", markup=False)
+        console.print(plain(f"{trajectory.status}: {trajectory.message}"), markup=False)
     rejected = f" ({stats.rejected} rejected)" if stats.rejected else ""
     smallest = f", smallest step {stats.min_step:.3g}" if stats.min_step else ""
     jacobians = f", {stats.njev} Jacobian{'s' * (stats.njev != 1)}, {stats.nlu} LU" if stats.njev or stats.nlu else ""
@@ -136,7 +139,7 @@ def _report(trajectory: Trajectory, to_stderr: bool) -> None:
         for column in ("quantity", "expected", "initial", "max change", "relative"):
             table.add_column(column)
         for inv in trajectory.invariants:
-            table.add_row(inv.name, "conserved" if inv.conserved else "not conserved", f"{inv.initial:.6g}", f"{inv.max_change:.2e}", f"{inv.relative:.2e}")
+            table.add_row(inert(inv.name), "conserved" if inv.conserved else "not conserved", f"{inv.initial:.6g}", f"{inv.max_change:.2e}", f"{inv.relative:.2e}")
         energy = next((inv for inv in trajectory.invariants if inv.name == "energy"), None)
         if energy is not None and energy.scale > abs(energy.initial):
             table.caption = f"energy: relative to the largest |sum p q_dot| = {energy.scale:.6g} (twice the kinetic energy of a natural system), which exceeds |initial|"

@@ -10,6 +10,7 @@ from typing import TYPE_CHECKING, Annotated
 import typer
 
 from lagrange_cli.cli import app, check_outputs, fail_with, write_atomically
+from lagrange_cli.cli.boundary import check_fraction, check_positive, check_repeats, check_samples, inert, plain
 
 if TYPE_CHECKING:
     from rich.console import Console
@@ -34,25 +35,58 @@ def _candidates(methods: list[str] | None) -> list[Candidate] | None:
     return [parse_candidate(part) for entry in methods for part in entry.split(",") if part.strip()]
 
 
+MAX_LADDER = 20  # values in --tolerances or in one --scale sweep
+
+
 def _tolerances(text: str | None) -> list[float] | None:
-    """`1e-3..1e-8` (every decade) or `1e-4,1e-6,1e-9`."""
+    """`1e-3..1e-8` (every decade) or `1e-4,1e-6,1e-9`: each a finite number between 0 and 1."""
     from lagrange_cli.errors import LagrangeError
 
     if text is None:
         return None
+    usage = "a range such as 1e-3..1e-8 or a list such as 1e-4,1e-6,1e-9, each between 0 and 1 (both excluded)"
     try:
-        if ".." in text:
-            low, high = (float(v) for v in text.split(".."))
-            a, b = sorted((math.log10(low), math.log10(high)))
-            return [10.0 ** (a + k) for k in range(round(b - a) + 1)]
-        return [float(v) for v in text.split(",") if v.strip()]
+        values = [float(v) for v in (text.split("..") if ".." in text else text.split(",")) if v.strip()]
     except ValueError:
-        raise LagrangeError(f"--tolerances {text!r}: expected a range such as 1e-3..1e-8 or a list such as 1e-4,1e-6,1e-9") from None
+        raise LagrangeError(f"error: --tolerances {plain(repr(text))}: not a number\n  expected: {usage}") from None
+    if not values or (".." in text and len(values) != 2) or not all(math.isfinite(v) and 0 < v < 1 for v in values):
+        raise LagrangeError(f"error: --tolerances {plain(repr(text))}: every value must be a finite number between 0 and 1\n  expected: {usage}")
+    if ".." in text:
+        a, b = sorted(math.log10(v) for v in values)
+        values = [10.0 ** (a + k) for k in range(round(b - a) + 1)]
+    if len(values) > MAX_LADDER:
+        raise LagrangeError(f"error: --tolerances {plain(repr(text))}: {len(values)} tolerances\n  expected: at most {MAX_LADDER}")
+    return values
+
+
+def _scales(items: list[str]) -> list[tuple[str, tuple[float, ...]]]:
+    """Each `--scale name=values` parsed, its values finite and at most MAX_LADDER of them."""
+    from lagrange_cli.errors import LagrangeError
+    from lagrange_cli.numeric.stress import parse_scale
+
+    result = []
+    for item in items:
+        given = item.partition("=")[2].replace("..", ",").split(",")
+        if not all(math.isfinite(_number(v)) for v in given):  # before the decades of low..high are counted
+            raise LagrangeError(f"error: --scale {plain(repr(item))}: every value must be a finite number\n  expected: name=low..high (both positive) or name=v1,v2,..., e.g. --scale k=1e2..1e8")
+        name, values = parse_scale(item)
+        if len(values) > MAX_LADDER:
+            raise LagrangeError(f"error: --scale {plain(repr(item))}: {len(values)} values\n  expected: at most {MAX_LADDER}")
+        result.append((name, values))
+    return result
+
+
+def _number(text: str) -> float:
+    """`text` as a float, or 0.0 when it is not a number (the caller's parser says why)."""
+    try:
+        return float(text)
+    except ValueError:
+        return 0.0
 
 
 def _status(message: str) -> None:
     if sys.stderr.isatty():
-        sys.stderr.write(f"\r\033[K  running {message}")
+        sys.stderr.write(f"\r\033[K  running {plain(message).replace(chr(10), ' ')}")
         sys.stderr.flush()
 
 
@@ -63,10 +97,7 @@ def _clear_status() -> None:
 
 
 def _write_text(path: Path, text: str) -> None:
-    if str(path) == "-":
-        sys.stdout.write(text)
-    else:
-        write_atomically(path, text)
+    write_atomically(path, text)  # - is stdout
 
 
 @app.command()
@@ -74,18 +105,18 @@ def accuracy(
     file: Annotated[str, typer.Argument(help="A system file, or the name of a bundled system (e.g. double_pendulum).")],
     method: Annotated[list[str] | None, typer.Option("--method", help="Methods to study (repeatable or comma-separated; METHOD:python forces scipy). Default: all.")] = None,
     tolerances: Annotated[str | None, typer.Option(help="rtol ladder, e.g. 1e-3..1e-8 (every decade) or 1e-4,1e-6 (default 1e-3..1e-8).")] = None,
-    t_end: Annotated[float | None, typer.Option("--t-end", help="Final time (default: the file's).")] = None,
+    t_end: Annotated[float | None, typer.Option("--t-end", help="Final time (default: the file's).", callback=check_positive)] = None,
     set_: Annotated[list[str] | None, typer.Option("--set", help="Override a parameter: name=value (repeatable).")] = None,
     initial: Annotated[list[str] | None, typer.Option("--initial", help="Override initial values: q=value (repeatable).")] = None,
-    samples: Annotated[int, typer.Option(help="Evenly spaced times the RMS error is taken over.")] = 201,
-    repeats: Annotated[int, typer.Option(help="Timed runs after the warm-up (fewer for slow runs).")] = 3,
-    budget: Annotated[float, typer.Option(help="Seconds after which one run is stopped and reported as over budget.")] = 20.0,
+    samples: Annotated[int, typer.Option(help="Evenly spaced times the RMS error is taken over.", callback=check_samples)] = 201,
+    repeats: Annotated[int, typer.Option(help="Timed runs after the warm-up (fewer for slow runs).", callback=check_repeats)] = 3,
+    budget: Annotated[float, typer.Option(help="Seconds after which one run is stopped and reported as over budget.", callback=check_positive)] = 20.0,
     csv: Annotated[Path | None, typer.Option("--csv", help="Write the table as CSV (- for stdout).")] = None,
     json: Annotated[Path | None, typer.Option("--json", help="Write the study as JSON (- for stdout).")] = None,
     plot: Annotated[Path | None, typer.Option(help="Plot error against run time and against evaluations: .png, .svg or .pdf.")] = None,
 ) -> None:
     """Error against run time for every method over a ladder of tolerances, against an exact or confirmed reference."""
-    check_outputs(csv, json, plot)
+    check_outputs(csv, json, plot, reading=file, options=("--csv", "--json", "--plot"))
     from lagrange_cli.errors import LagrangeError
 
     try:
@@ -94,11 +125,9 @@ def accuracy(
         from lagrange_cli.numeric import output as out
 
         if plot is not None:
-            out.check_suffix(plot, out.PLOT_SUFFIXES, "plot")
-        if repeats < 0 or budget <= 0:
-            raise LagrangeError("--repeats must be at least 0 and --budget positive")
+            out.check_plot(plot)
+        ladder = _tolerances(tolerances)  # before any work
         model = _model(file)
-        ladder = _tolerances(tolerances)
         result = core.study(
             model,
             candidates=_candidates(method),
@@ -126,11 +155,11 @@ def accuracy(
 
 def _console(to_stderr: bool) -> Console:
     """A console wide enough for the tables, also when the output is a pipe or a file."""
-    from rich.console import Console
+    from lagrange_cli.cli.boundary import console as make_console
 
-    console = Console(stderr=to_stderr, highlight=False, soft_wrap=True)
+    console = make_console(stderr=to_stderr)
     if not console.is_terminal:
-        console = Console(stderr=to_stderr, highlight=False, soft_wrap=True, width=160)
+        console = make_console(stderr=to_stderr, width=160)
     return console
 
 
@@ -145,17 +174,16 @@ def _seconds(value: float) -> str:
 
 
 def _report_study(result: Study, to_stderr: bool) -> None:
-    from rich.markup import escape
     from rich.table import Table
 
     from lagrange_cli.numeric.accuracy import HORIZON_THRESHOLD, tol_text
 
     console = _console(to_stderr)
     window = f"t = 0 .. {result.t_end:.4g}" + (f" (of {result.full_t_end:g})" if result.t_end < result.full_t_end else "")
-    console.print(f"[bold]{result.title}[/bold]: work-precision study, {window}")
+    console.print(f"[bold]{inert(result.title)}[/bold]: work-precision study, {window}")
     ref = result.reference
     own = "exact" if ref.kind == "exact" else f"its own error {_e(ref.own_error)}"
-    console.print(f"reference: {ref.description} ({own})", markup=False)
+    console.print(plain(f"reference: {ref.description} ({own})"), markup=False)
     if result.horizon is not None:
         h = result.horizon
         if h.chaotic and math.isfinite(h.horizon):
@@ -165,7 +193,7 @@ def _report_study(result: Study, to_stderr: bool) -> None:
         else:
             console.print(f"not chaotic: runs started {tol_text(h.delta)} apart separate by {h.growth * h.delta:.1e} by the end (no exponential growth)")
     for note in result.notes:
-        console.print(f"  [dim]{note}[/dim]", markup=True)
+        console.print(f"  [dim]{inert(note)}[/dim]", markup=True)
     table = Table(title="runs", title_justify="left", box=None, padding=(0, 1))
     for column in ("method", "setting", "final err", "RMS err", "energy", "constraint", "run time", "runs", "evals (jac)", "steps", "status"):
         table.add_column(column, justify="left" if column in ("method", "setting", "status") else "right")
@@ -175,20 +203,20 @@ def _report_study(result: Study, to_stderr: bool) -> None:
         if p.status == "finished":
             status = "ok" if p.ok else "[yellow]finished[/yellow]: its error could not be measured (samples missing or not finite)"
         else:
-            status = f"[red]{p.status}[/red]: {escape(p.reason)}"
+            status = f"[red]{inert(p.status)}[/red]: {inert(p.reason)}"
         evals = f"{p.nfev} ({p.njev})" if p.njev else str(p.nfev)
         name = p.resolved if p.method.split(":")[0] == p.resolved.split(" ")[0] else f"{p.method} -> {p.resolved}"
-        table.add_row(name, p.setting, _e(p.final_error), _e(p.rms_error), _e(p.energy_error), _e(p.constraint_drift), _seconds(p.seconds), str(p.runs), evals, str(p.steps), status)
+        table.add_row(inert(name), inert(p.setting), _e(p.final_error), _e(p.rms_error), _e(p.energy_error), _e(p.constraint_drift), _seconds(p.seconds), str(p.runs), evals, str(p.steps), status)
     console.print(table)
     costs = ", ".join(f"{name} {_seconds(value)}" for name, value in compile_costs.items() if value > 0.01)
-    console.print(f"one-time costs (code generation, import, compile or load), not in the run times: {costs or 'none above 10 ms'}")
+    console.print(f"one-time costs (code generation, import, compile or load), not in the run times: {inert(costs) or 'none above 10 ms'}")
     fastest = result.fastest
     if fastest:
         summary = Table(title="fastest method for each accuracy (error = max of final and RMS)", title_justify="left")
         for column in ("error <=", "fastest", "setting", "run time", "error reached"):
             summary.add_column(column)
         for level, p in fastest:
-            summary.add_row(f"{level:.0e}", p.method, p.setting, _seconds(p.seconds), _e(p.error))
+            summary.add_row(f"{level:.0e}", inert(p.method), inert(p.setting), _seconds(p.seconds), _e(p.error))
         console.print(summary)
     else:
         console.print("[red]no run finished with a finite error[/red]")
@@ -198,27 +226,28 @@ def _report_study(result: Study, to_stderr: bool) -> None:
 def stress(
     file: Annotated[str, typer.Argument(help="A system file, or the name of a bundled system (e.g. stiff_spring_pendulum_damped).")],
     scale: Annotated[list[str] | None, typer.Option("--scale", help="Sweep a parameter: k=1e2..1e8 (every decade) or k=1,10,100 (repeatable).")] = None,
-    accuracy_: Annotated[float | None, typer.Option("--accuracy", help="Required error; exit 1 when in some regime no method meets it (default: 1e-6, reported only).")] = None,
+    accuracy_: Annotated[
+        float | None, typer.Option("--accuracy", help="Required error; exit 1 when in some regime no method meets it (default: 1e-6, reported only).", callback=check_fraction)
+    ] = None,
     method: Annotated[list[str] | None, typer.Option("--method", help="Methods to try (default: RK45:python, every method, auto).")] = None,
-    t_end: Annotated[float | None, typer.Option("--t-end", help="Final time (default: the file's).")] = None,
-    long: Annotated[float, typer.Option(help="The long-horizon regime runs this many times t_end.")] = 10.0,
-    energy: Annotated[float, typer.Option(help="The high-energy regime multiplies the initial velocities by this.")] = 3.0,
-    budget: Annotated[float, typer.Option(help="Seconds after which one run is stopped and reported as over budget.")] = 5.0,
+    t_end: Annotated[float | None, typer.Option("--t-end", help="Final time (default: the file's).", callback=check_positive)] = None,
+    long: Annotated[float, typer.Option(help="The long-horizon regime runs this many times t_end.", callback=check_positive)] = 10.0,
+    energy: Annotated[float, typer.Option(help="The high-energy regime multiplies the initial velocities by this.", callback=check_positive)] = 3.0,
+    budget: Annotated[float, typer.Option(help="Seconds after which one run is stopped and reported as over budget.", callback=check_positive)] = 5.0,
     json: Annotated[Path | None, typer.Option("--json", help="Write the report as JSON (- for stdout).")] = None,
 ) -> None:
     """Push a system towards its hard regimes; diagnose stiffness, singular coordinates, drift and blow-ups; recommend a method."""
-    check_outputs(json)
+    check_outputs(json, reading=file, options=("--json",))
     from lagrange_cli.errors import LagrangeError
 
     try:
         from lagrange_cli.numeric import stress as core
 
-        if budget <= 0 or long <= 0 or energy <= 0:
-            raise LagrangeError("--budget, --long and --energy must be positive")
+        scales = _scales(scale or [])  # before any work
         model = _model(file)
         report = core.stress(
             model,
-            scales=[core.parse_scale(s) for s in scale or []],
+            scales=scales,
             target=accuracy_ if accuracy_ is not None else 1e-6,
             candidates=_candidates(method),
             t_end=t_end,
@@ -239,47 +268,46 @@ def stress(
 
 
 def _report_stress(report: Report, to_stderr: bool) -> None:
-    from rich.markup import escape
     from rich.table import Table
 
     from lagrange_cli.numeric.accuracy import tol_text
 
     console = _console(to_stderr)
-    console.print(f"[bold]{report.title}[/bold]: stress test, required error {tol_text(report.accuracy)}")
+    console.print(f"[bold]{inert(report.title)}[/bold]: stress test, required error {tol_text(report.accuracy)}")
     summary = Table(title="summary", title_justify="left")
     for column in ("regime", "diagnosis", "naive (scipy RK45)", "auto", "recommended"):
         summary.add_column(column)
     for o in report.outcomes:
         console.print()
         window = f", measured to t = {o.t_end:.3g} (predictability horizon)" if o.t_end < o.regime.t_end else ""
-        console.print(f"[bold]{escape(o.regime.name)}[/bold]: t_end = {o.regime.t_end:g}{window}")
-        console.print(f"  reference: {o.reference} (own error {_e(o.reference_error)})", markup=False)
+        console.print(f"[bold]{inert(o.regime.name)}[/bold]: t_end = {o.regime.t_end:g}{window}")
+        console.print(plain(f"  reference: {o.reference} (own error {_e(o.reference_error)})"), markup=False)
         d = o.diagnosis
         console.print(f"  decay x t_end {d.decay_span:.3g}, stiffness ratio {d.stiffness_ratio:.3g}, time scales {d.scale_ratio:.3g}, fastest rate {d.rate:.3g}/s, max cond M {d.condition:.2g}")
         for finding in d.findings:
-            console.print(f"  - {finding}", markup=False)
+            console.print(plain(f"  - {finding}"), markup=False)
         table = Table(box=None, padding=(0, 1))
         for column in ("method", "setting", "error", "energy", "constraint", "run time", "steps", "evals (jac)", "status"):
             table.add_column(column, justify="left" if column in ("method", "setting", "status") else "right")
         for p in (o.naive_default, *o.points) if o.naive_default is not None else o.points:
             met = p.ok and p.error <= report.accuracy
-            status = ("[green]meets[/green]" if met else "[yellow]misses[/yellow]") if p.ok else f"[red]{p.status}[/red]: {escape(p.reason)}"
+            status = ("[green]meets[/green]" if met else "[yellow]misses[/yellow]") if p.ok else f"[red]{inert(p.status)}[/red]: {inert(p.reason)}"
             name = p.resolved if p.resolved == p.method or p.method.split(":")[0] == p.resolved.split(" ")[0] else f"{p.method} -> {p.resolved}"
             evals = f"{p.nfev} ({p.njev})" if p.njev else str(p.nfev)
             setting = f"{p.setting} (default)" if p is o.naive_default else p.setting
-            table.add_row(name, setting, _e(p.error), _e(p.energy_error), _e(p.constraint_drift), _seconds(p.seconds), str(p.steps), evals, status)
+            table.add_row(inert(name), inert(setting), _e(p.error), _e(p.energy_error), _e(p.constraint_drift), _seconds(p.seconds), str(p.steps), evals, status)
         console.print(table)
         best = o.recommended
         if best is not None:
-            console.print(f"  recommended: [bold]{best.resolved}[/bold] at {best.setting} (error {_e(best.error)} in {_seconds(best.seconds)})")
+            console.print(f"  recommended: [bold]{inert(best.resolved)}[/bold] at {inert(best.setting)} (error {_e(best.error)} in {_seconds(best.seconds)})")
         else:
             console.print(f"  [red]no method meets error {tol_text(report.accuracy)} in this regime[/red]")
         summary.add_row(
-            o.regime.name,
-            "; ".join(f.split(": ")[0] for f in d.findings) or "benign",
-            _naive(o, report.accuracy),
-            _brief(o.auto, report.accuracy),
-            _brief(best, report.accuracy) if best else "[red]none[/red]",
+            inert(o.regime.name),
+            inert("; ".join(f.split(": ")[0] for f in d.findings) or "benign"),
+            inert(_naive(o, report.accuracy)),
+            inert(_brief(o.auto, report.accuracy)),
+            inert(_brief(best, report.accuracy)) if best else "[red]none[/red]",
         )
     console.print()
     console.print(summary)

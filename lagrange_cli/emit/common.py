@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import unicodedata
+
 import sympy as sp
 
 from lagrange_cli.algebra import expand_bounded
@@ -43,3 +45,18 @@ def require_defined(model: Model, what: str) -> None:
             f"give {'it' if one else 'each'} a definition under `functions` (e.g. `functions: {{{undefined[0]}: {{arguments: [s], definition: -k/s}}}}`) "
             f"or write {'it' if one else 'them'} out as an expression in the system file"
         )
+
+
+def printable(text: str) -> str:
+    """`text` with nothing a terminal, an editor or a TeX comment acts on: a tab, newline or any
+    other whitespace character becomes a space, and every other control, format, surrogate,
+    private-use or unassigned character (ESC, U+2028, U+200B, ...) is shown as `U+XXXX`."""
+    out = []
+    for char in text:
+        if char.isspace():
+            out.append(" ")
+        elif unicodedata.category(char)[0] == "C":
+            out.append(f"U+{ord(char):04X}")
+        else:
+            out.append(char)
+    return "".join(out)

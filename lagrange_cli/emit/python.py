@@ -6,14 +6,31 @@ only what it uses: `math` functions, and numpy only for large systems. Functions
 autonomous system take no time argument (except rhs, whose signature solve_ivp fixes).
 Functions the file defines (`functions: {U: {arguments: [s], definition: -k/s}}`) are written
 out from their definitions, which the module's docstring states.
+
+Safe with any system file (shared with numeric/codegen.py, and meant for every future target):
+
+- File text is data. Titles, file names, definitions and names reach the code only through
+  `docstring` and `literal`, which escape backslashes, double quotes and every character that
+  is not printable ASCII, so nothing in a file can end a string, break the syntax or run.
+- User names cannot meet generated names. `mangle` gives each user symbol an identifier
+  distinct from every other user name, every Python keyword and builtin, every `math` name and
+  every name the generated code uses (`RESERVED`); the generator's own helpers and temporaries
+  start with `_`, which no user name does.
+- Real arithmetic. A power with a non-integer exponent is printed as `math.pow`, so a negative
+  base raises ValueError ("math domain error") instead of going complex, like sqrt, log and acos
+  out of their domains. Generated Python thus fails with ValueError (outside a function's domain),
+  ZeroDivisionError (division by zero, a singular matrix in `_solve`) or OverflowError (too large),
+  never with a complex or silently wrong number; numba-compiled code (error_model="numpy")
+  gives NaN or inf instead, which the integration loops report as non-finite.
 """
 
 from __future__ import annotations
 
-import json
+import builtins
 import keyword
 import math
-from collections.abc import Mapping, Sequence
+import re
+from collections.abc import Collection, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -24,11 +41,20 @@ from lagrange_cli import __version__
 from lagrange_cli._symengine import se, to_symengine
 from lagrange_cli.algebra import check_invertible
 from lagrange_cli.emit.common import require_defined
+from lagrange_cli.errors import DerivationError
 from lagrange_cli.model import Model
 
 # Above this many unknowns the linear solve is numpy's; below, straight-line Python is faster.
 NUMPY_SIZE = 9
-TAKEN = frozenset({"y", "p", "q", "q_dot", "t", "numpy", "numba", "COORDINATES", "PARAMETERS", "mass_matrix", "forcing", "energy", "rhs", "accelerations", "multipliers", "constraint_residuals"})
+GENERATED = frozenset(
+    {
+        *("t", "y", "p", "q", "q_dot", "math", "numpy", "numba", "njit", "tolist", "hasattr", "float", "abs", "pow", "copysign", "inf", "nan"),
+        *("COORDINATES", "PARAMETERS", "mass_matrix", "forcing", "energy", "rhs", "accelerations", "multipliers", "constraint_residuals"),
+    }
+)
+"""Names without a leading `_` that generated code uses: arguments, modules, public functions."""
+RESERVED = frozenset({*keyword.kwlist, *keyword.softkwlist, *dir(builtins), *dir(math), *GENERATED})
+"""What no user symbol may be called in generated Python (besides any name starting with `_`)."""
 AMBIGUOUS = frozenset({"l", "I", "O"})
 
 
@@ -40,7 +66,23 @@ class CodePrinter(PythonCodePrinter):
         self.names = names
 
     def _print_Symbol(self, expr: sp.Symbol) -> str:
+        if expr not in self.names:
+            raise DerivationError(f"cannot write code for the symbol '{literal(str(expr))[1:-1]}', which is not a coordinate, velocity, parameter or t")
         return self.names[expr]
+
+    def _print_ImaginaryUnit(self, expr: sp.Expr) -> str:
+        raise DerivationError("the equations contain the imaginary unit; generated code computes with real numbers only")
+
+    def _print_Integer(self, expr: sp.Integer) -> str:
+        """Exact below 2**53; larger integers as floats (numba has no big integers)."""
+        return str(expr.p) if abs(expr.p) < 2**53 else self._float(expr)
+
+    def _print_Rational(self, expr: sp.Rational) -> str:
+        return str(super()._print_Rational(expr)) if max(abs(expr.p), expr.q) < 2**53 else self._float(expr)
+
+    def _float(self, expr: sp.Expr) -> str:
+        value = float(expr)
+        return repr(value) if math.isfinite(value) else ("-" if value < 0 else "") + self._module_format("math.inf")
 
     def _print_Pi(self, expr: sp.Expr) -> str:
         return repr(math.pi)
@@ -49,10 +91,15 @@ class CodePrinter(PythonCodePrinter):
         return repr(math.e)
 
     def _print_Pow(self, expr: sp.Pow, rational: bool = False) -> str:
+        """`x*x` for squares, `**` for other integer powers, sqrt(x) and 1/sqrt(x), and
+        math.pow otherwise: real powers, a ValueError for a negative base where `**` would
+        silently give a complex number."""
         if _squared(expr):
             b = self._print(expr.base)
             return f"{b}*{b}"
-        return str(super()._print_Pow(expr, rational))
+        if expr.exp.is_Integer or expr.exp in (sp.S.Half, -sp.S.Half):
+            return str(super()._print_Pow(expr, rational))
+        return f"{self._module_format('math.pow')}({self._print(expr.base)}, {self._print(expr.exp)})"
 
     def _print_Mul(self, expr: sp.Mul) -> str:
         """sympy's, except that a lone divisor printed as a product is parenthesized: `k/(r*r)`, not `k/r*r`."""
@@ -111,7 +158,7 @@ class _Writer:
         self.model = model
         self.definitions = definitions or {}
         self.numba = numba
-        self.names = _names(model)
+        self.names = python_names(model)
         self.printer = CodePrinter(self.names)
         self.uses_numpy = False
         self.uses_solve = False
@@ -130,7 +177,7 @@ class _Writer:
         lines = []
         for parameter in self.model.parameters:
             if parameter.symbol in used:
-                lines.append(f'{self.names[parameter.symbol]} = p["{parameter.name}"]' + _noqa(self.names[parameter.symbol]))
+                lines.append(f"{self.names[parameter.symbol]} = p[{literal(parameter.name)}]" + _noqa(self.names[parameter.symbol]))
         groups = [("y", [*self.model.q, *self.model.qd])] if state == "y" else [(g, v) for g, v in (("q", self.model.q), ("q_dot", self.model.qd)) if g in state.split(",")]
         for group, variables in groups:
             keep = [v in used or (group == "y" and v in self.model.qd) for v in variables]
@@ -157,7 +204,7 @@ class _Writer:
             body.append("return [" + ", ".join(results) + "]")
         else:
             body.append(f"return {results[0]}")
-        return _def(name, self.signature(exprs, state), doc, body)
+        return define(name, self.signature(exprs, state), doc, body)
 
     def rhs(self) -> str:
         model, n = self.model, self.model.n
@@ -185,9 +232,9 @@ class _Writer:
             body += self.solve(matrix, [*f, *c], "_x")
             body.append("return _x")
             names = ", ".join(str(x) for x in model.multipliers)
-            solver = _def("accelerations", "t, y, p=PARAMETERS", f"[{', '.join(map(str, model.qdd))}, {names}] from [[M, -A^T], [A, 0]] x = [F, -c] (index-1 form).", body)
-            rhs = _def("rhs", "t, y, p=PARAMETERS", _rhs_doc(model), ["_x = accelerations(t, y, p)", f'return [*(y.tolist() if hasattr(y, "tolist") else y)[{n}:], *_x[:{n}]]'])
-            multipliers = _def("multipliers", "t, y, p=PARAMETERS", f"The multipliers [{names}]; A^T lambda is the generalized constraint force.", [f"return accelerations(t, y, p)[{n}:]"])
+            solver = define("accelerations", "t, y, p=PARAMETERS", f"[{', '.join(map(str, model.qdd))}, {names}] from [[M, -A^T], [A, 0]] x = [F, -c] (index-1 form).", body)
+            rhs = define("rhs", "t, y, p=PARAMETERS", _rhs_doc(model), ["_x = accelerations(t, y, p)", f'return [*(y.tolist() if hasattr(y, "tolist") else y)[{n}:], *_x[:{n}]]'])
+            multipliers = define("multipliers", "t, y, p=PARAMETERS", f"The multipliers [{names}]; A^T lambda is the generalized constraint force.", [f"return accelerations(t, y, p)[{n}:]"])
             return "\n\n\n".join([solver, rhs, multipliers])
         if n == 1:
             body.append(f"return [{velocities[0]}, ({f[0]})/({m[(0, 0)]})]")
@@ -198,7 +245,7 @@ class _Writer:
             matrix = [[m[(min(i, j), max(i, j))] for j in range(n)] for i in range(n)]
             body += self.solve(matrix, f, "_x")
             body.append(f"return [{', '.join(velocities)}, *_x]")
-        return _def("rhs", "t, y, p=PARAMETERS", _rhs_doc(model), body)
+        return define("rhs", "t, y, p=PARAMETERS", _rhs_doc(model), body)
 
     def compiled_rhs(self, exprs: Sequence[sp.Expr], block: Block, m: dict[tuple[int, int], str], f: list[str]) -> str:
         """rhs as a thin wrapper around a numba kernel taking y as an array and the used
@@ -226,9 +273,9 @@ class _Writer:
         body.append(f"_b = numpy.empty({size})")
         body += [f"_b[{i}] = {value}" for i, value in enumerate(f)]
         body += ["_x = numpy.linalg.solve(_a, _b)", f"_out = numpy.empty({2 * n})", f"_out[:{n}] = y[{n}:]", f"_out[{n}:] = _x[:{n}]", "return _out"]
-        kernel = "@numba.njit(cache=True)\n" + _def("_rhs", ", ".join(["t", "y", *names]), "The compiled right-hand side.", body).replace("\n_a[", "\n    _a[")
-        arguments = ", ".join(["t", "numpy.asarray(y, dtype=numpy.float64)", *(f'p["{p.name}"]' for p in parameters)])
-        wrapper = _def("rhs", "t, y, p=PARAMETERS", _rhs_doc(model) + " Compiled by numba; returns an array.", [f"return _rhs({arguments})"])
+        kernel = "@numba.njit(cache=True)\n" + define("_rhs", ", ".join(["t", "y", *names]), "The compiled right-hand side.", body).replace("\n_a[", "\n    _a[")
+        arguments = ", ".join(["t", "numpy.asarray(y, dtype=numpy.float64)", *(f"p[{literal(p.name)}]" for p in parameters)])
+        wrapper = define("rhs", "t, y, p=PARAMETERS", _rhs_doc(model) + " Compiled by numba; returns an array.", [f"return _rhs({arguments})"])
         self.uses_numpy = True
         return kernel + "\n\n\n" + wrapper
 
@@ -269,10 +316,10 @@ class _Writer:
             imports.append("import numba")
         if self.uses_numpy:
             imports.append("import numpy")
-        parameters = ", ".join(f"{json.dumps(p.name)}: {p.value!r}" for p in model.parameters if p.value is not None)
+        parameters = ", ".join(f"{literal(p.name)}: {_number(p.value)}" for p in model.parameters if p.value is not None)
         missing = [p.name for p in model.parameters if p.value is None]
         header = [
-            f'"""{model.title}: equations of motion generated by lagrange {__version__} from {Path(model.source).name}.',
+            f"{model.title}: equations of motion generated by lagrange {__version__} from {Path(model.source).name}.",
             "",
             "M(q"
             + (", t" if not model.autonomous else "")
@@ -287,9 +334,8 @@ class _Writer:
             header.append(f"Functions written out from their definitions in the file: {written}.")
         if missing:
             header.append(f"Parameters without a default, to be given in p: {', '.join(missing)}.")
-        header.append('"""')
-        parts = ["\n".join(header), "\n".join(imports)] if imports else ["\n".join(header)]
-        coordinates = ", ".join(json.dumps(c) for c in model.coordinates)
+        parts = [docstring("\n".join([*header, ""])), "\n".join(imports)] if imports else [docstring("\n".join([*header, ""]))]
+        coordinates = ", ".join(literal(c) for c in model.coordinates)
         parts.append(f"COORDINATES = ({coordinates}{',' * (model.n == 1)})\nPARAMETERS = {{{parameters}}}")
         return "\n\n".join(parts) + "\n\n\n" + "\n\n\n".join(functions) + "\n"
 
@@ -326,16 +372,68 @@ SOLVE = '''def _solve(a, b):
     return x'''
 
 
-def _names(model: Model) -> dict[sp.Symbol, str]:
-    """Python names for the model's symbols, renamed (trailing _) where they would clash."""
-    symbols = [*model.q, *model.qd, *(p.symbol for p in model.parameters), model.t]
-    names = {}
-    for s in symbols:
-        name = str(s)
-        while (name in TAKEN and s != model.t) or keyword.iskeyword(name):
-            name += "_"
-        names[s] = name
-    return names
+def mangle(names: Sequence[str], reserved: Collection[str] = RESERVED) -> dict[str, str]:
+    """Each user name -> its identifier in generated code, for any target (`reserved` being what
+    that target's code names itself). A name stays as it is when it is free; otherwise `_` is
+    appended until the result is none of `reserved`, no other user name and no name already
+    given (so `p` and `p_` stay apart). Characters outside [A-Za-z0-9_] become `_` and a name
+    not starting with a letter gets a `v` in front, so that no result starts with `_`, the
+    prefix of the generator's own names."""
+    users = set(names)
+    given: dict[str, str] = {}
+    for name in names:
+        if name in given:
+            continue
+        candidate = re.sub(r"[^A-Za-z0-9_]", "_", name)
+        if not re.match(r"[A-Za-z]", candidate):
+            candidate = "v" + candidate
+        while candidate in reserved or keyword.iskeyword(candidate) or (candidate != name and candidate in users) or candidate in given.values():
+            candidate += "_"
+        given[name] = candidate
+    return given
+
+
+def python_names(model: Model) -> dict[sp.Symbol, str]:
+    """Identifiers for the model's coordinates, velocities and parameters (`mangle`), and `t`."""
+    symbols = [*model.q, *model.qd, *(p.symbol for p in model.parameters)]
+    names = mangle([str(s) for s in symbols])
+    return {**{s: names[str(s)] for s in symbols}, model.t: "t"}
+
+
+def escape(text: str, newlines: bool = True) -> str:
+    """`text` as the inside of a double-quoted Python string literal, in printable ASCII:
+    backslashes and double quotes escaped, every other character outside ' '..'~' written as an
+    escape (`\\n`, `\\x00`, `\\u202e`, ...); line breaks kept as they are when `newlines` is
+    False (for triple-quoted strings). Nothing in `text` can end the literal or become code."""
+    out = []
+    for char in text:
+        if char in '\\"':
+            out.append("\\" + char)
+        elif " " <= char <= "~" or (char == "\n" and not newlines):
+            out.append(char)
+        elif char in "\n\r\t":
+            out.append({"\n": "\\n", "\r": "\\r", "\t": "\\t"}[char])
+        else:
+            code = ord(char)
+            out.append(f"\\x{code:02x}" if code < 0x100 else f"\\u{code:04x}" if code < 0x10000 else f"\\U{code:08x}")
+    return "".join(out)
+
+
+def literal(text: str) -> str:
+    """A Python string literal whose value is `text` (see `escape`)."""
+    return f'"{escape(text)}"'
+
+
+def docstring(text: str, indent: str = "") -> str:
+    """A triple-quoted docstring of `text` (see `escape`), its lines after the first indented by
+    `indent`: the one way any text, file text included, enters generated code as prose."""
+    lines = escape(text, newlines=False).split("\n")
+    return '"""' + "\n".join([lines[0], *(indent + line if line else line for line in lines[1:])]) + '"""'
+
+
+def _number(value: float) -> str:
+    """A float literal; a non-finite value as `float("inf")`, never a bare name."""
+    return repr(float(value)) if math.isfinite(value) else f'float("{value}")'
 
 
 def _squared(expr: sp.Expr) -> bool:
@@ -359,9 +457,9 @@ def _noqa(*names: str) -> str:
     return "  # noqa: E741" if AMBIGUOUS.intersection(names) else ""
 
 
-def _def(name: str, signature: str, doc: str, body: list[str]) -> str:
-    doc = doc.replace("\n\n", "\n\n    ")
-    lines = [f"def {name}({signature}):", f'    """{doc}"""'] + [f"    {line}" for line in body]
+def define(name: str, signature: str, doc: str, body: list[str]) -> str:
+    """A function definition; shared with numeric/codegen.py."""
+    lines = [f"def {name}({signature}):", "    " + docstring(doc, "    ")] + [f"    {line}" for line in body]
     return "\n".join(lines)
 
 

@@ -1,11 +1,12 @@
-"""Plain-text equations, one per line, with `theta_ddot`-style names."""
+"""Plain-text equations, one per line, with `theta_ddot`-style names. Each line passes through
+`common.printable`: whatever a name contains, no control character reaches the output."""
 
 from __future__ import annotations
 
 from sympy.printing.str import StrPrinter
 
 from lagrange_cli.algebra import check_invertible, solved_accelerations
-from lagrange_cli.emit.common import constraint_equations, lagrange_terms
+from lagrange_cli.emit.common import constraint_equations, lagrange_terms, printable
 from lagrange_cli.model import Model
 
 
@@ -35,7 +36,7 @@ def emit(model: Model, form: str = "lagrange") -> str:
         values = solved_accelerations(model)
         for symbol, value in zip((*model.qdd, *model.multipliers), values, strict=True):
             lines.append(f"{symbol} = {printer.doprint(value)}")
-    return "\n".join(lines) + "\n"
+    return "\n".join(map(printable, lines)) + "\n"
 
 
 def join_terms(parts: list[str]) -> str:

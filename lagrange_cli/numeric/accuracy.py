@@ -42,6 +42,7 @@ import numpy as np
 from lagrange_cli.errors import LagrangeError
 from lagrange_cli.model import Model
 from lagrange_cli.numeric import compile, integrators
+from lagrange_cli.numeric.output import plain_text, plot_text
 from lagrange_cli.numeric.settings import METHODS, initial_spectrum, resolve
 from lagrange_cli.numeric.settings import _symplectic_step as symplectic_step
 from lagrange_cli.numeric.simulate import Trajectory, simulate
@@ -95,7 +96,9 @@ def backend_for(candidate: Candidate) -> str:
     """The backend a candidate runs on: RK45/DOP853 compiled when numba is available."""
     if candidate.backend != "auto":
         return candidate.backend
-    if candidate.method in ("RK45", "DOP853", "symplectic"):
+    if candidate.method == "symplectic":  # compiled only (without numba: a hint naming the extra)
+        return "compiled"
+    if candidate.method in ("RK45", "DOP853"):
         return "compiled" if compile.numba_available() else "python"
     return "auto" if candidate.method == "auto" else "python"
 
@@ -577,6 +580,7 @@ def json_text(result: Study) -> str:
     return json.dumps(document, indent=2, allow_nan=False) + "\n"
 
 
+@plain_text()
 def write_plot(result: Study, path: object) -> None:
     """Two log-log panels, error against run time and against evaluations, one line per method;
     written atomically."""
@@ -604,7 +608,7 @@ def write_plot(result: Study, path: object) -> None:
         axes.grid(True, which="both", alpha=0.3)
         axes.legend()
     window = f"t = 0..{result.t_end:.3g}" + (" (predictability horizon)" if result.t_end < result.full_t_end else "")
-    figure.suptitle(f"{result.title}: work-precision, {window}")
+    figure.suptitle(f"{plot_text(result.title)}: work-precision, {window}", parse_math=False)
     figure.tight_layout()
     try:
         atomic_write(target, lambda stream: figure.savefig(stream, format=target.suffix.lstrip(".").lower()))

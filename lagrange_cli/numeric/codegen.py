@@ -12,7 +12,13 @@ same `cse_block` as the Python emitter:
   p_dot = dL/dq - dR/dq_dot + Q;
 - `energy`, `momenta`, `residuals`, `event`: the monitored quantities and the stop condition.
 
-Generated names start with `_` (system names cannot), so nothing the user names can clash.
+Generated names start with `_`; user names are given identifiers by `emit.python.mangle`, which
+keeps them apart from each other, from Python's keywords and builtins, from `math` and from the
+few unprefixed names generated code uses (`t`, `float`, `numpy`, ...): no user name can clash.
+File text reaches the code only through `emit.python.docstring`/`literal`. Arithmetic is real: a
+non-integer power is `math.pow` (see emit/python.py), so the Python target raises ValueError,
+ZeroDivisionError or OverflowError where a value is undefined, and the numba target (compiled
+with error_model="numpy") gives NaN or inf, which the loops report as non-finite.
 Functions the file defines (`functions: {U: {arguments: [s], definition: -k/s}}`) are written
 out here, from `Model.with_definitions()`: the symbolic model keeps the general U(r).
 """
@@ -25,7 +31,7 @@ from dataclasses import dataclass
 import sympy as sp
 
 from lagrange_cli._symengine import to_symengine
-from lagrange_cli.emit.python import Block, CodePrinter, cse_block
+from lagrange_cli.emit.python import Block, CodePrinter, cse_block, define, python_names
 from lagrange_cli.model import Model
 
 ALPHA = sp.Symbol("_alpha")
@@ -61,6 +67,18 @@ def stabilised_bias(model: Model) -> list[sp.Expr]:
     return result
 
 
+def real_diff(expr: sp.Expr, variable: sp.Symbol) -> sp.Expr:
+    """d expr / d variable for real quantities (by symengine): d|u| = sign(u) du, d sign(u) = 0
+    (as derive.py takes them), never an unprintable Derivative(Abs(u), x)."""
+    result = sp.sympify(to_symengine(expr).diff(to_symengine(variable)))
+    if result.has(sp.Derivative):
+        result = result.replace(
+            lambda e: isinstance(e, sp.Derivative) and isinstance(e.expr, (sp.Abs, sp.sign)),
+            lambda e: sp.sign(e.expr.args[0]) * sp.diff(e.expr.args[0], *e.variables) if isinstance(e.expr, sp.Abs) else sp.Integer(0),
+        )
+    return result
+
+
 class Generator:
     """Writes the functions of one model, its defined functions written out, for one target ("numba" or "python")."""
 
@@ -70,8 +88,7 @@ class Generator:
         n, k = model.n, len(model.constraints)
         self.n, self.k, self.size = n, k, n + k
         self.symbols = Symbols(tuple(sp.Symbol(f"_acc{i}") for i in range(n)), tuple(sp.Symbol(f"_lam{i}") for i in range(k)))
-        names = {s: str(s) for s in (*model.q, *model.qd, model.t)}
-        names.update({p.symbol: p.name for p in model.parameters})
+        names = python_names(model)
         names.update({s: str(s) for s in (*self.symbols.acc, *self.symbols.lam, ALPHA)})
         names.update({c.multiplier: f"_lam{i}" for i, c in enumerate(model.constraints)})
         names.update({qdd: f"_acc{i}" for i, qdd in enumerate(model.qdd)})
@@ -88,7 +105,7 @@ class Generator:
         """Bind the parameters and state variables that `exprs` use (p and y are vectors)."""
         used = set().union(*(e.free_symbols for e in exprs)) if exprs else set()
         names = self.printer.names
-        lines = [f"{p.name} = _p[{i}]" for i, p in enumerate(self.model.parameters) if p.symbol in used]
+        lines = [f"{names[p.symbol]} = _p[{i}]" for i, p in enumerate(self.model.parameters) if p.symbol in used]
         if ALPHA in used:
             lines.append(f"_alpha = _p[{len(self.model.parameters)}]")
         variables = [*self.model.q, *(self.model.qd if velocities else ())]
@@ -133,17 +150,16 @@ class Generator:
             body += self.fill("_a", block.results, places)
             body += [f"_x[{i}] = {v}" for i, v in enumerate(vector)]
             body.append("return _lu_solve(_a, _x)")
-            return _def("_accel", "t, _y, _p, _x, _a", "x = [q_ddot; lambda]; returns 1 when the matrix is singular.", body)
+            return define("_accel", "t, _y, _p, _x, _a", "x = [q_ddot; lambda]; returns 1 when the matrix is singular.", body)
         body.append(f"return _solve({self.python_matrix(block.results, places)}, [{', '.join(vector)}])")
-        return _def("_accel", "t, _y, _p", "x = [q_ddot; lambda] (ZeroDivisionError when the matrix is singular).", body)
+        return define("_accel", "t, _y, _p", "x = [q_ddot; lambda] (ZeroDivisionError when the matrix is singular).", body)
 
     def jac(self) -> str:
         """d(q_dot, q_ddot)/d(q, q_dot) by differentiating the augmented system (Python target)."""
         model, n = self.model, self.n
         entries, places = self.augmented()
         phi = self.residual()
-        derivatives = [to_symengine(f).diff(to_symengine(v)) for f in phi for v in (*model.q, *model.qd)]
-        columns = [sp.sympify(d) for d in derivatives]
+        columns = [real_diff(f, v) for f in phi for v in (*model.q, *model.qd)]
         exprs = [*entries, *columns]
         block = self.block(exprs)
         unpack_x = [f"_acc{i} = _x[{i}]" for i in range(n)] + [f"_lam{r} = _x[{n + r}]" for r in range(self.k)]
@@ -153,7 +169,7 @@ class Generator:
         rows = "[" + ", ".join("[" + ", ".join(d[i * 2 * n : (i + 1) * 2 * n]) + "]" for i in range(self.size)) + "]"
         body += [f"_d = numpy.linalg.solve({self.python_matrix(block.results, places)}, {rows})", f"_j = numpy.zeros(({2 * n}, {2 * n}))"]
         body += [f"_j[:{n}, {n}:] = numpy.eye({n})", f"_j[{n}:, :] = _d[:{n}, :]", "return _j"]
-        return _def("_jac", "t, _y, _p", "The Jacobian of rhs.", body)
+        return define("_jac", "t, _y, _p", "The Jacobian of rhs.", body)
 
     def residual(self) -> list[sp.Expr]:
         """Phi = [F + A^T lambda - M q_ddot; -c_s - A q_ddot] with q_ddot, lambda as symbols."""
@@ -172,8 +188,7 @@ class Generator:
         zero = dict.fromkeys(model.qd, sp.Integer(0))
         offsets = [sp.sympify(m).xreplace(zero) for m in model.momenta]
         mass = [model.mass_matrix[i, j] for i, j in self.upper]
-        lagrangian, dissipation = to_symengine(model.lagrangian), to_symengine(model.dissipation)
-        force = [sp.sympify(lagrangian.diff(to_symengine(q)) - dissipation.diff(to_symengine(qd))) + model.generalized_forces[i] for i, (q, qd) in enumerate(zip(model.q, model.qd, strict=True))]
+        force = [real_diff(model.lagrangian, q) - real_diff(model.dissipation, qd) + model.generalized_forces[i] for i, (q, qd) in enumerate(zip(model.q, model.qd, strict=True))]
         first = self.block([*mass, *offsets])
         body = [*self.unpack([*mass, *offsets, *force], "_z", velocities=False), *first.lines]
         places = [(e, i, j) for e, (i, j) in enumerate(self.upper)] + [(e, j, i) for e, (i, j) in enumerate(self.upper) if i != j]
@@ -182,11 +197,11 @@ class Generator:
         body.append("_status = _lu_solve(_a, _x)")
         second = self.block(force)
         used = set().union(*(f.free_symbols for f in force))
-        body += [f"{model.qd[i]} = _x[{i}]" for i in range(n) if model.qd[i] in used]
+        body += [f"{self.printer.names[model.qd[i]]} = _x[{i}]" for i in range(n) if model.qd[i] in used]
         body += second.lines
         body += [f"_out[{i}] = _x[{i}]" for i in range(n)] + [f"_out[{n + i}] = {v}" for i, v in enumerate(second.results)]
         body.append("return _status")
-        return _def("_hamilton", "t, _z, _p, _out, _x, _a", "(q_dot, p_dot) at z = (q, p) into _out; returns 1 when M is singular.", body)
+        return define("_hamilton", "t, _z, _p, _out, _x, _a", "(q_dot, p_dot) at z = (q, p) into _out; returns 1 when M is singular.", body)
 
     def vector(self, name: str, doc: str, exprs: Sequence[sp.Expr]) -> str:
         """A function of (t, y, p) writing `exprs` into _out (numba) or returning them as a list."""
@@ -195,9 +210,9 @@ class Generator:
         body = [*self.unpack(exprs), *block.lines]
         if self.target == "numba":
             body += [f"_out[{i}] = {v}" for i, v in enumerate(block.results)] + ["return 0"]
-            return _def(name, "t, _y, _p, _out", doc, body)
+            return define(name, "t, _y, _p, _out", doc, body)
         body.append(f"return [{', '.join(block.results)}]")
-        return _def(name, "t, _y, _p", doc, body)
+        return define(name, "t, _y, _p", doc, body)
 
     def scalar(self, name: str, doc: str, expr: sp.Expr, needs_accel: bool) -> str:
         """A scalar function of (t, y, p), solving for q_ddot and lambda first when it uses them."""
@@ -208,7 +223,7 @@ class Generator:
             first = "_status = _accel(t, _y, _p, _x, _a)" if self.target == "numba" else "_x = _accel(t, _y, _p)"
             body = [first] + [f"_acc{i} = _x[{i}]" for i in range(n)] + [f"_lam{r} = _x[{n + r}]" for r in range(self.k)] + body
         signature = "t, _y, _p, _x, _a" if self.target == "numba" else "t, _y, _p"
-        return _def(name, signature, doc, body)
+        return define(name, signature, doc, body)
 
     def module(self, jacobian: bool, event: sp.Expr | None) -> str:
         """The functions a target needs, the constants _N, _K, _SIZE, and the `math` imports.
@@ -235,11 +250,6 @@ class Generator:
         if math_names:
             header.insert(0, f"from math import {', '.join(math_names)}")
         return "\n".join(header) + "\n\n\n" + "\n\n\n".join(parts) + "\n"
-
-
-def _def(name: str, signature: str, doc: str, body: list[str]) -> str:
-    lines = [f"def {name}({signature}):", f'    """{doc}"""'] + [f"    {line}" for line in body]
-    return "\n".join(lines)
 
 
 def source(model: Model, target: str, jacobian: bool = False, event: sp.Expr | None = None) -> str:

@@ -1,8 +1,13 @@
 """A system's numeric functions as an importable module, cached on disk.
 
-The generated source (codegen.py) is written once to `$LAGRANGE_CACHE_DIR`,
-`$XDG_CACHE_HOME/lagrange` or `~/.cache/lagrange`, under a name made from a hash of
-everything it depends on, and imported from there: never `eval`. For the numba target the
+The generated source (codegen.py) is written to `$LAGRANGE_CACHE_DIR`,
+`$XDG_CACHE_HOME/lagrange` or `~/.cache/lagrange`, under a name made from a hash of the source
+itself (so the key covers everything the file contains, title and file name included) and
+of the versions that run it. A cached file is used only when its bytes equal the source just
+generated; a missing, truncated, corrupted or tampered file is written anew. The module is then
+executed from that verified source, compiled under the file's name (so numba's `cache=True`
+finds its machine code beside it): never from what the file might hold a moment later, never
+from a `.pyc`, never `eval` of file text. For the numba target the
 integration loops (kernels.py) are copied there too, so numba keeps all machine code beside
 those files (`cache=True`): the loops compile once per machine, a system's few functions
 once per system, and later runs load them. Modules imported once are kept for the process.
@@ -14,6 +19,7 @@ import functools
 import hashlib
 import importlib.util
 import os
+import stat
 import sys
 import time
 from dataclasses import dataclass
@@ -24,7 +30,7 @@ from types import ModuleType
 import sympy as sp
 
 from lagrange_cli import __version__
-from lagrange_cli.emit.python import SOLVE
+from lagrange_cli.emit.python import SOLVE, docstring
 from lagrange_cli.errors import LagrangeError
 from lagrange_cli.files import write_text
 from lagrange_cli.model import Model
@@ -40,8 +46,10 @@ for _name, _value in list(globals().items()):
         globals()[_name] = _njit(cache=True, error_model="numpy")(_value)
 """
 
+NUMBA_HINT = "install it with `pip install 'lagrange-cli[fast]'`"
+
 _LOADED: dict[str, ModuleType] = {}
-_FINGERPRINTS: dict[tuple[int, str, bool, str], tuple[Model, str]] = {}
+_SOURCES: dict[tuple[int, str, bool, str], tuple[Model, str, str]] = {}
 
 
 @dataclass(frozen=True)
@@ -53,7 +61,7 @@ class Functions:
     path: Path
     kernels: ModuleType | None
     generate_seconds: float
-    """Writing the source (0 when it was on disk or already imported)."""
+    """Generating and writing the source (0 when a verified copy was on disk or already imported)."""
     import_seconds: float
     """Importing the module (with numba itself for the numba target)."""
     reused: bool
@@ -75,65 +83,72 @@ def numba_available() -> bool:
 
 
 def fingerprint(model: Model, target: str, jacobian: bool, event: sp.Expr | None) -> str:
-    """A hash of everything the generated module depends on: the model's equations and
-    monitored quantities (with the file's function definitions written out, as codegen writes
-    them), the options, lagrange's and the compiler's versions, the code generator, the kernels.
-    Remembered per model object (which it keeps alive, so that its id is not reused)."""
-    model = model.with_definitions()
-    memo = (id(model), target, jacobian, str(event))
-    if memo in _FINGERPRINTS:
-        return _FINGERPRINTS[memo][1]
-    parts = [__version__, _generator_source(), target, str(jacobian), str(event), sys.version, _numba_version(target), _kernels_source() if target == "numba" else ""]
-    parts += [str(model.coordinates), str([p.name for p in model.parameters]), str(model.mass_matrix), str(model.forcing)]
-    parts += [str(model.energy), str(model.momenta), str(model.lagrangian), str(model.dissipation), str(model.generalized_forces)]
-    parts += [str((c.expr, c.jacobian, c.bias, c.acceleration_bias, c.holonomic)) for c in model.constraints]
-    key = hashlib.sha256("\x00".join(parts).encode()).hexdigest()[:20]
-    _FINGERPRINTS[memo] = (model, key)
-    return key
+    """The cache key of the module: a hash of its whole source (title and file name included,
+    the file's function definitions written out) with lagrange's, Python's and numba's versions
+    and the code generator's own source. Generating the source costs milliseconds; it is
+    remembered per model object (which the memo keeps alive, so that its id is not reused)."""
+    return _generated(model, target, jacobian, event)[1]
 
 
 def build(model: Model, target: str, jacobian: bool = False, event: sp.Expr | None = None) -> Functions:
-    """The system's functions for `target` ("numba" or "python"), generated only when not cached."""
+    """The system's functions for `target` ("numba" or "python"), written only when not cached."""
     if target == "numba" and not numba_available():
-        raise LagrangeError("the compiled path needs numba: install it with `pip install 'lagrange-cli[numeric]'`, or use `--backend python`")
+        raise LagrangeError(f"the compiled path needs numba: {NUMBA_HINT}, or use `--backend python`")
     start = time.perf_counter()
     kernels = kernels_module() if target == "numba" else None
-    key = fingerprint(model, target, jacobian, event)
+    began = time.perf_counter()
+    text, key = _generated(model, target, jacobian, event)
     name = f"lagrange_{target}_{key}"
     path = cache_dir() / f"{name}.py"
     if name in _LOADED:
         return Functions(_LOADED[name], target, path, kernels, 0.0, 0.0, True)
-    loaded = generated = time.perf_counter()
-    reused = path.exists()
-    if not reused:
-        _write(path, module_source(model, target, jacobian, event, kernels))
-        generated = time.perf_counter()
-    module = _import(name, path)
+    reused = _cached(path, text)
+    written = time.perf_counter() - began if not reused else 0.0  # a verified file on disk costs what loading costs
+    module = _load(name, path, text)
     _LOADED[name] = module
-    return Functions(module, target, path, kernels, generated - loaded, time.perf_counter() - generated + loaded - start, reused)
+    return Functions(module, target, path, kernels, written, time.perf_counter() - start - written, reused)
 
 
 def kernels_module() -> ModuleType:
     """The compiled integration loops (kernels.py), imported from their copy in the cache."""
-    text = _kernels_source()
-    name = "lagrange_kernels_" + hashlib.sha256((text + _numba_version("numba") + sys.version).encode()).hexdigest()[:20]
+    name = kernels_name()
     if name not in _LOADED:
         path = cache_dir() / f"{name}.py"
-        if not path.exists():
-            _write(path, text)
-        _LOADED[name] = _import(name, path)
+        text = _kernels_source()
+        _cached(path, text)
+        _LOADED[name] = _load(name, path, text)
     return _LOADED[name]
 
 
-def module_source(model: Model, target: str, jacobian: bool, event: sp.Expr | None, kernels: ModuleType | None = None) -> str:
-    """The whole module: a header, the linear solver (the kernels' for numba), the system's functions."""
-    header = f'"""{model.title}: numeric functions generated by lagrange {__version__} from {Path(model.source).name} ({target}). Do not edit."""\n\n'
+def kernels_name() -> str:
+    """The module name of the kernels' copy: a hash of their source and the versions that compile it."""
+    return "lagrange_kernels_" + hashlib.sha256((_kernels_source() + _numba_version("numba") + sys.version).encode()).hexdigest()[:20]
+
+
+def module_source(model: Model, target: str, jacobian: bool, event: sp.Expr | None) -> str:
+    """The whole module: a header, the linear solver (the kernels' for numba), the system's functions.
+    The title and file name enter it only through `docstring`, as data."""
+    header = docstring(f"{model.title}: numeric functions generated by lagrange {__version__} from {Path(model.source).name} ({target}). Do not edit.") + "\n\n"
     body = codegen.source(model, target, jacobian, event)
     if target == "numba":
-        assert kernels is not None
-        return header + f"from {kernels.__name__} import lu_solve as _lu_solve\n\n" + body + JIT_FOOTER
+        return header + f"from {kernels_name()} import lu_solve as _lu_solve\n\n" + body + JIT_FOOTER
     imports = "import numpy\n\n\n" if jacobian else ""
     return header + imports + SOLVE + "\n\n\n" + body
+
+
+def _generated(model: Model, target: str, jacobian: bool, event: sp.Expr | None) -> tuple[str, str]:
+    """The module's source and its cache key, remembered per model object."""
+    memo = (id(model), target, jacobian, str(event))
+    if memo not in _SOURCES:
+        text = module_source(model, target, jacobian, event)
+        try:
+            compile(text, "<generated>", "exec", dont_inherit=True)
+        except (SyntaxError, ValueError) as error:  # a bug in the generator, never the file's doing: stop before caching it
+            raise LagrangeError(f"{model.source}: the generated code does not compile ({error}); please report this") from None
+        parts = [__version__, _generator_source(), sys.version, _numba_version(target), text]
+        _SOURCES[memo] = (model, text, hashlib.sha256("\x00".join(parts).encode()).hexdigest()[:24])
+    _, text, key = _SOURCES[memo]
+    return text, key
 
 
 @functools.cache
@@ -160,23 +175,41 @@ def _numba_version(target: str) -> str:
         return ""
 
 
-def _write(path: Path, text: str) -> None:
-    """Write atomically: concurrent runs see no file or the whole one."""
+def _cached(path: Path, text: str) -> bool:
+    """True when `path` is a regular file holding exactly `text`; otherwise (missing, truncated,
+    corrupted, tampered with, a symlink, a FIFO or a device) it is replaced, atomically, by a
+    file of `text`, so that no wrong file stays in the cache. Only a regular file of the right
+    size is read. The cache folder is created private to the user (0700)."""
+    data = text.encode("utf-8")
     try:
-        path.parent.mkdir(parents=True, exist_ok=True)
+        found = path.lstat()
+    except OSError:
+        found = None
+    if found is not None and stat.S_ISREG(found.st_mode) and found.st_size == len(data) and path.read_bytes() == data:
+        return True
+    try:
+        if found is not None and not stat.S_ISREG(found.st_mode):
+            path.unlink()  # the link itself, never what it points to: the new file is written in its place
+        path.parent.mkdir(mode=0o700, parents=True, exist_ok=True)
         write_text(path, text)
-    except OSError as error:
-        raise LagrangeError(f"cannot write generated code to {path.parent} ({error.strerror}); set LAGRANGE_CACHE_DIR to a writable directory") from None
+    except (OSError, LagrangeError) as error:
+        reason = error.strerror if isinstance(error, OSError) else str(error)
+        raise LagrangeError(f"cannot write generated code to {path.parent} ({reason}); set LAGRANGE_CACHE_DIR to a writable directory") from None
+    return False
 
 
-def _import(name: str, path: Path) -> ModuleType:
+def _load(name: str, path: Path, text: str) -> ModuleType:
+    """The module `name` executed from `text`, the source just generated or verified, compiled
+    under `path`'s name (where numba keeps its machine code): never from whatever the file
+    holds by the time of the import, and never from a stale `.pyc`."""
     spec = importlib.util.spec_from_file_location(name, path)
-    if spec is None or spec.loader is None:
+    if spec is None:
         raise LagrangeError(f"cannot import the generated module {path}; delete {path.parent} and try again")
     module = importlib.util.module_from_spec(spec)
+    code = compile(text, str(path), "exec", dont_inherit=True)
     sys.modules[name] = module
     try:
-        spec.loader.exec_module(module)
+        exec(code, module.__dict__)  # generated code, every piece of file text in it escaped as data
     except BaseException:
         del sys.modules[name]
         raise

@@ -8,6 +8,12 @@ phase portrait, and the relative energy error.
 
 from __future__ import annotations
 
+import contextlib
+import importlib.util
+import re
+import unicodedata
+import warnings
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -49,6 +55,32 @@ def write_npz(trajectory: Trajectory, path: Path) -> None:
     atomic_write(path, lambda stream: np.savez_compressed(stream, **arrays))
 
 
+@contextlib.contextmanager
+def plain_text() -> Iterator[None]:
+    """Inside (or in a function decorated with `@plain_text()`): no text goes to LaTeX (whatever
+    the user's `text.usetex`), and a character the font lacks is drawn as a box without a
+    warning. File text itself goes in as `plot_text(...)` on a Text with `parse_math=False`
+    (see `inert`), so that `$` and `\\` are shown, not parsed as mathtext."""
+    import matplotlib
+
+    with matplotlib.rc_context({"text.usetex": False}), warnings.catch_warnings():
+        warnings.filterwarnings("ignore", message=r"Glyph \d+ .*missing from", category=UserWarning)
+        yield
+
+
+def inert(*texts: Any) -> None:
+    """Show these matplotlib Texts as written: no mathtext (matplotlib's own tick labels keep it)."""
+    for text in texts:
+        text.set_parse_math(False)
+
+
+def plot_text(text: str) -> str:
+    """File text for a figure: whitespace runs (newlines, U+2028, ...) one space, and control,
+    format and unassigned characters dropped."""
+    return "".join(char for char in re.sub(r"\s+", " ", text) if unicodedata.category(char)[0] != "C").strip()
+
+
+@plain_text()
 def write_plot(trajectory: Trajectory, path: Path) -> None:
     """Coordinates against time, a phase portrait, and the relative energy error, in one figure."""
     import matplotlib
@@ -60,14 +92,14 @@ def write_plot(trajectory: Trajectory, path: Path) -> None:
     left, middle, right = figure.subplots(1, 3)
     n = len(trajectory.coordinates)
     for i, name in enumerate(trajectory.coordinates):
-        left.plot(trajectory.t, trajectory.y[:, i], label=name)
-        middle.plot(trajectory.y[:, i], trajectory.y[:, n + i], label=name)
+        left.plot(trajectory.t, trajectory.y[:, i], label=plot_text(name))
+        middle.plot(trajectory.y[:, i], trajectory.y[:, n + i], label=plot_text(name))
     left.set(xlabel="t", title="coordinates")
     middle.set(xlabel="q", ylabel="q_dot", title="phase portrait")
     for axes in (left, middle):
-        axes.legend(loc="best", fontsize="small")
+        inert(*axes.legend(loc="best", fontsize="small").get_texts())
     _energy_panel(right, trajectory)
-    figure.suptitle(f"{trajectory.title} ({trajectory.settings.method}, {trajectory.status})")
+    figure.suptitle(f"{plot_text(trajectory.title)} ({trajectory.settings.method}, {trajectory.status})", parse_math=False)
     suffix = path.suffix.lower().lstrip(".")
     atomic_write(path, lambda stream: figure.savefig(stream, format=suffix, dpi=120))
 
@@ -91,3 +123,11 @@ def check_suffix(path: Path, allowed: tuple[str, ...], what: str) -> None:
     """A LagrangeError unless `path` ends in one of `allowed`."""
     if path.suffix.lower() not in allowed:
         raise LagrangeError(f"{path}: cannot tell the {what} format from the name; use one of {', '.join(allowed)}")
+
+
+def check_plot(path: Path) -> None:
+    """A LagrangeError, before any work, unless a figure can be written to `path`: a known
+    suffix, and matplotlib (optional: the `plot` extra) installed."""
+    check_suffix(path, PLOT_SUFFIXES, "plot")
+    if importlib.util.find_spec("matplotlib") is None:
+        raise LagrangeError("--plot needs matplotlib, which is not installed: `pip install 'lagrange-cli[plot]'`")

@@ -247,7 +247,7 @@ def parse_until(model: Model, text: str) -> sp.Expr:
     symbols.update({p.name: p.symbol for p in model.parameters})
 
     def no_derivative(expr: sp.Expr) -> sp.Expr:
-        raise SpecError([])
+        raise LagrangeError("time derivatives are not allowed in a stop condition; write velocities as `<q>_dot` and accelerations as `<q>_ddot`")  # shown with a caret
 
     scope = Scope(symbols, {}, model.t, no_derivative, "a coordinate, velocity, acceleration (`<q>_ddot`), multiplier, parameter or `t`")
     try:
@@ -292,7 +292,10 @@ def _choose(
         backend, why = _backend(model, method, rate, t_end)
         notes.append(f"backend auto -> {backend}: {why}")
     if backend == "compiled" and not compile.numba_available():
-        raise LagrangeError("the compiled backend needs numba: `pip install 'lagrange-cli[numeric]'`, or use --backend python with a scipy method")
+        if method == "symplectic":
+            raise LagrangeError(f"the symplectic method needs numba: {compile.NUMBA_HINT}, or use another --method")
+        backend = "python"
+        notes.append(f"backend compiled -> python: numba is not installed ({compile.NUMBA_HINT})")
     return method, backend, step, rate, tuple(notes)
 
 
@@ -301,7 +304,7 @@ def _backend(model: Model, method: str, rate: float, t_end: float) -> tuple[str,
         return "python", f"{method} runs through scipy"
     if not compile.numba_available():
         if method == "symplectic":
-            raise LagrangeError("the symplectic method needs numba: `pip install 'lagrange-cli[numeric]'`")
+            raise LagrangeError(f"the symplectic method needs numba: {compile.NUMBA_HINT}, or use another --method")
         return "python", "numba is not installed"
     if method == "symplectic":
         return "compiled", "the symplectic method runs compiled"
