@@ -296,7 +296,8 @@ def _finite(value: sp.Expr) -> sp.Float | None:
 
 class Samples:
     """Random states of a model, drawn one by one (seeded) as the entries ask for them: positive
-    parameters positive, each undefined function replaced by a random smooth one, the positions
+    parameters positive, each undefined function replaced by a random smooth one (a function the
+    file defines by its definition), the positions
     moved onto the holonomic constraints, the velocities satisfying every constraint, and the
     derived unknowns solved there. States where the model cannot be evaluated (a singular mass
     matrix, a complex or undefined value) are skipped, up to MAX_DRAWS draws in all; the first
@@ -357,10 +358,11 @@ class Samples:
         for v in model.qd:
             values[v] = sp.Float(rng.uniform(-1.5, 1.5) * max(spread, 1.0), DIGITS)
         values[model.t] = sp.Float(rng.uniform(0.1, 2.0), DIGITS)
-        replacements = {}
+        replacements: dict[sp.Expr, Callable[..., sp.Expr]] = {}
         for f in self.functions:
             a, b, c = (sp.Float(rng.uniform(0.5, 1.5), DIGITS) for _ in range(3))
-            replacements[f] = _smooth(a, b, c)
+            definition = model.definitions.get(str(f))
+            replacements[f] = _smooth(a, b, c) if definition is None else _defined(definition)
         off = dict(values)
         if model.constraints:
             values = _on_constraints(model, values, replacements)
@@ -453,6 +455,16 @@ def _smooth(a: sp.Float, b: sp.Float, c: sp.Float) -> Callable[..., sp.Expr]:
 
     def function(*args: sp.Expr) -> sp.Expr:
         return sp.Add(*(a * sp.sin(b * x + c) + c * x**2 + a * b * x for x in args))
+
+    return function
+
+
+def _defined(definition: sp.Lambda) -> Callable[..., sp.Expr]:
+    """The file's definition of a function (`U -> Lambda(s, -k/s)`) as a stand-in: an answer may
+    use the general U(r) or what it is defined as."""
+
+    def function(*args: sp.Expr) -> sp.Expr:
+        return definition(*args)
 
     return function
 

@@ -151,3 +151,12 @@ def test_cli_undecidable_entry_exits_2_naming_the_file_and_line(tmp_path: Path) 
     good.write_text(BEAD + yaml.safe_dump({"expect": {"equations": BEAD_RIGHT}}, width=1000))
     result = cli("check", str(good))
     assert result.returncode == 0 and "Traceback" not in result.stderr, result.stdout + result.stderr
+
+
+def test_a_defined_function_may_be_written_out_in_the_answer() -> None:
+    """A bead on y = H(x) with H(s) = s**2 defined in the file: the textbook answer writes 2*x."""
+    system = BEAD.replace("H: {arguments: [s]}", "H: {arguments: [s], definition: s**2}")
+    assert all(r.passed for r in run(system, {"equations": BEAD_RIGHT}))
+    written_out = ["m*x_ddot + 2*x*lambda_wire = 0", "m*y_ddot + m*g - lambda_wire = 0", "y = x**2"]
+    assert all(r.passed for r in run(system, {"equations": written_out})), [r.detail for r in run(system, {"equations": written_out})]
+    assert not run(system, {"equations": ["m*x_ddot + x*lambda_wire = 0", written_out[1]]})[0].passed
