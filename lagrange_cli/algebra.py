@@ -171,6 +171,12 @@ def _factors(term: se.Basic) -> tuple[se.Basic, dict[se.Basic, se.Basic]]:
     return coefficient, factors
 
 
+MAX_CANCEL_OPS = 1000
+MAX_CANCEL_TERMS = 1000
+"""Above this many operations in a solved form's numerator and determinant, or terms in their
+expansion, no `cancel` (its polynomial gcds are quick on textbook systems, unbounded beyond)."""
+
+
 def solved_accelerations(model: Model, max_size: int = 4) -> tuple[sp.Expr, ...]:
     """q_ddot (and the multipliers) solved symbolically by Cramer's rule, only for small systems.
 
@@ -186,14 +192,24 @@ def solved_accelerations(model: Model, max_size: int = 4) -> tuple[sp.Expr, ...]
         )
     matrix, rhs = augmented(model)
     check_invertible(model, matrix)
-    det = _sp(combine_trig(to_symengine(matrix.det(method="berkowitz"))))
+    entries = [[to_symengine(matrix[i, j]) for j in range(size)] for i in range(size)]
+    det = _sp(combine_trig(se.DenseMatrix(entries).det()))
     result = []
     for i in range(size):
-        replaced = matrix.copy()
-        replaced[:, i] = rhs
-        numerator = _sp(combine_trig(to_symengine(replaced.det(method="berkowitz"))))
-        result.append(sp.factor_terms(sp.cancel(numerator / det)))
+        replaced = [[to_symengine(rhs[r]) if j == i else entries[r][j] for j in range(size)] for r in range(size)]
+        numerator = _sp(combine_trig(se.DenseMatrix(replaced).det()))
+        quotient = numerator / det
+        # cancel finds polynomial gcds: cheap on textbook sizes, unbounded on big ones (a nested
+        # atan2 under a 7th root took minutes); past the bound the quotient stays as it is.
+        small = sp.count_ops(numerator) + sp.count_ops(det) <= MAX_CANCEL_OPS and expansion_size(quotient, MAX_CANCEL_TERMS) <= MAX_CANCEL_TERMS and not nested_roots(quotient)
+        result.append(sp.factor_terms(sp.cancel(quotient)) if small else quotient)
     return tuple(result)
+
+
+def nested_roots(expr: sp.Expr) -> bool:
+    """A non-integer power of something containing a function (atan2(-1, y)**(1/7)): its derivatives
+    bring new generators with large integer coefficients, on which cancel's gcds run away."""
+    return any(not p.exp.is_Integer and p.base.has(sp.Function) for p in expr.atoms(sp.Pow))
 
 
 def augmented(model: Model) -> tuple[sp.Matrix, sp.Matrix]:

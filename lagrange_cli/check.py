@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING, Any
 
 import sympy as sp
 
-from lagrange_cli.algebra import augmented
+from lagrange_cli.algebra import augmented, expandable
 from lagrange_cli.errors import Span, SpecError, fail
 from lagrange_cli.model import Model
 from lagrange_cli.spec import SystemSpec
@@ -153,17 +153,27 @@ def _scaled_differences(expected: sp.Expr, model: Model) -> list[tuple[sp.Expr |
         for u in unknowns:
             a, b = sp.diff(expected, u), sp.diff(derived, u)
             if a != 0 and b != 0:
-                ratio = sp.cancel(a / b)
+                ratio = sp.cancel(a / b) if _cancellable(a / b) else None
                 break
+        if ratio is not None and not expandable(ratio * derived - expected):
+            ratio = None
         out.append((ratio, sp.expand(ratio * derived - expected) if ratio is not None else sp.Integer(0)))
     return out
+
+
+def _cancellable(expr: sp.Expr) -> bool:
+    """Whether `cancel` stays cheap on `expr`: bounded size and expansion, no root of a function
+    (`algebra.solved_accelerations` uses the same bounds); beyond, the numeric comparison decides."""
+    from lagrange_cli.algebra import MAX_CANCEL_OPS, MAX_CANCEL_TERMS, expansion_size, nested_roots
+
+    return sp.count_ops(expr) <= MAX_CANCEL_OPS and expansion_size(expr, MAX_CANCEL_TERMS) <= MAX_CANCEL_TERMS and not nested_roots(expr)
 
 
 def _is_zero(expr: sp.Expr) -> bool:
     """Targeted normalisation: expand, combine products of sines and cosines, cancel."""
     if expr == 0:
         return True
-    if sp.count_ops(expr) > 400 or not _small_multiples(expr):
+    if sp.count_ops(expr) > 400 or not _small_multiples(expr) or not _cancellable(expr):
         return False  # left to the numeric comparison
     from lagrange_cli._symengine import to_symengine
     from lagrange_cli.algebra import combine_trig

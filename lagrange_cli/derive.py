@@ -553,7 +553,31 @@ def _sp(value: se.Basic) -> sp.Expr:
             lambda e: isinstance(e, sp.Derivative) and isinstance(e.expr, (sp.Abs, sp.sign)),
             _kink_derivative,
         )
+        if result.has(sp.DiracDelta):
+            result = result.replace(lambda e: isinstance(e, sp.Mul) and e.has(sp.DiracDelta), _null_delta)
     return result
+
+
+def _null_delta(term: sp.Mul) -> sp.Expr:
+    """c(v) DiracDelta(u(v)) is 0 when c is continuous and vanishes where u does (x**2 DiracDelta(x),
+    from the derivative of sign(x)*x**2, which is smooth): only for u linear in one variable."""
+    deltas = [f for f in term.args if isinstance(f, sp.DiracDelta) and len(f.args) == 1]
+    if len(deltas) != 1:
+        return term
+    u = deltas[0].args[0]
+    variables = u.free_symbols
+    if len(variables) != 1:
+        return term
+    (v,) = variables
+    slope = sp.diff(u, v)
+    if slope == 0 or slope.has(v):
+        return term
+    root = v - u / slope
+    coefficient = sp.Mul(*(f for f in term.args if f is not deltas[0]))
+    if coefficient.has(sp.sign):  # not continuous where u = 0: sign(x) DiracDelta(x) has no value
+        return term
+    at_root = coefficient.subs(v, sp.expand(root))
+    return sp.Integer(0) if at_root == 0 else term
 
 
 def _kink_derivative(e: sp.Derivative) -> sp.Expr:

@@ -44,7 +44,7 @@ def position(text: str, anchor: str) -> tuple[int, int]:
 # -- class 3: objects made after parsing -----------------------------------------------------------
 
 MADE_AFTER_PARSING = [
-    ("sign-in-potential", LINE + "potential: k*sign(x)*x\n", "k*sign", "derivative of the potential with respect to x contains DiracDelta(x)", "differentiable"),
+    ("sign-in-potential", LINE + "potential: k*sign(x)*x**3 + k*sign(x)\n", "k*sign", "derivative of the potential with respect to x contains DiracDelta(x)", "differentiable"),
     ("derivative-of-abs", LINE + "potential: diff(Abs(x), x)\n", "diff(Abs", "DiracDelta(x) (from the derivative of sign/Abs)", "sqrt(x**2)"),
     ("abs-in-position", ONE.replace("position: [x]", "position: [Abs(x)]"), "[Abs(x)]", "second derivative of the position of particle 'p' with respect to x contains DiracDelta(x)", "differentiable"),
     ("sign-of-time-in-position", ONE.replace("position: [x]", "position: [x*sign(t)]"), "[x*sign", "with respect to t contains DiracDelta(t)", "differentiable"),
@@ -267,7 +267,7 @@ def test_initial_values_must_be_finite(value: str) -> None:
 
 @pytest.mark.parametrize(
     ("extra", "anchor", "says"),
-    [("potential: k*sign(x)*x\n", "k*sign", "DiracDelta(x)"), ("simulate: {t_end: 1e300}\n", "1e300", "outside the allowed range")],
+    [("potential: k*sign(x)\n", "k*sign", "DiracDelta(x)"), ("simulate: {t_end: 1e300}\n", "1e300", "outside the allowed range")],
     ids=["dirac-delta", "t-end"],
 )
 def test_the_cli_reports_located_errors_without_a_traceback(tmp_path: object, extra: str, anchor: str, says: str) -> None:
@@ -332,3 +332,12 @@ def test_a_mass_of_huge_constants_is_checked_without_sympy_evaluating_them() -> 
     without end; the written constants are evaluated bottom-up in floats instead."""
     model = derive.derive(spec.parse(ONE.replace("mass: m", "mass: 'atan(exp(csc(sinh(1e300 - m))))'"), "sys.yaml"))
     assert model.mass_matrix[0, 0].has(sp.sinh)
+
+
+@pytest.mark.parametrize(("potential", "force"), [("k*sign(x)*x", "k*sign(x)"), ("k*sign(x)*x**2/2", "k*x*sign(x)"), ("k*Abs(x)", "k*sign(x)")])
+def test_a_delta_times_what_vanishes_there_is_zero(potential: str, force: str) -> None:
+    """sign(x)*x is |x|: its derivative's x DiracDelta(x) term is 0, so the potential is accepted."""
+    model = derive.derive(spec.parse(LINE + f"potential: {potential}\n", "sys.yaml"))
+    names = {str(s): s for s in model.forcing[0].free_symbols}
+    assert not model.forcing[0].has(sp.DiracDelta)
+    assert sp.expand(model.forcing[0] + sp.sympify(force, locals=names)) == 0
