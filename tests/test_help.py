@@ -99,3 +99,18 @@ def test_head_takes_the_first_line(tmp_path: Path) -> None:
     result = subprocess.run(["bash", "-c", shell], cwd=ROOT, capture_output=True, text=True, timeout=120, env=env)
     assert result.returncode == 0 and result.stdout == "t,theta,theta_dot,energy\n"
     assert not re.search("Traceback|Broken|Exception ignored|error", result.stderr), result.stderr
+
+
+@pytest.mark.parametrize("json_report", [False, True])
+def test_a_reader_that_stops_early_keeps_checks_verdict(tmp_path: Path, json_report: bool) -> None:
+    """`lagrange check wrong.yaml | head`: the table is cut short, the wrong answer still exits 1."""
+    wrong = (ROOT / "systems" / "simple_pendulum.yaml").read_text().replace("g/l*sin(theta)", "g/l*cos(theta)")
+    assert wrong != (ROOT / "systems" / "simple_pendulum.yaml").read_text()
+    path = tmp_path / "wrong.yaml"
+    path.write_text(wrong)
+    with subprocess.Popen([sys.executable, "-m", "lagrange_cli", "check", str(path), *(["--json"] if json_report else [])], cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE) as process:
+        assert process.stdout is not None and process.stderr is not None
+        process.stdout.close()
+        stderr = process.stderr.read()
+        assert process.wait(timeout=120) == 1, stderr
+        assert b"Traceback" not in stderr

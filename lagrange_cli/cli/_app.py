@@ -147,20 +147,41 @@ class Group(TyperGroup):
         except BrokenPipeError:
             _stdout_gone()
         except SystemExit as exit:  # rich's Console.on_broken_pipe exits 1 in place of the BrokenPipeError
-            if isinstance(exit.__context__, BrokenPipeError):
+            if isinstance(exit.__context__, BrokenPipeError) and not isinstance(exit, _Gone):
                 _stdout_gone()
             raise
 
 
-def _stdout_gone() -> typing.NoReturn:
-    """The reader of stdout stopped reading (`| head`): it has what it wanted, so exit 0 without
-    a message, and send whatever is still buffered to /dev/null instead of failing at exit."""
+def _stdout_gone(code: int = 0) -> typing.NoReturn:
+    """The reader of stdout stopped reading (`| head`): it has what it wanted, so exit `code` (0, or
+    a verdict already decided, such as check's) without a message, and send whatever is still
+    buffered to /dev/null instead of failing at exit."""
     try:
         devnull = os.open(os.devnull, os.O_WRONLY)
         os.dup2(devnull, sys.stdout.fileno())
     except (OSError, ValueError):  # no real file descriptor (a test runner's stream)
         pass
-    raise SystemExit(0)
+    raise _Gone(code)
+
+
+class _Gone(SystemExit):
+    """The exit of a run whose stdout reader left, with its code already decided."""
+
+
+def keeping_verdict(code: int, show: typing.Callable[[], object]) -> typing.NoReturn:
+    """Run `show` (printing a report whose verdict `code` is decided) and exit `code`, also when the
+    reader of stdout stops early: `lagrange check ... | head` must still fail a wrong answer."""
+    try:
+        show()
+        if sys.stdout is not None:
+            sys.stdout.flush()
+    except BrokenPipeError:
+        _stdout_gone(code)
+    except SystemExit as exit:  # rich's Console.on_broken_pipe
+        if isinstance(exit.__context__, BrokenPipeError) and not isinstance(exit, _Gone):
+            _stdout_gone(code)
+        raise
+    raise SystemExit(code)
 
 
 class Typer(typer.Typer):

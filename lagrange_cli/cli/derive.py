@@ -8,6 +8,7 @@ from typing import Annotated, Any
 import typer
 
 from lagrange_cli.cli import Form, app, check_outputs, fail_with, output, write_atomically
+from lagrange_cli.cli._app import keeping_verdict
 
 
 @app.command()
@@ -77,9 +78,9 @@ def check(
     reports = [_check_file(checker, path) for path in files]
     if junit is not None:
         write_atomically(junit, checker.to_junit(reports))
+    code = checker.exit_code(reports)
     if as_json:
-        output(checker.to_json(reports), None)
-        raise typer.Exit(checker.exit_code(reports))
+        keeping_verdict(code, lambda: output(checker.to_json(reports), None))
     errors = console(stderr=True)
     table = Table(title="lagrange check")
     for column in ("file", "entry", "result", "decided"):
@@ -89,16 +90,22 @@ def check(
             errors.print(plain(report.error), markup=False)
             table.add_row(inert(report.path), "-", "[red]error[/red]", "bad input")
         elif not report.results:
-            table.add_row(inert(report.path), "-", "[dim]no expect[/dim]", "")
+            table.add_row(inert(report.path), "-", "[dim]skipped[/dim]", "nothing to check")
         for result in report.results:
             if not result.passed:
                 errors.print(f"[bold red]wrong[/bold red] {inert(result.span or report.path)}: [bold]{inert(result.entry)}[/bold]: {escape(plain(result.detail))}")
             table.add_row(inert(report.path), inert(result.entry), "[green]pass[/green]" if result.passed else "[red]FAIL[/red]", inert(result.method))
     out = console(stderr=junit is not None and str(junit) == "-")
-    out.print(table)
-    counts = {status: sum(1 for r in reports if r.status == status) for status in ("pass", "fail", "error")}
-    out.print(f"{len(reports)} file{'s' * (len(reports) != 1)}: {counts['pass']} passed, {counts['fail']} failed, {counts['error']} with errors")
-    raise typer.Exit(checker.exit_code(reports))
+    counts = {status: sum(1 for r in reports if r.status == status) for status in ("pass", "fail", "error", "skip")}
+    summary = f"{len(reports)} file{'s' * (len(reports) != 1)}: {counts['pass']} passed, {counts['fail']} failed, {counts['error']} with errors" + (
+        f", {counts['skip']} skipped" if counts["skip"] else ""
+    )
+
+    def show() -> None:
+        out.print(table)
+        out.print(summary)
+
+    keeping_verdict(code, show)
 
 
 def _system_files(paths: list[str]) -> list[Path]:
