@@ -9,8 +9,9 @@ the Hamiltonian, equilibrium points, the linearization about them, and stability
 
 from __future__ import annotations
 
+import math
 import signal
-from collections.abc import Iterator, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 
@@ -202,14 +203,20 @@ def _modes(lin: Linearization, model: Model) -> Linearization:
         m = np.array(lin.mass.xreplace(symbols).evalf(), dtype=float)
         c = np.array(lin.damping.xreplace(symbols).evalf(), dtype=float)
         k = np.array(lin.stiffness.xreplace(symbols).evalf(), dtype=float)
-    except (TypeError, ValueError):
-        return _replace(lin, stability="unknown (give every parameter a value)")
+    except (TypeError, ValueError, ArithmeticError):
+        if any(e.free_symbols for e in (*lin.mass, *lin.damping, *lin.stiffness) for e in [sp.sympify(e).xreplace(symbols)]):
+            return _replace(lin, stability="unknown (give every parameter a value)")
+        return _replace(lin, stability="unknown (M0, C0 or K0 is not a finite real number at this point: it lies on the edge of a function's domain)")
+    if not (np.all(np.isfinite(m)) and np.all(np.isfinite(c)) and np.all(np.isfinite(k))):
+        return _replace(lin, stability="unknown (M0, C0 or K0 is not finite at this point: it lies on the edge of a function's domain)")
     n = m.shape[0]
     try:
         system = np.block([[np.zeros((n, n)), np.eye(n)], [-np.linalg.solve(m, k), -np.linalg.solve(m, c)]])
+        eigenvalues = np.linalg.eigvals(system)
     except np.linalg.LinAlgError:
         return _replace(lin, stability="degenerate (the mass matrix is singular at this point)")
-    eigenvalues = np.linalg.eigvals(system)
+    if not np.all(np.isfinite(eigenvalues)):
+        return _replace(lin, stability="degenerate (the mass matrix is nearly singular at this point)")
     scale = max(1.0, float(np.max(np.abs(eigenvalues))))
     largest = float(np.max(eigenvalues.real))
     if largest > 1e-9 * scale:
@@ -275,13 +282,46 @@ def _numeric_equilibria(model: Model, equations: list[sp.Expr], ranges: Mapping[
     bounds = [ranges.get(q, (-np.pi, np.pi)) for q in model.q]
     rng = np.random.default_rng(0)
     points: list[np.ndarray] = []
-    for _ in range(200):
+    failures: dict[str, int] = {}
+    for _ in range(STARTS):
         start = np.array([rng.uniform(a, b) for a, b in bounds])
-        result = root(lambda x: function(list(x)), start, method="hybr")
-        if result.success and all(a - 1e-9 <= x <= b + 1e-9 for x, (a, b) in zip(result.x, bounds, strict=True)) and not any(np.allclose(result.x, p, atol=1e-7) for p in points):
+        try:
+            with np.errstate(all="ignore"):
+                result = root(lambda x: _forces(function, x), start, method="hybr")
+        except _Unevaluable as bad:  # a start (or the search from it) where the forces cannot be evaluated
+            failures[str(bad)] = failures.get(str(bad), 0) + 1
+            continue
+        if not (result.success and np.all(np.isfinite(result.x))):
+            continue
+        if all(a - 1e-9 <= x <= b + 1e-9 for x, (a, b) in zip(result.x, bounds, strict=True)) and not any(np.allclose(result.x, p, atol=1e-7) for p in points):
             points.append(result.x)
+    if failures and sum(failures.values()) == STARTS:
+        where = ", ".join(f"{q} in [{a:g}, {b:g}]" for q, (a, b) in zip(model.q, bounds, strict=True))
+        raise DerivationError(
+            f"{model.source}: the forces cannot be evaluated from any of {STARTS} starting points of the numeric search ({where}): {max(failures, key=lambda k: failures[k])}; give ranges inside their domain (--range)"
+        )
     points.sort(key=lambda x: tuple(x))
     return [{q: sp.Float(x, 12) for q, x in zip(model.q, p, strict=True)} for p in points]
+
+
+STARTS = 200
+"""Starting points of the numeric search for equilibria."""
+
+
+class _Unevaluable(Exception):
+    """The forces cannot be evaluated at a point to finite real numbers; the text says why."""
+
+
+def _forces(function: Callable[[list[float]], list[float]], x: Sequence[float]) -> list[float]:
+    """F(q, 0) at q = x as finite floats, or `_Unevaluable` (a math domain error, a division by
+    zero, an overflow, a complex or NaN value)."""
+    try:
+        values = [float(v) for v in function([float(v) for v in x])]
+    except (ArithmeticError, ValueError, TypeError) as error:
+        raise _Unevaluable(f"{type(error).__name__}: {error}" if str(error) else type(error).__name__) from None
+    if not all(math.isfinite(v) for v in values):
+        raise _Unevaluable("a force is not finite (a division by zero or an overflow)")
+    return values
 
 
 def _in_ranges(found: list[dict[sp.Symbol, sp.Expr]], ranges: Mapping[sp.Symbol, tuple[float, float]] | None, model: Model) -> list[dict[sp.Symbol, sp.Expr]]:

@@ -10,14 +10,14 @@ from __future__ import annotations
 
 import random
 import re
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import sympy as sp
 
 from lagrange_cli.algebra import augmented
-from lagrange_cli.errors import Span
+from lagrange_cli.errors import Span, SpecError, fail
 from lagrange_cli.model import Model
 from lagrange_cli.spec import SystemSpec
 
@@ -26,6 +26,10 @@ if TYPE_CHECKING:
 
 DIGITS = 40
 POINTS = 6
+SEED = 20261121
+MAX_DRAWS = 60
+"""random states drawn at most (for all entries together) before an entry counts as undecidable."""
+PROJECTION_STEPS = 30
 TOLERANCE = sp.Float(10) ** (-(DIGITS - 12))
 
 
@@ -42,27 +46,35 @@ class Result:
 
 @dataclass(frozen=True)
 class Point:
+    """A sampled state: `values` of the parameters, coordinates, velocities and t (on the
+    constraints), the functions standing in for undefined ones, the unknowns solved there, and
+    `off`, the state as drawn before it was moved onto the constraints."""
+
     values: dict[sp.Symbol, sp.Float]
     functions: dict[sp.Expr, Callable[..., sp.Expr]]
     unknowns: dict[sp.Symbol, sp.Float]
+    off: dict[sp.Symbol, sp.Float]
 
 
 def check(spec: SystemSpec, model: Model) -> list[Result]:
-    """Every entry of the file's `expect` block, in file order."""
-    points = list(sample_points(model))
+    """Every entry of the file's `expect` block, in file order. An entry that cannot be decided
+    (no sampled state where it and the model evaluate to finite real numbers) raises a
+    `SpecError` at the entry: bad input, never a wrong-answer verdict."""
+    expected = [e for e, _ in spec.expect.equations] + [e for _, e, _ in spec.expect.accelerations] + [e for _, e, _ in spec.expect.momenta]
+    points = Samples(model, extra=expected)
     results = [_equations(spec, model, points)] if spec.expect.equations else []
-    for coordinate, expected, span in spec.expect.accelerations:
+    for coordinate, expected_value, span in spec.expect.accelerations:
         i = model.coordinates.index(coordinate) if coordinate in model.coordinates else None
         if i is None:
             results.append(Result(f"accelerations.{coordinate}_ddot", False, f"'{coordinate}' was eliminated", span))
             continue
-        results.append(_compare(f"accelerations.{coordinate}_ddot", expected, model.qdd[i], points, span, solved=True))
-    for coordinate, expected, span in spec.expect.momenta:
+        results.append(_compare(f"accelerations.{coordinate}_ddot", expected_value, model.qdd[i], points, span, solved=True))
+    for coordinate, expected_value, span in spec.expect.momenta:
         i = model.coordinates.index(coordinate) if coordinate in model.coordinates else None
         if i is None:
             results.append(Result(f"momenta.{coordinate}", False, f"'{coordinate}' was eliminated", span))
             continue
-        results.append(_compare(f"momenta.{coordinate}", expected, model.momenta[i], points, span))
+        results.append(_compare(f"momenta.{coordinate}", expected_value, model.momenta[i], points, span))
     for name, span in spec.expect.conserved:
         results.append(_conserved(model, name, span))
     return results
@@ -91,7 +103,7 @@ def _why_not_energy(model: Model) -> str:
     return "a constraint depends on time"
 
 
-def _equations(spec: SystemSpec, model: Model, points: list[Point]) -> Result:
+def _equations(spec: SystemSpec, model: Model, points: Samples) -> Result:
     """The expected equations hold at the derived accelerations and multipliers, and together
     with the constraints of the multipliers they use, they determine those unknowns."""
     expected = [e for e, _ in spec.expect.equations]
@@ -102,20 +114,21 @@ def _equations(spec: SystemSpec, model: Model, points: list[Point]) -> Result:
     if len(dynamic) < model.n:
         return Result("equations", False, f"expected {model.n} equations of motion (one per coordinate: {', '.join(model.coordinates)}), got {len(dynamic)}", span)
     for equation in expected:
-        if equation not in dynamic and not _is_a_constraint(equation, model, points):
+        if equation not in dynamic and not _is_a_constraint(equation, points, spec.expect.equations[expected.index(equation)][1]):
             where = spec.expect.equations[expected.index(equation)][1]
             return Result("equations", False, f"'{equation} = 0' has no accelerations and is not one of the constraints", where)
     rows = dynamic + [sum((a * u for a, u in zip(c.jacobian, model.qdd, strict=True)), c.acceleration_bias) for c in multipliers]
     used = [*model.qdd, *(c.multiplier for c in multipliers)]
     method = "symbolic" if all(_matching_equation(e, model) is not None for e in dynamic) else "numeric"
-    for point in points:
+    jacobian = sp.Matrix([[sp.diff(e, u) for u in used] for e in rows])
+    for _, values in points.where([*dynamic, *jacobian], "the expected equations", span, with_unknowns=True):
         for k, equation in enumerate(dynamic):
-            residual, scale = _evaluate(equation, point, with_unknowns=True)
+            residual, scale = values[k]
             if abs(residual) > TOLERANCE * max(scale, 1):
                 where = spec.expect.equations[expected.index(equation)][1]
                 return Result("equations", False, f"equation {k + 1}: " + diagnose_equation(equation, model, residual), where)
-        jacobian = _concrete(sp.Matrix([[sp.diff(e, u) for u in used] for e in rows]), point.values, point.functions)
-        if jacobian.rank(iszerofunc=lambda x: abs(x) < TOLERANCE) < len(used):
+        concrete = sp.Matrix(len(rows), len(used), [v for v, _ in values[len(dynamic) :]])
+        if concrete.rank(iszerofunc=lambda x: abs(x) < TOLERANCE) < len(used):
             return Result("equations", False, "the expected equations do not determine the accelerations (they are dependent)", span)
     return Result("equations", True, "", span, method)
 
@@ -132,6 +145,8 @@ def _scaled_differences(expected: sp.Expr, model: Model) -> list[tuple[sp.Expr |
     """For each derived equation E_j: the factor r matching the leading unknown of `expected`,
     and r E_j - expected (what the expected equation lacks)."""
     unknowns = [*model.qdd, *model.multipliers]
+    if not _small_multiples(expected):  # cancelling or expanding it would not end: no symbolic comparison
+        return [(None, sp.Integer(0)) for _ in model.equations()]
     out: list[tuple[sp.Expr | None, sp.Expr]] = []
     for derived in model.equations():
         ratio = None
@@ -148,15 +163,34 @@ def _is_zero(expr: sp.Expr) -> bool:
     """Targeted normalisation: expand, combine products of sines and cosines, cancel."""
     if expr == 0:
         return True
-    if sp.count_ops(expr) > 400:
-        return False
+    if sp.count_ops(expr) > 400 or not _small_multiples(expr):
+        return False  # left to the numeric comparison
     from lagrange_cli._symengine import to_symengine
     from lagrange_cli.algebra import combine_trig
 
     try:
         return sp.sympify(combine_trig(to_symengine(sp.expand_trig(sp.together(expr))))) == 0 or sp.cancel(sp.expand_trig(expr)) == 0
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, ArithmeticError, sp.PolynomialError):
         return False
+
+
+MAX_MULTIPLE = 12
+"""Largest multiple n of an angle, sin(n x), that `_is_zero` expands (into a polynomial of degree
+n in sin x and cos x): tanh(1000*theta) in an answer would take minutes."""
+
+
+def _small_multiples(expr: sp.Expr) -> bool:
+    """Whether every trigonometric or hyperbolic function and every power in `expr` expands to a
+    bounded size: arguments at most MAX_MULTIPLE times a term, exponents at most MAX_MULTIPLE."""
+    from sympy.functions.elementary.hyperbolic import HyperbolicFunction
+    from sympy.functions.elementary.trigonometric import TrigonometricFunction
+
+    for f in expr.atoms(TrigonometricFunction, HyperbolicFunction):
+        for term in sp.Add.make_args(f.args[0]):
+            coefficient, _ = term.as_coeff_Mul()
+            if abs(coefficient) > MAX_MULTIPLE:
+                return False
+    return all(not (p.exp.is_Number and abs(p.exp) > MAX_MULTIPLE and p.base.is_Add) for p in expr.atoms(sp.Pow))
 
 
 def diagnose_equation(expected: sp.Expr, model: Model, residual: sp.Expr) -> str:
@@ -219,70 +253,212 @@ def _sum(terms: list[sp.Expr]) -> str:
     return str(sp.Add(*terms))
 
 
-def _is_a_constraint(equation: sp.Expr, model: Model, points: list[Point]) -> bool:
-    """True when `equation` is a non-zero multiple of one of the model's constraints."""
-    for c in model.constraints:
-        ratios = set()
-        for point in points:
-            numerator, _ = _evaluate(equation, point, with_unknowns=False)
-            denominator, _ = _evaluate(c.expr, point, with_unknowns=False)
-            ratios.add(sp.N(numerator / denominator, 20) if denominator != 0 else None)
-        values = [r for r in ratios if r is not None]
-        if values and None not in ratios and max(values) - min(values) < 1e-15 * max(1, *map(abs, values)) and values[0] != 0:
-            return True
-    return False
+def _is_a_constraint(equation: sp.Expr, points: Samples, span: Span) -> bool:
+    """True when `equation` holds on the constraint surface (at every sampled state, which
+    satisfies the constraints) without holding everywhere (it fails at some state off it)."""
+    off_surface = False
+    for point, ((value, scale),) in points.where([equation], f"'{equation} = 0'", span, with_unknowns=False):
+        if abs(value) > TOLERANCE * max(scale, 1):
+            return False
+        off_value = _finite(_concrete(sp.Matrix([equation]), point.off, point.functions)[0])
+        off_surface = off_surface or (off_value is not None and abs(off_value) > TOLERANCE * max(scale, 1))
+    return off_surface
 
 
-def _compare(entry: str, expected: sp.Expr, derived: sp.Expr, points: list[Point], span: Span, solved: bool = False) -> Result:
-    if not solved and _is_zero(sp.expand(expected - derived)):
+def _compare(entry: str, expected: sp.Expr, derived: sp.Expr, points: Samples, span: Span, solved: bool = False) -> Result:
+    if not solved and _small_multiples(expected) and _is_zero(sp.expand(expected - derived)):
         return Result(entry, True, "", span, "symbolic")
-    for point in points:
-        residual, scale = _evaluate(expected - derived, point, with_unknowns=solved)
+    for _, ((residual, scale),) in points.where([expected - derived], f"'{entry}'", span, with_unknowns=solved):
         if abs(residual) > TOLERANCE * max(scale, 1):
             return Result(entry, False, _describe_difference(expected, derived, solved, residual), span)
     return Result(entry, True, "", span)
 
 
 def _describe_difference(expected: sp.Expr, derived: sp.Expr, solved: bool, residual: sp.Expr) -> str:
-    if solved:
-        return f"differs from the derived acceleration (expected - derived = {sp.N(residual, 3)} at a random state)"
+    if solved or not _small_multiples(expected):
+        return f"differs from the derived {'acceleration' if solved else 'momentum'} (expected - derived = {sp.N(residual, 3)} at a random state)"
     return describe_terms(expected, _tidy(sp.expand(derived - expected))) + f" (derived: {derived})"
 
 
+class _BadPoint(Exception):
+    """A sampled state where something cannot be evaluated to a finite real number; its text says what."""
+
+
 def _evaluate(expr: sp.Expr, point: Point, with_unknowns: bool) -> tuple[sp.Float, sp.Float]:
-    """The value of `expr` at the point, and the sum of its terms' magnitudes (its scale)."""
+    """The value of `expr` at the point, and the sum of its terms' magnitudes (its scale);
+    `_BadPoint` where it is not a finite real number (0/0, log of a negative number, ...)."""
     values = {**point.values, **(point.unknowns if with_unknowns else {})}
-    concrete = _concrete(sp.Matrix([expr]), values, point.functions, evaluate=False)[0]
-    terms = sp.Add.make_args(sp.expand(concrete)) if sp.count_ops(concrete) < 2000 else (concrete,)
-    evaluated = [sp.N(term, DIGITS) for term in terms]
-    total = sp.Add(*evaluated).evalf(DIGITS)
-    return total, sum((abs(v) for v in evaluated), sp.Float(0))
+    try:
+        concrete = _concrete(sp.Matrix([expr]), values, point.functions, evaluate=False)[0]
+        terms = sp.Add.make_args(sp.expand(concrete)) if sp.count_ops(concrete) < 2000 else (concrete,)
+        evaluated = [sp.N(term, DIGITS) for term in terms]
+        total = _finite(sp.Add(*evaluated).evalf(DIGITS))
+        sizes = [_finite(abs(v)) for v in evaluated]
+    except (ArithmeticError, ValueError, TypeError) as error:
+        raise _BadPoint(f"the value cannot be computed ({error or type(error).__name__})") from None
+    if total is None or any(size is None for size in sizes):
+        raise _BadPoint("the value is not a finite real number (0/0, a division by zero, or a function such as sqrt or log outside its domain)")
+    return total, sum(sizes, sp.Float(0))  # type: ignore[arg-type]
 
 
-def sample_points(model: Model, count: int = POINTS, seed: int = 20261121) -> Iterator[Point]:
-    """Random states inside the domain (positive parameters positive), with each undefined
-    function replaced by a random smooth one, and the derived unknowns solved there."""
-    rng = random.Random(seed)
-    matrix, rhs = augmented(model)
-    functions = sorted({f.func for f in _undefined(model)}, key=str)
-    for _ in range(count):
+def _finite(value: sp.Expr) -> sp.Float | None:
+    """`value` as a real Float, or None when it is not a finite real number (complex beyond
+    round-off, infinite, NaN or still symbolic)."""
+    try:
+        real, imaginary = sp.N(value, DIGITS).as_real_imag()
+    except (ArithmeticError, ValueError, TypeError):
+        return None
+    if not (real.is_Number and imaginary.is_Number) or real.has(sp.nan, sp.zoo, sp.oo, -sp.oo) or imaginary.has(sp.nan, sp.zoo, sp.oo, -sp.oo):
+        return None
+    if abs(imaginary) > TOLERANCE * max(abs(real), 1):
+        return None
+    return sp.Float(real, DIGITS)
+
+
+class Samples:
+    """Random states of a model, drawn one by one (seeded) as the entries ask for them: positive
+    parameters positive, each undefined function replaced by a random smooth one (a function the
+    file defines by its definition), the positions
+    moved onto the holonomic constraints, the velocities satisfying every constraint, and the
+    derived unknowns solved there. States where the model cannot be evaluated (a singular mass
+    matrix, a complex or undefined value) are skipped, up to MAX_DRAWS draws in all; the first
+    draws lie in a small box of positive coordinates, later ones in wider, symmetric boxes."""
+
+    def __init__(self, model: Model, extra: Sequence[sp.Expr] = (), seed: int = SEED) -> None:
+        self.model = model
+        self.rng = random.Random(seed)
+        self.matrix, self.rhs = augmented(model)
+        self.functions = sorted({f.func for f in _undefined(model, extra)}, key=str)
+        self.points: list[Point] = []
+        self.draws = 0
+        self.causes: dict[str, int] = {}
+
+    def __getitem__(self, index: int) -> Point | None:
+        """The index-th good state, or None when MAX_DRAWS draws gave fewer."""
+        while len(self.points) <= index and self.draws < MAX_DRAWS:
+            self.draws += 1
+            try:
+                self.points.append(self._draw())
+            except _BadPoint as bad:
+                self.causes[str(bad)] = self.causes.get(str(bad), 0) + 1
+        return self.points[index] if index < len(self.points) else None
+
+    def where(self, exprs: Sequence[sp.Expr], what: str, span: Span, with_unknowns: bool) -> Iterator[tuple[Point, list[tuple[sp.Float, sp.Float]]]]:
+        """POINTS states with the values (and scales) of `exprs` there, skipping states where one
+        of them is not a finite real number; a `SpecError` at `span` when too few are found."""
+        found, index, causes = 0, 0, dict[str, int]()
+        while found < POINTS:
+            point = self[index]
+            index += 1
+            if point is None:
+                raise self._undecided(what, span, causes)
+            try:
+                values = [_evaluate(e, point, with_unknowns) for e in exprs]
+            except _BadPoint as bad:
+                causes[str(bad)] = causes.get(str(bad), 0) + 1
+                continue
+            found += 1
+            yield point, values
+
+    def _undecided(self, what: str, span: Span, causes: dict[str, int]) -> SpecError:
+        if causes:
+            reason = f"{what} cannot be evaluated at the sampled states: {max(causes, key=lambda c: causes[c])}"
+        else:
+            common = max(self.causes, key=lambda c: self.causes[c]) if self.causes else "no state was drawn"
+            reason = f"the equations of motion cannot be evaluated at {self.draws} random states: {common}"
+        return fail(span, f"cannot check this entry: {reason}", "equations and answers that are finite real numbers at generic states (the check evaluates them at random states)")
+
+    def _draw(self) -> Point:
+        model, rng = self.model, self.rng
+        spread = 0.0 if self.draws <= 2 * POINTS else (3.0 if self.draws <= MAX_DRAWS // 2 else 10.0)
         values: dict[sp.Symbol, sp.Float] = {}
         for parameter in model.parameters:
             values[parameter.symbol] = sp.Float(rng.uniform(-1.5, 1.5) if parameter.real else rng.uniform(0.5, 2.0), DIGITS)
         for q in model.q:
-            values[q] = sp.Float(rng.uniform(0.2, 1.3), DIGITS)
+            values[q] = sp.Float(rng.uniform(0.2, 1.3) if not spread else rng.uniform(-spread, spread), DIGITS)
         for v in model.qd:
-            values[v] = sp.Float(rng.uniform(-1.5, 1.5), DIGITS)
+            values[v] = sp.Float(rng.uniform(-1.5, 1.5) * max(spread, 1.0), DIGITS)
         values[model.t] = sp.Float(rng.uniform(0.1, 2.0), DIGITS)
-        replacements = {}
-        for f in functions:
+        replacements: dict[sp.Expr, Callable[..., sp.Expr]] = {}
+        for f in self.functions:
             a, b, c = (sp.Float(rng.uniform(0.5, 1.5), DIGITS) for _ in range(3))
-            replacements[f] = _smooth(a, b, c)
-        concrete_matrix = _concrete(matrix, values, replacements)
-        concrete_rhs = _concrete(rhs, values, replacements)
-        solution = concrete_matrix.LUsolve(concrete_rhs)
-        unknowns = {u: sp.Float(solution[i], DIGITS) for i, u in enumerate((*model.qdd, *model.multipliers))}
-        yield Point(values, replacements, unknowns)
+            definition = model.definitions.get(str(f))
+            replacements[f] = _smooth(a, b, c) if definition is None else _defined(definition)
+        off = dict(values)
+        if model.constraints:
+            values = _on_constraints(model, values, replacements)
+        unknowns = {u: value for u, value in zip((*model.qdd, *model.multipliers), _solve(self.matrix, self.rhs, values, replacements, bool(model.constraints)), strict=True)}
+        return Point(values, replacements, unknowns, off)
+
+
+def _solve(matrix: sp.Matrix, rhs: sp.Matrix, values: dict[sp.Symbol, sp.Float], functions: dict[sp.Expr, Callable[..., sp.Expr]], constrained: bool) -> list[sp.Float]:
+    """The solution of matrix x = rhs at a state; `_BadPoint` where the matrix is singular
+    (relative to its rows' sizes) or an entry is not a finite real number."""
+    import mpmath
+
+    with mpmath.workdps(DIGITS):
+        a = _numbers(matrix, values, functions, "the mass matrix")
+        b = _numbers(rhs, values, functions, "the forces")
+        sizes = [mpmath.sqrt(sum(x**2 for x in a[i, :])) for i in range(a.rows)]
+        if any(size == 0 for size in sizes) or abs(mpmath.det(a)) <= mpmath.mpf(10) ** (12 - DIGITS) * mpmath.fprod(sizes):
+            raise _BadPoint("the mass matrix is singular there" + (" (with the constraint rows)" if constrained else ""))
+        solution = mpmath.lu_solve(a, b)
+        return [sp.Float(solution[i], DIGITS) for i in range(a.rows)]
+
+
+def _numbers(matrix: sp.Matrix, values: dict[sp.Symbol, sp.Float], functions: dict[sp.Expr, Callable[..., sp.Expr]], what: str) -> Any:
+    """A matrix of mpmath reals, or `_BadPoint` naming `what` where an entry is not finite and real."""
+    import mpmath
+
+    try:
+        concrete = _concrete(matrix, values, functions)
+    except (ArithmeticError, ValueError, TypeError) as error:
+        raise _BadPoint(f"{what} cannot be evaluated there ({error or type(error).__name__})") from None
+    entries = [_finite(e) for e in concrete]
+    if any(e is None for e in entries):
+        raise _BadPoint(f"{what} is not a finite real number there (0/0, a division by zero, or a function such as sqrt or log outside its domain)")
+    return mpmath.matrix([[mpmath.mpf(str(entries[i * concrete.cols + j])) for j in range(concrete.cols)] for i in range(concrete.rows)])
+
+
+def _on_constraints(model: Model, values: dict[sp.Symbol, sp.Float], functions: dict[sp.Expr, Callable[..., sp.Expr]]) -> dict[sp.Symbol, sp.Float]:
+    """The state moved onto the constraints: positions by Gauss-Newton steps of least length
+    onto f(q, t) = 0 (dq = -A^T (A A^T)^-1 f, A = df/dq), then velocities by the least change
+    that makes A q_dot + b = 0 for every constraint (`_BadPoint` when that does not converge)."""
+    import mpmath
+
+    holonomic = [c for c in model.constraints if c.holonomic]
+    values = dict(values)
+    with mpmath.workdps(DIGITS):
+        if holonomic:
+            f = sp.Matrix([c.expr for c in holonomic])
+            a = sp.Matrix([list(c.jacobian) for c in holonomic])
+            for _ in range(PROJECTION_STEPS):
+                residual = _numbers(f, values, functions, "a constraint")
+                gradient = _numbers(a, values, functions, "the constraint gradient")
+                size = mpmath.mpf(1) + sum(abs(values[q]) for q in model.q)
+                if mpmath.norm(residual) <= mpmath.mpf(10) ** (8 - DIGITS) * size:
+                    break
+                step = _least_change(gradient, residual)
+                values.update({q: values[q] - sp.Float(step[i], DIGITS) for i, q in enumerate(model.q)})
+            else:
+                raise _BadPoint("no state on the constraint surface was found near it")
+        a = sp.Matrix([list(c.jacobian) for c in model.constraints])
+        b = sp.Matrix([c.bias for c in model.constraints])
+        gradient = _numbers(a, values, functions, "the constraint gradient")
+        velocity = mpmath.matrix([[mpmath.mpf(str(values[v]))] for v in model.qd])
+        change = _least_change(gradient, gradient * velocity + _numbers(b, values, functions, "a constraint"))
+        values.update({v: values[v] - sp.Float(change[i], DIGITS) for i, v in enumerate(model.qd)})
+    return values
+
+
+def _least_change(a: Any, r: Any) -> Any:
+    """The shortest x with a x = r: a^T (a a^T)^-1 r (`_BadPoint` where the rows of a are dependent)."""
+    import mpmath
+
+    try:
+        return a.T * mpmath.lu_solve(a * a.T, r)
+    except ZeroDivisionError:
+        raise _BadPoint("the constraints are dependent there (their gradients are not independent)") from None
 
 
 def _concrete(matrix: sp.Matrix, values: dict[sp.Symbol, sp.Float], functions: dict[sp.Expr, Callable[..., sp.Expr]], evaluate: bool = True) -> sp.Matrix:
@@ -304,8 +480,23 @@ def _smooth(a: sp.Float, b: sp.Float, c: sp.Float) -> Callable[..., sp.Expr]:
     return function
 
 
-def _undefined(model: Model) -> set[sp.Expr]:
-    return set(sp.Matrix([*model.mass_matrix, *model.forcing, model.lagrangian]).atoms(sp.core.function.AppliedUndef))
+def _defined(definition: sp.Lambda) -> Callable[..., sp.Expr]:
+    """The file's definition of a function (`U -> Lambda(s, -k/s)`) as a stand-in: an answer may
+    use the general U(r) or what it is defined as."""
+
+    def function(*args: sp.Expr) -> sp.Expr:
+        return definition(*args)
+
+    return function
+
+
+def _undefined(model: Model, extra: Sequence[sp.Expr] = ()) -> set[sp.Expr]:
+    """Every undefined function the model or the answers use: in the equations, the energy,
+    the momenta, the constraints (a bead on y = H(x)) and the expected entries."""
+    parts = [*model.mass_matrix, *model.forcing, model.lagrangian, model.energy, *model.momenta, *extra]
+    for c in model.constraints:
+        parts += [c.expr, *c.jacobian, c.bias, c.acceleration_bias]
+    return set(sp.Matrix(parts).atoms(sp.core.function.AppliedUndef))
 
 
 @dataclass(frozen=True)

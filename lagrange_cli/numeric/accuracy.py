@@ -43,7 +43,7 @@ import numpy as np
 
 from lagrange_cli.errors import LagrangeError
 from lagrange_cli.model import Model
-from lagrange_cli.numeric import compile
+from lagrange_cli.numeric import compile, integrators
 from lagrange_cli.numeric.output import figure_title, inert, plain_text, plot_text
 from lagrange_cli.numeric.settings import METHODS, initial_spectrum, resolve
 from lagrange_cli.numeric.settings import _symplectic_step as symplectic_step
@@ -241,6 +241,12 @@ ProgressReport = Callable[[str], None]
 """Told what the study is running now."""
 
 
+STUDY_MAX_STEPS = 100_000_000
+"""The step budget of a study's runs: far above simulate's default, since a study's runs are
+stopped by its time `budget` (reference runs at 1e-14 over long horizons take millions of steps);
+a safety net for the repeats, which run without the time budget."""
+
+
 def _budget(seconds: float) -> Progress:
     start = time.perf_counter()
 
@@ -265,6 +271,7 @@ def run(model: Model, candidate: Candidate, tolerance: float, setup: Setup, *, s
         initial=setup.initial,
         backend=backend_for(candidate),
         progress=_budget(setup.budget) if progress else None,
+        max_steps=STUDY_MAX_STEPS,
     )
 
 
@@ -364,13 +371,16 @@ def exact_reference(model: Model, setup: Setup) -> Reference | None:
     t = sp.Symbol("t")
     exprs = [sp.sympify(model.exact[c]).subs(values) for c in model.coordinates]
     exprs += [sp.diff(e, t) for e in exprs[: model.n]]
-    evaluate = sp.lambdify(t, exprs, modules="numpy")
+    evaluate = sp.lambdify(t, exprs, modules="math")
     times = np.array(setup.times)
-    y = np.array([np.broadcast_to(np.asarray(v, dtype=float), times.shape) for v in evaluate(times)]).T
-    if np.max(np.abs(y[0] - np.array(s.y0))) > 1e-9 * max(1.0, float(np.max(np.abs(y[0])))):
-        return None
     module = compile.build(model, "python").module
-    energy = np.array([module._energy(ti, yi.tolist(), list(s.p)) for ti, yi in zip(times, y, strict=True)])
+    try:  # the exact solution and the energy at every time, or no exact reference where they cannot be evaluated
+        y = np.array([integrators.evaluate(lambda ti, _y, _p: evaluate(ti), ti, [], [], "the exact solution") for ti in times.tolist()])
+        if np.max(np.abs(y[0] - np.array(s.y0))) > 1e-9 * max(1.0, float(np.max(np.abs(y[0])))):
+            return None
+        energy = np.array([integrators.evaluate(module._energy, ti, yi.tolist(), list(s.p), "the energy")[0] for ti, yi in zip(times.tolist(), y, strict=True)])
+    except integrators.EvaluationError:
+        return None
     return Reference("exact", "the file's exact solution", 0.0, times, y, energy, 0.0)
 
 

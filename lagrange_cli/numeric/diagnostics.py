@@ -181,7 +181,7 @@ def mass_condition(model: Model, p: Sequence[float], y0: Sequence[float] | None 
     def mass(t: float, y: Sequence[float] | np.ndarray) -> np.ndarray | None:
         try:
             m = np.array(evaluate(t, *[float(v) for v in y[:n]]), dtype=float)
-        except (ZeroDivisionError, OverflowError, ValueError):
+        except (ArithmeticError, ValueError, TypeError):  # a domain error, 1/0, an overflow, a complex value
             return None
         return m if np.all(np.isfinite(m)) else None
 

@@ -23,9 +23,14 @@ import numpy as np
 from lagrange_cli.numeric import diagnostics
 from lagrange_cli.numeric.compile import Functions
 
-# How a run ended (the kernels' status codes map onto these).
-FINISHED, EVENT, SINGULAR, NONFINITE, STEP_COLLAPSE, NO_CONVERGENCE = "finished", "event", "singular", "nonfinite", "step", "convergence"
-_CODES = {0: FINISHED, 1: EVENT, 2: SINGULAR, 3: NONFINITE, 4: STEP_COLLAPSE, 5: NO_CONVERGENCE}
+# How a run ended (the kernels' status codes map onto these; BUDGET is the drivers' own).
+FINISHED, EVENT, SINGULAR, NONFINITE, STEP_COLLAPSE, NO_CONVERGENCE, BUDGET = "finished", "event", "singular", "nonfinite", "step", "convergence", "budget"
+_CODES = {0: FINISHED, 1: EVENT, 2: SINGULAR, 3: NONFINITE, 4: STEP_COLLAPSE, 5: NO_CONVERGENCE, 6: BUDGET}
+MAX_STEPS = {"python": 20_000, "compiled": 1_000_000}
+"""Default step budget of one run, by backend: a scipy step costs about 0.1 ms (these many take
+seconds), a compiled one about 1 us. A run that has not reached t_end after its budget stops
+with status BUDGET; the budget counts steps, never seconds, so that no verdict depends on the
+machine's load."""
 PROGRESS_PERIOD = 0.1  # seconds between progress reports of a compiled run
 Progress = Callable[[float], None]
 """Called now and then with the fraction of the time span done."""
@@ -46,7 +51,8 @@ class Stats:
 
 @dataclass(frozen=True)
 class Run:
-    """What an integrator produced: samples y(t) for the times reached, the last state, how it ended."""
+    """What an integrator produced: samples y(t) for the times reached, the last state, how it
+    ended, and for a failure where the equations could not be evaluated, that evaluation."""
 
     t: np.ndarray
     y: np.ndarray
@@ -56,6 +62,7 @@ class Run:
     stats: Stats
     compile_seconds: float
     run_seconds: float
+    problem: EvaluationError | None = None
 
 
 @dataclass(frozen=True)
@@ -68,6 +75,49 @@ class Problem:
     ts: np.ndarray
     p: np.ndarray
     use_event: bool
+    max_steps: int = MAX_STEPS["python"]
+
+
+EVALUATIONS_PER_STEP = 20
+"""Right-hand side evaluations a scipy step may take on average (DOP853: 12, Radau: a few Newton
+iterations, plus rejected steps) before the run counts as over its budget."""
+
+
+class EvaluationError(Exception):
+    """A generated function could not be evaluated at (t, y) to finite real numbers: `cause`
+    says why (a math domain error, a division by zero, an overflow, a complex or NaN value)."""
+
+    def __init__(self, what: str, t: float, y: Sequence[float], cause: str) -> None:
+        super().__init__(f"{what} cannot be evaluated: {cause}")
+        self.what, self.t, self.y, self.cause = what, float(t), np.array(y, dtype=float), cause
+
+
+def evaluate(function: Callable[..., Any], t: float, y: Sequence[float], p: Sequence[float], what: str) -> list[float]:
+    """function(t, y, p) (a generated `_energy`, `_accel`, ...) as finite floats, or `EvaluationError`.
+    A scalar result comes back as a one-element list."""
+    try:
+        result = function(t, list(y), list(p))
+        values = [float(v) for v in (result if isinstance(result, list | tuple | np.ndarray) else [result])]
+    except (ArithmeticError, ValueError, TypeError) as error:  # domain errors, 1/0, overflow, complex -> float
+        raise EvaluationError(what, t, y, cause(error)) from None
+    bad = [v for v in values if not math.isfinite(v)]
+    if bad:
+        raise EvaluationError(what, t, y, f"the value is {bad[0]} (a division by zero, an overflow, or a function such as sqrt or log outside its domain)")
+    return values
+
+
+def cause(error: BaseException) -> str:
+    """What an exception raised by generated code means, in words."""
+    text = str(error)
+    if isinstance(error, ZeroDivisionError):
+        return "a division by zero" + (" (a singular matrix)" if "singular" in text else "")
+    if isinstance(error, OverflowError):
+        return "an overflow (a value too large for floating point)"
+    if isinstance(error, TypeError) and "complex" in text:
+        return "a complex value (a fractional power or root of a negative number)"
+    if isinstance(error, ValueError) and "domain" in text:
+        return "a math domain error (a function such as sqrt, log, acos or a fractional power outside its domain)"
+    return f"{type(error).__name__}: {text}" if text else type(error).__name__
 
 
 def _stats(raw: np.ndarray, nlu: int = 0) -> Stats:
@@ -75,25 +125,29 @@ def _stats(raw: np.ndarray, nlu: int = 0) -> Stats:
     return Stats(int(raw[0]), int(raw[1]), nlu, int(raw[2]), int(raw[3]), low if math.isfinite(low) else None, high if high > 0 else None)
 
 
-def _drive(advance: Callable[[float], int], now: Callable[[], float], problem: Problem, progress: Progress | None) -> int:
+def _drive(advance: Callable[[float], int], now: Callable[[], float], taken: Callable[[], int], problem: Problem, progress: Progress | None) -> int:
     """Call a compiled loop (`advance(t_stop)` -> status, -1 while running: at t_stop or after
-    kernels.PAUSE_STEPS steps) until it stops, returning to Python about every PROGRESS_PERIOD
-    seconds to report progress."""
+    kernels.PAUSE_STEPS steps) until it stops or has taken `problem.max_steps` steps (status 6,
+    BUDGET), returning to Python about every PROGRESS_PERIOD seconds to report progress."""
     if progress is None:
         status = advance(problem.t_end)
         while status == -1:  # paused after kernels.PAUSE_STEPS steps
+            if taken() >= problem.max_steps:
+                return 6
             status = advance(problem.t_end)
         return status
     span = problem.t_end - problem.t0
-    target = problem.t0 + span / 100
+    target = max(problem.t0 + span / 100, float(np.nextafter(problem.t0, math.inf)))
     while True:
         began, t_before = time.perf_counter(), now()
         status = advance(min(target, problem.t_end))
         progress((now() - problem.t0) / span)
         if status != -1:
             return status
+        if taken() >= problem.max_steps:
+            return 6
         speed = (now() - t_before) / max(time.perf_counter() - began, 1e-6)
-        target = now() + max(span / 100, speed * PROGRESS_PERIOD)
+        target = max(now() + max(span / 100, speed * PROGRESS_PERIOD), float(np.nextafter(now(), math.inf)))  # always ahead, even when span / 100 underflows
 
 
 def _compile(functions: Functions, kernel: str, pieces: Sequence[tuple[str, Any]]) -> tuple[Any, list[Any], float]:
@@ -128,7 +182,7 @@ def run_erk(functions: Functions, problem: Problem, dop: bool, rtol: float, atol
     def advance(t_stop: float) -> int:
         return int(run_entry(dop, y, f, state, problem.ts, ys, counters, problem.p, rtol, atol, max_step, problem.t_end, t_stop, problem.use_event, stats, size, accel, event))
 
-    status = 2 if h0 < 0 else _drive(advance, lambda: float(state[0]), problem, progress)
+    status = 2 if h0 < 0 else _drive(advance, lambda: float(state[0]), lambda: int(stats[2]), problem, progress)
     m = int(counters[0])
     return Run(problem.ts[:m], ys[:m], _CODES[status], float(state[0]), y, _stats(stats), compile_start + compile_run, time.perf_counter() - began)
 
@@ -140,8 +194,9 @@ def run_gauss(functions: Functions, problem: Problem, z0: np.ndarray, stages: in
     entry, (hamilton, event), compile_seconds = _compile(functions, "gauss_run", [("_hamilton", kernels.HAMILTON_SIG), ("_event", kernels.EVENT_SIG)])
     began = time.perf_counter()
     size = functions.module._SIZE
-    steps = max(1, math.ceil((problem.t_end - problem.t0) / step - 1e-9))
-    h = (problem.t_end - problem.t0) / steps
+    ratio = (problem.t_end - problem.t0) / step
+    steps = max(1, math.ceil(ratio - 1e-9)) if ratio < 2.0**62 else 2**62  # beyond any budget: the run stops at its budget
+    h = (problem.t_end - problem.t0) / steps if ratio < 2.0**62 else step
     z = z0.copy()
     stats = np.array([0.0, 0.0, 0.0, 0.0, h, h])
     ys = np.full((len(problem.ts), len(z)), np.nan)
@@ -152,7 +207,7 @@ def run_gauss(functions: Functions, problem: Problem, z0: np.ndarray, stages: in
     def advance(t_stop: float) -> int:
         return int(entry(stages, z, state, problem.ts, ys, counters, problem.p, h, steps, problem.t0, problem.t_end, t_stop, problem.use_event, stats, sizes, size, hamilton, event))
 
-    status = _drive(advance, lambda: float(state[0]), problem, progress)
+    status = _drive(advance, lambda: float(state[0]), lambda: int(state[1]), problem, progress)
     out, x, a = np.empty_like(z), np.empty(size), np.empty((size, size))
     hamilton(float(state[0]), z, problem.p, out, x, a)
     y_last = np.concatenate([z[: len(z) // 2], out[: len(z) // 2]])
@@ -176,44 +231,73 @@ def _initial_event(functions: Functions, problem: Problem) -> float:
 class _Failure(Exception):
     """Raised from inside the right-hand side to stop a scipy solver with a reason."""
 
-    def __init__(self, status: str) -> None:
+    def __init__(self, status: str, problem: EvaluationError | None = None) -> None:
         super().__init__(status)
-        self.status = status
+        self.status, self.problem = status, problem
 
 
-def python_rhs(module: Any, p: Sequence[float]) -> Callable[[float, np.ndarray], list[float]]:
-    """f(t, y) from the generated Python `_accel`, raising `_Failure` when it cannot be evaluated."""
+class _Problems:
+    """The last state where the right-hand side could not be evaluated (a solver that meets NaN
+    rejects the step and retries a smaller one; when it gives up, this says why), and the
+    evaluations left: a solver retrying without end inside one step (a NaN step size) stops too."""
+
+    def __init__(self, evaluations: int = 20 * MAX_STEPS["python"]) -> None:
+        self.last: EvaluationError | None = None
+        self.evaluations = evaluations
+
+
+def python_rhs(module: Any, p: Sequence[float], problems: _Problems | None = None) -> Callable[[float, np.ndarray], list[float]]:
+    """f(t, y) from the generated Python `_accel`: `_Failure(SINGULAR)` at a singular matrix; NaN
+    where it cannot be evaluated (a math domain error, division by zero, overflow, a complex
+    value), which makes the solvers reject the step, the cause kept in `problems`."""
     accel, n, params = module._accel, module._N, list(p)
 
     def rhs(t: float, y: np.ndarray) -> list[float]:
+        if problems is not None:
+            problems.evaluations -= 1
+            if problems.evaluations < 0:
+                raise _Failure(BUDGET)
+        if not math.isfinite(t):  # the step size became NaN after NaN values: scipy would retry forever
+            raise _Failure(NONFINITE, problems.last if problems is not None else None)
         values = y.tolist()
+        if not all(map(math.isfinite, values)):  # a stage built from NaN values: it only propagates them
+            return [math.nan] * len(values)
         try:
-            x = accel(t, values, params)
-        except ZeroDivisionError:
-            raise _Failure(SINGULAR) from None
-        except (OverflowError, ValueError):
-            raise _Failure(NONFINITE) from None
+            x = evaluate(accel, t, values, params, "the equations of motion")
+        except EvaluationError as problem:
+            if problem.cause.endswith("(a singular matrix)"):
+                raise _Failure(SINGULAR) from None
+            if problems is not None:
+                problems.last = problem
+            return [math.nan] * len(values)
         return values[n:] + x[:n]
 
     return rhs
 
 
-def python_jac(module: Any, p: Sequence[float]) -> Callable[[float, np.ndarray], np.ndarray]:
+def python_jac(module: Any, p: Sequence[float], problems: _Problems | None = None) -> Callable[[float, np.ndarray], np.ndarray]:
     """The analytic Jacobian df/dy from the generated Python `_jac`; where a formula of it cannot
     be evaluated although f can (0/0 in the derivative of |v| v at rest, say), forward differences
     of f instead. A singular augmented matrix is a failure."""
-    jac, params, rhs = module._jac, list(p), python_rhs(module, p)
+    jac, params, rhs = module._jac, list(p), python_rhs(module, p, problems)
+
+    def finite_rhs(t: float, y: np.ndarray) -> np.ndarray | None:
+        f = np.array(rhs(t, y))
+        return f if np.all(np.isfinite(f)) else None
 
     def jacobian(t: float, y: np.ndarray) -> np.ndarray:
         try:
-            return np.asarray(jac(t, y.tolist(), params))
+            found = np.asarray(jac(t, y.tolist(), params), dtype=float)
+            if np.all(np.isfinite(found)):
+                return found
         except np.linalg.LinAlgError:
             raise _Failure(SINGULAR) from None
-        except (ZeroDivisionError, OverflowError, ValueError):
-            found = diagnostics.jacobian(lambda t, y: np.array(rhs(t, y)), t, y)  # rhs raises _Failure where f fails
-            if found is None:
-                raise _Failure(NONFINITE) from None
-            return found
+        except (ArithmeticError, ValueError, TypeError):  # the formula fails here: differences of f instead
+            pass
+        differences = diagnostics.jacobian(finite_rhs, t, y)  # rhs raises _Failure at a singular matrix
+        if differences is None:
+            raise _Failure(NONFINITE, problems.last if problems is not None else None) from None
+        return differences
 
     return jacobian
 
@@ -223,22 +307,27 @@ def run_scipy(functions: Functions, problem: Problem, method: str, rtol: float, 
     import scipy.integrate
 
     module, p = functions.module, problem.p.tolist()
+    problems = _Problems(EVALUATIONS_PER_STEP * problem.max_steps + 1000)
     options: dict[str, Any] = {"rtol": rtol, "atol": atol, "max_step": max_step}
     if method in ("Radau", "BDF", "LSODA"):
-        options["jac"] = python_jac(module, p)
+        options["jac"] = python_jac(module, p, problems)
     began = time.perf_counter()
     solver_class = getattr(scipy.integrate, method)
     ts, steps = problem.ts, 0
     samples: list[np.ndarray] = []
     sizes: list[float] = []
     event = _python_event(module, p) if problem.use_event else None
-    g_old = event(problem.t0, problem.y0) if event else 1.0
     status, t_last, y_last = FINISHED, problem.t0, problem.y0.copy()
+    failure: EvaluationError | None = None
     with warnings.catch_warnings(), np.errstate(all="ignore"):
         warnings.simplefilter("ignore")
         try:
-            solver = solver_class(python_rhs(module, p), problem.t0, problem.y0, problem.t_end, **options)
+            g_old = event(problem.t0, problem.y0) if event else 1.0
+            solver = solver_class(python_rhs(module, p, problems), problem.t0, problem.y0, problem.t_end, **options)
             while solver.status == "running":
+                if steps >= problem.max_steps:
+                    status = BUDGET
+                    break
                 t_old, y_old = solver.t, solver.y.copy()
                 message = solver.step()
                 if solver.status == "failed":
@@ -257,13 +346,17 @@ def run_scipy(functions: Functions, problem: Problem, method: str, rtol: float, 
                     progress((t_last - problem.t0) / (problem.t_end - problem.t0))
                 if status == EVENT:
                     break
-        except _Failure as failure:
-            status = failure.status
+        except _Failure as stop:
+            status, failure = stop.status, stop.problem
+        except EvaluationError as problem_found:  # the stop condition
+            status, failure = NONFINITE, problem_found
+    if status in (NONFINITE, STEP_COLLAPSE) and failure is None and problems.last is not None and problems.last.t >= t_last:
+        failure = problems.last  # the solver gave up where the equations cannot be evaluated
     nfev, njev, nlu = (int(getattr(solver, k, 0)) for k in ("nfev", "njev", "nlu")) if "solver" in locals() else (0, 0, 0)
     stats = Stats(nfev, njev, nlu, steps, None, min(sizes[:-1]) if len(sizes) > 1 else (sizes[0] if sizes else None), max(sizes) if sizes else None)
     m = len(samples)
     y = np.array(samples) if samples else np.empty((0, len(problem.y0)))
-    return Run(ts[:m], y, status, float(t_last), np.asarray(y_last, dtype=float), stats, 0.0, time.perf_counter() - began)
+    return Run(ts[:m], y, status, float(t_last), np.asarray(y_last, dtype=float), stats, 0.0, time.perf_counter() - began, failure)
 
 
 def _scipy_samples(solver: Any, t_old: float, ts: np.ndarray, samples: list[np.ndarray], event: Callable[[float, np.ndarray], float] | None, g_old: float) -> tuple[float, str]:
@@ -289,12 +382,10 @@ def _scipy_samples(solver: Any, t_old: float, ts: np.ndarray, samples: list[np.n
 
 
 def _python_event(module: Any, p: Sequence[float]) -> Callable[[float, np.ndarray], float]:
+    """The stop condition g(t, y); `EvaluationError` where it cannot be evaluated."""
     event, params = module._event, list(p)
 
     def g(t: float, y: np.ndarray) -> float:
-        try:
-            return float(event(t, np.asarray(y).tolist(), params))
-        except (ZeroDivisionError, OverflowError, ValueError):
-            return math.nan
+        return evaluate(event, t, np.asarray(y).tolist(), params, "the stop condition (--until)")[0]
 
     return g

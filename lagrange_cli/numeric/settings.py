@@ -28,6 +28,8 @@ METHODS = ("auto", "RK45", "DOP853", "Radau", "BDF", "LSODA", "symplectic")
 COMPILED = ("RK45", "DOP853", "symplectic")
 BACKENDS = ("auto", "compiled", "python")
 DEFAULTS = {"t_end": 10.0, "rtol": 1e-8, "atol": 1e-10, "samples": 1001}
+MAX_SAMPLES = 1_000_000
+"""Samples one run may keep: each costs 16 bytes per coordinate, and the monitors evaluate at each."""
 HEAVY = 3000.0  # rate x time span above which compiling pays off (about 1e4 steps)
 STAGES = 2  # Gauss-Legendre stages of the symplectic method (order 4)
 
@@ -113,7 +115,7 @@ def constraint_notes(model: Model, p: Sequence[float], y0: Sequence[float]) -> l
     q, qd = np.array(y0[:n], dtype=float), np.array(y0[n:], dtype=float)
     try:
         values = np.array(_ROWS[id(model)][1](0.0, *q, *p[: len(model.parameters)]), dtype=float)
-    except (ZeroDivisionError, OverflowError, ValueError):
+    except (ArithmeticError, ValueError, TypeError):
         return []
     notes = []
     for c, row in zip(model.constraints, values, strict=True):
@@ -166,6 +168,17 @@ def _positive(name: str, value: object) -> float:
     return number
 
 
+def _finite(what: str, value: object) -> float:
+    """A finite real number (--set and --initial values), or a LagrangeError naming it."""
+    try:
+        number = float(value)  # type: ignore[arg-type]
+    except (TypeError, ValueError, OverflowError):
+        raise LagrangeError(f"{what} must be a number, got {value!r}") from None
+    if not math.isfinite(number):
+        raise LagrangeError(f"{what} must be a finite number, got {value!r}")
+    return number
+
+
 def _method(name: str) -> str:
     for known in METHODS:
         if name.lower() == known.lower():
@@ -177,13 +190,17 @@ def _method(name: str) -> str:
 def _times(t_end: float, t_eval: Sequence[float] | None, samples: object) -> tuple[float, ...]:
     """The sample times: `t_eval` as given (sorted, within [0, t_end]) or `samples` evenly spaced."""
     if t_eval is not None:
-        values = [float(v) for v in t_eval]
+        values = [_finite("a time of t_eval", v) for v in t_eval]
+        if len(values) > MAX_SAMPLES:
+            raise LagrangeError(f"t_eval has {len(values)} times, more than a run keeps (at most {MAX_SAMPLES}, for memory)")
         if not values or any(not (0.0 <= v <= t_end) for v in values) or values != sorted(values):
             raise LagrangeError(f"t_eval must be a non-empty increasing sequence of times in [0, {t_end:g}]")
         return tuple(values)
     count = DEFAULTS["samples"] if samples is None else samples
     if not isinstance(count, int) or isinstance(count, bool) or count < 2:
         raise LagrangeError(f"samples must be a whole number of at least 2, got {count!r}")
+    if count > MAX_SAMPLES:
+        raise LagrangeError(f"samples = {count} is more than a run keeps (at most {MAX_SAMPLES}, for memory); give fewer samples")
     return tuple(np.linspace(0.0, t_end, count).tolist())
 
 
@@ -195,8 +212,7 @@ def _parameters(model: Model, overrides: Mapping[str, float]) -> tuple[tuple[str
             hint = _closest(name, known)
             choices = ", ".join(known) if known else "none: the system has no parameters"
             raise LagrangeError(f"'{name}' is not a parameter of {model.source}; parameters: {choices}" + (f" (did you mean '{hint}'?)" if hint else ""))
-        if not math.isfinite(float(value)):
-            raise LagrangeError(f"the value of parameter '{name}' must be a finite number, got {value!r}")
+        _finite(f"the value of parameter '{name}'", value)
         declared = next(p for p in model.parameters if p.name == name)
         if not declared.real and float(value) <= 0:
             raise LagrangeError(
@@ -219,8 +235,7 @@ def _initial(model: Model, overrides: Mapping[str, float]) -> tuple[float, ...]:
         if name not in names:
             hint = _closest(name, names)
             raise LagrangeError(f"'{name}' is not a coordinate or velocity of {model.source}; choose from {', '.join(names)}" + (f" (did you mean '{hint}'?)" if hint else ""))
-        if not math.isfinite(float(value)):
-            raise LagrangeError(f"the initial value of '{name}' must be a finite number, got {value!r}")
+        _finite(f"the initial value of '{name}'", value)
     values = {**model.initial, **{k: float(v) for k, v in overrides.items()}}
     return tuple(float(values.get(name, 0.0)) for name in names)
 
@@ -328,7 +343,7 @@ def _safe_rhs(module: object, p: tuple[float, ...]) -> Callable[[float, np.ndarr
     def rhs(t: float, y: np.ndarray) -> np.ndarray | None:
         try:
             x = accel(t, y.tolist(), list(p))
-        except (ZeroDivisionError, OverflowError, ValueError):
+        except (ArithmeticError, ValueError, TypeError):
             return None
         return np.array(y.tolist()[n:] + x[:n])
 

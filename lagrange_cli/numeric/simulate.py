@@ -15,6 +15,7 @@ work-precision study can call `simulate` in a loop.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -33,6 +34,7 @@ FAILURES = {
     integrators.STEP_COLLAPSE: "the step size collapsed below the spacing of floating-point numbers (a singularity, or a problem too stiff for this method: try --method Radau)",
     integrators.NO_CONVERGENCE: "the implicit stage equations did not converge (the step is too large for this motion: give a smaller --step)",
 }
+BUDGET_HINT = "shorten t_end (--t-end), loosen the tolerances (--rtol/--atol), give a larger --step, or raise the budget (max_steps)"
 
 
 @dataclass(frozen=True)
@@ -123,8 +125,11 @@ def simulate(
     backend: str = "auto",
     max_step: float | None = None,
     progress: Progress | None = None,
+    max_steps: int | None = None,
 ) -> Trajectory:
-    """Integrate `model` from its initial state; see the module docstring for the conventions."""
+    """Integrate `model` from its initial state; see the module docstring for the conventions.
+    `max_steps` is the step budget (default `integrators.MAX_STEPS` of the backend): a run that
+    has not reached t_end after it stops, failed, with the trajectory so far."""
     check(model)
     plain = compile.build(model, "python")  # here rather than in resolve's linearisation, so that its cost is reported
     settings = resolve(
@@ -132,7 +137,8 @@ def simulate(
     )
     python = compile.build(model, "python", jacobian=settings.method in ("Radau", "BDF", "LSODA"), event=settings.event)
     generate, load = plain.generate_seconds + python.generate_seconds, plain.import_seconds + python.import_seconds
-    problem = Problem(settings.t0, settings.t_end, np.array(settings.y0, dtype=float), np.array(settings.t_eval, dtype=float), np.array(settings.p, dtype=float), settings.event is not None)
+    budget = integrators.MAX_STEPS[settings.backend] if max_steps is None else _budget(max_steps)
+    problem = Problem(settings.t0, settings.t_end, np.array(settings.y0, dtype=float), np.array(settings.t_eval, dtype=float), np.array(settings.p, dtype=float), settings.event is not None, budget)
     if settings.backend == "compiled":
         numba = compile.build(model, "numba", event=settings.event)
         generate, load = generate + numba.generate_seconds, load + numba.import_seconds
@@ -142,29 +148,90 @@ def simulate(
     return _trajectory(model, settings, python, run, Timing(generate, load, run.compile_seconds, run.run_seconds))
 
 
+def _budget(max_steps: object) -> int:
+    if isinstance(max_steps, bool) or not isinstance(max_steps, int) or max_steps < 1:
+        raise LagrangeError(f"max_steps must be a whole number of at least 1, got {max_steps!r}")
+    return max_steps
+
+
 def _run_compiled(numba: compile.Functions, python: compile.Functions, problem: Problem, settings: Settings, progress: Progress | None) -> Run:
     if settings.method == "symplectic":
-        momenta = python.module._canonical(problem.t0, problem.y0.tolist(), problem.p.tolist())
+        try:
+            momenta = integrators.evaluate(python.module._canonical, problem.t0, problem.y0.tolist(), problem.p.tolist(), "the momenta at the initial state")
+        except integrators.EvaluationError as problem_found:
+            empty = np.empty((0, len(problem.y0)))
+            return Run(problem.ts[:0], empty, integrators.NONFINITE, problem.t0, problem.y0.copy(), integrators.Stats(0, 0, 0, 0, None, None, None), 0.0, 0.0, problem_found)
         z0 = np.concatenate([problem.y0[: len(problem.y0) // 2], np.array(momenta, dtype=float)])
         assert settings.step is not None
-        return integrators.run_gauss(numba, problem, z0, settings.stages, settings.step, progress)
-    return integrators.run_erk(numba, problem, settings.method == "DOP853", settings.rtol, settings.atol, settings.max_step, progress)
+        run = integrators.run_gauss(numba, problem, z0, settings.stages, settings.step, progress)
+    else:
+        run = integrators.run_erk(numba, problem, settings.method == "DOP853", settings.rtol, settings.atol, settings.max_step, progress)
+    return _verified_event(python, problem, run)
+
+
+def _verified_event(python: compile.Functions, problem: Problem, run: Run) -> Run:
+    """A compiled loop (NaN arithmetic, no exceptions) takes a stop condition that turns NaN for a
+    crossing: where the condition cannot be evaluated at the located event, the run failed there."""
+    if run.status != integrators.EVENT:
+        return run
+    try:
+        integrators.evaluate(python.module._event, run.t_last, run.y_last.tolist(), problem.p.tolist(), "the stop condition (--until)")
+    except integrators.EvaluationError as problem_found:
+        return dataclasses.replace(run, status=integrators.NONFINITE, problem=problem_found)
+    return run
 
 
 def _trajectory(model: Model, settings: Settings, python: compile.Functions, run: Run, timing: Timing) -> Trajectory:
-    """The report of a run: invariants along the samples, and a message for an event or a failure."""
+    """The report of a run: invariants along the samples, and a message for an event or a failure.
+    A monitored quantity that cannot be evaluated at a sample ends the run there, failed."""
     module, p = python.module, list(settings.p)
-    energy = np.array([module._energy(t, y.tolist(), p) for t, y in zip(run.t, run.y, strict=True)])
-    invariants = _invariants(model, module, p, run, energy)
+    while True:
+        try:
+            energy = _values(module._energy, run, p, "the energy")[:, 0] if len(run.t) else np.empty(0)
+            invariants = _invariants(model, module, p, run, energy)
+            break
+        except _MonitorFailure as stop:
+            run = _cut(run, stop.index, stop.problem)
     if run.status == integrators.FINISHED:
         status, message = "finished", f"reached t = {_g(run.t_last)}"
     elif run.status == integrators.EVENT:
         status, message = "event", f"stopped at t = {_g(run.t_last)}, where {settings.until} crossed zero"
+    elif run.status == integrators.BUDGET:
+        status = "failed"
+        message = f"{model.source}: stopped after {run.stats.steps} steps (the step budget) at t = {_g(run.t_last)}, of t_end = {_g(settings.t_end)}; state: {_state(model, run.y_last)}; {BUDGET_HINT}"
     else:
         status = "failed"
-        reason = FAILURES[run.status].format(" (with the constraint rows)" if model.constraints else "")
+        if run.problem is not None:
+            reason = f"{run.problem.what} cannot be evaluated at t = {_g(run.problem.t)} ({_state(model, run.problem.y)}): {run.problem.cause}"
+        else:
+            reason = FAILURES[run.status].format(" (with the constraint rows)" if model.constraints else "")
         message = f"{model.source}: simulation failed at t = {_g(run.t_last)}: {reason}; state: {_state(model, run.y_last)}"
     return Trajectory(model.title, model.coordinates, settings, run.t, run.y, energy, status, message, run.t_last, run.y_last, run.stats, timing, invariants, settings.notes)
+
+
+class _MonitorFailure(Exception):
+    def __init__(self, index: int, problem: integrators.EvaluationError) -> None:
+        super().__init__(str(problem))
+        self.index, self.problem = index, problem
+
+
+def _values(function: object, run: Run, p: list[float], what: str, every: int = 1) -> np.ndarray:
+    """function(t, y, p) at the samples (every `every`-th), one row each; `_MonitorFailure` at
+    the first sample where it cannot be evaluated."""
+    rows = []
+    for k in range(0, len(run.t), every):
+        try:
+            rows.append(integrators.evaluate(function, float(run.t[k]), run.y[k].tolist(), p, what))  # type: ignore[arg-type]
+        except integrators.EvaluationError as problem:
+            raise _MonitorFailure(k, problem) from None
+    return np.array(rows, dtype=float)
+
+
+def _cut(run: Run, index: int, problem: integrators.EvaluationError) -> Run:
+    """The run up to (not including) sample `index`, failed there because of `problem`."""
+    t_last = float(run.t[index - 1]) if index > 0 else float(run.t[0])
+    y_last = run.y[index - 1] if index > 0 else run.y[0]
+    return dataclasses.replace(run, t=run.t[:index], y=run.y[:index], status=integrators.NONFINITE, t_last=t_last, y_last=y_last, problem=problem)
 
 
 def _invariants(model: Model, module: object, p: list[float], run: Run, energy: np.ndarray) -> tuple[Invariant, ...]:
@@ -174,10 +241,10 @@ def _invariants(model: Model, module: object, p: list[float], run: Run, energy: 
     result = [_invariant("energy", model.energy_conserved, energy, scale=_energy_scale(module, p, run))]
     ignorable = codegen.ignorable(model)
     if ignorable:
-        momenta = np.array([module._momenta(t, y.tolist(), p) for t, y in zip(run.t, run.y, strict=True)])  # type: ignore[attr-defined]
+        momenta = _values(module._momenta, run, p, "the momenta")  # type: ignore[attr-defined]
         result += [_invariant(f"p_{model.coordinates[i]}", True, momenta[:, k]) for k, i in enumerate(ignorable)]
     if model.constraints:
-        residuals = np.array([module._residuals(t, y.tolist(), p) for t, y in zip(run.t, run.y, strict=True)])  # type: ignore[attr-defined]
+        residuals = _values(module._residuals, run, p, "the constraint residuals")  # type: ignore[attr-defined]
         result += [_invariant(f"constraint {c.name}", True, residuals[:, k], drift=True) for k, c in enumerate(model.constraints)]
     return tuple(result)
 
@@ -197,9 +264,9 @@ def _energy_scale(module: object, p: list[float], run: Run) -> float:
     n = run.y.shape[1] // 2
     every = max(1, math.ceil(len(run.t) / ENERGY_SCALE_SAMPLES))
     largest = 0.0
-    for t, y in zip(run.t[::every], run.y[::every], strict=True):
-        momenta = module._canonical(t, y.tolist(), p)  # type: ignore[attr-defined]
-        largest = max(largest, abs(math.fsum(m * v for m, v in zip(momenta, y[n:].tolist(), strict=True))))
+    momenta = _values(module._canonical, run, p, "the momenta", every)  # type: ignore[attr-defined]
+    for row, y in zip(momenta, run.y[::every], strict=True):
+        largest = max(largest, abs(math.fsum(m * v for m, v in zip(row.tolist(), y[n:].tolist(), strict=True))))
     return largest
 
 

@@ -164,8 +164,11 @@ def _high_energy(model: Model, p: Sequence[float], y0: Sequence[float], factor: 
 
         values = {parameter.symbol: value for parameter, value in zip(model.parameters, p, strict=False)}
         rows = sp.Matrix([list(c.jacobian) for c in model.constraints]).subs(values)
-        a = np.array(sp.lambdify([model.t, *model.q], rows.tolist(), modules="math")(0.0, *y0[:n]), dtype=float)
-        v = v - a.T @ np.linalg.solve(a @ a.T, a @ v)
+        try:
+            a = np.array(sp.lambdify([model.t, *model.q], rows.tolist(), modules="math")(0.0, *y0[:n]), dtype=float)
+            v = v - a.T @ np.linalg.solve(a @ a.T, a @ v)
+        except (ArithmeticError, ValueError, TypeError, np.linalg.LinAlgError):
+            pass  # the constraint rows cannot be evaluated (or are dependent) at the start: velocities as they are; the run reports it
     return dict(zip(_names(model)[n:], v.tolist(), strict=True))
 
 
@@ -294,7 +297,7 @@ def diagnose(model: Model, setup: Setup, reference: Reference, points: Sequence[
     for k in np.linspace(0, len(reference.t) - 1, min(25, len(reference.t))).astype(int):
         try:
             found = diagnostics.spectrum(np.asarray(module._jac(float(reference.t[k]), reference.y[k].tolist(), p), dtype=float))
-        except (ZeroDivisionError, OverflowError, ValueError, np.linalg.LinAlgError):
+        except (ArithmeticError, ValueError, TypeError, np.linalg.LinAlgError):  # also complex values
             found = None
         if found is not None:
             spectra.append(found)
