@@ -1,0 +1,70 @@
+"""Long commands show progress on stderr (plain lines with an estimate when stderr is not a
+terminal), never on stdout, and `--quiet` silences it."""
+
+from __future__ import annotations
+
+import json
+import re
+
+import pytest
+from typer.testing import CliRunner
+
+from lagrange_cli.cli import app
+from lagrange_cli.cli.progress import Reporter, left
+from lagrange_cli.numeric.accuracy import Step
+
+runner = CliRunner()
+STRESS = ["stress", "harmonic_oscillator", "--scale", "k=4,9", "--t-end", "2", "--method", "RK45:python"]
+STUDY = ["accuracy", "harmonic_oscillator", "--method", "RK45:python", "--tolerances", "1e-3,1e-5", "--repeats", "0", "--samples", "11"]
+
+
+def test_stress_reports_each_regime_on_stderr_and_json_on_stdout_still_parses() -> None:
+    result = runner.invoke(app, [*STRESS, "--json", "-"])
+    assert result.exit_code == 0, result.output
+    assert json.loads(result.stdout)["passed"] is True
+    lines = [line for line in result.stderr.splitlines() if line.startswith("stress: ")]
+    assert lines[0].startswith("stress: regime 1/2 (k = 4) done, about ") and lines[0].endswith(" left"), lines
+    assert lines[1] == "stress: regime 2/2 (k = 9) done", lines
+    assert "stress: regime" not in result.stdout
+
+
+def test_accuracy_reports_each_run_on_stderr() -> None:
+    result = runner.invoke(app, [*STUDY, "--json", "-"])
+    assert result.exit_code == 0, result.output
+    assert len(json.loads(result.stdout)["points"]) == 2
+    lines = [line for line in result.stderr.splitlines() if line.startswith("accuracy: ")]
+    assert [re.sub(r", about .*", "", line) for line in lines] == [
+        "accuracy: run 1/3 (reference) done",
+        "accuracy: run 2/3 (RK45:python 1e-03) done",
+        "accuracy: run 3/3 (RK45:python 1e-05) done",
+    ]
+    assert "accuracy: run" not in result.stdout
+
+
+@pytest.mark.parametrize("args", [[*STRESS, "--quiet"], [*STUDY, "-q"]])
+def test_quiet_shows_no_progress(args: list[str]) -> None:
+    result = runner.invoke(app, [*args, "--json", "-"])
+    assert result.exit_code == 0, result.output
+    json.loads(result.stdout)
+    assert " done" not in result.stderr
+
+
+def test_progress_text_from_the_file_is_data(capsys: pytest.CaptureFixture[str]) -> None:
+    with Reporter("stress", "regime", terminal=False) as report:
+        report(Step(0, 2, "k\x1b[2J = 1", running="DOP853 1e-06"))  # under way: no line
+        report(Step(1, 2, "k\x1b[2J = 1\nfake: line"))
+    captured = capsys.readouterr()
+    assert captured.out == ""
+    assert captured.err.count("\n") == 1 and "\x1b" not in captured.err and "\\x1b[2J" in captured.err, captured.err
+
+
+def test_the_estimate_reads_as_a_person_would_say_it() -> None:
+    assert left(0.4) == "about 1 s left" and left(42.2) == "about 42 s left" and left(75) == "about 75 s left" and left(600) == "about 10 min left"
+
+
+def test_a_terminal_gets_a_bar_that_is_cleared() -> None:
+    with Reporter("stress", "regime", terminal=True) as report:
+        report(Step(0, 3, "[bold]k[/bold] = 1", running="reference"))
+        report(Step(1, 3, "[bold]k[/bold] = 1"))
+        assert report._bar is not None
+    assert report._bar is None
