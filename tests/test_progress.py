@@ -68,3 +68,14 @@ def test_a_terminal_gets_a_bar_that_is_cleared() -> None:
         report(Step(1, 3, "[bold]k[/bold] = 1"))
         assert report._bar is not None
     assert report._bar is None
+
+
+def test_the_estimate_weighs_units_by_their_share(monkeypatch: pytest.MonkeyPatch) -> None:
+    import time
+
+    report = Reporter("stress", "regime", terminal=False)
+    report.start = 0.0
+    monkeypatch.setattr(time, "perf_counter", lambda: 10.0)
+    assert report.eta(Step(1, 3, "defaults")) == "about 20 s left"
+    assert report.eta(Step(1, 3, "defaults", fraction=1 / 12)) == "about 2 min left"  # the long horizon is still to come
+    assert report.eta(Step(3, 3, "high energy", fraction=1.0)) == "finished"

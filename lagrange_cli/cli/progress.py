@@ -58,10 +58,12 @@ class Reporter:
             self._line(step)
 
     def eta(self, step: Step) -> str:
-        elapsed = time.perf_counter() - self.start
-        if step.done <= 0:
+        elapsed, share = time.perf_counter() - self.start, step.share
+        if step.done >= step.total:
+            return "finished"
+        if share <= 0:
             return ""
-        return left(elapsed / step.done * (step.total - step.done)) if step.done < step.total else "finished"
+        return left(elapsed / share * (1 - share))
 
     def _line(self, step: Step) -> None:
         eta = self.eta(step)

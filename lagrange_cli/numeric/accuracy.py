@@ -265,6 +265,12 @@ class Step:
     total: int
     what: str
     running: str = ""
+    fraction: float | None = None
+    """The share of the work done, where units differ in size (a long horizon weighs more); else done / total."""
+
+    @property
+    def share(self) -> float:
+        return self.fraction if self.fraction is not None else self.done / self.total if self.total else 1.0
 
 
 ProgressReport = Callable[[Step], None]

@@ -276,8 +276,8 @@ def stress(
     for k, regime in enumerate(planned):
         say = (lambda text, k=k, name=regime.name: progress(study.Step(k, len(planned), name, text))) if progress else None
         outcomes.append(_regime(model, regime, target, chosen, Setup(0.0, (), max_steps=max_steps, time_limit=time_limit), say))
-        if progress:
-            progress(study.Step(k + 1, len(planned), regime.name))
+        if progress:  # a regime's work grows with its time span (a long horizon is long_factor x the others)
+            progress(study.Step(k + 1, len(planned), regime.name, fraction=sum(r.t_end for r in planned[: k + 1]) / sum(r.t_end for r in planned)))
     return Report(model.title, target, tuple(outcomes))
 
 
