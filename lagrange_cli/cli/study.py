@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING, Annotated
 import typer
 
 from lagrange_cli.cli import app, check_outputs, fail_with, write_atomically
-from lagrange_cli.cli.boundary import check_fraction, check_positive, check_repeats, check_samples, inert, plain
+from lagrange_cli.cli.boundary import _checker, check_fraction, check_positive, check_repeats, check_samples, inert, plain
 
 if TYPE_CHECKING:
     from rich.console import Console
@@ -91,6 +91,7 @@ STUDY_STEPS, STRESS_STEPS = 200_000, 60_000  # accuracy.MAX_STEPS and stress.MAX
 STEPS_HELP = "Step budget of one run, counted (never timed) so that results do not depend on the machine's load: scipy steps; compiled runs may take 100 x as many, reference runs 10 x."
 TIME_LIMIT_HELP = "Optional safety net: seconds after which one measured run is stopped and reported as undecided (never as failed). Default: none."
 QUIET_HELP = "Show no progress on stderr."
+check_steps = _checker("a whole number from 1 to 1000000000", lambda x: 1 <= x <= 1e9)
 
 
 def _write_text(path: Path, text: str) -> None:
@@ -107,7 +108,7 @@ def accuracy(
     initial: Annotated[list[str] | None, typer.Option("--initial", help="Override initial values: q=value,q_dot=value, repeated or separated by commas.")] = None,
     samples: Annotated[int, typer.Option(help="Evenly spaced times the RMS error is taken over.", callback=check_samples)] = 201,
     repeats: Annotated[int, typer.Option(help="Timed runs after the warm-up (fewer for slow runs).", callback=check_repeats)] = 3,
-    max_steps: Annotated[int, typer.Option("--max-steps", help=STEPS_HELP, min=1, max=10**9)] = STUDY_STEPS,
+    max_steps: Annotated[int, typer.Option("--max-steps", help=STEPS_HELP, callback=check_steps)] = STUDY_STEPS,
     budget: Annotated[float | None, typer.Option(help=TIME_LIMIT_HELP, callback=check_positive)] = None,
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help=QUIET_HELP)] = False,
     csv: Annotated[Path | None, typer.Option("--csv", help="Write the table as CSV (- for stdout).")] = None,
@@ -233,7 +234,7 @@ def stress(
     t_end: Annotated[float | None, typer.Option("--t-end", help="Final time (default: the file's).", callback=check_positive)] = None,
     long: Annotated[float, typer.Option(help="The long-horizon regime runs this many times t_end.", callback=check_positive)] = 10.0,
     energy: Annotated[float, typer.Option(help="The high-energy regime multiplies the initial velocities by this.", callback=check_positive)] = 3.0,
-    max_steps: Annotated[int, typer.Option("--max-steps", help=STEPS_HELP, min=1, max=10**9)] = STRESS_STEPS,
+    max_steps: Annotated[int, typer.Option("--max-steps", help=STEPS_HELP, callback=check_steps)] = STRESS_STEPS,
     budget: Annotated[float | None, typer.Option(help=TIME_LIMIT_HELP + " A regime that no run met because of it is undecided (exit 0).", callback=check_positive)] = None,
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help=QUIET_HELP)] = False,
     json: Annotated[Path | None, typer.Option("--json", help="Write the report as JSON (- for stdout).")] = None,
