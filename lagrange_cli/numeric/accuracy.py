@@ -368,8 +368,9 @@ def measure(model: Model, candidate: Candidate, tolerance: float, setup: Setup, 
         step=s.step if s.method == "symplectic" else None,
     )
     if over_step_budget(first):
+        times = f" x {COMPILED_STEPS} for a compiled run" if first.settings.backend == "compiled" else ""
         done = (first.t_last - first.settings.t0) / (setup.t_end - first.settings.t0) if setup.t_end > first.settings.t0 else 0.0
-        return replace(base, status=OVER_BUDGET, reason=f"stopped after {first.stats.steps} steps (the step budget, --max-steps {setup.steps}) at {100 * done:.0f}% of the time span")
+        return replace(base, status=OVER_BUDGET, reason=f"stopped after {first.stats.steps} steps (the step budget, --max-steps {setup.steps}{times}) at {100 * done:.0f}% of the time span")
     if first.failed:
         return replace(base, status="failed", reason=first.message)
     final, rms, energy = errors(first, reference, scale)
