@@ -37,6 +37,7 @@ class Reporter:
         self.start = time.perf_counter()
         self._bar: Any = None
         self._task: Any = None
+        self._share = 0.0  # of the work, at the last finished unit
 
     def __enter__(self) -> Reporter:
         return self
@@ -52,13 +53,15 @@ class Reporter:
     def __call__(self, step: Step) -> None:
         if self.quiet:
             return
+        if not step.running:
+            self._share = step.share
         if self.terminal:
             self._draw(step)
         elif not step.running:
             self._line(step)
 
     def eta(self, step: Step) -> str:
-        elapsed, share = time.perf_counter() - self.start, step.share
+        elapsed, share = time.perf_counter() - self.start, self._share if step.running else step.share
         if step.done >= step.total:
             return "finished"
         if share <= 0:
@@ -72,13 +75,16 @@ class Reporter:
         sys.stderr.flush()
 
     def _draw(self, step: Step) -> None:
-        from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
+        from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
         from lagrange_cli.cli.boundary import console
 
         if self._bar is None:
-            self._bar = Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(), TimeRemainingColumn(), console=console(stderr=True), transient=True)
+            self._bar = Progress(
+                TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(), TextColumn("{task.fields[left]}"), console=console(stderr=True), transient=True
+            )
             self._bar.start()
-            self._task = self._bar.add_task("", total=step.total)
+            self._task = self._bar.add_task("", total=step.total, left="")
         what = f"{step.what}: {step.running}" if step.running and step.running != step.what else step.what
-        self._bar.update(self._task, completed=step.done, total=step.total, description=f"{self.command}: {inert(what)}")
+        eta = self.eta(step)
+        self._bar.update(self._task, completed=step.done, total=step.total, description=f"{self.command}: {inert(what)}", left=eta if eta != "finished" else "")
