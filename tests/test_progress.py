@@ -79,3 +79,30 @@ def test_the_estimate_weighs_units_by_their_share(monkeypatch: pytest.MonkeyPatc
     assert report.eta(Step(1, 3, "defaults")) == "about 20 s left"
     assert report.eta(Step(1, 3, "defaults", fraction=1 / 12)) == "about 2 min left"  # the long horizon is still to come
     assert report.eta(Step(3, 3, "high energy", fraction=1.0)) == "finished"
+
+
+def test_simulate_takes_quiet_and_prints_no_progress_off_a_terminal() -> None:
+    result = runner.invoke(app, ["simulate", "simple_pendulum", "--t-end", "1", "--backend", "python", "--quiet"])
+    assert result.exit_code == 0, result.output
+    assert "finished" in result.stdout and "simulating" not in result.stderr and "preparing" not in result.stderr
+
+
+def test_simulate_bar_says_preparing_until_the_run_reports(monkeypatch: pytest.MonkeyPatch) -> None:
+    """On a terminal the bar appears while numba compiles (before the run's first report)."""
+    import sys
+
+    from lagrange_cli.cli import numeric
+
+    monkeypatch.setattr(sys.stderr, "isatty", lambda: True)
+    monkeypatch.setattr(numeric, "PROGRESS_AFTER", 0.0)
+    with numeric._Progress() as progress:
+        assert progress.timer is not None
+        progress.timer.cancel()
+        progress.timer.function(*progress.timer.args)  # what the timer does when the second has passed: deterministic here
+        assert progress.bar is not None and progress.bar.tasks[0].description.startswith("preparing")
+        progress(0.5)
+        assert progress.bar.tasks[0].description == "simulating" and progress.bar.tasks[0].completed == 0.5
+    assert progress.bar is None
+    with numeric._Progress(quiet=True) as silent:
+        silent(0.5)
+        assert silent.timer is None and silent.bar is None
