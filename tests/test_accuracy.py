@@ -14,7 +14,7 @@ from typer.testing import CliRunner
 
 from lagrange_cli.cli import app
 from lagrange_cli.errors import LagrangeError
-from lagrange_cli.numeric import accuracy
+from lagrange_cli.numeric import accuracy, kernels
 from lagrange_cli.numeric.accuracy import Candidate
 
 from .conftest import ROOT
@@ -97,13 +97,36 @@ def test_failed_and_inapplicable_runs_stay_in_the_table() -> None:
 
 
 def test_over_budget_runs_are_stopped_and_kept() -> None:
+    """The budget counts steps: the same run stops after the same number of steps on any machine."""
     model = model_from(ROOT / "systems" / "stiff_spring_pendulum_damped.yaml")
-    setup = accuracy.Setup(10.0, (0.0, 10.0), {"k": 1e8}, {}, budget=0.05)
+    setup = accuracy.Setup(10.0, (0.0, 10.0), {"k": 1e8}, {}, max_steps=100)
     import numpy as np
 
     reference = accuracy.Reference("exact", "none", 0.0, np.zeros(2), np.zeros((2, 4)), np.zeros(2), 0.0)
     point = accuracy.measure(model, Candidate("RK45", "python"), 1e-6, setup, reference, np.ones(4), repeats=0)
-    assert point.status == "over budget" and "0.05 s" in point.reason
+    assert point.status == accuracy.OVER_BUDGET == "over step budget" and point.steps == 100, point
+    assert "stopped after 100 steps" in point.reason and "--max-steps 100" in point.reason and " s " not in point.reason
+    compiled = accuracy.measure(model, Candidate("RK45", "compiled"), 1e-6, setup, reference, np.ones(4), repeats=0)
+    assert compiled.status == "over step budget" and 100 * accuracy.COMPILED_STEPS <= compiled.steps < 100 * accuracy.COMPILED_STEPS + kernels.PAUSE_STEPS, compiled
+
+
+def test_a_time_limit_only_makes_a_run_undecided() -> None:
+    model = model_from(ROOT / "systems" / "stiff_spring_pendulum_damped.yaml")
+    setup = accuracy.Setup(10.0, (0.0, 10.0), {"k": 1e8}, {}, time_limit=1e-9)
+    import numpy as np
+
+    reference = accuracy.Reference("exact", "none", 0.0, np.zeros(2), np.zeros((2, 4)), np.zeros(2), 0.0)
+    point = accuracy.measure(model, Candidate("RK45", "python"), 1e-6, setup, reference, np.ones(4), repeats=0)
+    assert point.status == accuracy.UNDECIDED and "time limit" in point.reason and not point.ok, point
+    with pytest.raises(LagrangeError, match="max-steps"):
+        accuracy.study(model, max_steps=0)
+
+
+def test_the_cli_defaults_are_the_librarys() -> None:
+    from lagrange_cli.cli import study as command
+    from lagrange_cli.numeric import stress
+
+    assert (command.STUDY_STEPS, command.STRESS_STEPS) == (accuracy.MAX_STEPS, stress.MAX_STEPS)
 
 
 def test_bad_study_settings_raise() -> None:

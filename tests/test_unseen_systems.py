@@ -175,7 +175,7 @@ def test_a_negative_value_for_a_positive_parameter_is_refused() -> None:
     assert code == 0, output
 
 
-QUICK_STUDY = ("--method", "DOP853:python,RK45:python", "--tolerances", "1e-4,1e-6", "--repeats", "0", "--budget", "5", "--samples", "51")
+QUICK_STUDY = ("--method", "DOP853:python,RK45:python", "--tolerances", "1e-4,1e-6", "--repeats", "0", "--max-steps", "20000", "--samples", "51")
 
 
 @pytest.mark.parametrize("name", ["mems_resonator", "zero_start_springs", "incline_multiplier", "physical_pendulum_at_rest"])
@@ -201,7 +201,7 @@ def test_accuracy_of_a_system_in_si_units() -> None:
     assert len(rows) == 2 and all(line.rstrip().endswith("ok") for line in rows), output
 
 
-QUICK_STRESS = ("--method", "DOP853:python", "--method", "RK45:python", "--budget", "3", "--long", "2")
+QUICK_STRESS = ("--method", "DOP853:python", "--method", "RK45:python", "--max-steps", "20000", "--long", "2")
 
 
 @pytest.mark.parametrize(("name", "t_end"), [("rayleigh_two_masses", "5"), ("incline_multiplier", "1.5"), ("physical_pendulum_at_rest", "2")])
@@ -241,7 +241,7 @@ def test_mass_condition_does_not_depend_on_the_units() -> None:
 
 def test_a_compiled_run_returns_to_its_caller_before_the_first_percent() -> None:
     """A near-collision orbit (r = 7e4 m, nearly radial) takes millions of tiny steps: the compiled
-    loop pauses every kernels.PAUSE_STEPS steps, so a time budget can stop it early."""
+    loop pauses every kernels.PAUSE_STEPS steps, so that progress is shown and a step budget or a time limit can stop it early."""
     from lagrange_cli.numeric import simulate
 
     class Stop(Exception):

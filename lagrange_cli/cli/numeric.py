@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import sys
+import threading
 import time
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any
@@ -35,6 +36,7 @@ def simulate(
     until: Annotated[str | None, typer.Option(help='Stop when this expression of the state crosses zero, e.g. "lambda_c" or "x - 1".')] = None,
     output_path: Annotated[Path | None, typer.Option("-o", "--output", help="Write the trajectory: .csv or .npz, or - for CSV on stdout.")] = None,
     plot: Annotated[Path | None, typer.Option(help="Plot coordinates, phase portrait and energy error: .png, .svg or .pdf.")] = None,
+    quiet: Annotated[bool, typer.Option("--quiet", "-q", help="Show no progress bar on stderr.")] = False,
 ) -> None:
     """Simulate a system and report energy, momenta and constraint drift (exit 1 if the run fails)."""
     check_outputs(output_path, plot, reading=file, options=("-o", "--plot"))
@@ -52,7 +54,7 @@ def simulate(
             out.check_plot(plot)
         model = core.derive(spec.load(spec.resolve(file)))
         parameters, values = _assignments(model, set_ or [], "--set"), _assignments(model, initial or [], "--initial")
-        with _Progress() as progress:
+        with _Progress(quiet) as progress:
             trajectory = run(
                 model,
                 t_end=t_end,
@@ -145,27 +147,52 @@ def _seconds(value: float) -> str:
 
 
 class _Progress:
-    """A progress callback that shows a rich bar on stderr once a run has taken a second, on a terminal."""
+    """A progress callback that shows a rich bar on stderr once a run has taken a second, on a
+    terminal (not when `quiet`). Until the run reports, the bar says what takes the time before
+    it: loading or compiling (the first compiled run on a machine compiles numba's loops, some 10 s)."""
 
-    def __init__(self) -> None:
+    def __init__(self, quiet: bool = False) -> None:
         self.start = time.perf_counter()
         self.bar: Any = None
         self.task: Any = None
+        self.quiet = quiet
+        self.lock = threading.Lock()
+        self.timer: threading.Timer | None = None
 
     def __enter__(self) -> _Progress:
+        if not self.quiet and sys.stderr.isatty():
+            self.timer = threading.Timer(PROGRESS_AFTER, self._show, ("preparing (the first compiled run compiles numba's loops, about 10 s)",))
+            self.timer.daemon = True
+            self.timer.start()
         return self
 
     def __exit__(self, *exc: object) -> None:
-        if self.bar is not None:
-            self.bar.stop()
+        if self.timer is not None:
+            self.timer.cancel()
+        with self.lock:
+            if self.bar is not None:
+                self.bar.stop()
+                self.bar = None
+            self.quiet = True  # a timer that fires now shows nothing
+
+    def _show(self, description: str) -> None:
+        with self.lock:
+            if self.bar is None and not self.quiet:
+                from rich.progress import Progress
+
+                from lagrange_cli.cli.boundary import console
+
+                self.bar = Progress(console=console(stderr=True), transient=True)
+                self.bar.start()
+                self.task = self.bar.add_task(description, total=1.0)
 
     def __call__(self, fraction: float) -> None:
+        if self.quiet or not sys.stderr.isatty():
+            return
         if self.bar is None:
-            if time.perf_counter() - self.start < PROGRESS_AFTER or not sys.stderr.isatty():
+            if time.perf_counter() - self.start < PROGRESS_AFTER:
                 return
-            from rich.progress import Progress
-
-            self.bar = Progress(transient=True)
-            self.bar.start()
-            self.task = self.bar.add_task("simulating", total=1.0)
-        self.bar.update(self.task, completed=fraction)
+            self._show("simulating")
+        with self.lock:
+            if self.bar is not None:
+                self.bar.update(self.task, completed=fraction, description="simulating")

@@ -3,14 +3,13 @@
 from __future__ import annotations
 
 import math
-import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated
 
 import typer
 
 from lagrange_cli.cli import app, check_outputs, fail_with, write_atomically
-from lagrange_cli.cli.boundary import check_fraction, check_positive, check_repeats, check_samples, inert, plain
+from lagrange_cli.cli.boundary import _checker, check_fraction, check_positive, check_repeats, check_samples, inert, plain
 
 if TYPE_CHECKING:
     from rich.console import Console
@@ -88,16 +87,11 @@ def _number(text: str) -> float:
         return 0.0
 
 
-def _status(message: str) -> None:
-    if sys.stderr.isatty():
-        sys.stderr.write(f"\r\033[K  running {plain(message).replace(chr(10), ' ')}")
-        sys.stderr.flush()
-
-
-def _clear_status() -> None:
-    if sys.stderr.isatty():
-        sys.stderr.write("\r\033[K")
-        sys.stderr.flush()
+STUDY_STEPS, STRESS_STEPS = 200_000, 60_000  # accuracy.MAX_STEPS and stress.MAX_STEPS, here so that --help does not import numpy
+STEPS_HELP = "Step budget of one run, counted (never timed) so that results do not depend on the machine's load: scipy steps; compiled runs may take 100 x as many, reference runs 10 x."
+TIME_LIMIT_HELP = "Optional safety net: seconds after which one measured run is stopped and reported as undecided (never as failed). Default: none."
+QUIET_HELP = "Show no progress on stderr."
+check_steps = _checker("a whole number from 1 to 1000000000", lambda x: 1 <= x <= 1e9)
 
 
 def _write_text(path: Path, text: str) -> None:
@@ -114,13 +108,16 @@ def accuracy(
     initial: Annotated[list[str] | None, typer.Option("--initial", help="Override initial values: q=value,q_dot=value, repeated or separated by commas.")] = None,
     samples: Annotated[int, typer.Option(help="Evenly spaced times the RMS error is taken over.", callback=check_samples)] = 201,
     repeats: Annotated[int, typer.Option(help="Timed runs after the warm-up (fewer for slow runs).", callback=check_repeats)] = 3,
-    budget: Annotated[float, typer.Option(help="Seconds after which one run is stopped and reported as over budget.", callback=check_positive)] = 20.0,
+    max_steps: Annotated[int, typer.Option("--max-steps", help=STEPS_HELP, callback=check_steps)] = STUDY_STEPS,
+    budget: Annotated[float | None, typer.Option(help=TIME_LIMIT_HELP, callback=check_positive)] = None,
+    quiet: Annotated[bool, typer.Option("--quiet", "-q", help=QUIET_HELP)] = False,
     csv: Annotated[Path | None, typer.Option("--csv", help="Write the table as CSV (- for stdout).")] = None,
     json: Annotated[Path | None, typer.Option("--json", help="Write the study as JSON (- for stdout).")] = None,
     plot: Annotated[Path | None, typer.Option(help="Plot error against run time and against evaluations: .png, .svg or .pdf.")] = None,
 ) -> None:
     """Error against run time for every method over a ladder of tolerances, against an exact or confirmed reference."""
     check_outputs(csv, json, plot, reading=file, options=("--csv", "--json", "--plot"))
+    from lagrange_cli.cli.progress import Reporter
     from lagrange_cli.errors import LagrangeError
 
     try:
@@ -132,19 +129,20 @@ def accuracy(
             out.check_plot(plot)
         ladder = _tolerances(tolerances)  # before any work
         model = _model(file)
-        result = core.study(
-            model,
-            candidates=_candidates(method),
-            tolerances=ladder if ladder is not None else core.TOLERANCES,
-            t_end=t_end,
-            parameters=_assignments(model, set_ or [], "--set"),
-            initial=_assignments(model, initial or [], "--initial"),
-            samples=samples,
-            repeats=repeats,
-            budget=budget,
-            progress=_status,
-        )
-        _clear_status()
+        with Reporter("accuracy", "run", quiet) as reporter:
+            result = core.study(
+                model,
+                candidates=_candidates(method),
+                tolerances=ladder if ladder is not None else core.TOLERANCES,
+                t_end=t_end,
+                parameters=_assignments(model, set_ or [], "--set"),
+                initial=_assignments(model, initial or [], "--initial"),
+                samples=samples,
+                repeats=repeats,
+                max_steps=max_steps,
+                time_limit=budget,
+                progress=reporter,
+            )
         if csv is not None:
             _write_text(csv, core.csv_text(result))
         if json is not None:
@@ -152,7 +150,6 @@ def accuracy(
         if plot is not None:
             core.write_plot(result, plot)
     except LagrangeError as error:
-        _clear_status()
         fail_with(error)
     _report_study(result, to_stderr=str(csv) == "-" or str(json) == "-")
 
@@ -237,11 +234,14 @@ def stress(
     t_end: Annotated[float | None, typer.Option("--t-end", help="Final time (default: the file's).", callback=check_positive)] = None,
     long: Annotated[float, typer.Option(help="The long-horizon regime runs this many times t_end.", callback=check_positive)] = 10.0,
     energy: Annotated[float, typer.Option(help="The high-energy regime multiplies the initial velocities by this.", callback=check_positive)] = 3.0,
-    budget: Annotated[float, typer.Option(help="Seconds after which one run is stopped and reported as over budget.", callback=check_positive)] = 5.0,
+    max_steps: Annotated[int, typer.Option("--max-steps", help=STEPS_HELP, callback=check_steps)] = STRESS_STEPS,
+    budget: Annotated[float | None, typer.Option(help=TIME_LIMIT_HELP + " A regime that no run met because of it is undecided (exit 0).", callback=check_positive)] = None,
+    quiet: Annotated[bool, typer.Option("--quiet", "-q", help=QUIET_HELP)] = False,
     json: Annotated[Path | None, typer.Option("--json", help="Write the report as JSON (- for stdout).")] = None,
 ) -> None:
     """Push a system towards its hard regimes; diagnose stiffness, singular coordinates, drift and blow-ups; recommend a method."""
     check_outputs(json, reading=file, options=("--json",))
+    from lagrange_cli.cli.progress import Reporter
     from lagrange_cli.errors import LagrangeError
 
     try:
@@ -251,25 +251,25 @@ def stress(
         scales = _scales(scale or [])  # before any work
         model = _model(file)
         check_names([item for item, _ in scales], [p.name for p in model.parameters], "parameter", model.source)
-        report = core.stress(
-            model,
-            scales=[(item.name, values) for item, values in scales],
-            target=accuracy_ if accuracy_ is not None else 1e-6,
-            candidates=_candidates(method),
-            t_end=t_end,
-            long_factor=long,
-            energy_factor=energy,
-            budget=budget,
-            progress=_status,
-        )
-        _clear_status()
+        with Reporter("stress", "regime", quiet) as reporter:
+            report = core.stress(
+                model,
+                scales=[(item.name, values) for item, values in scales],
+                target=accuracy_ if accuracy_ is not None else 1e-6,
+                candidates=_candidates(method),
+                t_end=t_end,
+                long_factor=long,
+                energy_factor=energy,
+                max_steps=max_steps,
+                time_limit=budget,
+                progress=reporter,
+            )
         if json is not None:
             _write_text(json, core.json_text(report))
     except LagrangeError as error:
-        _clear_status()
         fail_with(error)
     _report_stress(report, to_stderr=str(json) == "-")
-    if accuracy_ is not None and not report.passed:
+    if accuracy_ is not None and report.failed:
         raise typer.Exit(1)
 
 
@@ -306,6 +306,8 @@ def _report_stress(report: Report, to_stderr: bool) -> None:
         best = o.recommended
         if best is not None:
             console.print(f"  recommended: [bold]{inert(best.resolved)}[/bold] at {inert(best.setting)} (error {_e(best.error)} in {_seconds(best.seconds)})")
+        elif o.undecided:
+            console.print(f"  [yellow]undecided: no method met error {tol_text(report.accuracy)}, but some run was stopped by the time limit (--budget)[/yellow]")
         else:
             console.print(f"  [red]no method meets error {tol_text(report.accuracy)} in this regime[/red]")
         summary.add_row(
@@ -317,7 +319,12 @@ def _report_stress(report: Report, to_stderr: bool) -> None:
         )
     console.print()
     console.print(summary)
-    verdict = "every regime has a method that meets it" if report.passed else "[red]some regime has no method that meets it[/red]"
+    if report.passed:
+        verdict = "every regime has a method that meets it"
+    elif report.failed:
+        verdict = "[red]some regime has no method that meets it[/red]"
+    else:
+        verdict = "[yellow]undecided: in some regime no method met it before the time limit (--budget) stopped its runs; no regime failed[/yellow]"
     console.print(f"required error {tol_text(report.accuracy)}: {verdict}")
 
 

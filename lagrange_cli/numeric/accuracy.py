@@ -26,8 +26,13 @@ that an energy near 0 still gives a relative error;
 
 Timing: the first run is the warm-up (its one-time compile/load cost is reported apart); then
 the minimum of up to `repeats` more runs (fewer when one run is slow, see `_repeats`) of the
-integration itself (`Trajectory.timing.run`). A run longer than `budget` seconds is stopped
-and kept as a failure.
+integration itself (`Trajectory.timing.run`).
+
+Budgets count steps, never seconds, so that no verdict depends on the machine's load: a measured
+run that has not reached t_end after `max_steps` steps (scipy steps; a compiled run, whose step
+costs about 1/COMPILED_STEPS as much, gets COMPILED_STEPS times as many) is stopped and kept as
+"over step budget"; reference runs get REFERENCE_STEPS times the budget. An optional time limit
+(`time_limit` seconds) is only a safety net: a measured run it stops is "undecided", never failed.
 """
 
 from __future__ import annotations
@@ -116,9 +121,20 @@ class Setup:
     times: tuple[float, ...]
     parameters: Mapping[str, float] = field(default_factory=dict)
     initial: Mapping[str, float] = field(default_factory=dict)
-    budget: float = 20.0
-    reference_budget: float = 120.0
-    """Seconds each of the two reference runs may take (at least `budget`)."""
+    max_steps: int = 0
+    """Steps a measured run may take (scipy steps; compiled runs COMPILED_STEPS times as many); 0: MAX_STEPS."""
+    reference_max_steps: int = 0
+    """Steps each reference run may take (same units); 0: REFERENCE_STEPS x max_steps."""
+    time_limit: float | None = None
+    """Seconds after which a measured run is stopped as undecided (a safety net; None: no limit)."""
+
+    @property
+    def steps(self) -> int:
+        return self.max_steps or MAX_STEPS
+
+    @property
+    def reference_steps(self) -> int:
+        return self.reference_max_steps or REFERENCE_STEPS * self.steps
 
 
 @dataclass(frozen=True)
@@ -133,7 +149,7 @@ class Point:
     """rtol of an adaptive method; for the symplectic method the rtol its step was chosen for."""
     step: float | None
     status: str
-    """"finished", "failed", "over budget" or "not applicable"."""
+    """"finished", "failed", OVER_BUDGET ("over step budget"), UNDECIDED (stopped by the time limit) or "not applicable"."""
     reason: str
     final_error: float
     rms_error: float
@@ -230,35 +246,72 @@ def fastest(points: Sequence[Point], floor: float = 0.0) -> tuple[tuple[float, P
     return tuple(result)
 
 
-class _OverBudget(Exception):
+class _TimeLimit(Exception):
     def __init__(self, fraction: float) -> None:
         super().__init__(fraction)
         self.fraction = fraction
 
 
 Progress = Callable[[float], None]
-ProgressReport = Callable[[str], None]
-"""Told what the study is running now."""
 
 
-STUDY_MAX_STEPS = 100_000_000
-"""The step budget of a study's runs: far above simulate's default, since a study's runs are
-stopped by its time `budget` (reference runs at 1e-14 over long horizons take millions of steps);
-a safety net for the repeats, which run without the time budget."""
+@dataclass(frozen=True)
+class Step:
+    """Where a long computation stands, for a progress display: `done` of `total` units (runs of a
+    study, regimes of a stress test) have finished. With `running` empty, unit `what` has just
+    finished; otherwise unit `what` is under way and `running` says what it runs now."""
+
+    done: int
+    total: int
+    what: str
+    running: str = ""
+    fraction: float | None = None
+    """The share of the work done, where units differ in size (a long horizon weighs more); else done / total."""
+
+    @property
+    def share(self) -> float:
+        return self.fraction if self.fraction is not None else self.done / self.total if self.total else 1.0
 
 
-def _budget(seconds: float) -> Progress:
+ProgressReport = Callable[[Step], None]
+"""Told how far a study or stress test has come (the library never prints)."""
+
+
+MAX_STEPS = 200_000
+"""The default step budget of one measured run of a study, in scipy steps (10-20 thousand a second
+in Python on a small system, Radau about 5 thousand: some 10-40 s per run on a quiet machine, as
+the old 20 s budget). Counted, never timed: the same run is over its budget on any machine under any load."""
+COMPILED_STEPS = 100
+"""A compiled run may take this many times the budget (a compiled step costs about 1 us)."""
+REFERENCE_STEPS = 10
+"""Reference runs (at tolerances 1000 x tighter, often over long windows) may take this many times the budget."""
+OVER_BUDGET = "over step budget"
+UNDECIDED = "undecided"
+"""A measured run stopped by the time limit: it says nothing about the method."""
+
+
+def _time_limit(seconds: float) -> Progress:
     start = time.perf_counter()
 
     def progress(fraction: float) -> None:
         if time.perf_counter() - start > seconds:
-            raise _OverBudget(fraction)
+            raise _TimeLimit(fraction)
 
     return progress
 
 
-def run(model: Model, candidate: Candidate, tolerance: float, setup: Setup, *, step: float | None = None, progress: bool = True) -> Trajectory:
-    """One simulate() call of the study (raises _OverBudget, LagrangeError)."""
+def run_steps(model: Model, candidate: Candidate, tolerance: float, setup: Setup, budget: int) -> int:
+    """The step budget of one run of `candidate`: `budget` scipy steps, COMPILED_STEPS x that compiled."""
+    backend = backend_for(candidate)
+    if backend == "auto":
+        backend = resolve(model, method=candidate.method, rtol=tolerance, atol=tolerance * ATOL_RATIO, t_end=setup.t_end, parameters=setup.parameters, initial=setup.initial).backend
+    return budget * COMPILED_STEPS if backend == "compiled" else budget
+
+
+def run(model: Model, candidate: Candidate, tolerance: float, setup: Setup, *, step: float | None = None, timed: bool = True, reference: bool = False) -> Trajectory:
+    """One simulate() call of the study, within its step budget (the reference's when `reference`)
+    and, when `timed` and the setup has one, its time limit (raises _TimeLimit, LagrangeError)."""
+    limit = setup.time_limit if timed and not reference else None
     return simulate(
         model,
         t_end=setup.t_end,
@@ -270,9 +323,14 @@ def run(model: Model, candidate: Candidate, tolerance: float, setup: Setup, *, s
         parameters=setup.parameters,
         initial=setup.initial,
         backend=backend_for(candidate),
-        progress=_budget(setup.budget) if progress else None,
-        max_steps=STUDY_MAX_STEPS,
+        progress=_time_limit(limit) if limit is not None else None,
+        max_steps=run_steps(model, candidate, tolerance, setup, setup.reference_steps if reference else setup.steps),
     )
+
+
+def over_step_budget(trajectory: Trajectory) -> bool:
+    """Whether a run was stopped by its step budget (simulate's BUDGET status)."""
+    return trajectory.failed and "(the step budget)" in trajectory.message
 
 
 def _repeats(first: float, repeats: int) -> int:
@@ -291,8 +349,8 @@ def measure(model: Model, candidate: Candidate, tolerance: float, setup: Setup, 
     empty = Point(candidate.label, candidate.label, tolerance, step, "", "", math.nan, math.nan, math.nan, None, math.nan, 0, 0.0, 0, 0, 0)
     try:
         first = run(model, candidate, tolerance, setup, step=step)
-    except _OverBudget as over:
-        return replace(empty, status="over budget", reason=f"stopped after {setup.budget:g} s at {100 * over.fraction:.0f}% of the time span")
+    except _TimeLimit as over:
+        return replace(empty, status=UNDECIDED, reason=f"stopped by the time limit ({setup.time_limit:g} s, --budget) at {100 * over.fraction:.0f}% of the time span")
     except LagrangeError as error:
         return replace(empty, status="not applicable", reason=str(error))
     s = first.settings
@@ -309,6 +367,10 @@ def measure(model: Model, candidate: Candidate, tolerance: float, setup: Setup, 
         runs=1,
         step=s.step if s.method == "symplectic" else None,
     )
+    if over_step_budget(first):
+        times = f" x {COMPILED_STEPS} for a compiled run" if first.settings.backend == "compiled" else ""
+        done = (first.t_last - first.settings.t0) / (setup.t_end - first.settings.t0) if setup.t_end > first.settings.t0 else 0.0
+        return replace(base, status=OVER_BUDGET, reason=f"stopped after {first.stats.steps} steps (the step budget, --max-steps {setup.steps}{times}) at {100 * done:.0f}% of the time span")
     if first.failed:
         return replace(base, status="failed", reason=first.message)
     final, rms, energy = errors(first, reference, scale)
@@ -317,7 +379,7 @@ def measure(model: Model, candidate: Candidate, tolerance: float, setup: Setup, 
     seconds = [first.timing.run]
     if repeats > 0:
         for _ in range(_repeats(first.timing.run, repeats)):
-            seconds.append(run(model, candidate, tolerance, setup, step=step, progress=False).timing.run)
+            seconds.append(run(model, candidate, tolerance, setup, step=step, timed=False).timing.run)
         seconds = seconds[1:]
     return replace(
         base, status="finished", final_error=final, rms_error=rms, energy_error=energy, constraint_drift=max(drifts) if drifts else None, seconds=min(seconds), runs=len(seconds), drifts=conserved
@@ -399,26 +461,22 @@ def reference_candidates(model: Model, setup: Setup, tolerance: float) -> tuple[
 def computed_reference(model: Model, setup: Setup, tolerance: float) -> Reference:
     """The primary reference run confirmed by the second; raises LagrangeError if the primary fails."""
     primary, second = reference_candidates(model, setup, tolerance)
-    long = replace(setup, budget=max(setup.budget, setup.reference_budget))
     began = time.perf_counter()
-    try:
-        main = run(model, primary, tolerance, long)
-    except _OverBudget:
+    main = run(model, primary, tolerance, setup, reference=True)
+    if over_step_budget(main):
         raise LagrangeError(
-            f"{model.source}: the reference run ({primary.method}, rtol {tol_text(tolerance)}) took more than {long.budget:g} s; give a shorter --t-end or looser --tolerances"
-        ) from None
+            f"{model.source}: the reference run ({primary.method}, rtol {tol_text(tolerance)}) did not reach t = {setup.t_end:g} within {main.stats.steps} steps"
+            f" (the step budget of reference runs, {REFERENCE_STEPS} x --max-steps); give a shorter --t-end, looser --tolerances or a larger --max-steps"
+        )
     if main.failed:
         raise LagrangeError(f"{model.source}: the reference run ({primary.method}, rtol {tol_text(tolerance)}) failed: {main.message}")
     seconds = time.perf_counter() - began
     scale = component_scale(main.y)
     own, confirm = math.nan, f"unconfirmed: {second.method} at the same tolerance did not finish"
-    try:
-        other = run(model, second, tolerance, long)
-        if not other.failed and len(other.t) == len(main.t):
-            own = float(np.max(scaled_errors(other.y, main.y, scale)))
-            confirm = f"confirmed by {other.settings.method} ({other.settings.backend})"
-    except _OverBudget:
-        pass
+    other = run(model, second, tolerance, setup, reference=True)
+    if not other.failed and len(other.t) == len(main.t):
+        own = float(np.max(scaled_errors(other.y, main.y, scale)))
+        confirm = f"confirmed by {other.settings.method} ({other.settings.backend})"
     description = f"{main.settings.method} ({main.settings.backend}) at rtol {tol_text(tolerance)}, atol {tol_text(tolerance * ATOL_RATIO)}, {confirm}"
     return Reference("computed", description, own, main.t, main.y, main.energy, seconds)
 
@@ -427,19 +485,15 @@ def horizon(model: Model, setup: Setup, tolerance: float) -> Horizon | None:
     """Two primary reference runs started delta = tolerance apart (every component moved by
     delta times its size): whether they part exponentially, and when."""
     primary, _ = reference_candidates(model, setup, tolerance)
-    long = replace(setup, budget=max(setup.budget, setup.reference_budget))
-    try:
-        base = run(model, primary, tolerance, long)
-        if base.failed:
-            return None
-        s = base.settings
-        names = [*model.coordinates, *(f"{c}_dot" for c in model.coordinates)]
-        moved = {n: v + tolerance * max(1.0, abs(v)) for n, v in zip(names, s.y0, strict=True)}
-        if model.constraints:
-            return None  # moving the state would violate the constraints
-        other = run(model, primary, tolerance, replace(long, initial=moved))
-    except _OverBudget:
+    base = run(model, primary, tolerance, setup, reference=True)
+    if base.failed:
         return None
+    s = base.settings
+    names = [*model.coordinates, *(f"{c}_dot" for c in model.coordinates)]
+    moved = {n: v + tolerance * max(1.0, abs(v)) for n, v in zip(names, s.y0, strict=True)}
+    if model.constraints:
+        return None  # moving the state would violate the constraints
+    other = run(model, primary, tolerance, replace(setup, initial=moved), reference=True)
     if other.failed or len(other.t) != len(base.t):
         return None
     separation = np.maximum.accumulate(scaled_errors(other.y, base.y, component_scale(base.y)))
@@ -466,10 +520,13 @@ def study(
     initial: Mapping[str, float] | None = None,
     samples: int = SAMPLES,
     repeats: int = 3,
-    budget: float = 20.0,
+    max_steps: int = MAX_STEPS,
+    time_limit: float | None = None,
     progress: ProgressReport | None = None,
 ) -> Study:
-    """Every candidate at every tolerance against one reference; see the module docstring."""
+    """Every candidate at every tolerance against one reference; see the module docstring.
+    `max_steps`: the step budget of a measured run; `time_limit`: seconds after which a measured
+    run is stopped as undecided (None: none); `progress` is told as each run finishes."""
     if not tolerances:
         raise LagrangeError("give at least one tolerance")
     if any(not (math.isfinite(t) and 0 < t < 1) for t in tolerances):
@@ -483,20 +540,37 @@ def study(
     chosen = tuple(candidates) if candidates else default_candidates(model)
     settings = resolve(model, method="DOP853", backend="python", t_end=t_end, parameters=parameters, initial=initial)
     full = settings.t_end
-    setup = Setup(full, tuple(np.linspace(0.0, full, samples).tolist()), dict(parameters or {}), dict(initial or {}), budget)
+    check_steps(max_steps)
+    if time_limit is not None and not (math.isfinite(time_limit) and time_limit > 0):
+        raise LagrangeError(f"the time limit must be a positive number of seconds, got {time_limit:g}")
+    setup = Setup(full, tuple(np.linspace(0.0, full, samples).tolist()), dict(parameters or {}), dict(initial or {}), max_steps, time_limit=time_limit)
     ref_tol = max(min(tolerances) * REFERENCE_FACTOR, TIGHTEST)
-    setup, reference, found, notes = prepare(model, setup, ref_tol, progress, window=HORIZON_THRESHOLD * ref_tol / min(tolerances))
+    total = 1 + len(chosen) * len(tolerances)
+    say = (lambda text: progress(Step(0, total, "reference", text))) if progress else None
+    setup, reference, found, notes = prepare(model, setup, ref_tol, say, window=HORIZON_THRESHOLD * ref_tol / min(tolerances))
+    if progress:
+        progress(Step(1, total, "reference"))
     scale = component_scale(reference.y)
-    points = []
+    points: list[Point] = []
     for candidate in chosen:
         for tolerance in tolerances:
+            what = f"{candidate.label} {tol_text(tolerance)}"
             if progress:
-                progress(f"{candidate.label} {tol_text(tolerance)}")
+                progress(Step(len(points) + 1, total, what, what))
             points.append(measure(model, candidate, tolerance, setup, reference, scale, repeats))
+            if progress:
+                progress(Step(len(points) + 1, total, what))
     return Study(model.title, model.source, setup.t_end, full, reference, found, tuple(points), notes)
 
 
-def prepare(model: Model, setup: Setup, ref_tol: float, progress: ProgressReport | None = None, window: float = HORIZON_THRESHOLD) -> tuple[Setup, Reference, Horizon | None, tuple[str, ...]]:
+def check_steps(max_steps: object) -> int:
+    """A step budget: a whole number of at least 1 (LagrangeError otherwise)."""
+    if isinstance(max_steps, bool) or not isinstance(max_steps, int) or max_steps < 1:
+        raise LagrangeError(f"the step budget (--max-steps) must be a whole number of at least 1, got {max_steps!r}")
+    return max_steps
+
+
+def prepare(model: Model, setup: Setup, ref_tol: float, progress: Callable[[str], None] | None = None, window: float = HORIZON_THRESHOLD) -> tuple[Setup, Reference, Horizon | None, tuple[str, ...]]:
     """The reference (exact, or computed at `ref_tol` and confirmed), and the window: when nearby
     trajectories part exponentially, cut to where runs started `ref_tol` apart are `window` apart
     (at most HORIZON_THRESHOLD): the predictability horizon of the runs to be measured."""

@@ -3,6 +3,12 @@
     report = stress(model, scales=[("k", [1e2, 1e4, 1e6, 1e8])], accuracy=1e-6)
     report.outcomes        # per regime: every method's cheapest run meeting the accuracy, a diagnosis, a recommendation
     report.passed          # False when in some regime no method meets the accuracy
+    report.failed          # ... and that regime is decided (no run of it was stopped by a time limit)
+
+Budgets count steps (`max_steps` per run, see `accuracy`), never seconds, so that the verdict is
+the same on any machine under any load. An optional `time_limit` (seconds per measured run) is a
+safety net only: a regime where no method met the accuracy and some run was stopped by it is
+"undecided", never failed.
 
 Regimes: a parameter sweep (`k=1e2..1e8`), or else the file's own setup, a long horizon
 (t_end x `long_factor`), a high energy (velocities x `energy_factor`; a start at rest gets the
@@ -95,6 +101,15 @@ class Outcome:
     def met(self) -> bool:
         return self.recommended is not None
 
+    @property
+    def undecided(self) -> bool:
+        """No method met the accuracy, but some run was stopped by the time limit (it might have)."""
+        return not self.met and any(p.status == study.UNDECIDED for p in self.points)
+
+    @property
+    def verdict(self) -> str:
+        return "met" if self.met else "undecided" if self.undecided else "not met"
+
 
 @dataclass(frozen=True)
 class Report:
@@ -105,6 +120,15 @@ class Report:
     @property
     def passed(self) -> bool:
         return all(o.met for o in self.outcomes)
+
+    @property
+    def failed(self) -> bool:
+        """Some regime is decided and no method meets the accuracy there (what exits 1)."""
+        return any(not o.met and not o.undecided for o in self.outcomes)
+
+    @property
+    def verdict(self) -> str:
+        return "passed" if self.passed else "failed" if self.failed else "undecided"
 
 
 def parse_scale(text: str) -> tuple[str, tuple[float, ...]]:
@@ -199,9 +223,9 @@ def default_candidates(model: Model) -> tuple[Candidate, ...]:
     return (NAIVE, *study.default_candidates(model), Candidate("auto"))
 
 
-REFERENCE_BUDGET = 6.0
-"""A regime's reference runs may take this many times the per-run budget (30 s by default): a
-reference that needs longer leaves no method a chance within the budget anyway."""
+MAX_STEPS = 60_000
+"""The default step budget of one run (scipy steps, about 4 s of RK45 or BDF in Python on a quiet
+machine, as the old 5 s budget; compiled runs 100 x as many, reference runs 10 x)."""
 REFERENCE_FACTOR = 1e-8
 """The reference runs at this times the accuracy asked for (at least TIGHTEST)."""
 WINDOW_FACTOR = 1e-3
@@ -232,24 +256,36 @@ def stress(
     t_end: float | None = None,
     long_factor: float = 10.0,
     energy_factor: float = 3.0,
-    budget: float = 5.0,
-    progress: Callable[[str], None] | None = None,
+    max_steps: int = MAX_STEPS,
+    time_limit: float | None = None,
+    progress: study.ProgressReport | None = None,
 ) -> Report:
-    """Every regime; see the module docstring."""
+    """Every regime; see the module docstring. `progress` is told as each regime finishes, and
+    which run a regime is on."""
     if not (0 < target < 1e-1):
         raise LagrangeError(f"--accuracy must lie between 0 and 0.1, got {target:g}")
     if target < 1e3 * study.TIGHTEST:
         raise LagrangeError(f"--accuracy {target:g} leaves no room for a reference 1000 times tighter; give at least {1e3 * study.TIGHTEST:.1e}")
     model = model.with_definitions()  # the mass matrix and constraint rows are evaluated here too
+    study.check_steps(max_steps)
+    if time_limit is not None and not (math.isfinite(time_limit) and time_limit > 0):
+        raise LagrangeError(f"the time limit must be a positive number of seconds, got {time_limit:g}")
     chosen = tuple(candidates) if candidates else default_candidates(model)
-    outcomes = [_regime(model, regime, target, chosen, budget, progress) for regime in regimes(model, scales, long_factor, energy_factor, t_end)]
+    planned = regimes(model, scales, long_factor, energy_factor, t_end)
+    outcomes = []
+    for k, regime in enumerate(planned):
+        say = (lambda text, k=k, name=regime.name: progress(study.Step(k, len(planned), name, text))) if progress else None
+        outcomes.append(_regime(model, regime, target, chosen, Setup(0.0, (), max_steps=max_steps, time_limit=time_limit), say))
+        if progress:  # a regime's work grows with its time span (a long horizon is long_factor x the others)
+            progress(study.Step(k + 1, len(planned), regime.name, fraction=sum(r.t_end for r in planned[: k + 1]) / sum(r.t_end for r in planned)))
     return Report(model.title, target, tuple(outcomes))
 
 
-def _regime(model: Model, regime: Regime, target: float, candidates: Sequence[Candidate], budget: float, progress: Callable[[str], None] | None) -> Outcome:
-    setup = Setup(regime.t_end, tuple(np.linspace(0.0, regime.t_end, SAMPLES).tolist()), dict(regime.parameters), dict(regime.initial), budget, REFERENCE_BUDGET * budget)
+def _regime(model: Model, regime: Regime, target: float, candidates: Sequence[Candidate], budget: Setup, say: Callable[[str], None] | None) -> Outcome:
+    """One regime; `budget` carries the step budget and time limit."""
+    times = tuple(np.linspace(0.0, regime.t_end, SAMPLES).tolist())
+    setup = Setup(regime.t_end, times, dict(regime.parameters), dict(regime.initial), budget.max_steps, time_limit=budget.time_limit)
     ref_tol = reference_tolerance(target)
-    say = (lambda text: progress(f"{regime.name}: {text}")) if progress else None
     try:
         setup, reference, horizon, _ = study.prepare(model, setup, ref_tol, say, window=WINDOW_FACTOR * target)
     except LagrangeError as error:
@@ -346,7 +382,7 @@ def diagnose(model: Model, setup: Setup, reference: Reference, points: Sequence[
     for point in points:
         if point.status == "failed" and ("infinite or NaN" in point.reason or "singular" in point.reason):
             findings.append(f"{point.method} ({point.setting}) failed: {point.reason.split(': ', 1)[-1]}")
-        elif point.status == "over budget":
+        elif point.status in (study.OVER_BUDGET, study.UNDECIDED):
             findings.append(f"{point.method} ({point.setting}) {point.reason}")
         for name, drift in point.drifts:
             if point.ok and drift > 10 * target and point.method == NAIVE.label:
@@ -381,9 +417,11 @@ def json_text(report: Report) -> str:
         "system": report.title,
         "accuracy": report.accuracy,
         "passed": report.passed,
+        "verdict": report.verdict,
         "regimes": [
             {
                 "regime": o.regime.name,
+                "verdict": o.verdict,
                 "t_end": o.t_end,
                 "reference": o.reference,
                 "reference_error": number(o.reference_error),
