@@ -67,8 +67,8 @@ def _hamiltonian(model: Model, p: tuple[sp.Symbol, ...]) -> tuple[sp.Expr | None
     """H(q, p) = 1/2 (p - b)^T M^-1 (p - b) - L0 for L = 1/2 q_dot^T M q_dot + b . q_dot + L0."""
     if any(model.mass_matrix.has(v) for v in model.qd):
         return None, "the Lagrangian is not quadratic in the velocities"
-    if model.n > HAMILTONIAN_MAX_N:
-        return None, f"not written for more than {HAMILTONIAN_MAX_N} coordinates (M^-1 grows too large)"
+    if model.n > HAMILTONIAN_MAX_N and not sp.Matrix(model.mass_matrix).is_diagonal():
+        return None, f"not written for more than {HAMILTONIAN_MAX_N} coordinates with a mass matrix that is not diagonal (M^-1 grows too large)"
     zero = {v: 0 for v in model.qd}
     b = sp.Matrix([sp.diff(model.lagrangian, v).xreplace(zero) for v in model.qd])
     l0 = model.lagrangian.xreplace(zero)
@@ -509,7 +509,7 @@ def _symbolic_equilibria(model: Model, equations: list[sp.Expr], multipliers: li
     nonzero = [e for e in equations if e != 0]
     if any(not any(e.has(q) for q in model.q) and not any(e.has(m) for m in multipliers) for e in nonzero):
         return []  # a generalized force that no configuration can cancel (e.g. a slope)
-    if len(unknowns) > SOLVE_MAX_UNKNOWNS or sum(sp.count_ops(e) for e in nonzero) > SOLVE_MAX_OPS or _undefined(nonzero) or any(e.has(sp.Derivative, sp.Subs) for e in nonzero):
+    if len(unknowns) > SOLVE_MAX_UNKNOWNS or sum(sp.count_ops(e) for e in nonzero) > SOLVE_MAX_OPS or not all(_solvable(e, unknowns) for e in nonzero):
         return None
     try:
         solutions = sp.solve(nonzero, unknowns, dict=True)
@@ -526,6 +526,43 @@ def _symbolic_equilibria(model: Model, equations: list[sp.Expr], multipliers: li
         point = {**{q: sp.Symbol(f"{q}_0") for q in free}, **{q: simplified(s.get(q, sp.Symbol(f"{q}_0"))) for q in model.q if q in unknowns}}
         points.append({q: point[q] for q in model.q})
     return points
+
+
+SOLVE_MAX_POWER = 4
+"""Highest power of an unknown, and highest multiple of an angle, handed to `sympy.solve`."""
+SOLVE_MAX_GENERATORS = 4
+"""Most distinct unknowns' terms (q, sin(q), cos(q), ...) in one system handed to `sympy.solve`."""
+
+
+def _solvable(expr: sp.Expr, unknowns: list[sp.Symbol]) -> bool:
+    """True when `expr` is a small polynomial in the unknowns and in sin, cos or tan of small
+    integer multiples of them: the shapes sympy.solve answers promptly. Anything else (exp, log,
+    Abs, a function, cos(29 x), a high power) goes to the numeric search: a decision on the
+    expression's shape and size, never on time."""
+    generators: set[sp.Expr] = set()
+
+    def walk(e: sp.Basic) -> bool:
+        if not any(e.has(u) for u in unknowns):
+            return True
+        if e.is_Symbol:
+            generators.add(e)
+            return True
+        if isinstance(e, (sp.Add, sp.Mul)):
+            return all(walk(a) for a in e.args)
+        if isinstance(e, sp.Pow):
+            exponent = e.exp
+            return bool(exponent.is_Integer and abs(int(exponent)) <= SOLVE_MAX_POWER) and walk(e.base)
+        if isinstance(e, (sp.sin, sp.cos, sp.tan)):
+            argument = sp.expand(e.args[0])
+            coefficients = [argument.coeff(u) for u in unknowns]
+            rest = argument - sum((c * u for c, u in zip(coefficients, unknowns, strict=True)), sp.Integer(0))
+            if any(rest.has(u) for u in unknowns) or not all(c.is_Integer and abs(int(c)) <= SOLVE_MAX_POWER for c in coefficients):
+                return False
+            generators.add(e)
+            return True
+        return False
+
+    return walk(expr) and len(generators) <= 2 * SOLVE_MAX_GENERATORS
 
 
 def _consistent(solution: Mapping[sp.Symbol, sp.Expr], equations: list[sp.Expr], unknowns: list[sp.Symbol], model: Model) -> bool:
