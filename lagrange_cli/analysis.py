@@ -73,7 +73,8 @@ def _hamiltonian(model: Model, p: tuple[sp.Symbol, ...]) -> tuple[sp.Expr | None
     b = sp.Matrix([sp.diff(model.lagrangian, v).xreplace(zero) for v in model.qd])
     l0 = model.lagrangian.xreplace(zero)
     mass = sp.Matrix(model.mass_matrix)
-    det = sp.factor_terms(sp.trigsimp(mass.det()))
+    det = mass.det()
+    det = sp.factor_terms(sp.trigsimp(det) if sp.count_ops(det) <= SIMPLIFY_MAX_OPS else det)
     if det == 0:
         return None, "the mass matrix is singular (the Legendre transform does not exist)"
     shifted = sp.Matrix(p) - b
@@ -140,6 +141,14 @@ def simplified(expr: sp.Expr) -> sp.Expr:
     if sp.count_ops(expr) > SIMPLIFY_MAX_OPS or not expandable(expr):
         return sp.factor_terms(expr)
     return sp.simplify(expr)
+
+
+def factored(expr: sp.Expr) -> sp.Expr:
+    """`sympy.factor` within the same size bound as `simplified`, else `factor_terms`."""
+    expr = sp.sympify(expr)
+    if sp.count_ops(expr) > SIMPLIFY_MAX_OPS or not expandable(expr):
+        return sp.factor_terms(expr)
+    return sp.factor(expr)
 
 
 def at(expr: sp.Expr, values: Mapping[sp.Symbol, sp.Expr]) -> sp.Expr:
@@ -379,7 +388,10 @@ def stability_condition(stiffness: sp.Matrix, damping: sp.Matrix, model: Model) 
         return ()
     conditions = []
     for k in range(1, stiffness.rows + 1):
-        minor = sp.factor(stiffness[:k, :k].det())
+        minor = stiffness[:k, :k].det()
+        if sp.count_ops(minor) > SIMPLIFY_MAX_OPS:
+            return ()  # too large to discuss symbolically: the numeric stability stands alone
+        minor = factored(minor)
         condition = _positive(minor, model)
         if condition is sp.false:
             return (sp.false,)
@@ -391,7 +403,7 @@ def stability_condition(stiffness: sp.Matrix, damping: sp.Matrix, model: Model) 
 def _positive(expr: sp.Expr, model: Model) -> sp.Basic:
     """`expr > 0` with factors known to be positive divided out, written as `a < b`."""
     positive = {p.symbol for p in model.parameters if not p.real}
-    factors = sp.Mul.make_args(sp.factor(expr))
+    factors = sp.Mul.make_args(factored(expr))
     sign = 1
     kept = []
     for f in factors:
@@ -488,7 +500,7 @@ def equilibria(model: Model, ranges: Mapping[sp.Symbol, tuple[float, float]] | N
     _check_constraints_allow_rest(model)
     model = model.with_definitions()
     rest = {v: 0 for v in model.qd}
-    equations = [sp.factor(f.xreplace(rest)) for f in model.forcing]
+    equations = [factored(f.xreplace(rest)) for f in model.forcing]
     multipliers = list(model.multipliers)
     if multipliers:
         equations = [e + sum((c.jacobian[i].xreplace(rest) * c.multiplier for c in model.constraints), sp.Integer(0)) for i, e in enumerate(equations)]
@@ -686,10 +698,10 @@ def steady_motions(model: Model, seconds: float | None = None) -> list[tuple[sp.
     for i in range(model.n):
         if i in cyclic:
             continue
-        equation = sp.factor(model.forcing[i].xreplace(rest))
+        equation = factored(model.forcing[i].xreplace(rest))
         if not equation.has(target):
             continue
-        if sp.count_ops(equation) > SOLVE_MAX_OPS:
+        if sp.count_ops(equation) > SOLVE_MAX_OPS or not _solvable(equation, [target]):
             continue
         try:
             solutions = sp.solve(equation, target)

@@ -218,3 +218,29 @@ def test_solve_and_simplify_are_bounded_by_size_not_time(monkeypatch: pytest.Mon
     assert sum(sp.count_ops(f) for f in model.forcing) > analysis.SOLVE_MAX_OPS
     found = analysis.equilibria(model, {model.q[0]: (-1.0, 1.0)})
     assert found and all(abs(float(model.forcing[0].subs({model.q[0]: p[model.q[0]], model.qd[0]: 0}))) < 1e-8 for p in found)
+
+
+def test_holonomic_and_velocity_constraints_together(tmp_path: Path) -> None:
+    """A knife edge with a redundant coordinate s held to phi by a kept holonomic constraint
+    linearizes like the knife edge itself: the coordinates reduce to x, y and one of s, phi."""
+    model = write(
+        tmp_path,
+        "mixed",
+        """title: Knife edge with a copy of its angle
+coordinates: [x, y, phi, s]
+parameters: {m: 1.0, I: 0.1, J: 0.05, k: 2.0}
+bodies:
+  blade: {mass: m, position: [x, y], inertia: I, angular_velocity: phi_dot}
+kinetic: J*s_dot**2/2
+potential: k*s**2/2
+constraints:
+  copy: s = phi
+  knife: x_dot*sin(phi) = y_dot*cos(phi)
+""",
+    )
+    lin = analysis.linearize(model, point(model))
+    assert len(lin.coordinates) == 3 and len(lin.velocities) == 2 and len(lin.eigenvalues) == 5
+    # the angle oscillates with k / (I + J), the rest is the knife edge's zero modes
+    frequencies = sorted(abs(e.imag) for e in lin.eigenvalues)
+    assert frequencies[-1] == pytest.approx(math.sqrt(2.0 / 0.15), rel=1e-10)
+    assert sum(1 for e in lin.eigenvalues if abs(e) < 1e-9) == 3
