@@ -244,3 +244,10 @@ constraints:
     frequencies = sorted(abs(e.imag) for e in lin.eigenvalues)
     assert frequencies[-1] == pytest.approx(math.sqrt(2.0 / 0.15), rel=1e-10)
     assert sum(1 for e in lin.eigenvalues if abs(e) < 1e-9) == 3
+
+
+def test_a_manifold_of_equilibria_is_named() -> None:
+    result = runner.invoke(app, ["equilibria", "rolling_coin"])
+    assert result.exit_code == 0 and "(a manifold of equilibria: phi_0, theta_0, x_0, y_0 may take any value)" in result.stdout
+    data = json.loads(runner.invoke(app, ["equilibria", "rolling_coin", "--json"]).stdout)
+    assert sorted(data["equilibria"][0]["free"]) == ["phi", "theta", "x", "y"]
