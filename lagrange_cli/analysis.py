@@ -626,7 +626,7 @@ def _numeric_equilibria(model: Model, equations: list[sp.Expr], ranges: Mapping[
         start = np.array([rng.uniform(a, b) for a, b in bounds])
         try:
             with np.errstate(all="ignore"):
-                result = root(residual, start, method="lm" if constrained else "hybr")
+                result = root(residual, start, method="lm", options={"xtol": 1e-15, "ftol": 1e-15}) if constrained else root(residual, start, method="hybr")
                 if constrained and result.success:
                     result.success = bool(np.max(np.abs(residual(result.x))) < 1e-9)
         except _Unevaluable as bad:  # a start (or the search from it) where the forces cannot be evaluated

@@ -114,6 +114,11 @@ constraints:
     )
     lin = analysis.linearize(model, point(model, y1="-l", y2="-2*l"))
     assert sorted(lin.coordinates) == ["x1", "x2"]
+    # six unknowns (four coordinates, two multipliers): beyond sympy's bound, found numerically
+    found = analysis.equilibria(model, {q: (-2.5, 2.5) for q in model.q})
+    heights = sorted((round(float(p[model.q[1]]), 6), round(float(p[model.q[3]]), 6)) for p in found)
+    assert heights == [(-1.0, -2.0), (-1.0, 0.0), (1.0, 0.0), (1.0, 2.0)]
+    assert all(abs(float(p[model.q[0]])) < 1e-7 and abs(float(p[model.q[2]])) < 1e-7 for p in found)
     angles = analysis.linearize(system("double_pendulum"), point(system("double_pendulum")))
     assert len(lin.frequencies) == 2
     assert max(abs(a - b) for a, b in zip(lin.frequencies, angles.frequencies, strict=True)) < 1e-10
