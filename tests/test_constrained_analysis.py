@@ -256,3 +256,23 @@ def test_a_manifold_of_equilibria_is_named() -> None:
     assert result.exit_code == 0 and "(a manifold of equilibria: phi_0, theta_0, x_0, y_0 may take any value)" in result.stdout
     data = json.loads(runner.invoke(app, ["equilibria", "rolling_coin", "--json"]).stdout)
     assert sorted(data["equilibria"][0]["free"]) == ["phi", "theta", "x", "y"]
+
+
+def test_a_velocity_constraint_that_forbids_rest_is_refused(tmp_path: Path) -> None:
+    """x_dot = v (v a nonzero constant) cannot hold at rest: no equilibria, said so (exit 2)."""
+    write(
+        tmp_path,
+        "conveyor",
+        """title: Block carried at a steady speed
+coordinates: [x, y]
+parameters: {m: 1.0, v: 2.0, k: 1.0}
+particles:
+  block: {mass: m, position: [x, y]}
+potential: k*y**2/2
+constraints:
+  belt: x_dot = v
+""",
+    )
+    for command in ("equilibria", "linearize"):
+        result = runner.invoke(app, [command, str(tmp_path / "conveyor.yaml")])
+        assert result.exit_code == 2 and "the velocity constraint 'belt' does not allow rest" in result.stderr, result.output
