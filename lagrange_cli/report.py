@@ -29,6 +29,8 @@ def info_text(model: Model, info: Info) -> str:
     lines.append(f"energy function h = sum p q_dot - L = {info.energy}")
     lines.append(f"h is conserved: {_yes(info.energy_conserved)}")
     lines.append(f"Hamiltonian H(q, p) = {tidy(info.hamiltonian)}" if info.hamiltonian is not None else f"Hamiltonian: {info.hamiltonian_note}")
+    if info.hamiltonian is not None and info.hamiltonian_note:
+        lines.append(f"  note: {info.hamiltonian_note}")
     return "\n".join(map(printable, lines)) + "\n"
 
 
@@ -43,7 +45,8 @@ def info_latex(model: Model, info: Info) -> str:
         rows.append(Row("H", layout.pieces(tidy(info.hamiltonian), doprint, space)))
     momenta = dict(zip(model.coordinates, info.momentum_symbols, strict=True))
     conserved = ", ".join(f"${doprint(momenta[c])}$" for c in info.ignorable) or "none"
-    return comment(f"{model.title}: momenta and conserved quantities") + align(rows) + comment(f"conserved momenta: {conserved}; h conserved: {_yes(info.energy_conserved)}")
+    note = comment(info.hamiltonian_note) if info.hamiltonian is not None and info.hamiltonian_note else ""
+    return comment(f"{model.title}: momenta and conserved quantities") + align(rows) + comment(f"conserved momenta: {conserved}; h conserved: {_yes(info.energy_conserved)}") + note
 
 
 def info_json(model: Model, info: Info) -> str:
@@ -66,12 +69,37 @@ def info_json(model: Model, info: Info) -> str:
 
 def linearization_text(model: Model, lin: Linearization) -> str:
     point = ", ".join(f"{q} = {v}" for q, v in lin.point.items())
-    lines = [f"about {point} (velocities zero): M0 x_ddot + C0 x_dot + K0 x = 0", f"  x = [{', '.join(str(q - lin.point.get(q, 0)) for q in model.q)}]"]
-    for name, matrix in (("M0", lin.mass), ("C0", lin.damping), ("K0", lin.stiffness)):
-        if name == "C0" and matrix.is_zero_matrix:
-            continue
-        lines.append(f"  {name} = {matrix.tolist()}")
+    names = lin.coordinates or model.coordinates
+    symbols = {str(q): q for q in model.q}
+    lines = []
+    if lin.velocities:
+        lines.append(f"about {point} (velocities zero), with velocity constraints: z_dot = S z")
+    else:
+        lines.append(f"about {point} (velocities zero): M0 x_ddot + C0 x_dot + K0 x = 0")
+    if lin.multipliers:
+        lines.append("  constraint forces (multipliers) at rest: " + ", ".join(f"{m} = {v}" for m, v in lin.multipliers.items()))
+    if lin.velocities:
+        lines.append(f"  z = [{', '.join([*(f'd{c}' for c in names), *(f'd{v}' for v in lin.velocities)])}]: the coordinates' perturbations and the independent velocities {', '.join(lin.velocities)}")
+        lines += [f"  {name} = {value}" for name, value in lin.dependent_velocities]
+        lines.append(f"  M0 = {lin.mass.tolist()} (all coordinates)")
+        if not lin.damping.is_zero_matrix:
+            lines.append(f"  C0 = {lin.damping.tolist()}")
+        lines.append(f"  K0 = {lin.stiffness.tolist()} (K0 = -d(F + A^T lambda)/dq)")
+        if lin.state:
+            lines.append(f"  S = {[[float(f'{x:.6g}') for x in row] for row in lin.state]} (default parameter values)")
+            lines.append(f"  eigenvalues: {', '.join(_complex(e) for e in lin.eigenvalues)}")
+    else:
+        if lin.dependent:
+            lines.append(f"  independent coordinates: {', '.join(names)}; the others follow on the constraint surface:")
+            lines += [f"    {name} = {value}" for name, value in lin.dependent]
+        lines.append(f"  x = [{', '.join(str(symbols[c] - lin.point.get(symbols[c], 0)) for c in names)}]")
+        for name, matrix in (("M0", lin.mass), ("C0", lin.damping), ("K0", lin.stiffness)):
+            if name == "C0" and matrix.is_zero_matrix:
+                continue
+            lines.append(f"  {name} = {matrix.tolist()}")
     lines.append(f"  stability (default parameter values): {lin.stability}")
+    if lin.note:
+        lines.append(f"  note: {lin.note}")
     if lin.condition and lin.condition != (sp.true,):
         if lin.condition == (sp.false,):
             lines.append("  stable for no parameter values (K0 is never positive definite)")
@@ -83,12 +111,13 @@ def linearization_text(model: Model, lin: Linearization) -> str:
         for frequency, mode in zip(lin.frequencies, lin.modes, strict=True):
             text = "none (exponential growth)" if math.isnan(frequency) else "0 (free drift)" if frequency == 0 else f"{frequency:.6g} rad/s"
             lines.append(f"  mode: frequency {text}, shape [{', '.join(f'{x:.4g}' for x in mode)}]")
-    return "\n".join(lines) + "\n"
+    return "\n".join(map(printable, lines)) + "\n"
 
 
 def linearization_json(model: Model, lin: Linearization) -> dict[str, object]:
-    return {
+    data: dict[str, object] = {
         "point": {str(q): str(v) for q, v in lin.point.items()},
+        "coordinates": list(lin.coordinates or model.coordinates),
         "M0": [[str(x) for x in row] for row in lin.mass.tolist()],
         "C0": [[str(x) for x in row] for row in lin.damping.tolist()],
         "K0": [[str(x) for x in row] for row in lin.stiffness.tolist()],
@@ -97,6 +126,24 @@ def linearization_json(model: Model, lin: Linearization) -> dict[str, object]:
         "frequencies": [None if math.isnan(f) else f for f in lin.frequencies],
         "modes": [list(m) for m in lin.modes],
     }
+    if lin.multipliers:
+        data["multipliers"] = {str(m): str(v) for m, v in lin.multipliers.items()}
+    if lin.dependent:
+        data["dependent"] = {name: str(v) for name, v in lin.dependent}
+    if lin.velocities:
+        data["velocities"] = list(lin.velocities)
+        data["dependent_velocities"] = {name: str(v) for name, v in lin.dependent_velocities}
+        data["state_matrix"] = [list(row) for row in lin.state]
+        data["eigenvalues"] = [[e.real, e.imag] for e in lin.eigenvalues]
+    if lin.note:
+        data["note"] = lin.note
+    return data
+
+
+def _complex(value: complex) -> str:
+    if abs(value.imag) <= 1e-12 * max(1.0, abs(value)):
+        return f"{value.real:.6g}"
+    return f"{value.real:.6g}{value.imag:+.6g}i"
 
 
 def _yes(value: bool) -> str:

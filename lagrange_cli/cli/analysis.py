@@ -72,11 +72,21 @@ def equilibria(
     except LagrangeError as error:
         fail_with(error)
     if as_json:
-        items = [{"point": {str(k): str(v) for k, v in p.items()}, **({"error": lin} if isinstance(lin, str) else report.linearization_json(model, lin))} for p, lin in results]
+        items = [
+            {
+                "point": {str(k): str(v) for k, v in p.items()},
+                "free": [str(k) for k, v in p.items() if v == sp_symbol(f"{k}_0")],
+                **({"error": lin} if isinstance(lin, str) else report.linearization_json(model, lin)),
+            }
+            for p, lin in results
+        ]
         motions = [{"velocity": str(v), "equals": str(x)} for v, x in steady]
         output(json.dumps({"title": model.title, "equilibria": items, "steady_motions": motions}, indent=2) + "\n", None)
         return
     lines = [f"{model.title}: {len(points)} equilibri{'um' if len(points) == 1 else 'a'}" + (" (none found)" if not points else "")]
+    free = sorted({str(q) for p in points for q, v in p.items() if v == sp_symbol(f"{q}_0")})
+    if free:
+        lines.append(f"(a manifold of equilibria: {', '.join(f'{q}_0' for q in free)} may take any value)")
     for point, lin in results:
         lines.append(report.linearization_text(model, lin) if not isinstance(lin, str) else f"at {point}: {lin}\n")
     if steady:
@@ -103,6 +113,12 @@ def linearize(
     except LagrangeError as error:
         fail_with(error)
     output(json.dumps(report.linearization_json(model, lin), indent=2) + "\n" if as_json else report.linearization_text(model, lin), None)
+
+
+def sp_symbol(name: str) -> sp.Symbol:
+    import sympy
+
+    return sympy.Symbol(name)
 
 
 def _point(model: Model, about: list[str] | None) -> dict[sp.Symbol, sp.Expr]:
