@@ -30,7 +30,9 @@ def stiff() -> None:
 
     model = derive.derive(spec.load(ROOT / "systems" / "stiff_spring_pendulum_damped.yaml"))
     began = time.perf_counter()
-    result = accuracy.study(model, candidates=[Candidate("auto"), Candidate("RK45", "python")], tolerances=[1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9], parameters={"k": 1e8}, repeats=3, max_steps=1_000_000)
+    result = accuracy.study(
+        model, candidates=[Candidate("auto"), Candidate("RK45", "python")], tolerances=[1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9], parameters={"k": 1e8}, repeats=3, max_steps=1_000_000
+    )
     print(f"## 1. damped stiff spring pendulum, k = 1e8, t = 0..{result.t_end:g} (study took {time.perf_counter() - began:.1f} s)")
     print(f"reference: {result.reference.description}, own error {result.reference.own_error:.1e}")
     print("| method | ran | rtol | error | run time | steps | evaluations (Jacobians) |")

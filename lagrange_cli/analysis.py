@@ -642,11 +642,15 @@ def _numeric_equilibria(model: Model, equations: list[sp.Expr], ranges: Mapping[
             f"{model.source}: the forces cannot be evaluated from any of {STARTS} starting points of the numeric search ({where}): {max(failures, key=lambda k: failures[k])}; give ranges inside their domain (--range)"
         )
     points.sort(key=lambda x: tuple(x))
-    return [{q: sp.Float(x, 12) for q, x in zip(model.q, p, strict=True)} for p in points]
+    return [{q: sp.Float(x, 12) for q, x in zip(model.q, p, strict=True)} for p in points[:MAX_NUMERIC_POINTS]]
 
 
 STARTS = 200
 """Starting points of the numeric search for equilibria."""
+MAX_NUMERIC_POINTS = 16
+"""At most this many equilibria from the numeric search (the first in lexicographic order): more
+distinct points mean a curve or surface of equilibria, which the report says, and each point
+shown is linearized."""
 
 
 class _Unevaluable(Exception):

@@ -84,6 +84,8 @@ def equilibria(
         output(json.dumps({"title": model.title, "equilibria": items, "steady_motions": motions}, indent=2) + "\n", None)
         return
     lines = [f"{model.title}: {len(points)} equilibri{'um' if len(points) == 1 else 'a'}" + (" (none found)" if not points else "")]
+    if len(points) >= analysis.MAX_NUMERIC_POINTS and all(v.is_Float for p in points for v in p.values()):
+        lines.append(f"(the numeric search stops at {analysis.MAX_NUMERIC_POINTS} distinct points: the equilibria may form a curve or surface; narrow the search with --range)")
     free = sorted({str(q) for p in points for q, v in p.items() if v == sp_symbol(f"{q}_0")})
     if free:
         lines.append(f"(a manifold of equilibria: {', '.join(f'{q}_0' for q in free)} may take any value)")
