@@ -13,7 +13,7 @@ must show, for every command:
 - nothing executed: no file named PWNED* appears in the folder or in the current directory, also
   when the written Python module is imported and the written LaTeX document is compiled (which
   must then succeed, without reading /etc/passwd);
-- an end within 20 s (the driver's watchdog is the safety net, not the expectation).
+- an end (the driver's 90 s watchdog is a safety net against hangs; the cases take a few seconds).
 
 A case file starts with comment lines that say what applies (adding a case is adding a file):
 
@@ -42,7 +42,9 @@ import pytest
 
 ROOT = Path(__file__).resolve().parent.parent
 CASES = sorted((ROOT / "tests" / "hostile").glob("*.yaml"))
-LIMIT = 20.0
+LIMIT = 90.0
+"""Seconds before a command counts as hung: a safety net far above any case (the slowest take a few
+seconds on a quiet machine), so that a loaded machine cannot fail the test."""
 MARKER = "PWNED"
 DEFAULT_COMMANDS = ("derive-text", "derive-latex", "derive-standalone", "derive-python", "check", "info", "equilibria", "simulate")
 # name -> (arguments after the file, the output it writes or None)
