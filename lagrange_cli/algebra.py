@@ -201,9 +201,24 @@ def solved_accelerations(model: Model, max_size: int = 4) -> tuple[sp.Expr, ...]
         quotient = numerator / det
         # cancel finds polynomial gcds: cheap on textbook sizes, unbounded on big ones (a nested
         # atan2 under a 7th root took minutes); past the bound the quotient stays as it is.
-        small = sp.count_ops(numerator) + sp.count_ops(det) <= MAX_CANCEL_OPS and expansion_size(quotient, MAX_CANCEL_TERMS) <= MAX_CANCEL_TERMS and not nested_roots(quotient)
+        small = (
+            sp.count_ops(numerator) + sp.count_ops(det) <= MAX_CANCEL_OPS and expansion_size(quotient, MAX_CANCEL_TERMS) <= MAX_CANCEL_TERMS and not nested_roots(quotient) and tame_numbers(quotient)
+        )
         result.append(sp.factor_terms(sp.cancel(quotient)) if small else quotient)
     return tuple(result)
+
+
+TAME_MAGNITUDE = 1e30
+"""Floats beyond this size (or nonzero below its inverse) make sympy's polynomial algorithms
+(factor, cancel, trigsimp, solve) work with integers of hundreds of digits, without bound."""
+
+
+def tame_numbers(expr: object) -> bool:
+    """True when every float in `expr` is 0 or between 1/TAME_MAGNITUDE and TAME_MAGNITUDE in size:
+    the condition, with a size bound, for handing it to a sympy simplification (a mass of 1e308 with
+    one of 1e-320 made `trigsimp` of a 3x3 determinant run for minutes)."""
+    floats = sp.sympify(expr).atoms(sp.Float)
+    return all(f == 0 or 1 / TAME_MAGNITUDE <= abs(f) <= TAME_MAGNITUDE for f in floats)
 
 
 def nested_roots(expr: sp.Expr) -> bool:

@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 import sympy as sp
 from sympy.core.function import AppliedUndef
 
-from lagrange_cli.algebra import expandable
+from lagrange_cli.algebra import expandable, tame_numbers
 from lagrange_cli.errors import DerivationError
 from lagrange_cli.model import Model
 
@@ -74,7 +74,7 @@ def _hamiltonian(model: Model, p: tuple[sp.Symbol, ...]) -> tuple[sp.Expr | None
     l0 = model.lagrangian.xreplace(zero)
     mass = sp.Matrix(model.mass_matrix)
     det = mass.det()
-    det = sp.factor_terms(sp.trigsimp(det) if sp.count_ops(det) <= SIMPLIFY_MAX_OPS else det)
+    det = sp.factor_terms(sp.trigsimp(det) if sp.count_ops(det) <= SIMPLIFY_MAX_OPS and tame_numbers(det) else det)
     if det == 0:
         return None, "the mass matrix is singular (the Legendre transform does not exist)"
     shifted = sp.Matrix(p) - b
@@ -138,7 +138,7 @@ def simplified(expr: sp.Expr) -> sp.Expr:
     expr = sp.sympify(expr)
     if expr.is_number and expr.is_Atom:
         return expr
-    if sp.count_ops(expr) > SIMPLIFY_MAX_OPS or not expandable(expr):
+    if sp.count_ops(expr) > SIMPLIFY_MAX_OPS or not expandable(expr) or not tame_numbers(expr):
         return sp.factor_terms(expr)
     return sp.simplify(expr)
 
@@ -146,7 +146,7 @@ def simplified(expr: sp.Expr) -> sp.Expr:
 def factored(expr: sp.Expr) -> sp.Expr:
     """`sympy.factor` within the same size bound as `simplified`, else `factor_terms`."""
     expr = sp.sympify(expr)
-    if sp.count_ops(expr) > SIMPLIFY_MAX_OPS or not expandable(expr):
+    if sp.count_ops(expr) > SIMPLIFY_MAX_OPS or not expandable(expr) or not tame_numbers(expr):
         return sp.factor_terms(expr)
     return sp.factor(expr)
 
@@ -521,7 +521,7 @@ def _symbolic_equilibria(model: Model, equations: list[sp.Expr], multipliers: li
     nonzero = [e for e in equations if e != 0]
     if any(not any(e.has(q) for q in model.q) and not any(e.has(m) for m in multipliers) for e in nonzero):
         return []  # a generalized force that no configuration can cancel (e.g. a slope)
-    if len(unknowns) > SOLVE_MAX_UNKNOWNS or sum(sp.count_ops(e) for e in nonzero) > SOLVE_MAX_OPS or not all(_solvable(e, unknowns) for e in nonzero):
+    if len(unknowns) > SOLVE_MAX_UNKNOWNS or sum(sp.count_ops(e) for e in nonzero) > SOLVE_MAX_OPS or not all(_solvable(e, unknowns) and tame_numbers(e) for e in nonzero):
         return None
     try:
         solutions = sp.solve(nonzero, unknowns, dict=True)
@@ -705,7 +705,7 @@ def steady_motions(model: Model, seconds: float | None = None) -> list[tuple[sp.
         equation = factored(model.forcing[i].xreplace(rest))
         if not equation.has(target):
             continue
-        if sp.count_ops(equation) > SOLVE_MAX_OPS or not _solvable(equation, [target]):
+        if sp.count_ops(equation) > SOLVE_MAX_OPS or not _solvable(equation, [target]) or not tame_numbers(equation):
             continue
         try:
             solutions = sp.solve(equation, target)

@@ -89,7 +89,7 @@ def _conserved(model: Model, name: str, span: Span) -> Result:
         return Result(f"conserved.{name}", False, f"'{name}' was eliminated", span, "symbolic")
     i = model.coordinates.index(name)
     ok = model.ignorable(i)
-    why = "" if ok else f"'{name}' is not ignorable: dL/d{name} = {sp.simplify(sp.diff(model.lagrangian, model.q[i]))}"
+    why = "" if ok else f"'{name}' is not ignorable: dL/d{name} = {_shown(sp.diff(model.lagrangian, model.q[i]))}"
     return Result(f"conserved.{name}", ok, why, span, "symbolic")
 
 
@@ -161,12 +161,26 @@ def _scaled_differences(expected: sp.Expr, model: Model) -> list[tuple[sp.Expr |
     return out
 
 
+def _number_text(value: sp.Expr) -> str:
+    """`value` to three digits for a message; its plain text where sympy cannot round it (a number
+    beyond the decimal module's range)."""
+    try:
+        return str(sp.N(value, 3))
+    except (ArithmeticError, ValueError, TypeError):
+        return str(value)[:40]
+
+
+def _shown(expr: sp.Expr) -> sp.Expr:
+    """`expr` simplified for a message when that is cheap (the bounds of `_cancellable`), else as it is."""
+    return sp.simplify(expr) if _cancellable(expr) and sp.count_ops(expr) <= 150 else expr
+
+
 def _cancellable(expr: sp.Expr) -> bool:
     """Whether `cancel` stays cheap on `expr`: bounded size and expansion, no root of a function
     (`algebra.solved_accelerations` uses the same bounds); beyond, the numeric comparison decides."""
-    from lagrange_cli.algebra import MAX_CANCEL_OPS, MAX_CANCEL_TERMS, expansion_size, nested_roots
+    from lagrange_cli.algebra import MAX_CANCEL_OPS, MAX_CANCEL_TERMS, expansion_size, nested_roots, tame_numbers
 
-    return sp.count_ops(expr) <= MAX_CANCEL_OPS and expansion_size(expr, MAX_CANCEL_TERMS) <= MAX_CANCEL_TERMS and not nested_roots(expr)
+    return sp.count_ops(expr) <= MAX_CANCEL_OPS and expansion_size(expr, MAX_CANCEL_TERMS) <= MAX_CANCEL_TERMS and not nested_roots(expr) and tame_numbers(expr)
 
 
 def _is_zero(expr: sp.Expr) -> bool:
@@ -216,7 +230,7 @@ def diagnose_equation(expected: sp.Expr, model: Model, residual: sp.Expr) -> str
             continue
         candidates.append((sp.count_ops(difference), j, difference))
     if not candidates:
-        return f"does not hold for the derived motion (it is not equivalent to any combination of the derived equations; residual {sp.N(residual, 3)} at a random state)"
+        return f"does not hold for the derived motion (it is not equivalent to any combination of the derived equations; residual {_number_text(residual)} at a random state)"
     _, j, difference = min(candidates, key=lambda c: (c[0], c[1]))
     difference = _tidy(difference)
     return f"for '{model.coordinates[j]}': " + describe_terms(expected, difference)
@@ -409,11 +423,16 @@ def _solve(matrix: sp.Matrix, rhs: sp.Matrix, values: dict[sp.Symbol, sp.Float],
     with mpmath.workdps(DIGITS):
         a = _numbers(matrix, values, functions, "the mass matrix")
         b = _numbers(rhs, values, functions, "the forces")
-        sizes = [mpmath.sqrt(sum(x**2 for x in a[i, :])) for i in range(a.rows)]
-        if any(size == 0 for size in sizes) or abs(mpmath.det(a)) <= mpmath.mpf(10) ** (12 - DIGITS) * mpmath.fprod(sizes):
+        try:
+            sizes = [mpmath.sqrt(sum(x**2 for x in a[i, :])) for i in range(a.rows)]
+            singular = any(size == 0 for size in sizes) or abs(mpmath.det(a)) <= mpmath.mpf(10) ** (12 - DIGITS) * mpmath.fprod(sizes)
+            solution = None if singular else mpmath.lu_solve(a, b)
+            unknowns = None if solution is None else [sp.Float(solution[i], DIGITS) for i in range(a.rows)]
+        except (ArithmeticError, ValueError, TypeError) as error:  # mpmath on entries near its range's ends
+            raise _BadPoint(f"the mass matrix cannot be solved there ({error or type(error).__name__})") from None
+        if unknowns is None or not all(_finite(u) is not None for u in unknowns):
             raise _BadPoint("the mass matrix is singular there" + (" (with the constraint rows)" if constrained else ""))
-        solution = mpmath.lu_solve(a, b)
-        return [sp.Float(solution[i], DIGITS) for i in range(a.rows)]
+        return unknowns
 
 
 def _numbers(matrix: sp.Matrix, values: dict[sp.Symbol, sp.Float], functions: dict[sp.Expr, Callable[..., sp.Expr]], what: str) -> Any:

@@ -172,3 +172,11 @@ def test_cli_failed_run_exits_1_with_time_and_state(tmp_path: Path) -> None:
     assert "Traceback" not in result.stderr
     assert "root.yaml" in result.stderr and "t = " in result.stderr and "x = " in result.stderr and "math domain error" in result.stderr
     assert len(output.read_text().splitlines()) > 10
+
+
+def test_a_fixed_step_with_the_python_backend_is_refused_not_a_crash(tmp_path: Path) -> None:
+    """`simulate: {step: ...}` picks the symplectic method, which has no scipy (python) form."""
+    text = "coordinates: [x]\nparameters: {m: 1.0, k: 2.0}\nparticles:\n  p: {mass: m, position: [x]}\npotential: k*x**2/2\ninitial: {x: 1.0}\nsimulate: {step: 0.01}\n"
+    model = derive.derive(spec.parse(text, "fixed_step.yaml"))
+    with pytest.raises(LagrangeError, match=r"fixed step .* symplectic method, which runs only compiled"):
+        simulate(model, t_end=0.05, samples=11, backend="python")

@@ -281,6 +281,10 @@ def _choose(
     rate = found.rate if found is not None else 0.0
     if method == "auto":
         if step is not None and not model.constraints:
+            if backend == "python":
+                raise LagrangeError(
+                    f"{model.source}: a fixed step (simulate: step) selects the symplectic method, which runs only compiled (numba); drop --backend python, or the step to let the method adapt it"
+                )
             method, why = "symplectic", "a fixed step was given"
         else:
             method, why = diagnostics.choose(found, t_end, compiled=backend != "python" and compile.numba_available())
