@@ -20,7 +20,7 @@ from lagrange_cli.spec import MAX_YAML_DEPTH
 
 runner = CliRunner()
 
-TIME_LIMIT = 5.0  # seconds for a whole invocation: generous, it only catches hangs
+TIME_LIMIT = 60.0  # seconds for a whole invocation: a safety net that only catches hangs, far above any case even on a loaded machine
 PYTHON_PAREN_LIMIT = 200  # CPython's parser refuses the 201st nested parenthesis
 
 
