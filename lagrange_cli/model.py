@@ -128,6 +128,33 @@ class Model:
         applied, and every constraint is scleronomic."""
         return not self.lagrangian.has(self.t) and self.dissipation == 0 and not self.forced and all(c.bias == 0 and not c.expr.has(self.t) for c in self.constraints)
 
+    @functools.cached_property
+    def symengine(self) -> SymengineForms:
+        """The equations as symengine expressions, for the emitters and code generators that print
+        big systems: they read these and never need the sympy fields (which, for big systems, cost
+        more to build than the derivation itself). Computed once per model."""
+        from lagrange_cli._symengine import to_symengine
+
+        def conv(values: Any) -> tuple[Any, ...]:
+            return tuple(to_symengine(v) for v in values)
+
+        n = self.n
+        return SymengineForms(
+            q=conv(self.q),
+            qd=conv(self.qd),
+            qdd=conv(self.qdd),
+            t=to_symengine(self.t),
+            mass=tuple(conv(self.mass_matrix[i, j] for j in range(n)) for i in range(n)),
+            forcing=conv(self.forcing),
+            kinetic=to_symengine(self.kinetic),
+            potential=to_symengine(self.potential),
+            lagrangian=to_symengine(self.lagrangian),
+            dissipation=to_symengine(self.dissipation),
+            energy=to_symengine(self.energy),
+            momenta=conv(self.momenta),
+            generalized_forces=conv(self.generalized_forces),
+        )
+
     def parameter_values(self) -> dict[str, float]:
         return {p.name: p.value for p in self.parameters if p.value is not None}
 
@@ -164,6 +191,26 @@ class Model:
             exact={name: sub(e) for name, e in self.exact.items()},
             definitions={},
         )
+
+
+@dataclass(frozen=True)
+class SymengineForms:
+    """`Model.symengine`: the model's equations as symengine expressions (same symbol names as the
+    sympy fields; the functions of the file's `functions` stay undefined, as in the sympy fields)."""
+
+    q: tuple[Any, ...]
+    qd: tuple[Any, ...]
+    qdd: tuple[Any, ...]
+    t: Any
+    mass: tuple[tuple[Any, ...], ...]
+    forcing: tuple[Any, ...]
+    kinetic: Any
+    potential: Any
+    lagrangian: Any
+    dissipation: Any
+    energy: Any
+    momenta: tuple[Any, ...]
+    generalized_forces: tuple[Any, ...]
 
 
 def apply_definitions(expr: sp.Expr, definitions: Mapping[str, sp.Lambda]) -> sp.Expr:
