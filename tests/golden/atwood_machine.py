@@ -30,9 +30,7 @@ def energy(q, q_dot, p=PARAMETERS):
     l = p["l"]  # noqa: E741
     y1, = q
     y1_dot, = q_dot
-    _c0 = (1/2)*y1_dot*y1_dot
-    _c1 = g*y1
-    return _c0*m1 + _c0*m2 - _c1*m1 + _c1*m2 - g*l*m2
+    return -g*m1*y1 + g*m2*(-l + y1) + (1/2)*y1_dot*y1_dot*(m1 + m2)
 
 
 def rhs(t, y, p=PARAMETERS):

@@ -42,10 +42,8 @@ def energy(q, q_dot, p=PARAMETERS):
     s, theta = q
     s_dot, theta_dot = q_dot
     _c0 = s_dot*s_dot
-    _c1 = (1/2)*m
-    _c2 = s*sin(alpha)
-    _c3 = g*m
-    return (3/4)*M*_c0 - M*_c2*g + _c0*_c1 + _c1*l*l*theta_dot*theta_dot - _c2*_c3 - _c3*l*cos(theta) + l*m*s_dot*theta_dot*cos(alpha + theta)
+    _c1 = s*sin(alpha)
+    return (1/4)*M*_c0 - M*_c1*g + (1/2)*_c0*(M + m) + g*m*(-_c1 - l*cos(theta)) + (1/2)*l*l*m*theta_dot*theta_dot + l*m*s_dot*theta_dot*cos(alpha + theta)
 
 
 def rhs(t, y, p=PARAMETERS):

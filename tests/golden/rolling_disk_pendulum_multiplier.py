@@ -43,10 +43,8 @@ def energy(q, q_dot, p=PARAMETERS):
     alpha = p["alpha"]
     s, _, theta = q
     s_dot, phi_dot, theta_dot = q_dot
-    _c0 = (1/2)*s_dot*s_dot
-    _c1 = l*m
-    _c2 = g*s*sin(alpha)
-    return (1/4)*M*R*R*phi_dot*phi_dot + M*_c0 - M*_c2 + _c0*m - _c1*g*cos(theta) + _c1*s_dot*theta_dot*cos(alpha + theta) - _c2*m + (1/2)*l*l*m*theta_dot*theta_dot
+    _c0 = s*sin(alpha)
+    return (1/4)*M*R*R*phi_dot*phi_dot - M*_c0*g + g*m*(-_c0 - l*cos(theta)) + (1/2)*l*l*m*theta_dot*theta_dot + l*m*s_dot*theta_dot*cos(alpha + theta) + (1/2)*s_dot*s_dot*(M + m)
 
 
 def constraint_residuals(q, q_dot, p=PARAMETERS):
