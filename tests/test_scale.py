@@ -19,7 +19,7 @@ import sympy as sp
 from sympy.core.function import AppliedUndef
 
 from lagrange_cli import derive, spec, validate
-from lagrange_cli._symengine import se, to_symengine
+from lagrange_cli._symengine import se, to_symengine, to_sympy
 from lagrange_cli.model import LAZY_FIELDS, Model
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -258,3 +258,18 @@ def test_the_survey_counts_shared_nodes_once_and_stops_at_its_limit() -> None:
     size, cleared = validate.survey(exprs)
     assert cleared and size == 1 + 50 + 10 * 2
     assert validate.survey(exprs, 20)[0] <= 21
+
+
+@pytest.mark.parametrize("path", [None, *FILES[:12]], ids=lambda p: "chain" if p is None else p.stem)
+def test_the_lazy_conversion_is_sympify_done_once_per_shared_node(path: Path | None) -> None:
+    """Each sympy field is exactly `sympy.sympify` of its symengine form (`to_sympy` converts a node
+    shared by M, K, p and h once, with sympy's own constructors)."""
+    model = chain(4, seed=5)[0] if path is None else derive.derive(spec.load(path))
+    if model.converted():
+        pytest.skip("fields computed in sympy on the way (derivatives of Abs or sign)")
+    for name, native, field in fields(model, model.symengine):
+        assert field == sp.sympify(native), name
+    shared = se.Add(*(se.Symbol(f"a{i}") for i in range(5)))
+    cache: dict[object, object] = {}
+    first = to_sympy(se.sin(shared) * shared, cache)
+    assert first == sp.sin(sp.Add(*sp.symbols("a0:5"))) * sp.Add(*sp.symbols("a0:5")) and any(a is cache[shared] for a in to_sympy(shared * se.Symbol("b"), cache).args)  # type: ignore[attr-defined]
