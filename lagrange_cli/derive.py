@@ -63,7 +63,8 @@ def _derive(spec: SystemSpec) -> tuple[Model, bool]:
     potential = potential_energy(spec, others) + quad.gravity_potential
     # everything but the point masses' quadratic kinetic energy and gravity: differentiated as written
     rest_kinetic = combine_trig(quad.linear + quad.constant + kinetic_energy(spec, others) + rotational_energy(spec) + _to_se(spec.kinetic))
-    kinetic = quad.quadratic() + rest_kinetic
+    quadratic = quad.quadratic()
+    kinetic = quadratic + rest_kinetic
     rest = rest_kinetic - potential_energy(spec, others) + _to_se(spec.lagrangian)
     lagrangian = kinetic - potential + _to_se(spec.lagrangian)
     dissipation = combine_trig(rayleigh(spec))
@@ -77,7 +78,7 @@ def _derive(spec: SystemSpec) -> tuple[Model, bool]:
     velocity_force = quad.forces(q, qd, t)
     force = [velocity_force[i] + quad.gravity[i] + rest_force[i] for i in range(n)]
     p = [se.Add(*(quad.mass[i][j] * qd[j] for j in range(n) if quad.mass[i][j] != 0)) + rest_p[i] for i in range(n)]
-    energy = quad.quadratic() + quad.gravity_potential + energy_function(rest, rest_p, qd)
+    energy = quadratic + quad.gravity_potential + energy_function(rest, rest_p, qd)
     force, p, kinetic, energy = [_tidy(f) for f in force], [_tidy(x) for x in p], _tidy(kinetic), _tidy(energy)
     for i, name in enumerate(spec.coordinates):
         if all(m == ZERO for m in mass[i]) and force[i] == ZERO and not any(_has(c.expr, se.Symbol(name)) or _has(c.expr, qd[i]) for c in map(_se_constraint, spec.constraints)):
@@ -101,7 +102,7 @@ def _derive(spec: SystemSpec) -> tuple[Model, bool]:
     )
     size, cleared = survey(forms_parts(forms), MAX_EQUATION_NODES)
     check_size(spec, size, MAX_EQUATION_NODES, "the equations of motion")
-    forms, given = _kinks(forms, spec)
+    forms, given = (forms, {}) if cleared else _kinks(forms, spec)
     model = Model.from_symengine(
         forms,
         given,
@@ -160,6 +161,7 @@ class PointMasses:
         n = len(q)
         terms: list[list[se.Basic]] = [[] for _ in range(n)]
         index = {s: k for k, s in enumerate(q)}
+        coordinates = set(q)
         half = se.Rational(1, 2)
         for a in range(n):
             for b in range(a, n):
@@ -167,7 +169,7 @@ class PointMasses:
                 if entry == ZERO:
                     continue
                 free = entry.free_symbols
-                for c in sorted(index[s] for s in free if s in index):
+                for c in sorted(index[s] for s in free & coordinates):
                     d = se.diff(entry, q[c])
                     if d == ZERO:
                         continue
@@ -750,7 +752,8 @@ def _kinks(forms: SymengineForms, spec: SystemSpec) -> tuple[SymengineForms, dic
     """Derivatives of Abs and sign, which symengine leaves as `Derivative(Abs(u), v)`, taken in sympy
     (`_sp`): d|u|/dv = sign(u) du/dv, and a Dirac delta that vanishes where it sits dropped. Only a file
     with Abs or sign has them; its fields are then computed in sympy here (and the symengine forms
-    converted back), the rest of the time nothing is converted."""
+    converted back), the rest of the time nothing is converted. Called only for forms that
+    `validate.survey` did not clear (a derivative of Abs is one of the nodes it does not clear)."""
     if not any(e.has(sp.Abs, sp.sign) for source in sources(spec) for e in source.exprs):
         return forms, {}
     converted: dict[str, object] = {}
