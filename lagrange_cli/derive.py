@@ -8,8 +8,19 @@ Everything here follows the textbook derivation term by term:
     d/dt(dL/dq_dot_i) - dL/dq_i + dR/dq_dot_i = Q_i (+ sum_k lambda_k a_ki)
 
 The time derivative is taken by the chain rule with q, q_dot, q_ddot as plain symbols,
-which splits each equation into `M q_ddot - F`. Symengine does the differentiation
-(two orders of magnitude faster than sympy); results are handed back as sympy.
+which splits each equation into `M q_ddot - F`. Everything is computed in symengine (two
+orders of magnitude faster than sympy) and kept there: the model's `symengine` forms are the
+result, and its sympy fields are converted only when something reads them (`Model.from_symengine`).
+
+The point masses (a particle or a body's centre, its mass and position of q and t only) are
+done by structure rather than by differentiating their expanded kinetic energy:
+M_ij = sum_p m_p (dx_p/dq_i . dx_p/dq_j) from the Jacobian columns, each distinct pair of
+columns dotted and trig-combined once and the masses sharing it added first (the general
+chain's M_ij = l_i l_j cos(q_i - q_j) (m_max(i,j) + ... + m_N)); their velocity terms in F
+come from the Christoffel symbols of M, their weight from g . dx_p/dq_i grouped the same way.
+Everything else (extra kinetic and Lagrangian terms, rotational energy, the velocity-linear
+and constant parts of moving positions, potentials, dissipation, forces) goes through the
+general route above.
 """
 
 from __future__ import annotations
