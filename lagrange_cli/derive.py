@@ -111,8 +111,9 @@ def _derive(spec: SystemSpec) -> tuple[Model, bool]:
         momenta=tuple(p),
         generalized_forces=tuple(forces),
     )
-    size, cleared = survey(forms_parts(forms), MAX_EQUATION_NODES)
+    size, tree, cleared = survey(forms_parts(forms), MAX_EQUATION_NODES)
     check_size(spec, size, MAX_EQUATION_NODES, "the equations of motion")
+    check_size(spec, tree, MAX_EQUATION_TREE, "the equations of motion, written out without sharing,")
     forms, given = (forms, {}) if cleared else _kinks(forms, spec)
     model = Model.from_symengine(
         forms,
@@ -321,6 +322,9 @@ MAX_INPUT_WORK = 100_000
 MAX_EQUATION_NODES = 250_000
 """Largest number of distinct terms and factors (shared ones counted once) of the derived equations, energies
 and momenta (the general 60-link chain has about 17,000; the bundled systems at most a few hundred)."""
+MAX_EQUATION_TREE = 3_000_000
+"""Largest size of the same written out as trees (each repetition of a shared part counted: what printing
+them in sympy costs); the general 60-link chain has about 550,000."""
 
 
 def tree_size(expr: object, limit: int = 10**9) -> int:

@@ -177,36 +177,52 @@ def _symengine_functions() -> frozenset[str]:
 _SE_FUNCTIONS: frozenset[str] | None = None
 
 
-def survey(exprs: Iterable[object], limit: int = 10**9) -> tuple[int, bool]:
+def survey(exprs: Iterable[object], limit: int = 10**9) -> tuple[int, int, bool]:
     """One walk over the distinct nodes of symengine expressions: (their number, counting stops past
-    `limit`; whether every node is one that `refusal` allows once converted to sympy: symbols, pi, E,
-    numbers with no `float_problem`, + * ** (no power of 0, no exponent above `MAX_EXPONENT`), the
-    parser's functions, declared functions and their derivatives at their own plain symbols).
+    `limit`; the size of the expressions as trees, each repetition of a shared node counted, which
+    is what printing them without common subexpressions costs; whether every node is one that
+    `refusal` allows once converted to sympy: symbols, pi, E, numbers with no `float_problem`,
+    + * ** (no power of 0, no exponent above `MAX_EXPONENT`), the parser's functions, declared
+    functions and their derivatives at their own plain symbols).
 
     Anything else (a `Subs`, an infinity, a derivative of Abs, ...) is not cleared here, and the caller
     checks the sympy form, which decides and says where it comes from."""
-    from lagrange_cli._symengine import se
-
     global _SE_FUNCTIONS
     if _SE_FUNCTIONS is None:
         _SE_FUNCTIONS = _symengine_functions()
+        _PLAIN.update(_plain_kinds())
     functions = _SE_FUNCTIONS
-    plain = (se.Add, se.Mul, se.Symbol)
-    seen: set[object] = set()
-    stack = list(exprs)
+    roots = list(exprs)
+    sizes: dict[object, int] = {}
+    stack: list[tuple[object, tuple[object, ...] | None]] = [(e, None) for e in roots]
     cleared = True
-    while stack and len(seen) <= limit:
-        node = stack.pop()
-        if node in seen:
+    while stack and len(sizes) <= limit:
+        node, args = stack.pop()
+        if args is not None:  # its arguments are done
+            sizes[node] = 1 + sum(sizes[a] for a in args)
             continue
-        seen.add(node)
-        if isinstance(node, plain):
-            stack.extend(node.args)
+        if node in sizes:
             continue
-        if cleared:
+        if cleared and not _PLAIN.get(type(node), False):
             cleared = _cleared(node, functions)
-        stack.extend(node.args)  # type: ignore[attr-defined]
-    return len(seen), cleared
+        args = node.args  # type: ignore[attr-defined]
+        if not args:
+            sizes[node] = 1
+            continue
+        stack.append((node, args))
+        stack.extend((a, None) for a in args if a not in sizes)
+    if stack:
+        return len(sizes) + 1, 0, cleared
+    return len(sizes), sum(sizes[e] for e in roots), cleared
+
+
+def _plain_kinds() -> dict[type, bool]:
+    from lagrange_cli._symengine import se
+
+    return {se.Add: True, se.Mul: True, se.Symbol: True}
+
+
+_PLAIN: dict[type, bool] = {}
 
 
 def _cleared(node: object, functions: frozenset[str]) -> bool:
@@ -229,7 +245,7 @@ def _cleared(node: object, functions: frozenset[str]) -> bool:
 
 def clean(exprs: Iterable[object]) -> bool:
     """Whether every node of these symengine expressions is cleared by `survey`."""
-    return survey(exprs)[1]
+    return survey(exprs)[2]
 
 
 def model_parts(model: Model) -> Iterator[tuple[str, sp.Basic]]:

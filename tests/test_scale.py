@@ -246,18 +246,34 @@ def test_the_symengine_survey_clears_nothing_the_sympy_check_refuses(node: objec
     """`validate.survey` clears a node only if `validate.refusal` allows its sympy form; what it does not
     clear goes to the full sympy check (so validating on symengine is never weaker)."""
     expr = node * X + se.sin(Y)  # type: ignore[operator]
-    assert validate.survey([expr])[1] is False
+    assert validate.survey([expr])[2] is False
     allowed = se.sin(X) * Y**3 / 7 + 2.5 * U(X) + se.Derivative(U(X), X) + se.exp(X) + se.atan2(X, Y) + se.pi
-    assert validate.survey([allowed]) == (validate.survey([allowed])[0], True)
+    assert validate.survey([allowed])[2] is True
     assert validate.refusal(sp.sympify(allowed)) is None
 
 
-def test_the_survey_counts_shared_nodes_once_and_stops_at_its_limit() -> None:
+def test_the_survey_counts_shared_nodes_once_and_trees_in_full_and_stops_at_its_limit() -> None:
     shared = se.Add(*(se.Symbol(f"a{i}") for i in range(50)))
     exprs = [shared * se.Symbol(f"b{i}") for i in range(10)]
-    size, cleared = validate.survey(exprs)
-    assert cleared and size == 1 + 50 + 10 * 2
-    assert validate.survey(exprs, 20)[0] <= 21
+    size, tree, cleared = validate.survey(exprs)
+    assert cleared and size == 1 + 50 + 10 * 2 and tree == 10 * (1 + 1 + 51) == sum(derive.tree_size(e) for e in exprs)
+    assert validate.survey(exprs, 20)[0] > 20
+
+
+def test_equations_too_large_written_out_are_refused_though_they_share_parts(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The equations are bounded both as distinct parts (what symengine and common subexpressions cost)
+    and written out in full (what printing them in sympy costs): a product of many factors has a
+    derivative of few distinct parts but a long written-out form."""
+    model, _, _ = chain(3, seed=2)
+    size, tree, _ = validate.survey(validate.forms_parts(model.symengine))
+    assert size < tree
+    monkeypatch.setattr(derive, "MAX_EQUATION_TREE", tree - 1)
+    with pytest.raises(spec.SpecError, match="written out without sharing, amount to more than"):
+        chain(3, seed=2)
+    monkeypatch.setattr(derive, "MAX_EQUATION_TREE", tree)
+    monkeypatch.setattr(derive, "MAX_EQUATION_NODES", size - 1)
+    with pytest.raises(spec.SpecError, match="the equations of motion amount to more than"):
+        chain(3, seed=2)
 
 
 @pytest.mark.parametrize("path", [None, *FILES[:12]], ids=lambda p: "chain" if p is None else p.stem)
