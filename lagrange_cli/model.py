@@ -112,14 +112,14 @@ class Model:
     def from_symengine(cls, forms: SymengineForms, sympy: Mapping[str, Any] | None = None, **fields: Any) -> Model:
         """A model whose equations are `forms`; each field of `LAZY_FIELDS` is converted to sympy on first
         access, unless `sympy` gives it already (a value computed in sympy on the way)."""
-        from lagrange_cli._symengine import to_sympy
+        import lagrange_cli._symengine as convert
 
         given = dict(sympy or {})
         n = len(forms.q)
         cache: dict[Any, Any] = {}  # shared by the fields: an entry of M is converted once for M, K, p and h
 
         def conv(value: Any) -> Any:
-            return to_sympy(value, cache)
+            return convert.to_sympy(value, cache)
 
         def one(value: Any) -> Lazy:
             return Lazy(lambda: conv(value))
