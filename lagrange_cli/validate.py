@@ -231,7 +231,10 @@ def _cleared(node: object, functions: frozenset[str]) -> bool:
 
     kind = type(node).__name__
     if node.is_Number:  # type: ignore[attr-defined]
-        return kind in ("Integer", "Rational", "RealDouble", "Zero", "One", "NegativeOne", "Half") and not float_problem(sp.sympify(node))
+        if kind not in ("Integer", "Rational", "RealDouble", "Zero", "One", "NegativeOne", "Half"):
+            return False
+        value = sp.sympify(node)  # a RealDouble nan or inf becomes sympy's nan or oo, not a Float
+        return bool(value.is_Float or value.is_Rational) and not float_problem(value)
     if kind == "Pow":
         base, exponent = node.args  # type: ignore[attr-defined]
         return not (base == 0 or (exponent.is_Integer and abs(int(exponent)) > MAX_EXPONENT))

@@ -239,7 +239,22 @@ U = se.Function("U")
 
 @pytest.mark.parametrize(
     "node",
-    [se.zoo, se.oo, -se.oo, se.nan, se.I, se.Subs(se.Derivative(U(X), X), [X], [X * Y]), se.Derivative(se.Abs(X), X), se.Derivative(se.sign(X), X), X**20000, se.Integer(10) ** 400, se.EulerGamma],
+    [
+        se.zoo,
+        se.oo,
+        -se.oo,
+        se.nan,
+        se.I,
+        se.RealDouble(float("nan")),
+        se.RealDouble(float("inf")),
+        se.RealDouble(-float("inf")),
+        se.Subs(se.Derivative(U(X), X), [X], [X * Y]),
+        se.Derivative(se.Abs(X), X),
+        se.Derivative(se.sign(X), X),
+        X**20000,
+        se.Integer(10) ** 400,
+        se.EulerGamma,
+    ],
     ids=str,
 )
 def test_the_symengine_survey_clears_nothing_the_sympy_check_refuses(node: object) -> None:
