@@ -53,7 +53,7 @@ def simulate(
         if plot is not None:
             out.check_plot(plot)
         model = core.derive(spec.load(spec.resolve(file)))
-        parameters, values = _assignments(model, set_ or [], "--set"), _assignments(model, initial or [], "--initial")
+        parameters, values = assignments_of(model, set_ or [], "--set"), assignments_of(model, initial or [], "--initial")
         with _Progress(quiet) as progress:
             trajectory = run(
                 model,
@@ -78,7 +78,7 @@ def simulate(
         raise typer.Exit(1)
 
 
-def _assignments(model: Model, items: list[str], option: str) -> dict[str, float]:
+def assignments_of(model: Model, items: list[str], option: str) -> dict[str, float]:
     """`name=value` pairs (repeated or separated by commas) of `--set` (parameters) or `--initial`
     (coordinates and velocities); values are constant expressions such as pi/2."""
     from lagrange_cli.cli.boundary import assignments, check_names, constant

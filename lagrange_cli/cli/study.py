@@ -16,7 +16,7 @@ if TYPE_CHECKING:
 
     from lagrange_cli.cli.boundary import Item
     from lagrange_cli.model import Model
-    from lagrange_cli.numeric.accuracy import Candidate, Study
+    from lagrange_cli.numeric.accuracy import Candidate, Point, Study
     from lagrange_cli.numeric.stress import Outcome, Report
 
 
@@ -121,7 +121,7 @@ def accuracy(
     from lagrange_cli.errors import LagrangeError
 
     try:
-        from lagrange_cli.cli.numeric import _assignments
+        from lagrange_cli.cli.numeric import assignments_of
         from lagrange_cli.numeric import accuracy as core
         from lagrange_cli.numeric import output as out
 
@@ -135,8 +135,8 @@ def accuracy(
                 candidates=_candidates(method),
                 tolerances=ladder if ladder is not None else core.TOLERANCES,
                 t_end=t_end,
-                parameters=_assignments(model, set_ or [], "--set"),
-                initial=_assignments(model, initial or [], "--initial"),
+                parameters=assignments_of(model, set_ or [], "--set"),
+                initial=assignments_of(model, initial or [], "--initial"),
                 samples=samples,
                 repeats=repeats,
                 max_steps=max_steps,
@@ -206,7 +206,7 @@ def _report_study(result: Study, to_stderr: bool) -> None:
         else:
             status = f"[red]{inert(p.status)}[/red]: {inert(p.reason)}"
         evals = f"{p.nfev} ({p.njev})" if p.njev else str(p.nfev)
-        name = p.resolved if p.method.split(":")[0] == p.resolved.split(" ")[0] else f"{p.method} -> {p.resolved}"
+        name = _shown(p)
         table.add_row(inert(name), inert(p.setting), _e(p.final_error), _e(p.rms_error), _e(p.energy_error), _e(p.constraint_drift), _seconds(p.seconds), str(p.runs), evals, str(p.steps), status)
     console.print(table)
     costs = ", ".join(f"{name} {_seconds(value)}" for name, value in compile_costs.items() if value > 0.01)
@@ -298,7 +298,7 @@ def _report_stress(report: Report, to_stderr: bool) -> None:
         for p in (o.naive_default, *o.points) if o.naive_default is not None else o.points:
             met = p.ok and p.error <= report.accuracy
             status = ("[green]meets[/green]" if met else "[yellow]misses[/yellow]") if p.ok else f"[red]{inert(p.status)}[/red]: {inert(p.reason)}"
-            name = p.resolved if p.resolved == p.method or p.method.split(":")[0] == p.resolved.split(" ")[0] else f"{p.method} -> {p.resolved}"
+            name = _shown(p)
             evals = f"{p.nfev} ({p.njev})" if p.njev else str(p.nfev)
             setting = f"{p.setting} (default)" if p is o.naive_default else p.setting
             table.add_row(inert(name), inert(setting), _e(p.error), _e(p.energy_error), _e(p.constraint_drift), _seconds(p.seconds), str(p.steps), evals, status)
@@ -312,7 +312,7 @@ def _report_stress(report: Report, to_stderr: bool) -> None:
             console.print(f"  [red]no method meets error {tol_text(report.accuracy)} in this regime[/red]")
         summary.add_row(
             inert(o.regime.name),
-            inert("; ".join(f.split(": ")[0] for f in d.findings) or "benign"),
+            inert("; ".join(f.kind for f in d.findings) or "benign"),
             inert(_naive(o, report.accuracy)),
             inert(_brief(o.auto, report.accuracy)),
             inert(_brief(best, report.accuracy)) if best else "[red]none[/red]",
@@ -358,4 +358,12 @@ def _brief(p: object, target: float) -> str:
     if not p.ok:
         return f"{p.status}"
     mark = "ok" if p.error <= target else "misses"
-    return f"{p.resolved.split(' ')[0]} {p.setting}: {_e(p.error)} in {_seconds(p.seconds)} ({mark})"
+    ran = p.ran.method if p.ran is not None else p.method
+    return f"{ran} {p.setting}: {_e(p.error)} in {_seconds(p.seconds)} ({mark})"
+
+
+def _shown(p: Point) -> str:
+    """What ran, preceded by what was asked when that named another method (`auto -> DOP853 (compiled)`)."""
+    if p.ran is None or p.candidate is None or p.candidate.method == p.ran.method:
+        return p.resolved
+    return f"{p.method} -> {p.resolved}"

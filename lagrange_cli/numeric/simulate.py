@@ -26,7 +26,9 @@ from lagrange_cli.errors import LagrangeError
 from lagrange_cli.model import Model
 from lagrange_cli.numeric import codegen, compile, integrators
 from lagrange_cli.numeric.integrators import Problem, Progress, Run, Stats
-from lagrange_cli.numeric.settings import Settings, check, resolve
+from lagrange_cli.numeric.policy import resolve
+from lagrange_cli.numeric.settings import Settings, check
+from lagrange_cli.numeric.status import Status
 
 FAILURES = {
     integrators.SINGULAR: "the mass matrix{} is singular (a coordinate singularity, such as Euler angles at theta = 0, or a configuration without inertia)",
@@ -88,6 +90,8 @@ class Trajectory:
     timing: Timing
     invariants: tuple[Invariant, ...] = ()
     notes: tuple[str, ...] = field(default=())
+    outcome: Status = Status.FINISHED
+    """How the integrator's run ended, by kind (`status` is only finished, event or failed)."""
 
     @property
     def failed(self) -> bool:
@@ -131,12 +135,19 @@ def simulate(
     `max_steps` is the step budget (default `integrators.MAX_STEPS` of the backend): a run that
     has not reached t_end after it stops, failed, with the trajectory so far."""
     check(model)
-    plain = compile.build(model, "python")  # here rather than in resolve's linearisation, so that its cost is reported
+    plain = compile.build(model, "python")  # here rather than in the policy's linearisation, so that its cost is reported
     settings = resolve(
         model, t_end=t_end, method=method, rtol=rtol, atol=atol, step=step, samples=samples, t_eval=t_eval, parameters=parameters, initial=initial, until=until, backend=backend, max_step=max_step
     )
+    return integrate(model, settings, progress, max_steps, Timing(plain.generate_seconds, plain.import_seconds, 0.0, 0.0))
+
+
+def integrate(model: Model, settings: Settings, progress: Progress | None = None, max_steps: int | None = None, before: Timing | None = None) -> Trajectory:
+    """Run `settings` as decided by `policy.decide` (method and backend resolved); `before` the
+    one-time costs already spent on this run."""
     python = compile.build(model, "python", jacobian=settings.method in ("Radau", "BDF", "LSODA"), event=settings.event)
-    generate, load = plain.generate_seconds + python.generate_seconds, plain.import_seconds + python.import_seconds
+    generate = python.generate_seconds + (before.generate if before else 0.0)
+    load = python.import_seconds + (before.load if before else 0.0)
     budget = integrators.MAX_STEPS[settings.backend] if max_steps is None else _budget(max_steps)
     problem = Problem(settings.t0, settings.t_end, np.array(settings.y0, dtype=float), np.array(settings.t_eval, dtype=float), np.array(settings.p, dtype=float), settings.event is not None, budget)
     if settings.backend == "compiled":
@@ -165,7 +176,7 @@ def _run_compiled(numba: compile.Functions, python: compile.Functions, problem: 
         assert settings.step is not None
         run = integrators.run_gauss(numba, problem, z0, settings.stages, settings.step, progress)
     else:
-        run = integrators.run_erk(numba, problem, settings.method == "DOP853", settings.rtol, settings.atol, settings.max_step, progress)
+        run = integrators.run_erk(numba, problem, settings.method, settings.rtol, settings.atol, settings.max_step, progress)
     return _verified_event(python, problem, run)
 
 
@@ -198,15 +209,17 @@ def _trajectory(model: Model, settings: Settings, python: compile.Functions, run
         status, message = "event", f"stopped at t = {_g(run.t_last)}, where {settings.until} crossed zero"
     elif run.status == integrators.BUDGET:
         status = "failed"
-        message = f"{model.source}: stopped after {run.stats.steps} steps (the step budget) at t = {_g(run.t_last)}, of t_end = {_g(settings.t_end)}; state: {_state(model, run.y_last)}; {BUDGET_HINT}"
+        message = (
+            f"{model.source}: stopped after {run.stats.steps} steps (the step budget) at t = {_g(run.t_last)}, of t_end = {_g(settings.t_end)}; state: {state_text(model, run.y_last)}; {BUDGET_HINT}"
+        )
     else:
         status = "failed"
         if run.problem is not None:
-            reason = f"{run.problem.what} cannot be evaluated at t = {_g(run.problem.t)} ({_state(model, run.problem.y)}): {run.problem.cause}"
+            reason = f"{run.problem.what} cannot be evaluated at t = {_g(run.problem.t)} ({state_text(model, run.problem.y)}): {run.problem.cause}"
         else:
             reason = FAILURES[run.status].format(" (with the constraint rows)" if model.constraints else "")
-        message = f"{model.source}: simulation failed at t = {_g(run.t_last)}: {reason}; state: {_state(model, run.y_last)}"
-    return Trajectory(model.title, model.coordinates, settings, run.t, run.y, energy, status, message, run.t_last, run.y_last, run.stats, timing, invariants, settings.notes)
+        message = f"{model.source}: simulation failed at t = {_g(run.t_last)}: {reason}; state: {state_text(model, run.y_last)}"
+    return Trajectory(model.title, model.coordinates, settings, run.t, run.y, energy, status, message, run.t_last, run.y_last, run.stats, timing, invariants, settings.notes, run.status)
 
 
 class _MonitorFailure(Exception):
@@ -270,7 +283,8 @@ def _energy_scale(module: object, p: list[float], run: Run) -> float:
     return largest
 
 
-def _state(model: Model, y: np.ndarray) -> str:
+def state_text(model: Model, y: np.ndarray) -> str:
+    """`theta = 0.1, theta_dot = -2`: a state for messages."""
     names = (*model.coordinates, *(f"{c}_dot" for c in model.coordinates))
     return ", ".join(f"{n} = {_g(float(v))}" for n, v in zip(names, y, strict=True))
 
