@@ -164,3 +164,38 @@ def test_accuracy_command_writes_table_csv_json_and_plot(tmp_path: Path) -> None
 def test_accuracy_bad_options_exit_2(args: list[str], text: str) -> None:
     result = runner.invoke(app, ["accuracy", "harmonic_oscillator", *args])
     assert result.exit_code == 2 and text in result.output and "Traceback" not in result.output
+
+
+BLOW_UP = """
+coordinates: [x]
+parameters: {m: 1.0}
+particles:
+  p: {mass: m, position: [x, 0]}
+potential: -x**4
+initial: {x: 1.0, x_dot: 0.0}
+simulate: {t_end: 10.0}
+"""
+
+
+def test_a_failed_reference_run_is_a_failed_run_exit_1_with_time_state_and_cause(tmp_path: Path) -> None:
+    """x'' = 4 x^3 from x = 1 blows up in finite time: the reference cannot reach t_end. That is a
+    failed numerical run (exit 1, naming the time, the state and the cause), not bad input (exit 2)."""
+    path = tmp_path / "blow_up.yaml"
+    path.write_text(BLOW_UP)
+    with pytest.raises(accuracy.ReferenceFailed) as caught:
+        accuracy.study(model_from(path), candidates=[Candidate("RK45", "python")], tolerances=[1e-4], repeats=0, samples=11)
+    assert caught.value.exit_code == 1 and "reference run" in str(caught.value)
+    result = runner.invoke(app, ["accuracy", str(path), "--method", "RK45:python", "--tolerances", "1e-4", "--repeats", "0", "--samples", "11"])
+    assert result.exit_code == 1, result.output
+    text = " ".join(result.output.split())
+    assert "reference run" in text and "at t = " in text and "state: x = " in text and "Traceback" not in text
+    assert any(cause in text for cause in ("infinite or NaN", "step size collapsed", "step budget")), text
+
+
+def test_a_reference_over_its_budget_says_where_it_stopped() -> None:
+    model = model_from(ROOT / "systems" / "simple_pendulum.yaml")
+    setup = accuracy.Setup(1e5, tuple(float(t) for t in range(0, 100_001, 10_000)), max_steps=1, reference_max_steps=1)  # far beyond one pause of a compiled loop
+    with pytest.raises(accuracy.ReferenceFailed) as caught:
+        accuracy.computed_reference(model, setup, 1e-10)
+    message = str(caught.value)
+    assert caught.value.exit_code == 1 and "within" in message and "stopped at t = " in message and "state: theta = " in message, message

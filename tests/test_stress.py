@@ -169,3 +169,39 @@ def test_report_names_the_naive_failure_and_the_recommended_success() -> None:
     assert any(f.startswith("stiff:") for f in outcome.diagnosis.findings), outcome.diagnosis.findings
     assert outcome.recommended is not None and outcome.recommended.resolved.startswith("Radau") and outcome.auto.resolved.startswith("Radau")
     assert json.loads(stress.json_text(report))["regimes"][0]["naive"]["status"] == "over step budget"
+
+
+def command_options(name: str) -> set[str]:
+    """The long options of one command of the CLI."""
+    import typer.main
+
+    group = typer.main.get_command(app)
+    command = group.commands[name]  # type: ignore[attr-defined]
+    return {option for parameter in command.params for option in (*parameter.opts, *parameter.secondary_opts) if option.startswith("--")}
+
+
+OPTION = r"(?<![\w-])--[a-z][a-z-]*[a-z]"
+
+
+def test_every_option_the_numeric_messages_name_exists() -> None:
+    """A hint names only options the CLI has (the numeric library's messages are shown by its commands)."""
+    import re
+
+    known = command_options("simulate") | command_options("accuracy") | command_options("stress")
+    named = {option for path in (ROOT / "lagrange_cli" / "numeric").glob("*.py") for option in re.findall(OPTION, path.read_text())}
+    assert named and named <= known, named - known
+
+
+def test_stress_hints_name_only_stress_options(tmp_path: Path) -> None:
+    """A reference run over its step budget: the hint must not suggest `--tolerances` (an
+    `accuracy` option) to a user of `stress`."""
+    import re
+
+    report = tmp_path / "report.json"
+    args = ["stress", "simple_pendulum", "--method", "RK45:python", "--max-steps", "1", "--t-end", "100", "--json", str(report)]
+    result = runner.invoke(app, args)
+    assert result.exit_code == 0, result.output
+    findings = [f for regime in json.loads(report.read_text())["regimes"] for f in regime["findings"]]
+    assert any("reference run" in f for f in findings), findings
+    named = {option for f in findings for option in re.findall(OPTION, f)}
+    assert named and named <= command_options("stress"), named - command_options("stress")
