@@ -323,7 +323,7 @@ def test_accuracy_plot_tells_compiled_from_python_runs(tmp_path: Path) -> None:
     assert python.get_linestyle() == lines["RK45 (python)"].get_linestyle() == "--"
     assert len(lines["RK45 (python)"].get_xdata()) == 2  # the run over budget is not drawn
     assert left.get_xlabel() == "run time [s] (one-time compile excluded)" and right.get_xlabel() == "right-hand side evaluations"
-    assert left.get_ylabel() == right.get_ylabel() == "error (larger of final and RMS, scaled)"
+    assert left.get_ylabel() == right.get_ylabel() == "error (largest over the samples, scaled)"
     assert_readable(figure)
 
 

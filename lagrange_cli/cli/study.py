@@ -177,7 +177,7 @@ def _seconds(value: float) -> str:
 def _report_study(result: Study, to_stderr: bool) -> None:
     from rich.table import Table
 
-    from lagrange_cli.numeric.accuracy import HORIZON_THRESHOLD, tol_text
+    from lagrange_cli.numeric.accuracy import HORIZON_THRESHOLD, TIE_MARGIN, tol_text
 
     console = _console(to_stderr)
     window = f"t = 0 .. {result.t_end:.4g}" + (f" (of {result.full_t_end:g})" if result.t_end < result.full_t_end else "")
@@ -196,7 +196,7 @@ def _report_study(result: Study, to_stderr: bool) -> None:
     for note in result.notes:
         console.print(f"  [dim]{inert(note)}[/dim]", markup=True)
     table = Table(title="runs", title_justify="left", box=None, padding=(0, 1))
-    for column in ("method", "setting", "final err", "RMS err", "energy", "constraint", "run time", "runs", "evals (jac)", "steps", "status"):
+    for column in ("method", "setting", "final err", "RMS err", "max err", "energy", "constraint", "run time", "runs", "evals (jac)", "steps", "status"):
         table.add_column(column, justify="left" if column in ("method", "setting", "status") else "right")
     compile_costs: dict[str, float] = {}
     for p in result.points:
@@ -207,17 +207,32 @@ def _report_study(result: Study, to_stderr: bool) -> None:
             status = f"[red]{inert(p.status)}[/red]: {inert(p.reason)}"
         evals = f"{p.nfev} ({p.njev})" if p.njev else str(p.nfev)
         name = _shown(p)
-        table.add_row(inert(name), inert(p.setting), _e(p.final_error), _e(p.rms_error), _e(p.energy_error), _e(p.constraint_drift), _seconds(p.seconds), str(p.runs), evals, str(p.steps), status)
+        table.add_row(
+            inert(name),
+            inert(p.setting),
+            _e(p.final_error),
+            _e(p.rms_error),
+            _e(p.max_error),
+            _e(p.energy_error),
+            _e(p.constraint_drift),
+            _seconds(p.seconds),
+            str(p.runs),
+            evals,
+            str(p.steps),
+            status,
+        )
     console.print(table)
     costs = ", ".join(f"{name} {_seconds(value)}" for name, value in compile_costs.items() if value > 0.01)
     console.print(f"one-time costs (code generation, import, compile or load), not in the run times: {inert(costs) or 'none above 10 ms'}")
     fastest = result.fastest
     if fastest:
-        summary = Table(title="fastest method for each accuracy (error = max of final and RMS)", title_justify="left")
+        summary = Table(title="fastest method for each accuracy (error = largest over the samples)", title_justify="left")
         for column in ("error <=", "fastest", "setting", "run time", "error reached"):
             summary.add_column(column)
         for level, p in fastest:
-            summary.add_row(f"{level:.0e}", inert(p.method), inert(p.setting), _seconds(p.seconds), _e(p.error))
+            tied = result.ties(level, p)
+            name = p.method + (f" (tie within {TIE_MARGIN:.0%}: {', '.join(t.method for t in tied)})" if tied else "")
+            summary.add_row(f"{level:.0e}", inert(name), inert(p.setting), _seconds(p.seconds), _e(p.error))
         console.print(summary)
     else:
         console.print("[red]no run finished with a finite error[/red]")
@@ -276,7 +291,7 @@ def stress(
 def _report_stress(report: Report, to_stderr: bool) -> None:
     from rich.table import Table
 
-    from lagrange_cli.numeric.accuracy import tol_text
+    from lagrange_cli.numeric.accuracy import TIE_MARGIN, tol_text
 
     console = _console(to_stderr)
     console.print(f"[bold]{inert(report.title)}[/bold]: stress test, required error {tol_text(report.accuracy)}")
@@ -293,7 +308,7 @@ def _report_stress(report: Report, to_stderr: bool) -> None:
         for finding in d.findings:
             console.print(plain(f"  - {finding}"), markup=False)
         table = Table(box=None, padding=(0, 1))
-        for column in ("method", "setting", "error", "energy", "constraint", "run time", "steps", "evals (jac)", "status"):
+        for column in ("method", "setting", "error", "final/RMS", "energy", "constraint", "run time", "steps", "evals (jac)", "status"):
             table.add_column(column, justify="left" if column in ("method", "setting", "status") else "right")
         for p in (o.naive_default, *o.points) if o.naive_default is not None else o.points:
             met = p.ok and p.error <= report.accuracy
@@ -301,11 +316,13 @@ def _report_stress(report: Report, to_stderr: bool) -> None:
             name = _shown(p)
             evals = f"{p.nfev} ({p.njev})" if p.njev else str(p.nfev)
             setting = f"{p.setting} (default)" if p is o.naive_default else p.setting
-            table.add_row(inert(name), inert(setting), _e(p.error), _e(p.energy_error), _e(p.constraint_drift), _seconds(p.seconds), str(p.steps), evals, status)
+            table.add_row(inert(name), inert(setting), _e(p.error), _e(p.final_rms_error), _e(p.energy_error), _e(p.constraint_drift), _seconds(p.seconds), str(p.steps), evals, status)
         console.print(table)
         best = o.recommended
         if best is not None:
             console.print(f"  recommended: [bold]{inert(best.resolved)}[/bold] at {inert(best.setting)} (error {_e(best.error)} in {_seconds(best.seconds)})")
+            for other in o.ties:
+                console.print(f"  tie (within {TIE_MARGIN:.0%} of its run time): {inert(other.resolved)} at {inert(other.setting)} (error {_e(other.error)} in {_seconds(other.seconds)})")
         elif o.undecided:
             console.print(f"  [yellow]undecided: no method met error {tol_text(report.accuracy)}, but some run was stopped by the time limit (--budget)[/yellow]")
         else:
@@ -315,7 +332,7 @@ def _report_stress(report: Report, to_stderr: bool) -> None:
             inert("; ".join(f.kind for f in d.findings) or "benign"),
             inert(_naive(o, report.accuracy)),
             inert(_brief(o.auto, report.accuracy)),
-            inert(_brief(best, report.accuracy)) if best else "[red]none[/red]",
+            inert(_brief(best, report.accuracy) + (f" (tie: {', '.join(t.method for t in o.ties)})" if o.ties else "")) if best else "[red]none[/red]",
         )
     console.print()
     console.print(summary)

@@ -19,14 +19,18 @@ Errors compare the samples at evenly spaced times (dense output) with the refere
 time t the error is max_i |y_i - y_ref,i| / s_i, with s_i = max(1, max_t |y_ref,i|) the size of
 component i (coordinates and velocities): an absolute error for quantities of order one, a
 relative one for large ones. `final_error` is that at the last time, `rms_error` its root mean
-square over the times. `energy_error` is max_t |E - E_ref| divided by the larger of max_t |E_ref|
+square over the times, and `max_error` its maximum over the times: `Point.error`, what "meets" and
+"fastest" judge by (an average or the final error understates the worst error along an
+eccentric orbit about tenfold). `energy_error` is max_t |E - E_ref| divided by the larger of max_t |E_ref|
 and the largest |sum p q_dot| of the run (twice its kinetic energy, for a natural system), so
 that an energy near 0 still gives a relative error;
 `constraint_drift` the largest residual of a kept constraint.
 
-Timing: the first run is the warm-up (its one-time compile/load cost is reported apart); then
-the minimum of up to `repeats` more runs (fewer when one run is slow, see `_repeats`) of the
-integration itself (`Trajectory.timing.run`).
+Timing: the first run is the warm-up (its one-time compile/load cost is reported apart); then,
+once every point has run, up to `repeats` more runs of each (fewer when one run is slow) in turns,
+point after point (`runs.interleave`), so that a load that comes and goes slows them all alike;
+the minimum of the integration time (`Trajectory.timing.run`) is kept. Methods within TIE_MARGIN
+(10%) of the fastest are reported as ties (`Study.ties`), not as slower.
 
 Budgets count steps, never seconds, so that no verdict depends on the machine's load: a measured
 run that has not reached t_end after `max_steps` steps (scipy steps; a compiled run, whose step
@@ -65,6 +69,7 @@ from lagrange_cli.numeric.runs import (
     OVER_BUDGET,
     REFERENCE_STEPS,
     STUDY_METHODS,
+    TIE_MARGIN,
     TIGHTEST,
     UNDECIDED,
     Candidate,
@@ -77,11 +82,14 @@ from lagrange_cli.numeric.runs import (
     component_scale,
     default_candidates,
     errors,
+    interleave,
     measure,
     over_step_budget,
     parse_candidate,
+    retime,
     run,
     scaled_errors,
+    ties,
     tol_text,
 )
 from lagrange_cli.numeric.settings import validate
@@ -98,6 +106,7 @@ __all__ = [
     "REFERENCE_STEPS",
     "SAMPLES",
     "STUDY_METHODS",
+    "TIE_MARGIN",
     "TIGHTEST",
     "TOLERANCES",
     "UNDECIDED",
@@ -122,6 +131,7 @@ __all__ = [
     "exact_reference",
     "fastest",
     "horizon",
+    "interleave",
     "json_text",
     "measure",
     "over_step_budget",
@@ -129,12 +139,14 @@ __all__ = [
     "plot_label",
     "prepare",
     "reference_candidates",
+    "retime",
     "rows",
     "run",
     "run_backend",
     "scaled_errors",
     "study",
     "study_figure",
+    "ties",
     "tol_text",
     "write_plot",
 ]
@@ -161,6 +173,10 @@ class Study:
         """For each decade of error reached by some run, the fastest run reaching it; only
         levels the reference can vouch for (at least 10x its own error)."""
         return fastest(self.points, floor=10 * self.reference.own_error)
+
+    def ties(self, level: float, best: Point) -> tuple[Point, ...]:
+        """Other methods reaching `level` within TIE_MARGIN of `best`'s run time: a tie, not a win."""
+        return ties(self.points, best, level)
 
 
 def fastest(points: Sequence[Point], floor: float = 0.0) -> tuple[tuple[float, Point], ...]:
@@ -247,7 +263,11 @@ def study(
             what = f"{candidate.label} {tol_text(tolerance)}"
             if progress:
                 progress(Step(len(points) + 1, total, what, what))
-            points.append(measure(model, candidate, tolerance, setup, reference, scale, repeats))
+            points.append(measure(model, candidate, tolerance, setup, reference, scale, repeats=0))
             if progress:
                 progress(Step(len(points) + 1, total, what))
+    if repeats > 0:  # the run times, measured in turns so that a changing load slows every run alike
+        if progress:
+            progress(Step(total, total, "timing", "timing the runs in turns"))
+        points = retime(model, points, setup, repeats)
     return Study(model.title, model.source, setup.t_end, full, reference, found, tuple(points), notes)

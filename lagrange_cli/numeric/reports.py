@@ -18,7 +18,7 @@ if TYPE_CHECKING:
     from lagrange_cli.numeric.accuracy import Study
 
 
-COLUMNS = ("method", "ran", "setting", "status", "final_error", "rms_error", "energy_error", "constraint_drift", "seconds", "runs", "compile_seconds", "nfev", "njev", "steps", "reason")
+COLUMNS = ("method", "ran", "setting", "status", "final_error", "rms_error", "max_error", "energy_error", "constraint_drift", "seconds", "runs", "compile_seconds", "nfev", "njev", "steps", "reason")
 
 
 def rows(result: Study) -> list[dict[str, object]]:
@@ -33,6 +33,7 @@ def rows(result: Study) -> list[dict[str, object]]:
                 "status": p.status,
                 "final_error": p.final_error,
                 "rms_error": p.rms_error,
+                "max_error": p.max_error,
                 "energy_error": p.energy_error,
                 "constraint_drift": p.constraint_drift,
                 "seconds": p.seconds,
@@ -75,7 +76,9 @@ def json_text(result: Study) -> str:
         "reference": {"kind": result.reference.kind, "description": result.reference.description, "own_error": _json_number(result.reference.own_error), "seconds": result.reference.seconds},
         "horizon": None if h is None else {"delta": h.delta, "chaotic": h.chaotic, "lyapunov": h.lyapunov, "horizon": _json_number(h.horizon), "growth": h.growth},
         "points": [{k: _json_number(v) for k, v in row.items()} for row in rows(result)],
-        "fastest": [{"error": level, "method": p.method, "setting": p.setting, "seconds": p.seconds, "error_reached": p.error} for level, p in result.fastest],
+        "fastest": [
+            {"error": level, "method": p.method, "setting": p.setting, "seconds": p.seconds, "error_reached": p.error, "ties": [t.method for t in result.ties(level, p)]} for level, p in result.fastest
+        ],
         "notes": list(result.notes),
     }
     return json.dumps(document, indent=2, allow_nan=False) + "\n"
@@ -142,7 +145,7 @@ def study_figure(result: Study) -> Figure:
     titles = ("error against run time", "error against work (independent of the machine)")
     for axes, xlabel, title in zip((left, right), ("run time [s] (one-time compile excluded)", "right-hand side evaluations"), titles, strict=True):
         axes.set_xlabel(xlabel)
-        axes.set_ylabel("error (larger of final and RMS, scaled)")
+        axes.set_ylabel("error (largest over the samples, scaled)")
         axes.set_title(title, fontsize="medium")
         axes.grid(True, which="both", alpha=0.3)
         if not finished:

@@ -30,6 +30,10 @@ a decay counting only if no state of the run grows at MATCHED x its rate or more
 rates, which an implicit method does not help with, are reported apart), the
 explicit method's step count against the implicit one's, cond M (coordinate singularities),
 drift of the energy, ignorable momenta and constraints, and blow-ups.
+
+Timing: each method's final run (and scipy's default run) is timed again TIMED_RUNS times after
+the ladders, in turns (`runs.interleave`), and methods within TIE_MARGIN (10%) of the recommended
+one's run time are reported as ties (`Outcome.ties`), not as slower.
 """
 
 from __future__ import annotations
@@ -45,7 +49,7 @@ from lagrange_cli.model import Model
 from lagrange_cli.numeric import accuracy as study
 from lagrange_cli.numeric import compile, diagnostics, policy
 from lagrange_cli.numeric.reference import HORIZON_THRESHOLD, Horizon, Reference, ReferenceFailed, prepare
-from lagrange_cli.numeric.runs import TIGHTEST, Candidate, Point, PointStatus, Setup, check_steps, component_scale, measure, starting, tol_text
+from lagrange_cli.numeric.runs import TIGHTEST, Candidate, Point, PointStatus, Setup, check_steps, component_scale, measure, retime, starting, ties, tol_text
 from lagrange_cli.numeric.settings import Settings, validate
 from lagrange_cli.numeric.status import Failure
 
@@ -111,6 +115,8 @@ class Outcome:
     auto: Point | None
     naive_default: Point | None = None
     """scipy's RK45 at its default tolerances (rtol 1e-3, atol 1e-6)."""
+    ties: tuple[Point, ...] = ()
+    """Other methods meeting the accuracy within TIE_MARGIN of the recommended one's run time: as good a choice."""
 
     @property
     def met(self) -> bool:
@@ -241,6 +247,8 @@ def default_candidates(model: Model) -> tuple[Candidate, ...]:
     return (NAIVE, *study.default_candidates(model), AUTO)
 
 
+TIMED_RUNS = 2
+"""Timed runs of each method's final run (and scipy's default run) after the ladders, in turns."""
 MAX_STEPS = 60_000
 """The default step budget of one run (scipy steps, about 4 s of RK45 or BDF in Python on a quiet
 machine, as the old 5 s budget; compiled runs 100 x as many, reference runs 10 x)."""
@@ -316,14 +324,14 @@ def _regime(model: Model, regime: Regime, target: float, candidates: Sequence[Ca
     if NAIVE in candidates:
         if say:
             say(f"{NAIVE.label} {NAIVE_RTOL:.0e} (scipy's default)")
-        naive_default = measure(model, NAIVE, NAIVE_RTOL, setup, reference, scale, repeats=1)
+        naive_default = measure(model, NAIVE, NAIVE_RTOL, setup, reference, scale, repeats=0)
     for candidate in candidates:
         last: Point | None = None
         stalls = 0
         for tolerance in ladder(target):
             if say:
                 say(f"{candidate.label} {tol_text(tolerance)}")
-            previous, last = last, measure(model, candidate, tolerance, setup, reference, scale, repeats=1)
+            previous, last = last, measure(model, candidate, tolerance, setup, reference, scale, repeats=0)
             runs[(candidate, tolerance)] = last
             if not last.ok or last.error <= target:
                 break
@@ -333,12 +341,17 @@ def _regime(model: Model, regime: Regime, target: float, candidates: Sequence[Ca
                 break  # tighter tolerances no longer buy accuracy (round-off, or an error floor)
         if last is not None:
             points.append(last)
+    if say:
+        say("timing the runs in turns")
+    timed = retime(model, [*points, *([naive_default] if naive_default is not None else [])], setup, TIMED_RUNS)  # in turns: a changing load slows all alike
+    points, naive_default = timed[: len(points)], (timed[-1] if naive_default is not None else None)
     meeting = [p for p in points if p.ok and p.error <= target]
     recommended = min(meeting, key=lambda p: p.seconds) if meeting else None
+    tied = ties(meeting, recommended, target) if recommended is not None else ()
     naive = next((p for p in points if p.candidate == NAIVE), None)
     auto = next((p for p in points if p.candidate == AUTO), None)
     diagnosis = diagnose(model, setup, reference, points, runs, target, horizon if setup.t_end < regime.t_end else None)
-    return Outcome(regime, setup.t_end, reference.description, reference.own_error, tuple(points), diagnosis, recommended, naive, auto, naive_default)
+    return Outcome(regime, setup.t_end, reference.description, reference.own_error, tuple(points), diagnosis, recommended, naive, auto, naive_default, tied)
 
 
 def diagnose(model: Model, setup: Setup, reference: Reference, points: Sequence[Point], runs: Mapping[tuple[Candidate, float], Point], target: float, horizon: Horizon | None = None) -> Diagnosis:
@@ -431,6 +444,7 @@ def json_text(report: Report) -> str:
             "setting": p.setting,
             "status": p.status,
             "error": number(p.error),
+            "final_rms_error": number(p.final_rms_error),
             "seconds": number(p.seconds),
             "steps": p.steps,
             "nfev": p.nfev,
@@ -455,6 +469,7 @@ def json_text(report: Report) -> str:
                 "max_mass_condition": number(o.diagnosis.condition),
                 "findings": [str(f) for f in o.diagnosis.findings],
                 "recommended": point(o.recommended),
+                "ties": [point(p) for p in o.ties],
                 "naive": point(o.naive),
                 "naive_default": point(o.naive_default),
                 "auto": point(o.auto),
