@@ -112,6 +112,7 @@ def _report(trajectory: Trajectory, to_stderr: bool) -> None:
 
     from lagrange_cli.cli.boundary import console as make_console
     from lagrange_cli.cli.boundary import inert, plain
+    from lagrange_cli.numeric.simulate import InvariantKind
 
     console = make_console(stderr=to_stderr)
     s, stats, timing = trajectory.settings, trajectory.stats, trajectory.timing
@@ -135,7 +136,7 @@ def _report(trajectory: Trajectory, to_stderr: bool) -> None:
             table.add_column(column)
         for inv in trajectory.invariants:
             table.add_row(inert(inv.name), "conserved" if inv.conserved else "not conserved", f"{inv.initial:.6g}", f"{inv.max_change:.2e}", f"{inv.relative:.2e}")
-        energy = next((inv for inv in trajectory.invariants if inv.name == "energy"), None)
+        energy = trajectory.invariant(InvariantKind.ENERGY)
         if energy is not None and energy.scale > abs(energy.initial):
             table.caption = f"energy: relative to the largest |sum p q_dot| = {energy.scale:.6g} (twice the kinetic energy of a natural system), which exceeds |initial|"
             table.caption_justify = "left"

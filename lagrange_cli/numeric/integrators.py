@@ -237,10 +237,12 @@ def run_gauss(functions: Functions, problem: Problem, z0: np.ndarray, stages: in
     control = _control(problem, size, step=h, steps=steps)
     state = _state(problem.t0, 0.0, _initial_event(functions, problem))
     sizes = np.abs(z)
+    unknowns = stages * len(z)
+    memory, pivots = np.zeros(unknowns + unknowns * unknowns), np.zeros(unknowns, dtype=np.int64)  # carried across pauses (see kernels.gauss_run)
 
     def advance(t_stop: float) -> int:
         control[status.T_STOP] = t_stop
-        return int(entry(stages, z, state, control, problem.ts, ys, problem.p, stats, sizes, hamilton, event))
+        return int(entry(stages, z, state, control, problem.ts, ys, problem.p, stats, sizes, memory, pivots, hamilton, event))
 
     code = _drive(advance, lambda: float(state[status.T]), lambda: int(state[status.H]), problem, progress)
     out, x, a = np.empty_like(z), np.empty(size), np.empty((size, size))

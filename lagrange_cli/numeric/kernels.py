@@ -35,6 +35,7 @@ from lagrange_cli.numeric.status import (
     MAX_STEP,
     MIN_FACTOR,
     MIN_STEP_SPACINGS,
+    NEWTON,
     NEXT_SAMPLE,
     NFEV,
     NJEV,
@@ -118,8 +119,8 @@ SIGNATURES = {
     "erk_start": _F8(_I8, _F8, _ARR, _ARR, _ARR, _ARR, _ARR, _ACCEL_T),
     # (pair, y, f, state, control, ts, ys, p, stats, accel, event)
     "erk_run": _I8(_I8, _ARR, _ARR, _ARR, _ARR, _ARR, _MAT, _ARR, _ARR, _ACCEL_T, _EVENT_T),
-    # (stages, z, state, control, ts, zs, p, stats, sizes, hamilton, event)
-    "gauss_run": _I8(_I8, _ARR, _ARR, _ARR, _ARR, _MAT, _ARR, _ARR, _ARR, _HAMILTON_T, _EVENT_T),
+    # (stages, z, state, control, ts, zs, p, stats, sizes, memory, pivots, hamilton, event)
+    "gauss_run": _I8(_I8, _ARR, _ARR, _ARR, _ARR, _MAT, _ARR, _ARR, _ARR, _ARR, types.int64[::1], _HAMILTON_T, _EVENT_T),
 }
 """The entry points. The arrays are records with named indices (status.py): `state` (T, H or the
 steps done, EVENT_VALUE, NEXT_SAMPLE), `control` (RTOL, ATOL, MAX_STEP, T_BOUND, T_STOP, USE_EVENT,
@@ -616,29 +617,38 @@ def _gauss_root(hamilton, event, t_old, h, z0, f0, z1, f1, p, x, a, g_old):
     return hi
 
 
-def gauss_run(s, z, state, control, ts, zs, p, stats, sizes, hamilton, event):
+def gauss_run(s, z, state, control, ts, zs, p, stats, sizes, memory, pivots, hamilton, event):
     """Advance z = (q, p) by fixed steps h = control[STEP] (t = state[T], state[H] steps taken of
     control[STEPS]) until t >= control[T_STOP], writing zs[j] = (q, q_dot) at the samples ts[j]
     passed (state[NEXT_SAMPLE] = the next one); returns a status code.
     The last step ends at t_end exactly (t0 + steps h may fall short of it by round-off).
-    `sizes` keeps the largest |z_k| so far (the scale of each component's convergence test)."""
+    `sizes` keeps the largest |z_k| so far (the scale of each component's convergence test).
+    What the iteration carries from step to step lives in the caller's arrays, so that a run
+    paused and resumed (for progress, at times that depend on the clock) takes exactly the steps
+    of one that was not: `memory` (zeros at the start, s n + (s n)^2 floats) holds the stage
+    derivatives of the last step (the next step's predictor) and the LU factors of the Newton
+    matrix, `pivots` their row exchanges, state[NEWTON] 1.0 while those factors are current."""
     n = z.shape[0]
     h, steps, t0, t_end, t_stop, use_event = control[STEP], int(control[STEPS]), control[T0], control[T_BOUND], control[T_STOP], control[USE_EVENT] != 0.0
     size = int(control[SIZE])
     x, a = np.empty(size), np.empty((size, size))
-    Z, FZ = np.empty((s, n)), np.zeros((s, n))
+    Z = np.empty((s, n))
+    FZ = memory[: s * n].reshape((s, n))
+    m = memory[s * n : s * n + (s * n) * (s * n)].reshape((s * n, s * n))
     z_new, f0, f1, work, fw, z_event = np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(n)
-    jac, m, pivots, g = np.empty((n, n)), np.empty((s * n, s * n)), np.empty(s * n, dtype=np.int64), np.empty(s * n)
+    jac, g = np.empty((n, n)), np.empty(s * n)
     done = int(state[H])
     t = state[T]
-    fresh, refreshed = False, False
+    fresh, refreshed = state[NEWTON] != 0.0, False
     taken = 0
     while done < steps and t < t_stop and taken < PAUSE_STEPS:
         taken += 1
         if not fresh:
+            state[NEWTON] = 0.0
             if _jacobian(hamilton, t, z, p, x, a, jac, f0, work, fw, sizes, stats) or _newton_matrix(s, h, jac, m, pivots):
                 return SINGULAR
             fresh, refreshed = True, True
+            state[NEWTON] = 1.0
         for i in range(s):
             for k in range(n):
                 value = z[k]
@@ -648,10 +658,12 @@ def gauss_run(s, z, state, control, ts, zs, p, stats, sizes, hamilton, event):
         status, iterations = _gauss_stages(hamilton, s, t, z, h, Z, FZ, p, x, a, m, pivots, g, sizes, stats)
         if status == NO_CONVERGENCE and not refreshed:
             fresh = False  # a Jacobian from an earlier step: refresh it and try again
+            state[NEWTON] = 0.0
             continue
         if status != DONE:
             return status
         fresh, refreshed = iterations <= 8, False
+        state[NEWTON] = 1.0 if fresh else 0.0
         for k in range(n):
             value = 0.0
             for i in range(s):

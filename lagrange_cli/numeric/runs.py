@@ -24,7 +24,7 @@ from lagrange_cli.errors import LagrangeError
 from lagrange_cli.model import Model
 from lagrange_cli.numeric import compile, policy
 from lagrange_cli.numeric.settings import METHODS, Settings, validate
-from lagrange_cli.numeric.simulate import Trajectory, integrate
+from lagrange_cli.numeric.simulate import InvariantKind, Trajectory, integrate
 from lagrange_cli.numeric.status import Failure, Status
 
 if TYPE_CHECKING:
@@ -317,8 +317,8 @@ def measure(model: Model, candidate: Candidate, tolerance: float, setup: Setup, 
     if first.failed:
         return replace(base, status=PointStatus.FAILED, reason=first.message, failure=Failure.of(first.outcome) or Failure.NONFINITE)
     found = errors(first, reference, scale)
-    drifts = [inv.max_change for inv in first.invariants if inv.name.startswith("constraint ")]
-    conserved = tuple((inv.name, inv.relative) for inv in first.invariants if inv.conserved and not inv.name.startswith("constraint "))
+    drifts = [inv.max_change for inv in first.invariants if inv.kind == InvariantKind.CONSTRAINT]
+    conserved = tuple((inv.name, inv.relative) for inv in first.invariants if inv.conserved and inv.kind != InvariantKind.CONSTRAINT)
     seconds = [first.timing.run]
     if repeats > 0:
         for _ in range(_repeats(first.timing.run, repeats)):
@@ -417,7 +417,7 @@ def errors(trajectory: Trajectory, reference: Reference, scale: np.ndarray) -> E
     if len(trajectory.t) != len(reference.t) or not np.all(np.isfinite(trajectory.y)):
         return Errors(math.nan, math.nan, math.nan, math.nan)
     e = scaled_errors(trajectory.y, reference.y, scale)
-    kinetic = next((i.scale for i in trajectory.invariants if i.name == "energy"), 0.0)  # the largest |sum p q_dot|
+    kinetic = next((i.scale for i in trajectory.invariants if i.kind == InvariantKind.ENERGY), 0.0)  # the largest |sum p q_dot|
     size = max(float(np.max(np.abs(reference.energy))), kinetic, 1e-300)
     return Errors(float(e[-1]), float(np.sqrt(np.mean(e**2))), float(np.max(e)), float(np.max(np.abs(trajectory.energy - reference.energy)) / size))
 

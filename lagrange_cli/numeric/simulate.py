@@ -16,6 +16,7 @@ work-precision study can call `simulate` in a loop.
 from __future__ import annotations
 
 import dataclasses
+import enum
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -39,6 +40,16 @@ FAILURES = {
 BUDGET_HINT = "shorten t_end (--t-end), loosen the tolerances (--rtol/--atol), give a larger --step, or raise the budget (max_steps)"
 
 
+class InvariantKind(enum.StrEnum):
+    """What a monitored quantity is."""
+
+    ENERGY = "energy"
+    MOMENTUM = "momentum"
+    """The momentum of an ignorable coordinate."""
+    CONSTRAINT = "constraint"
+    """The residual of a kept constraint."""
+
+
 @dataclass(frozen=True)
 class Invariant:
     """A monitored quantity: its initial value and how far it moved over the run."""
@@ -53,6 +64,8 @@ class Invariant:
     """The size the change is measured against: |initial|, or for the energy the larger of
     |initial| and the largest |sum p q_dot| (twice the kinetic energy of a natural system),
     so that an energy that starts at or near 0 still gets a meaningful relative error."""
+    kind: InvariantKind | None = None
+    """What it is (None only for an invariant made by hand)."""
 
     @property
     def relative(self) -> float:
@@ -101,6 +114,10 @@ class Trajectory:
     def names(self) -> tuple[str, ...]:
         """The columns of y: the coordinates, then their velocities."""
         return (*self.coordinates, *(f"{c}_dot" for c in self.coordinates))
+
+    def invariant(self, kind: InvariantKind) -> Invariant | None:
+        """The first monitored quantity of this kind (the energy: `invariant(InvariantKind.ENERGY)`)."""
+        return next((i for i in self.invariants if i.kind == kind), None)
 
     def column(self, name: str) -> np.ndarray:
         """The samples of one coordinate or velocity (`theta`, `theta_dot`), or `t`, or `energy`."""
@@ -251,22 +268,22 @@ def _invariants(model: Model, module: object, p: list[float], run: Run, energy: 
     """Energy, the momenta of ignorable coordinates, and constraint residuals along the samples."""
     if len(run.t) == 0:
         return ()
-    result = [_invariant("energy", model.energy_conserved, energy, scale=_energy_scale(module, p, run))]
+    result = [_invariant("energy", InvariantKind.ENERGY, model.energy_conserved, energy, scale=_energy_scale(module, p, run))]
     ignorable = codegen.ignorable(model)
     if ignorable:
         momenta = _values(module._momenta, run, p, "the momenta")  # type: ignore[attr-defined]
-        result += [_invariant(f"p_{model.coordinates[i]}", True, momenta[:, k]) for k, i in enumerate(ignorable)]
+        result += [_invariant(f"p_{model.coordinates[i]}", InvariantKind.MOMENTUM, True, momenta[:, k]) for k, i in enumerate(ignorable)]
     if model.constraints:
         residuals = _values(module._residuals, run, p, "the constraint residuals")  # type: ignore[attr-defined]
-        result += [_invariant(f"constraint {c.name}", True, residuals[:, k], drift=True) for k, c in enumerate(model.constraints)]
+        result += [_invariant(f"constraint {c.name}", InvariantKind.CONSTRAINT, True, residuals[:, k], drift=True) for k, c in enumerate(model.constraints)]
     return tuple(result)
 
 
-def _invariant(name: str, conserved: bool, values: np.ndarray, drift: bool = False, scale: float = 0.0) -> Invariant:
+def _invariant(name: str, kind: InvariantKind, conserved: bool, values: np.ndarray, drift: bool = False, scale: float = 0.0) -> Invariant:
     start = 0.0 if drift else float(values[0])
     change = np.abs(values - start)
     size = max(abs(start), scale) if math.isfinite(scale) else abs(start)
-    return Invariant(name, conserved, start, float(np.nanmax(change)) if len(change) else 0.0, float(change[-1]), size)
+    return Invariant(name, conserved, start, float(np.nanmax(change)) if len(change) else 0.0, float(change[-1]), size, kind)
 
 
 ENERGY_SCALE_SAMPLES = 101  # samples at which sum p q_dot is evaluated for the energy's scale

@@ -37,10 +37,11 @@ rejected steps, smallest and largest step."""
 STATS_SIZE = 6
 
 # -- the loop state `state` (float64): where a paused loop resumes
-T, H, EVENT_VALUE, NEXT_SAMPLE = 0, 1, 2, 3
+T, H, EVENT_VALUE, NEXT_SAMPLE, NEWTON = 0, 1, 2, 3, 4
 """The time reached; the next step size (explicit pairs) or the steps done (Gauss); the stop
-condition's value at t; the index of the next sample to write."""
-STATE_SIZE = 4
+condition's value at t; the index of the next sample to write; 1.0 while the Gauss method's
+Newton matrix (kept by the caller) is current."""
+STATE_SIZE = 5
 
 # -- the controls `control` of a loop (float64; read-only to the loops)
 RTOL, ATOL, MAX_STEP, T_BOUND, T_STOP, USE_EVENT, SIZE, STEP, STEPS, T0 = range(10)
