@@ -152,7 +152,7 @@ def test_spectrum_does_not_count_a_saddle_pair_as_stiffness() -> None:
     ],
 )
 def test_auto_picks_explicit_unless_an_explicit_method_is_stability_limited_too_long(name: str, parameters: dict[str, float], initial: dict[str, float], picked: tuple[str, ...]) -> None:
-    from lagrange_cli.numeric.settings import resolve
+    from lagrange_cli.numeric.policy import resolve
 
     settings = resolve(model_from(ROOT / "systems" / f"{name}.yaml"), method="auto", parameters=parameters, initial=initial, t_end=10.0)
     assert settings.method in picked, settings.notes

@@ -110,8 +110,3 @@ class Failure(enum.StrEnum):
     def of(cls, status: Status) -> Failure | None:
         """The failure of a run's status (None when it finished or stopped at its event)."""
         return None if not status.failed else cls(status.value)
-
-    @property
-    def blow_up(self) -> bool:
-        """The motion blew up or met a singular matrix: a finding, not a budget."""
-        return self in (Failure.SINGULAR, Failure.NONFINITE)
