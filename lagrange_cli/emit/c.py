@@ -1,0 +1,580 @@
+"""C: one header-only C99 file with the equations of motion, for a controller or an integrator loop.
+
+`lagrange derive FILE --to c [--prefix NAME]` writes (with the prefix `eom`):
+
+- `EOM_NQ` (coordinates), `EOM_NP` (parameters), `EOM_NC` (kept constraints, i.e. multipliers);
+- `eom_default_parameters[EOM_NP]`: the file's defaults, in the file's order (listed in the
+  header comment; a parameter without a default is NAN there, to be given in `p`);
+- `void eom_mass_matrix(double t, const double *y, const double *p, double *out)`: M, row-major n x n;
+- `void eom_forcing(double t, const double *y, const double *p, double *out)`: F of M q_ddot = F (+ A^T lambda);
+- `double eom_energy(double t, const double *y, const double *p)`: h = sum p_i q_dot_i - L;
+- with kept constraints, `int eom_accelerations(t, y, p, out)`: [q_ddot, lambda] (n + k values) from
+  [[M, -A^T], [A, 0]] x = [F, -c] (index-1 form);
+- `int eom_rhs(double t, const double *y, const double *p, double *dydt)`: dy/dt for y = [q, q_dot],
+  0 on success, 1 when the (augmented) mass matrix is singular at that state, 2 when a result is
+  not finite (outside a function's domain, an overflow).
+
+Everything is `static inline` (the file can be included in several translation units), nothing is
+allocated, the only global is the `const` default array, and the only header is `<math.h>`. The
+solve is Gaussian elimination with scaled partial pivoting (rows divided by their largest entry,
+then the largest pivot; a pivot below 1e-13 of its row is singular), as the Python module's `_solve`.
+Common subexpressions are computed once per function (symengine's CSE). The code compiles cleanly
+as C99 (`gcc -std=c99 -Wall -Wextra -Werror -pedantic`) and as C++.
+
+Safe with any system file: file text (title, file name, names) enters only comments, as printable
+ASCII in which `*/`, `/*` and `??` (a trigraph) are broken apart and no line ends in a backslash;
+user names are mangled (`mangle`) apart from C and C++ keywords, `<math.h>` names and macros, and
+every name the file defines itself (its own locals start with `_`, which no user name does).
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from collections.abc import Collection, Iterator, Mapping, Sequence
+from pathlib import Path
+from typing import Any, ClassVar
+
+from lagrange_cli import __version__
+from lagrange_cli._symengine import se, to_symengine
+from lagrange_cli.algebra import check_invertible
+from lagrange_cli.emit.common import printable, require_defined
+from lagrange_cli.emit.python import mangle
+from lagrange_cli.errors import DerivationError
+from lagrange_cli.model import Model
+
+# -- a printer of symengine expressions, one subclass per language ----------------------------------
+
+ATOM, MUL, NEG, ADD = 100, 20, 15, 10
+"""Precedence of what a printed expression is: a name or a call, a product or quotient, a negation, a sum."""
+
+
+class Printer:
+    """Prints symengine expressions in a C-like infix language; dispatch by node class name
+    (`_print_Add`, `_print_Pow`, `_print_sin`, ...), as in sympy's printers. Each method returns
+    the text and its precedence, so that parentheses appear exactly where needed. Subclasses
+    change the function table, number literals and powers."""
+
+    functions: ClassVar[dict[str, str]] = {}
+    """symengine function name -> the language's function (called with the same arguments)."""
+    language: ClassVar[str] = "C"
+
+    def __init__(self, names: Mapping[str, str]) -> None:
+        self.names = names
+
+    def doprint(self, expr: Any) -> str:
+        return self._print(expr)[0]
+
+    def _print(self, expr: Any) -> tuple[str, int]:
+        kind = type(expr).__name__
+        method = getattr(self, f"_print_{kind}", None)
+        if method is not None:
+            return method(expr)  # type: ignore[no-any-return]
+        if kind in self.functions:
+            return f"{self.functions[kind]}({', '.join(self.doprint(a) for a in expr.args)})", ATOM
+        if isinstance(expr, se.Number) and expr.is_real:
+            return self.number(float(expr))
+        raise DerivationError(f"the {self.language} target cannot express {printable(str(expr))[:200]} ({kind})")
+
+    def parenthesize(self, expr: Any, level: int) -> str:
+        text, precedence = self._print(expr)
+        return text if precedence > level else f"({text})"
+
+    # numbers and names
+
+    def number(self, value: float) -> tuple[str, int]:
+        if not math.isfinite(value):
+            raise DerivationError(f"the {self.language} target cannot express the number {value}")
+        text = repr(float(value))
+        return text, NEG if text.startswith("-") else ATOM
+
+    def _print_Integer(self, expr: Any) -> tuple[str, int]:
+        return self.number(float(int(expr)))
+
+    def _print_Rational(self, expr: Any) -> tuple[str, int]:
+        return self.number(float(expr))
+
+    def _print_RealDouble(self, expr: Any) -> tuple[str, int]:
+        return self.number(float(expr))
+
+    def _print_Pi(self, expr: Any) -> tuple[str, int]:
+        return self.number(math.pi)
+
+    def _print_Exp1(self, expr: Any) -> tuple[str, int]:
+        return self.number(math.e)
+
+    def _print_Symbol(self, expr: Any) -> tuple[str, int]:
+        name = str(expr)
+        if name not in self.names:
+            raise DerivationError(f"cannot write {self.language} code for the symbol '{printable(name)}', which is not a coordinate, velocity, parameter or t")
+        return self.names[name], ATOM
+
+    def _print_ImaginaryUnit(self, expr: Any) -> tuple[str, int]:
+        raise DerivationError(f"the equations contain the imaginary unit; the {self.language} target computes with real numbers only")
+
+    # arithmetic
+
+    def _print_Add(self, expr: Any) -> tuple[str, int]:
+        parts: list[str] = []
+        for term in expr.args:
+            text, precedence = self._print(term)
+            if precedence < NEG:
+                text = f"({text})"
+            if not parts:
+                parts.append(text)
+            elif text.startswith("-"):
+                parts.append(" - " + text[1:])
+            else:
+                parts.append(" + " + text)
+        return "".join(parts), ADD
+
+    def _print_Mul(self, expr: Any) -> tuple[str, int]:
+        coefficient = 1.0
+        above: list[Any] = []
+        below: list[Any] = []
+        for factor in expr.args:
+            if isinstance(factor, se.Number) and factor.is_real:
+                coefficient *= float(factor)
+            elif isinstance(factor, se.Pow) and isinstance(factor.args[1], se.Number) and factor.args[1].is_real and float(factor.args[1]) < 0 and not _is_e(factor.args[0]):
+                below.append(se.Pow(factor.args[0], -factor.args[1]))
+            else:
+                above.append(factor)
+        negative = coefficient < 0
+        coefficient = abs(coefficient)
+        numerator = [self.parenthesize(f, MUL - 1) for f in above]
+        if coefficient != 1.0 or not numerator:
+            numerator.insert(0, self.number(coefficient)[0])
+        text = "*".join(numerator)
+        if below:
+            denominator = self.parenthesize(below[0], MUL) if len(below) == 1 else "(" + "*".join(self.parenthesize(f, MUL - 1) for f in below) + ")"
+            text += "/" + denominator
+        return ("-" + text, NEG) if negative else (text, MUL)
+
+    def _print_Pow(self, expr: Any) -> tuple[str, int]:
+        base, exponent = expr.args
+        if _is_e(base):
+            return self.call("exp", exponent)
+        if isinstance(exponent, se.Number) and exponent.is_real:
+            value = float(exponent)
+            if value < 0:
+                return f"{self.number(1.0)[0]}/{self.parenthesize(se.Pow(base, -exponent), MUL)}", MUL
+            if value == 0.5:
+                return self.call(self.sqrt, base)
+            if value in (2.0, 3.0):
+                b = self.parenthesize(base, ATOM - 1)
+                return "*".join([b] * int(value)), MUL
+            if value == 1.0:
+                return self._print(base)
+            if exponent.is_integer:
+                return self.integer_power(base, int(exponent))
+        return f"{self.power}({self.doprint(base)}, {self.doprint(exponent)})", ATOM
+
+    sqrt: ClassVar[str] = "sqrt"
+    power: ClassVar[str] = "pow"
+
+    def integer_power(self, base: Any, exponent: int) -> tuple[str, int]:
+        return f"{self.power}({self.doprint(base)}, {self.number(float(exponent))[0]})", ATOM
+
+    def call(self, function: str, *args: Any) -> tuple[str, int]:
+        return f"{function}({', '.join(self.doprint(a) for a in args)})", ATOM
+
+    def reciprocal(self, function: str, arg: Any) -> tuple[str, int]:
+        return f"({self.number(1.0)[0]}/{self.call(function, arg)[0]})", ATOM
+
+
+def _is_e(expr: Any) -> bool:
+    return type(expr).__name__ == "Exp1"
+
+
+class CPrinter(Printer):
+    """C99 with <math.h>: doubles everywhere (every number is a double literal, so that no integer
+    division can happen), sign as a conditional, cot/sec/csc as reciprocals."""
+
+    functions: ClassVar[dict[str, str]] = {
+        **{f: f for f in ("sin", "cos", "tan", "asin", "acos", "atan", "atan2", "sinh", "cosh", "tanh", "log")},
+        "Abs": "fabs",
+    }
+
+    def _print_sign(self, expr: Any) -> tuple[str, int]:
+        x = self.parenthesize(expr.args[0], ATOM - 1)
+        return f"({x} > 0.0 ? 1.0 : ({x} < 0.0 ? -1.0 : 0.0))", ATOM
+
+    def _print_cot(self, expr: Any) -> tuple[str, int]:
+        return self.reciprocal("tan", expr.args[0])
+
+    def _print_sec(self, expr: Any) -> tuple[str, int]:
+        return self.reciprocal("cos", expr.args[0])
+
+    def _print_csc(self, expr: Any) -> tuple[str, int]:
+        return self.reciprocal("sin", expr.args[0])
+
+
+# -- names ------------------------------------------------------------------------------------------
+
+C_KEYWORDS = frozenset(
+    {
+        *("auto", "break", "case", "char", "const", "continue", "default", "do", "double", "else", "enum", "extern", "float", "for", "goto", "if"),
+        *("inline", "int", "long", "register", "restrict", "return", "short", "signed", "sizeof", "static", "struct", "switch", "typedef", "union"),
+        *("unsigned", "void", "volatile", "while", "_Bool", "_Complex", "_Imaginary", "bool", "true", "false", "complex", "imaginary", "I"),
+        # C++ (the header compiles as C++ too), its alternative tokens, and common predefined macros
+        *("alignas", "alignof", "and", "and_eq", "asm", "bitand", "bitor", "catch", "char16_t", "char32_t", "char8_t", "class", "compl", "concept"),
+        *("consteval", "constexpr", "constinit", "const_cast", "co_await", "co_return", "co_yield", "decltype", "delete", "dynamic_cast", "explicit"),
+        *("export", "friend", "mutable", "namespace", "new", "noexcept", "not", "not_eq", "nullptr", "operator", "or", "or_eq", "private"),
+        *("protected", "public", "reinterpret_cast", "requires", "static_assert", "static_cast", "template", "this", "thread_local", "throw"),
+        *("try", "typeid", "typename", "using", "virtual", "wchar_t", "xor", "xor_eq", "std", "linux", "unix", "i386", "NULL", "main", "errno"),
+        *("assert", "alloca", "offsetof", "size_t", "ptrdiff_t", "fortran", "asm"),
+    }
+)
+MATH_H = frozenset(
+    {
+        *("acos", "asin", "atan", "atan2", "cos", "sin", "tan", "acosh", "asinh", "atanh", "cosh", "sinh", "tanh", "exp", "exp2", "expm1", "frexp"),
+        *("ilogb", "ldexp", "log", "log10", "log1p", "log2", "logb", "modf", "scalbn", "scalbln", "cbrt", "fabs", "hypot", "pow", "sqrt", "erf"),
+        *("erfc", "lgamma", "tgamma", "ceil", "floor", "nearbyint", "rint", "lrint", "llrint", "round", "lround", "llround", "trunc", "fmod"),
+        *("remainder", "remquo", "copysign", "nan", "nextafter", "nexttoward", "fdim", "fmax", "fmin", "fma", "gamma", "j0", "j1", "jn", "y0"),
+        *("y1", "yn", "drem", "finite", "significand", "scalb", "signgam", "isinf", "isnan", "fpclassify", "isfinite", "isnormal", "signbit"),
+        *("isgreater", "isgreaterequal", "isless", "islessequal", "islessgreater", "isunordered", "issubnormal", "iszero", "issignaling"),
+        *("math_errhandling", "double_t", "float_t", "INFINITY", "NAN", "HUGE_VAL", "HUGE_VALF", "HUGE_VALL", "MAXFLOAT", "PLOSS", "TLOSS"),
+        *("DOMAIN", "SING", "OVERFLOW", "UNDERFLOW", "exception", "matherr"),
+    }
+)
+MACRO_FAMILIES = re.compile(r"(M|FP|HUGE_VAL|SNAN|MATH_ERR|FD|EXIT|W|BYTE|BIG|LITTLE|PDP|RAND|MB)_?[A-Z0-9_]*[A-Za-z0-9_]*")
+"""Macros glibc's <math.h> defines in C++ or GNU mode (M_PI, FP_NAN, WNOHANG, ...): an uppercase head."""
+
+
+class Reserved(Collection[str]):
+    """A set of names plus the names a pattern matches (for `mangle`)."""
+
+    def __init__(self, names: Collection[str], pattern: re.Pattern[str] | None = None) -> None:
+        self.names = frozenset(names)
+        self.pattern = pattern
+
+    def __contains__(self, name: object) -> bool:
+        if not isinstance(name, str):
+            return False
+        return name in self.names or (self.pattern is not None and bool(self.pattern.fullmatch(name)) and name.upper() == name)
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self.names)
+
+    def __len__(self) -> int:
+        return len(self.names)
+
+
+LOCALS = ("t", "y", "p", "u", "out", "dydt")
+"""The generated functions' arguments (every other local starts with `_`)."""
+
+
+def generated(prefix: str) -> list[str]:
+    """The names the C file defines for `prefix`."""
+    upper = prefix.upper()
+    return [
+        *(f"{prefix}_{n}" for n in ("rhs", "mass_matrix", "forcing", "energy", "accelerations", "default_parameters", "solve")),
+        *(f"{upper}_{n}" for n in ("NQ", "NP", "NC", "H_INCLUDED")),
+    ]
+
+
+def c_names(model: Model, prefix: str) -> dict[str, str]:
+    """symbol name -> C identifier for the coordinates, velocities and parameters (`mangle`), and t."""
+    symbols = [str(s) for s in (*model.q, *model.qd, *(p.symbol for p in model.parameters))]
+    names = mangle(symbols, Reserved({*C_KEYWORDS, *MATH_H, *LOCALS, *generated(prefix)}, MACRO_FAMILIES))
+    return {**names, str(model.t): "t"}
+
+
+def comment(text: str) -> str:
+    """`text` for a C block comment: printable ASCII (others as U+XXXX, line breaks as spaces),
+    with `*/`, `/*` and `??` broken apart by a space and a trailing backslash followed by a dot,
+    so that it can neither end the comment, open a nested one, form a trigraph nor splice lines."""
+    out = "".join(c if " " <= c <= "~" else f"U+{ord(c):04X}" for c in printable(text))
+    for pair in ("*/", "/*", "??"):
+        while pair in out:
+            out = out.replace(pair, f"{pair[0]} {pair[1]}")
+    return out + "." if out.endswith("\\") else out
+
+
+# -- common subexpressions ----------------------------------------------------------------------
+
+
+def common_subexpressions(exprs: Sequence[Any], names: Mapping[str, str], temporary: str) -> tuple[list[tuple[str, Any]], list[Any], dict[str, str]]:
+    """CSE over all of `exprs` together: (temporaries [(name, expr)], reduced exprs, the name map
+    for printing them). Symbols are renamed before symengine's CSE and back after it, so that its
+    x0, x1, ... never meet a user name; temporaries are `<temporary>0, 1, ...` (which start with `_`)."""
+    free = sorted({str(s) for e in exprs for s in e.free_symbols})
+    missing = [s for s in free if s not in names]
+    if missing:
+        raise DerivationError(f"cannot write code for the symbol '{printable(missing[0])}', which is not a coordinate, velocity, parameter or t")
+    safe = {se.Symbol(s): se.Symbol(f"_s{i}") for i, s in enumerate(free)}
+    mapping = {f"_s{i}": names[s] for i, s in enumerate(free)}
+    converted = [e.xreplace(safe) if e.free_symbols else e for e in exprs]
+    replacements, reduced = se.cse(converted)
+    temporaries = []
+    for i, (lhs, rhs) in enumerate(replacements):
+        mapping[str(lhs)] = f"{temporary}{i}"
+        temporaries.append((f"{temporary}{i}", rhs))
+    return temporaries, list(reduced), mapping
+
+
+# -- the file -------------------------------------------------------------------------------------
+
+
+def emit(model: Model, *, name: str = "eom") -> str:
+    """The header's text; `name` is the prefix of every name it defines. The file's functions are
+    written out from their definitions (`Model.with_definitions`); undefined ones are refused."""
+    if not re.fullmatch(r"[A-Za-z][A-Za-z0-9_]*", name):
+        raise DerivationError(f"the C prefix '{printable(name)}' is not a C identifier")
+    definitions = model.definitions
+    model = model.with_definitions()
+    require_defined(model, "C code")
+    check_invertible(model)
+    return _Writer(model, name, definitions).file()
+
+
+class _Writer:
+    def __init__(self, model: Model, prefix: str, definitions: Mapping[str, Any]) -> None:
+        self.model = model
+        self.prefix = prefix
+        self.upper = prefix.upper()
+        self.definitions = definitions
+        self.names = c_names(model, prefix)
+        n = model.n
+        forms = model.symengine
+        self.upper_cells = [(i, j) for i in range(n) for j in range(i, n)]
+        self.mass = [forms.mass[i][j] for i, j in self.upper_cells]
+        self.forcing = list(forms.forcing)
+        self.energy = forms.energy
+        self.jacobian = [to_symengine(a) for c in model.constraints for a in c.jacobian]
+        self.bias = [to_symengine(c.acceleration_bias) for c in model.constraints]
+        self.index = {str(s): f"y[{i}]" for i, s in enumerate((*model.q, *model.qd))}
+        self.index |= {p.name: f"p[{i}]" for i, p in enumerate(model.parameters)}
+
+    def block(self, exprs: Sequence[Any], used: set[str]) -> tuple[list[str], list[str]]:
+        """Lines binding what `exprs` use (state, parameters), the temporaries, then the results."""
+        temporaries, reduced, mapping = common_subexpressions(exprs, self.names, "_c")
+        printer = CPrinter(mapping)
+        free = {str(s) for e in exprs for s in e.free_symbols}
+        used.update(free)
+        lines = [f"const double {self.names[s]} = {self.index[s]};" for s in self.index if s in free]
+        lines += [f"const double {name} = {printer.doprint(rhs)};" for name, rhs in temporaries]
+        return lines, [printer.doprint(e) for e in reduced]
+
+    def function(self, returns: str, name: str, doc: str, body: list[str], used: set[str], out: str = "out") -> str:
+        arguments = ["double t", "const double *y", "const double *p"] + ([f"double *{out}"] if out else [])
+        reads = {"t": str(self.model.t) in used, **{a: any(self.index.get(s, "").startswith(a + "[") for s in used) for a in ("y", "p")}}
+        lines = [f"/* {comment(doc)} */", f"static inline {returns} {self.prefix}_{name}({', '.join(arguments)})", "{"]
+        lines += [f"    (void){a};" for a, read in reads.items() if not read]
+        lines += [f"    {line}" for line in body]
+        return "\n".join([*lines, "}"])
+
+    def mass_matrix(self) -> str:
+        n = self.model.n
+        used: set[str] = set()
+        lines, results = self.block(self.mass, used)
+        cell = dict(zip(self.upper_cells, results, strict=True))
+        for i, j in self.upper_cells:
+            lines.append(f"out[{i * n + j}] = {cell[(i, j)]};")
+            if i != j:
+                lines.append(f"out[{j * n + i}] = out[{i * n + j}];")
+        return self.function("void", "mass_matrix", f"M (row-major, {n} x {n}; symmetric) at y's coordinates.", lines, used)
+
+    def forcing_function(self) -> str:
+        used: set[str] = set()
+        lines, results = self.block(self.forcing, used)
+        lines += [f"out[{i}] = {r};" for i, r in enumerate(results)]
+        plus = " + A^T lambda" if self.model.constraints else ""
+        return self.function("void", "forcing", f"F of M q_ddot = F{plus} ({self.model.n} values).", lines, used)
+
+    def energy_function(self) -> str:
+        used: set[str] = set()
+        lines, results = self.block([self.energy], used)
+        lines.append(f"return {results[0]};")
+        return self.function("double", "energy", "The energy function h = sum p_i q_dot_i - L.", lines, used, out="")
+
+    def solve_into(self, size: int) -> tuple[list[str], set[str]]:
+        """Lines that fill `_a` (size x size) and `_b` and solve, leaving the solution in `_b`."""
+        n, k = self.model.n, len(self.model.constraints)
+        used: set[str] = set()
+        lines, results = self.block([*self.mass, *self.forcing, *self.jacobian, *self.bias], used)
+        mass = dict(zip(self.upper_cells, results[: len(self.mass)], strict=True))
+        rest = results[len(self.mass) :]
+        force, jacobian, bias = rest[:n], rest[n : n + n * k], rest[n + n * k :]
+        lines.insert(0, f"double _a[{size * size}];")
+        lines.insert(1, f"double _b[{size}];")
+        lines.insert(2, "int _status;")
+        for i, j in self.upper_cells:
+            lines.append(f"_a[{i * size + j}] = {mass[(i, j)]};")
+            if i != j:
+                lines.append(f"_a[{j * size + i}] = _a[{i * size + j}];")
+        for r in range(k):
+            for j in range(n):
+                lines.append(f"_a[{(n + r) * size + j}] = {jacobian[r * n + j]};")
+                lines.append(f"_a[{j * size + n + r}] = -_a[{(n + r) * size + j}];")
+            for s in range(k):
+                lines.append(f"_a[{(n + r) * size + n + s}] = 0.0;")
+        lines += [f"_b[{i}] = {f};" for i, f in enumerate(force)]
+        lines += [f"_b[{n + r}] = -{_parenthesized(c)};" for r, c in enumerate(bias)]
+        lines += [f"_status = {self.prefix}_solve({size}, _a, _b);", "if (_status) return _status;"]
+        return lines, used
+
+    def accelerations(self) -> str:
+        n, k = self.model.n, len(self.model.constraints)
+        lines, used = self.solve_into(n + k)
+        lines += [f"out[{i}] = _b[{i}];" for i in range(n + k)]
+        lines += [f"for (_i = 0; _i < {n + k}; ++_i) if (!isfinite(out[_i])) return 2;", "return 0;"]
+        lines.insert(0, "int _i;")
+        qdd = ", ".join(map(str, self.model.qdd))
+        multipliers = ", ".join(map(str, self.model.multipliers))
+        doc = f"[{qdd}, {multipliers}] ({n + k} values) from [[M, -A^T], [A, 0]] x = [F, -c] (index-1 form); 0, or 1 when singular, 2 when not finite."
+        return self.function("int", "accelerations", doc, lines, used)
+
+    def rhs(self) -> str:
+        n, k = self.model.n, len(self.model.constraints)
+        if k:
+            lines = [
+                "int _i;",
+                f"double _x[{n + k}];",
+                f"const int _status = {self.prefix}_accelerations(t, y, p, _x);",
+                f"for (_i = 0; _i < {n}; ++_i) {{",
+                "    dydt[_i] = y[_i + EOM_NQ];".replace("EOM", self.upper),
+                "    dydt[_i + EOM_NQ] = _x[_i];".replace("EOM", self.upper),
+                "}",
+                "return _status;",
+            ]
+            return self.function("int", "rhs", "dy/dt for y = [q, q_dot]: 0, or 1 when singular at y, 2 when not finite.", lines, {str(self.model.t), *self.index}, out="dydt")
+        lines, used = self.solve_into(n)
+        lines.insert(0, "int _i;")
+        lines += [
+            f"for (_i = 0; _i < {n}; ++_i) {{",
+            f"    dydt[_i] = y[_i + {n}];",
+            f"    dydt[_i + {n}] = _b[_i];",
+            "}",
+            f"for (_i = 0; _i < {2 * n}; ++_i) if (!isfinite(dydt[_i])) return 2;",
+            "return 0;",
+        ]
+        used |= {s for s in self.index if self.index[s].startswith("y[")}
+        return self.function("int", "rhs", "dy/dt for y = [q, q_dot]: 0, or 1 when M is singular at y, 2 when a value is not finite.", lines, used, out="dydt")
+
+    def header(self) -> str:
+        model = self.model
+        t = "" if model.autonomous else ", t"
+        coordinates = ", ".join(f"y[{i}] = {comment(c)}" for i, c in enumerate(model.coordinates))
+        n = model.n
+        lines = [
+            f"{comment(model.title)}: equations of motion generated by lagrange {__version__} from {comment(Path(model.source).name)}.",
+            "",
+            f"M(q{t}) q_ddot = F(q, q_dot{t})" + (" + A^T lambda, with A q_ddot + c = 0 for the kept constraints" if model.constraints else "") + ".",
+            f"State y = [q, q_dot] ({2 * n} values): {coordinates}, and their velocities y[{n}] ... y[{2 * n - 1}].",
+        ]
+        if model.parameters:
+            lines.append(f"Parameters p ({self.upper}_NP = {len(model.parameters)}, in the file's order, defaults in {self.prefix}_default_parameters):")
+            for i, p in enumerate(model.parameters):
+                default = "no default: give it in p" if p.value is None else f"default {p.value!r}"
+                lines.append(f"  p[{i}] = {comment(p.name)} ({default})")
+        else:
+            lines.append(f"No parameters ({self.upper}_NP = 0; p is not read).")
+        if model.constraints:
+            lines.append("Kept constraints (their multipliers follow q_ddot in " + f"{self.prefix}_accelerations): " + ", ".join(comment(c.name) for c in model.constraints) + ".")
+        if self.definitions:
+            lines.append(
+                "Functions written out from their definitions in the file: "
+                + "; ".join(comment(f"{k}({', '.join(map(str, f.variables))}) = {f.expr}") for k, f in sorted(self.definitions.items()))
+                + "."
+            )
+        names = {c: v for c, v in self.names.items() if c != v and c != str(model.t)}
+        if names:
+            lines.append("Names changed to C identifiers: " + ", ".join(f"{comment(c)} -> {v}" for c, v in names.items()) + ".")
+        lines += [
+            "",
+            f"int {self.prefix}_rhs(double t, const double *y, const double *p, double *dydt) returns 0 on success,",
+            "1 when the mass matrix is singular at y, 2 when a result is not finite.",
+        ]
+        return "/*\n" + "\n".join(f" * {comment(line)}".rstrip() for line in lines) + "\n */"
+
+    def file(self) -> str:
+        model = self.model
+        n, k, np_ = model.n, len(model.constraints), len(model.parameters)
+        guard = f"{self.upper}_H_INCLUDED"
+        defaults = ", ".join(_c_number(p.value) for p in model.parameters) if model.parameters else "0.0"
+        parts = [
+            self.header(),
+            f"#ifndef {guard}\n#define {guard}\n\n#include <math.h>",
+            f"#define {self.upper}_NQ {n}\n#define {self.upper}_NP {np_}\n#define {self.upper}_NC {k}",
+            f"/* The parameters' defaults, in the file's order (see above). */\nstatic const double {self.prefix}_default_parameters[{max(np_, 1)}] = {{{defaults}}};",
+            SOLVE.replace("eom_", f"{self.prefix}_"),
+            self.mass_matrix(),
+            self.forcing_function(),
+            self.energy_function(),
+        ]
+        if k:
+            parts.append(self.accelerations())
+        parts.append(self.rhs())
+        parts.append(f"#endif /* {guard} */")
+        return "\n\n".join(parts) + "\n"
+
+
+def _parenthesized(code: str) -> str:
+    return code if re.fullmatch(r"[A-Za-z0-9_.]+", code) else f"({code})"
+
+
+def _c_number(value: float | None) -> str:
+    if value is None or math.isnan(value):
+        return "NAN"
+    if math.isinf(value):
+        return "HUGE_VAL" if value > 0 else "-HUGE_VAL"
+    return repr(float(value))
+
+
+SOLVE = """/* Solves a x = b for x (left in b; a is n x n row-major, both overwritten) by Gaussian elimination
+   with scaled partial pivoting: each row divided by its largest entry, then the largest pivot.
+   Returns 1 when a pivot is below 1e-13 of its row's largest entry (a singular matrix), 2 when
+   an entry of a is not finite, else 0. */
+static inline int eom_solve(int n, double *a, double *b)
+{
+    int i, j, k;
+    for (i = 0; i < n * n; ++i)
+        if (!isfinite(a[i]))
+            return 2;
+    for (i = 0; i < n; ++i) {
+        double largest = 0.0;
+        for (j = 0; j < n; ++j)
+            if (fabs(a[i * n + j]) > largest)
+                largest = fabs(a[i * n + j]);
+        if (!(largest > 0.0))
+            return 1;
+        for (j = 0; j < n; ++j)
+            a[i * n + j] /= largest;
+        b[i] /= largest;
+    }
+    for (k = 0; k < n; ++k) {
+        int pivot = k;
+        for (i = k + 1; i < n; ++i)
+            if (fabs(a[i * n + k]) > fabs(a[pivot * n + k]))
+                pivot = i;
+        if (!(fabs(a[pivot * n + k]) > 1e-13))
+            return 1;
+        if (pivot != k) {
+            double swap;
+            for (j = 0; j < n; ++j) {
+                swap = a[k * n + j];
+                a[k * n + j] = a[pivot * n + j];
+                a[pivot * n + j] = swap;
+            }
+            swap = b[k];
+            b[k] = b[pivot];
+            b[pivot] = swap;
+        }
+        for (i = k + 1; i < n; ++i) {
+            const double factor = a[i * n + k] / a[k * n + k];
+            if (factor != 0.0) {
+                for (j = k + 1; j < n; ++j)
+                    a[i * n + j] -= factor * a[k * n + j];
+                b[i] -= factor * b[k];
+            }
+        }
+    }
+    for (i = n - 1; i >= 0; --i) {
+        double sum = b[i];
+        for (j = i + 1; j < n; ++j)
+            sum -= a[i * n + j] * b[j];
+        b[i] = sum / a[i * n + i];
+    }
+    return 0;
+}"""
