@@ -368,3 +368,180 @@ def _short(value: Any, limit: int = 60) -> str:
     text = str(value)
     text = "".join(char if " " <= char <= "~" else "?" for char in text)
     return text if len(text) <= limit else text[: limit - 3] + "..."
+
+
+# -- structure-aware rewriting ------------------------------------------------------------------
+
+
+def restructure(exprs: Sequence[Any], constants: Collection[str], *, products: bool = True) -> tuple[list[tuple[str, Any]], list[Any]]:
+    """Cheaper-to-evaluate forms of `exprs`, for any target: ([(name, value), ...] to compute
+    first, in order, the rewritten expressions using those names as symbols).
+
+    - sin and cos of a single varying symbol (a coordinate, a velocity, t) become the
+      temporaries `_sin<k>`, `_cos<k>`, computed once; sin and cos of a difference of two such
+      symbols, `a - b`, become `_sd<k>_<l>`, `_cd<k>_<l>` (one per unordered pair, the reversed
+      difference being `-_sd` and `_cd`), computed from them as products when `products`
+      (cos(a - b) = cos a cos b + sin a sin b, sin(a - b) = sin a cos b - cos a sin b: no
+      further calls) or by one call each otherwise. Only factors of the terms of a sum (or of a
+      product) are rewritten; trig nested deeper stays as it is;
+    - each sum is collected by its varying part, sum_k v_k(q, q_dot, t) P_k(constants), and each
+      P_k, a polynomial in the constants `constants` (symbol names), factored greedily
+      (Horner): l1*l2*m2 + l1*l2*m3 = l1*l2*(m2 + m3). CSE then shares the suffix sums
+      (m2 + m3 within m1 + m2 + m3) and the products of constants between M and F.
+
+    The values are exact rewrites (the same real function), so `exprs` and the result agree
+    up to rounding. Linear in the number of terms; no symengine traversal beyond them."""
+    work = _Restructure(frozenset(constants))
+    rewritten = [work.collect(e) for e in exprs]
+    return work.definitions(products), rewritten
+
+
+class _Restructure:
+    def __init__(self, constant: frozenset[str]) -> None:
+        self.constant = constant
+        self.factors: dict[Any, tuple[int, Any, bool]] = {}
+        """factor -> (sign, replacement, varying)"""
+        self.index: dict[str, int] = {}
+        """angle name -> k of `_sin<k>`, in order of first sight"""
+        self.angles: dict[str, Any] = {}
+        self.singles: dict[str, set[str]] = {}
+        self.pairs: dict[tuple[str, str], set[str]] = {}
+
+    def collect(self, expr: Any) -> Any:
+        """`expr` collected by its varying parts, coefficients factored, trig factors replaced."""
+        terms = expr.args if expr.is_Add else (expr,)
+        groups: dict[Any, list[tuple[Any, dict[Any, Any]]]] = {}
+        for term in terms:
+            coefficient: Any = _ONE
+            moving: list[Any] = []
+            fixed: dict[Any, Any] = {}
+            for factor in term.args if term.is_Mul else (term,):
+                if factor.is_Number:
+                    coefficient = coefficient * factor
+                    continue
+                info = self.factors.get(factor)
+                if info is None:
+                    info = self.classify(factor)
+                    self.factors[factor] = info
+                sign, replacement, varying = info
+                if sign < 0:
+                    coefficient = -coefficient
+                if varying:
+                    moving.append(replacement)
+                elif replacement.is_Pow and replacement.args[1].is_Number and replacement.args[1].is_positive:
+                    fixed[replacement.args[0]] = replacement.args[1]
+                else:
+                    fixed[replacement] = _ONE
+            groups.setdefault(se.Mul(*moving), []).append((coefficient, fixed))
+        return se.Add(*(part * _horner(items) for part, items in groups.items()))
+
+    def classify(self, factor: Any) -> tuple[int, Any, bool]:
+        """(sign, replacement, varying) of one factor of a term."""
+        base, exponent = factor.args if factor.is_Pow else (factor, None)
+        varying = any(str(s) not in self.constant for s in factor.free_symbols)
+        if not varying or not isinstance(base, (se.sin, se.cos)):
+            return 1, factor, varying
+        sign, symbol = self.trig(base)
+        if symbol is None:
+            return 1, factor, varying
+        if exponent is None:
+            return sign, symbol, True
+        if sign < 0 and exponent.is_Integer and int(exponent) % 2 == 1:
+            return -1, symbol**exponent, True
+        return 1, symbol**exponent, True
+
+    def number(self, angle: Any) -> int:
+        name = str(angle)
+        if name not in self.index:
+            self.index[name] = len(self.index)
+            self.angles[name] = angle
+        return self.index[name]
+
+    def trig(self, node: Any) -> tuple[int, Any]:
+        """(sign, temporary) standing for sin/cos `node`, or (1, None) when it is of another argument."""
+        (argument,) = node.args
+        kind = "sin" if isinstance(node, se.sin) else "cos"
+        if argument.is_Symbol and str(argument) not in self.constant:
+            k = self.number(argument)
+            self.singles.setdefault(str(argument), set()).add(kind)
+            return 1, se.Symbol(f"_{kind}{k}")
+        if not (argument.is_Add and len(argument.args) == 2):
+            return 1, None
+        difference = _difference(argument, self.constant)
+        if difference is None:
+            return 1, None
+        a, b, sign = difference
+        k, l = self.number(a), self.number(b)
+        self.pairs.setdefault((str(a), str(b)), set()).add(kind)
+        symbol = se.Symbol(f"_{'sd' if kind == 'sin' else 'cd'}{k}_{l}")
+        return (sign if kind == "sin" else 1), symbol
+
+    def definitions(self, products: bool) -> list[tuple[str, Any]]:
+        """The temporaries in order: sin and cos of single angles, then of the differences."""
+        needed = {name: set(kinds) for name, kinds in self.singles.items()}
+        if products:
+            for a, b in self.pairs:
+                needed.setdefault(a, set()).update(("sin", "cos"))
+                needed.setdefault(b, set()).update(("sin", "cos"))
+        result: list[tuple[str, Any]] = []
+        for name in sorted(needed, key=self.index.__getitem__):
+            k, angle = self.index[name], self.angles[name]
+            result += [(f"_{kind}{k}", se.sin(angle) if kind == "sin" else se.cos(angle)) for kind in ("sin", "cos") if kind in needed[name]]
+        for (a, b), kinds in sorted(self.pairs.items(), key=lambda item: (self.index[item[0][0]], self.index[item[0][1]])):
+            k, l = self.index[a], self.index[b]
+            sa, ca, sb, cb = (se.Symbol(f"_{kind}{i}") for i, kind in ((k, "sin"), (k, "cos"), (l, "sin"), (l, "cos")))
+            if "sin" in kinds:
+                result.append((f"_sd{k}_{l}", sa * cb - ca * sb if products else se.sin(self.angles[a] - self.angles[b])))
+            if "cos" in kinds:
+                result.append((f"_cd{k}_{l}", ca * cb + sa * sb if products else se.cos(self.angles[a] - self.angles[b])))
+        return result
+
+
+def _difference(argument: Any, constant: frozenset[str]) -> tuple[Any, Any, int] | None:
+    """(a, b, sign) with argument = sign*(a - b), a before b by name, for a difference of two varying symbols."""
+    first, second = argument.args
+    plus = [t for t in (first, second) if t.is_Symbol]
+    minus = [t.args[1] for t in (first, second) if t.is_Mul and len(t.args) == 2 and t.args[0] == -1 and t.args[1].is_Symbol]
+    if len(plus) != 1 or len(minus) != 1:
+        return None
+    a, b = plus[0], minus[0]
+    if str(a) in constant or str(b) in constant:
+        return None
+    return (a, b, 1) if str(a) < str(b) else (b, a, -1)
+
+
+def _horner(items: list[tuple[Any, dict[Any, Any]]]) -> Any:
+    """sum of coefficient * prod(base**exponent) over `items`, common factors pulled out greedily
+    (the most frequent first), a shared numeric coefficient too: -a - b = -(a + b)."""
+    if len(items) == 1:
+        return _monomial(*items[0])
+    coefficients = {c for c, _ in items}
+    if len(coefficients) == 1 and (shared := next(iter(coefficients))) != 1:
+        return shared * _horner([(_ONE, powers) for _, powers in items])
+    counts: dict[Any, int] = {}
+    for _, powers in items:
+        for base in powers:
+            counts[base] = counts.get(base, 0) + 1
+    if not counts or max(counts.values()) < 2:
+        return se.Add(*(_monomial(c, p) for c, p in items))
+    top = max(counts.values())
+    best = min((base for base, count in counts.items() if count == top), key=str)
+    inside = [item for item in items if best in item[1]]
+    exponent = min(powers[best] for _, powers in inside)
+    reduced = []
+    for c, powers in inside:
+        rest = dict(powers)
+        left = rest.pop(best) - exponent
+        if left != 0:
+            rest[best] = left
+        reduced.append((c, rest))
+    common = best**exponent * _horner(reduced)
+    without = [item for item in items if best not in item[1]]
+    return common + _horner(without) if without else common
+
+
+def _monomial(coefficient: Any, powers: dict[Any, Any]) -> Any:
+    return se.Mul(coefficient, *(base if exponent == 1 else base**exponent for base, exponent in powers.items()))
+
+
+_ONE = se.Integer(1)
