@@ -12,7 +12,7 @@
   [[M, -A^T], [A, 0]] x = [F, -c] (index-1 form);
 - `int eom_rhs(double t, const double *y, const double *p, double *dydt)`: dy/dt for y = [q, q_dot],
   0 on success, 1 when the (augmented) mass matrix is singular at that state, 2 when a result is
-  not finite (outside a function's domain, an overflow).
+  not finite (outside a function's domain, an overflow); on failure the accelerations are NAN.
 
 Everything is `static inline` (the file can be included in several translation units), nothing is
 allocated, the only global is the `const` default array, and the only header is `<math.h>`. The
@@ -36,177 +36,45 @@ from pathlib import Path
 from typing import Any, ClassVar
 
 from lagrange_cli import __version__
-from lagrange_cli._symengine import se, to_symengine
+from lagrange_cli._symengine import to_symengine
 from lagrange_cli.algebra import check_invertible
 from lagrange_cli.emit.common import printable, require_defined
+from lagrange_cli.emit.printer import ATOM, EXACT, MUL, Code, Printer
 from lagrange_cli.emit.python import mangle
 from lagrange_cli.errors import DerivationError
 from lagrange_cli.model import Model
 
-# -- a printer of symengine expressions, one subclass per language ----------------------------------
-
-ATOM, MUL, NEG, ADD = 100, 20, 15, 10
-"""Precedence of what a printed expression is: a name or a call, a product or quotient, a negation, a sum."""
-
-
-class Printer:
-    """Prints symengine expressions in a C-like infix language; dispatch by node class name
-    (`_print_Add`, `_print_Pow`, `_print_sin`, ...), as in sympy's printers. Each method returns
-    the text and its precedence, so that parentheses appear exactly where needed. Subclasses
-    change the function table, number literals and powers."""
-
-    functions: ClassVar[dict[str, str]] = {}
-    """symengine function name -> the language's function (called with the same arguments)."""
-    language: ClassVar[str] = "C"
-
-    def __init__(self, names: Mapping[str, str]) -> None:
-        self.names = names
-
-    def doprint(self, expr: Any) -> str:
-        return self._print(expr)[0]
-
-    def _print(self, expr: Any) -> tuple[str, int]:
-        kind = type(expr).__name__
-        method = getattr(self, f"_print_{kind}", None)
-        if method is not None:
-            return method(expr)  # type: ignore[no-any-return]
-        if kind in self.functions:
-            return f"{self.functions[kind]}({', '.join(self.doprint(a) for a in expr.args)})", ATOM
-        if isinstance(expr, se.Number) and expr.is_real:
-            return self.number(float(expr))
-        raise DerivationError(f"the {self.language} target cannot express {printable(str(expr))[:200]} ({kind})")
-
-    def parenthesize(self, expr: Any, level: int) -> str:
-        text, precedence = self._print(expr)
-        return text if precedence > level else f"({text})"
-
-    # numbers and names
-
-    def number(self, value: float) -> tuple[str, int]:
-        if not math.isfinite(value):
-            raise DerivationError(f"the {self.language} target cannot express the number {value}")
-        text = repr(float(value))
-        return text, NEG if text.startswith("-") else ATOM
-
-    def _print_Integer(self, expr: Any) -> tuple[str, int]:
-        return self.number(float(int(expr)))
-
-    def _print_Rational(self, expr: Any) -> tuple[str, int]:
-        return self.number(float(expr))
-
-    def _print_RealDouble(self, expr: Any) -> tuple[str, int]:
-        return self.number(float(expr))
-
-    def _print_Pi(self, expr: Any) -> tuple[str, int]:
-        return self.number(math.pi)
-
-    def _print_Exp1(self, expr: Any) -> tuple[str, int]:
-        return self.number(math.e)
-
-    def _print_Symbol(self, expr: Any) -> tuple[str, int]:
-        name = str(expr)
-        if name not in self.names:
-            raise DerivationError(f"cannot write {self.language} code for the symbol '{printable(name)}', which is not a coordinate, velocity, parameter or t")
-        return self.names[name], ATOM
-
-    def _print_ImaginaryUnit(self, expr: Any) -> tuple[str, int]:
-        raise DerivationError(f"the equations contain the imaginary unit; the {self.language} target computes with real numbers only")
-
-    # arithmetic
-
-    def _print_Add(self, expr: Any) -> tuple[str, int]:
-        parts: list[str] = []
-        for term in expr.args:
-            text, precedence = self._print(term)
-            if precedence < NEG:
-                text = f"({text})"
-            if not parts:
-                parts.append(text)
-            elif text.startswith("-"):
-                parts.append(" - " + text[1:])
-            else:
-                parts.append(" + " + text)
-        return "".join(parts), ADD
-
-    def _print_Mul(self, expr: Any) -> tuple[str, int]:
-        coefficient = 1.0
-        above: list[Any] = []
-        below: list[Any] = []
-        for factor in expr.args:
-            if isinstance(factor, se.Number) and factor.is_real:
-                coefficient *= float(factor)
-            elif isinstance(factor, se.Pow) and isinstance(factor.args[1], se.Number) and factor.args[1].is_real and float(factor.args[1]) < 0 and not _is_e(factor.args[0]):
-                below.append(se.Pow(factor.args[0], -factor.args[1]))
-            else:
-                above.append(factor)
-        negative = coefficient < 0
-        coefficient = abs(coefficient)
-        numerator = [self.parenthesize(f, MUL - 1) for f in above]
-        if coefficient != 1.0 or not numerator:
-            numerator.insert(0, self.number(coefficient)[0])
-        text = "*".join(numerator)
-        if below:
-            denominator = self.parenthesize(below[0], MUL) if len(below) == 1 else "(" + "*".join(self.parenthesize(f, MUL - 1) for f in below) + ")"
-            text += "/" + denominator
-        return ("-" + text, NEG) if negative else (text, MUL)
-
-    def _print_Pow(self, expr: Any) -> tuple[str, int]:
-        base, exponent = expr.args
-        if _is_e(base):
-            return self.call("exp", exponent)
-        if isinstance(exponent, se.Number) and exponent.is_real:
-            value = float(exponent)
-            if value < 0:
-                return f"{self.number(1.0)[0]}/{self.parenthesize(se.Pow(base, -exponent), MUL)}", MUL
-            if value == 0.5:
-                return self.call(self.sqrt, base)
-            if value in (2.0, 3.0):
-                b = self.parenthesize(base, ATOM - 1)
-                return "*".join([b] * int(value)), MUL
-            if value == 1.0:
-                return self._print(base)
-            if exponent.is_integer:
-                return self.integer_power(base, int(exponent))
-        return f"{self.power}({self.doprint(base)}, {self.doprint(exponent)})", ATOM
-
-    sqrt: ClassVar[str] = "sqrt"
-    power: ClassVar[str] = "pow"
-
-    def integer_power(self, base: Any, exponent: int) -> tuple[str, int]:
-        return f"{self.power}({self.doprint(base)}, {self.number(float(exponent))[0]})", ATOM
-
-    def call(self, function: str, *args: Any) -> tuple[str, int]:
-        return f"{function}({', '.join(self.doprint(a) for a in args)})", ATOM
-
-    def reciprocal(self, function: str, arg: Any) -> tuple[str, int]:
-        return f"({self.number(1.0)[0]}/{self.call(function, arg)[0]})", ATOM
-
-
-def _is_e(expr: Any) -> bool:
-    return type(expr).__name__ == "Exp1"
+# -- the printer -----------------------------------------------------------------------------------
 
 
 class CPrinter(Printer):
-    """C99 with <math.h>: doubles everywhere (every number is a double literal, so that no integer
-    division can happen), sign as a conditional, cot/sec/csc as reciprocals."""
+    """C99 with <math.h>: every number a double literal (`2.0`, `1.0/3.0`), so that no integer
+    division can happen; `sign` as a conditional; a non-integer power as `pow`."""
 
-    functions: ClassVar[dict[str, str]] = {
-        **{f: f for f in ("sin", "cos", "tan", "asin", "acos", "atan", "atan2", "sinh", "cosh", "tanh", "log")},
-        "Abs": "fabs",
-    }
+    functions: ClassVar[Mapping[str, str]] = {**Printer.functions, "pow": "pow"}
+    power_operator: ClassVar[str | None] = None
 
-    def _print_sign(self, expr: Any) -> tuple[str, int]:
-        x = self.parenthesize(expr.args[0], ATOM - 1)
+    def integer(self, value: int) -> Code:
+        return (f"{value}.0", ATOM) if value < EXACT else self.real(float(value))
+
+    def rational(self, p: int, q: int) -> Code:
+        if max(p, q) >= EXACT:
+            return self.real(p / q)
+        return f"{p}.0/{q}.0", MUL
+
+    def nonfinite(self, value: float) -> Code:
+        return ("NAN" if math.isnan(value) else "HUGE_VAL"), ATOM
+
+    def _print_sign(self, expr: Any) -> Code:
+        x = self.parenthesize(expr.args[0], ATOM)
         return f"({x} > 0.0 ? 1.0 : ({x} < 0.0 ? -1.0 : 0.0))", ATOM
 
-    def _print_cot(self, expr: Any) -> tuple[str, int]:
-        return self.reciprocal("tan", expr.args[0])
-
-    def _print_sec(self, expr: Any) -> tuple[str, int]:
-        return self.reciprocal("cos", expr.args[0])
-
-    def _print_csc(self, expr: Any) -> tuple[str, int]:
-        return self.reciprocal("sin", expr.args[0])
+    def _print_Function(self, expr: Any) -> Code:
+        name = type(expr).__name__
+        if name in self.reciprocals:  # 1.0/tan(x), never the integer 1
+            text, _ = self.call(self.function_name(self.reciprocals[name]), [self.doprint(a) for a in expr.args])
+            return f"(1.0/{text})", ATOM
+        return super()._print_Function(expr)
 
 
 # -- names ------------------------------------------------------------------------------------------
@@ -237,8 +105,17 @@ MATH_H = frozenset(
         *("DOMAIN", "SING", "OVERFLOW", "UNDERFLOW", "exception", "matherr"),
     }
 )
-MACRO_FAMILIES = re.compile(r"(M|FP|HUGE_VAL|SNAN|MATH_ERR|FD|EXIT|W|BYTE|BIG|LITTLE|PDP|RAND|MB)_?[A-Z0-9_]*[A-Za-z0-9_]*")
-"""Macros glibc's <math.h> defines in C++ or GNU mode (M_PI, FP_NAN, WNOHANG, ...): an uppercase head."""
+MACROS = frozenset(
+    {
+        *("WCONTINUED", "WEXITED", "WEXITSTATUS", "WIFCONTINUED", "WIFEXITED", "WIFSIGNALED", "WIFSTOPPED", "WNOHANG", "WNOWAIT", "WSTOPPED"),
+        *("WSTOPSIG", "WTERMSIG", "WUNTRACED", "SNAN", "SNANF", "SNANL", "NFDBITS", "be16toh", "be32toh", "be64toh", "htobe16", "htobe32"),
+        *("htobe64", "htole16", "htole32", "htole64", "le16toh", "le32toh", "le64toh"),
+    }
+)
+"""Macros without an underscore family that glibc's <math.h> defines in C++ (GNU) mode."""
+MACRO_FAMILIES = re.compile(r"(M|FP|HUGE_VAL|SNAN|MATH_ERR|FD|EXIT|BYTE|BIG|LITTLE|PDP|RAND|MB|INT|UINT|SIZE|PTRDIFF)_[A-Za-z0-9_]*[A-Za-z0-9]")
+"""Macro families of glibc's <math.h> in C++ or GNU mode (M_PI, M_PIf, FP_NAN, HUGE_VAL_F64, ...). A
+name ending in `_` never matches, so that `mangle` (which appends `_`) always finds a free name."""
 
 
 class Reserved(Collection[str]):
@@ -251,7 +128,7 @@ class Reserved(Collection[str]):
     def __contains__(self, name: object) -> bool:
         if not isinstance(name, str):
             return False
-        return name in self.names or (self.pattern is not None and bool(self.pattern.fullmatch(name)) and name.upper() == name)
+        return name in self.names or (self.pattern is not None and bool(self.pattern.fullmatch(name)))
 
     def __iter__(self) -> Iterator[str]:
         return iter(self.names)
@@ -276,7 +153,7 @@ def generated(prefix: str) -> list[str]:
 def c_names(model: Model, prefix: str) -> dict[str, str]:
     """symbol name -> C identifier for the coordinates, velocities and parameters (`mangle`), and t."""
     symbols = [str(s) for s in (*model.q, *model.qd, *(p.symbol for p in model.parameters))]
-    names = mangle(symbols, Reserved({*C_KEYWORDS, *MATH_H, *LOCALS, *generated(prefix)}, MACRO_FAMILIES))
+    names = mangle(symbols, Reserved({*C_KEYWORDS, *MATH_H, *MACROS, *LOCALS, *generated(prefix)}, MACRO_FAMILIES))
     return {**names, str(model.t): "t"}
 
 
@@ -289,28 +166,6 @@ def comment(text: str) -> str:
         while pair in out:
             out = out.replace(pair, f"{pair[0]} {pair[1]}")
     return out + "." if out.endswith("\\") else out
-
-
-# -- common subexpressions ----------------------------------------------------------------------
-
-
-def common_subexpressions(exprs: Sequence[Any], names: Mapping[str, str], temporary: str) -> tuple[list[tuple[str, Any]], list[Any], dict[str, str]]:
-    """CSE over all of `exprs` together: (temporaries [(name, expr)], reduced exprs, the name map
-    for printing them). Symbols are renamed before symengine's CSE and back after it, so that its
-    x0, x1, ... never meet a user name; temporaries are `<temporary>0, 1, ...` (which start with `_`)."""
-    free = sorted({str(s) for e in exprs for s in e.free_symbols})
-    missing = [s for s in free if s not in names]
-    if missing:
-        raise DerivationError(f"cannot write code for the symbol '{printable(missing[0])}', which is not a coordinate, velocity, parameter or t")
-    safe = {se.Symbol(s): se.Symbol(f"_s{i}") for i, s in enumerate(free)}
-    mapping = {f"_s{i}": names[s] for i, s in enumerate(free)}
-    converted = [e.xreplace(safe) if e.free_symbols else e for e in exprs]
-    replacements, reduced = se.cse(converted)
-    temporaries = []
-    for i, (lhs, rhs) in enumerate(replacements):
-        mapping[str(lhs)] = f"{temporary}{i}"
-        temporaries.append((f"{temporary}{i}", rhs))
-    return temporaries, list(reduced), mapping
 
 
 # -- the file -------------------------------------------------------------------------------------
@@ -348,13 +203,13 @@ class _Writer:
 
     def block(self, exprs: Sequence[Any], used: set[str]) -> tuple[list[str], list[str]]:
         """Lines binding what `exprs` use (state, parameters), the temporaries, then the results."""
-        temporaries, reduced, mapping = common_subexpressions(exprs, self.names, "_c")
-        printer = CPrinter(mapping)
+        printer = CPrinter(self.names)
+        temporaries, results = printer.block(exprs, "_c")
         free = {str(s) for e in exprs for s in e.free_symbols}
         used.update(free)
         lines = [f"const double {self.names[s]} = {self.index[s]};" for s in self.index if s in free]
-        lines += [f"const double {name} = {printer.doprint(rhs)};" for name, rhs in temporaries]
-        return lines, [printer.doprint(e) for e in reduced]
+        lines += [f"const double {name} = {code};" for name, code in temporaries]
+        return lines, results
 
     def function(self, returns: str, name: str, doc: str, body: list[str], used: set[str], out: str = "out") -> str:
         arguments = ["double t", "const double *y", "const double *p"] + ([f"double *{out}"] if out else [])
@@ -411,14 +266,19 @@ class _Writer:
                 lines.append(f"_a[{(n + r) * size + n + s}] = 0.0;")
         lines += [f"_b[{i}] = {f};" for i, f in enumerate(force)]
         lines += [f"_b[{n + r}] = -{_parenthesized(c)};" for r, c in enumerate(bias)]
-        lines += [f"_status = {self.prefix}_solve({size}, _a, _b);", "if (_status) return _status;"]
+        lines.append(f"_status = {self.prefix}_solve({size}, _a, _b);")
         return lines, used
 
     def accelerations(self) -> str:
         n, k = self.model.n, len(self.model.constraints)
         lines, used = self.solve_into(n + k)
-        lines += [f"out[{i}] = _b[{i}];" for i in range(n + k)]
-        lines += [f"for (_i = 0; _i < {n + k}; ++_i) if (!isfinite(out[_i])) return 2;", "return 0;"]
+        lines += [
+            f"for (_i = 0; _i < {n + k}; ++_i) {{",
+            "    out[_i] = _status ? NAN : _b[_i];",
+            "    if (!_status && !isfinite(out[_i])) _status = 2;",
+            "}",
+            "return _status;",
+        ]
         lines.insert(0, "int _i;")
         qdd = ", ".join(map(str, self.model.qdd))
         multipliers = ", ".join(map(str, self.model.multipliers))
@@ -444,10 +304,10 @@ class _Writer:
         lines += [
             f"for (_i = 0; _i < {n}; ++_i) {{",
             f"    dydt[_i] = y[_i + {n}];",
-            f"    dydt[_i + {n}] = _b[_i];",
+            f"    dydt[_i + {n}] = _status ? NAN : _b[_i];",
             "}",
-            f"for (_i = 0; _i < {2 * n}; ++_i) if (!isfinite(dydt[_i])) return 2;",
-            "return 0;",
+            f"for (_i = 0; _i < {2 * n} && !_status; ++_i) if (!isfinite(dydt[_i])) _status = 2;",
+            "return _status;",
         ]
         used |= {s for s in self.index if self.index[s].startswith("y[")}
         return self.function("int", "rhs", "dy/dt for y = [q, q_dot]: 0, or 1 when M is singular at y, 2 when a value is not finite.", lines, used, out="dydt")
@@ -455,10 +315,10 @@ class _Writer:
     def header(self) -> str:
         model = self.model
         t = "" if model.autonomous else ", t"
-        coordinates = ", ".join(f"y[{i}] = {comment(c)}" for i, c in enumerate(model.coordinates))
+        coordinates = ", ".join(f"y[{i}] = {c}" for i, c in enumerate(model.coordinates))
         n = model.n
         lines = [
-            f"{comment(model.title)}: equations of motion generated by lagrange {__version__} from {comment(Path(model.source).name)}.",
+            f"{model.title}: equations of motion generated by lagrange {__version__} from {Path(model.source).name}.",
             "",
             f"M(q{t}) q_ddot = F(q, q_dot{t})" + (" + A^T lambda, with A q_ddot + c = 0 for the kept constraints" if model.constraints else "") + ".",
             f"State y = [q, q_dot] ({2 * n} values): {coordinates}, and their velocities y[{n}] ... y[{2 * n - 1}].",
@@ -467,26 +327,24 @@ class _Writer:
             lines.append(f"Parameters p ({self.upper}_NP = {len(model.parameters)}, in the file's order, defaults in {self.prefix}_default_parameters):")
             for i, p in enumerate(model.parameters):
                 default = "no default: give it in p" if p.value is None else f"default {p.value!r}"
-                lines.append(f"  p[{i}] = {comment(p.name)} ({default})")
+                lines.append(f"  p[{i}] = {p.name} ({default})")
         else:
             lines.append(f"No parameters ({self.upper}_NP = 0; p is not read).")
         if model.constraints:
-            lines.append("Kept constraints (their multipliers follow q_ddot in " + f"{self.prefix}_accelerations): " + ", ".join(comment(c.name) for c in model.constraints) + ".")
+            lines.append("Kept constraints (their multipliers follow q_ddot in " + f"{self.prefix}_accelerations): " + ", ".join(c.name for c in model.constraints) + ".")
         if self.definitions:
             lines.append(
-                "Functions written out from their definitions in the file: "
-                + "; ".join(comment(f"{k}({', '.join(map(str, f.variables))}) = {f.expr}") for k, f in sorted(self.definitions.items()))
-                + "."
+                "Functions written out from their definitions in the file: " + "; ".join(f"{k}({', '.join(map(str, f.variables))}) = {f.expr}" for k, f in sorted(self.definitions.items())) + "."
             )
         names = {c: v for c, v in self.names.items() if c != v and c != str(model.t)}
         if names:
-            lines.append("Names changed to C identifiers: " + ", ".join(f"{comment(c)} -> {v}" for c, v in names.items()) + ".")
+            lines.append("Names changed to C identifiers: " + ", ".join(f"{c} -> {v}" for c, v in names.items()) + ".")
         lines += [
             "",
             f"int {self.prefix}_rhs(double t, const double *y, const double *p, double *dydt) returns 0 on success,",
             "1 when the mass matrix is singular at y, 2 when a result is not finite.",
         ]
-        return "/*\n" + "\n".join(f" * {comment(line)}".rstrip() for line in lines) + "\n */"
+        return "/*\n" + "\n".join((" * " + comment(line.rstrip())).rstrip() for line in lines) + "\n */"
 
     def file(self) -> str:
         model = self.model
