@@ -333,3 +333,27 @@ def test_an_undefined_function_is_refused_with_nothing_written(tmp_path: Path) -
 def test_the_aliases_are_the_targets() -> None:
     for alias in ("text", "latex", "python"):
         assert runner.invoke(app, ["derive", "simple_pendulum", f"--{alias}"]).stdout == runner.invoke(app, ["derive", "simple_pendulum", "--to", alias]).stdout
+
+
+def readme_block(heading: str, language: str) -> str:
+    """The first ```language block after `heading` in README.md."""
+    text = (ROOT / "README.md").read_text(encoding="utf-8").split(heading, 1)[1]
+    found = re.search(rf"```{language}\n(.*?)```", text, re.S)
+    assert found, f"README.md has no {language} example under {heading}"
+    return found.group(1)
+
+
+def test_the_readme_rk4_example_compiles_runs_and_conserves_energy(tmp_path: Path) -> None:
+    source = readme_block("### Generated C", "c")
+    assert len(source.strip().splitlines()) <= 20
+    model = model_from(ROOT / "systems" / "double_pendulum.yaml")
+    (tmp_path / "eom.h").write_text(c.emit(model))
+    (tmp_path / "rk4.c").write_text(source)
+    toolchain("gcc")
+    built = subprocess.run([*GCC, str(tmp_path / "rk4.c"), "-o", str(tmp_path / "rk4"), "-lm"], capture_output=True, text=True, check=False)
+    assert built.returncode == 0 and not built.stderr, built.stderr
+    out = subprocess.run([str(tmp_path / "rk4")], capture_output=True, text=True, check=True).stdout
+    energy = float(re.search(r"energy (\S+)", out).group(1))  # type: ignore[union-attr]
+    initial = python.emit(model)
+    module = load_module(initial, tmp_path / "dp.py")
+    assert energy == pytest.approx(module.energy([1.0, 0.5], [0.0, 0.0]), abs=1e-6)

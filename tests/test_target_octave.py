@@ -24,7 +24,7 @@ from lagrange_cli.model import Model
 
 from .conftest import ROOT
 from .helpers import model_from, model_of
-from .test_target_c import C_HOSTILE, PENDULUM, Case, python_values, states
+from .test_target_c import C_HOSTILE, PENDULUM, Case, python_values, readme_block, states
 
 RTOL = 1e-9
 T_END = 2.0
@@ -32,7 +32,8 @@ ODE_TOL = 1e-6
 """ode45 (RelTol 1e-10, AbsTol 1e-12) and simulate (rtol 1e-10, atol 1e-12) agree this closely at T_END."""
 
 SYSTEMS = ["double_pendulum", "pendulum_multiplier", "rolling_disk_pendulum_multiplier", "kapitza_pendulum", "chain_3", "heavy_top", "knife_edge_incline"]
-FEATURES = ["functions_defined_energy", "functions_defined_constraint", "time_dependent_constraints", "velocity_constraints", "rheonomic_positions"]
+FEATURES = sorted(p.stem for p in (ROOT / "tests" / "matrix").glob("*.yaml") if not p.stem.startswith("functions_undefined"))
+"""Every feature of the matrix that code can express (undefined functions are refused, see test_an_undefined_function_is_refused)."""
 NAMES = """title: "MATLAB names: end, function, pi, e, i, sqrt, realpow, dydt, lambda, M, x as user names %{ ... '"
 coordinates: [x, end_, M]
 parameters: {pi_: 1.0, e: 2.0, i: 1.5, dydt: 9.81, realpow: 0.5, nargin: 1.0, b: 3.0, h: 1.0, M_dot_: 1.0}
@@ -60,6 +61,7 @@ def cases() -> list[Case]:
     for seed, name in enumerate(SYSTEMS):
         model = model_from(ROOT / "systems" / f"{name}.yaml")
         found.append(Case(name, model, f"eom_{seed}", states(model, 100 + seed)))
+    assert len(FEATURES) >= 13
     for seed, name in enumerate(FEATURES):
         model = model_from(ROOT / "tests" / "matrix" / f"{name}.yaml")
         found.append(Case(name, model, f"feature_{seed}", states(model, 200 + seed)))
@@ -95,6 +97,11 @@ def run(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
     singular = model_from(ROOT / "systems" / "spherical_pendulum.yaml")
     (folder / "singular.m").write_text(octave.emit(singular, name="singular"), encoding="ascii")
     script += ["try", "  singular(0, [0; 0.3; 0.1; 0.2]);", "  printf('singular none\\n');", "catch err", "  printf('singular %s\\n', err.identifier);", "end"]
+    readme = readme_block("### Generated Octave/MATLAB", "matlab")
+    assert len(readme.strip().splitlines()) <= 12
+    (folder / "pendulum.m").write_text(octave.emit(dp.model, name="pendulum"), encoding="ascii")
+    (folder / "readme_example.m").write_text("\n".join(line for line in readme.splitlines() if not line.startswith(("plot", "legend"))) + "\n", encoding="ascii")
+    script.append("readme_example")
     (folder / "run_all.m").write_text("\n".join(script) + "\n", encoding="ascii")
     done = subprocess.run([toolchain(), "--no-gui", "--no-window-system", "--quiet", "--no-init-file", "--eval", "run_all"], cwd=folder, capture_output=True, text=True, check=False, timeout=300)
     assert done.returncode == 0, f"octave failed:\n{done.stdout[-3000:]}\n{done.stderr[-3000:]}"
@@ -108,6 +115,8 @@ def run(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
             found[head] = [float(v) for v in rest]
         elif head == "singular":
             found[head] = rest[0]
+        elif head.startswith("theta(10)") and "energy" in line:
+            found[head] = line
     return found
 
 
@@ -148,6 +157,14 @@ def test_p_is_optional_and_a_singular_matrix_is_an_error(run: dict[str, Any]) ->
     assert all(math.isclose(a, b, rel_tol=RTOL, abs_tol=1e-12) for a, b in zip(run["defaults"][:-1], want, strict=True))
     assert model.n == 2
     assert run["singular"] == "singular:singular"
+
+
+def test_the_readme_example_runs(run: dict[str, Any]) -> None:
+    """The README's ode45 example (without its plot) runs, and the energy at the end is the initial one."""
+    line = run["theta(10)"]
+    energy = float(re.search(r"energy (\S+)", line).group(1))  # type: ignore[union-attr]
+    assert energy == pytest.approx(cases()[0].python.energy([1.0, 0.5], [0.0, 0.0]), abs=1e-4)
+    assert "theta(10) there = " in run["stdout"]
 
 
 def test_the_file_is_a_matlab_function_file(run: dict[str, Any]) -> None:

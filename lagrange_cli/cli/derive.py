@@ -41,6 +41,7 @@ def derive(
         Target | None,
         typer.Option(
             "--to",
+            metavar="TARGET",
             help="The output: text (equations, the default), latex, python (a module for solve_ivp), c (a header-only C99 file), octave (a function file for ode45), jax or json.",
         ),
     ] = None,
