@@ -40,7 +40,7 @@ from lagrange_cli._symengine import to_symengine
 from lagrange_cli.algebra import check_invertible
 from lagrange_cli.emit.common import printable, require_defined
 from lagrange_cli.emit.printer import ATOM, EXACT, MUL, Code, Printer
-from lagrange_cli.emit.python import mangle
+from lagrange_cli.emit.python import code_lines, mangle, needed
 from lagrange_cli.errors import DerivationError
 from lagrange_cli.model import Model
 
@@ -48,14 +48,12 @@ from lagrange_cli.model import Model
 
 
 class CPrinter(Printer):
-    """C99 with <math.h>: every number a double literal (`2.0`, `1.0/3.0`), so that no integer
-    division can happen; `sign` as a conditional; a non-integer power as `pow`."""
+    """C99 with <math.h>: a lone rational as `1.0/3.0`, so that no integer division can happen
+    (everywhere else an integer meets a double: `x/2`, `2*x`, `1/x`, `pow(x, 3)`); `sign` as a
+    conditional; a non-integer power as `pow`; 1/tan as `(1.0/tan(x))`."""
 
     functions: ClassVar[Mapping[str, str]] = {**Printer.functions, "pow": "pow"}
     power_operator: ClassVar[str | None] = None
-
-    def integer(self, value: int) -> Code:
-        return (f"{value}.0", ATOM) if value < EXACT else self.real(float(value))
 
     def rational(self, p: int, q: int) -> Code:
         if max(p, q) >= EXACT:
@@ -137,6 +135,7 @@ class Reserved(Collection[str]):
         return len(self.names)
 
 
+WORD = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
 LOCALS = ("t", "y", "p", "u", "out", "dydt")
 """The generated functions' arguments (every other local starts with `_`)."""
 
@@ -145,7 +144,7 @@ def generated(prefix: str) -> list[str]:
     """The names the C file defines for `prefix`."""
     upper = prefix.upper()
     return [
-        *(f"{prefix}_{n}" for n in ("rhs", "mass_matrix", "forcing", "energy", "accelerations", "default_parameters", "solve")),
+        *(f"{prefix}_{n}" for n in ("rhs", "mass_matrix", "forcing", "energy", "accelerations", "default_parameters", "solve", "ldlt")),
         *(f"{upper}_{n}" for n in ("NQ", "NP", "NC", "H_INCLUDED")),
     ]
 
@@ -200,16 +199,22 @@ class _Writer:
         self.bias = [to_symengine(c.acceleration_bias) for c in model.constraints]
         self.index = {str(s): f"y[{i}]" for i, s in enumerate((*model.q, *model.qd))}
         self.index |= {p.name: f"p[{i}]" for i, p in enumerate(model.parameters)}
+        self.constants = frozenset(p.name for p in model.parameters)
+        self.velocities = frozenset(str(v) for v in forms.qd)
 
     def block(self, exprs: Sequence[Any], used: set[str]) -> tuple[list[str], list[str]]:
-        """Lines binding what `exprs` use (state, parameters), the temporaries, then the results."""
+        """Lines binding what `exprs` use (state, parameters), the temporaries, then the results:
+        the printer core's restructuring (sin/cos of each angle once, differences as products,
+        collected coefficients) and CSE, keeping only the lines the results need."""
         printer = CPrinter(self.names)
-        temporaries, results = printer.block(exprs, "_c")
-        free = {str(s) for e in exprs for s in e.free_symbols}
-        used.update(free)
-        lines = [f"const double {self.names[s]} = {self.index[s]};" for s in self.index if s in free]
-        lines += [f"const double {name} = {code};" for name, code in temporaries]
-        return lines, results
+        lines, results = code_lines(printer, exprs, self.constants, self.velocities)
+        lines = needed(lines, results)
+        words = {w for code in [*results, *(code for _, code in lines)] for w in WORD.findall(code)}
+        bound = [s for s in self.index if self.names[s] in words]
+        used.update(bound)
+        if "t" in words:
+            used.add(str(self.model.t))
+        return [f"const double {self.names[s]} = {self.index[s]};" for s in bound] + [f"const double {name} = {code};" for name, code in lines], results
 
     def function(self, returns: str, name: str, doc: str, body: list[str], used: set[str], out: str = "out") -> str:
         arguments = ["double t", "const double *y", "const double *p"] + ([f"double *{out}"] if out else [])
@@ -300,6 +305,8 @@ class _Writer:
             ]
             return self.function("int", "rhs", "dy/dt for y = [q, q_dot]: 0, or 1 when singular at y, 2 when not finite.", lines, {str(self.model.t), *self.index}, out="dydt")
         lines, used = self.solve_into(n)
+        if n <= LDLT_SIZE:  # M is symmetric (positive definite where the motion is defined): LDL^T first, LU when it fails
+            lines[-1] = f"_status = {self.prefix}_ldlt(_a, _b) == 0 ? 0 : {self.prefix}_solve({n}, _a, _b);"
         lines.insert(0, "int _i;")
         lines += [
             f"for (_i = 0; _i < {n}; ++_i) {{",
@@ -363,9 +370,44 @@ class _Writer:
         ]
         if k:
             parts.append(self.accelerations())
+        elif n <= LDLT_SIZE:
+            parts.append(ldlt(self.prefix, n))
         parts.append(self.rhs())
         parts.append(f"#endif /* {guard} */")
         return "\n\n".join(parts) + "\n"
+
+
+LDLT_SIZE = 24
+"""Up to this many coordinates, an unconstrained rhs solves with a straight-line LDL^T first."""
+
+
+def ldlt(prefix: str, n: int) -> str:
+    """A straight-line LDL^T solve of the symmetric n x n `a` (row-major, read only; its lower
+    triangle is used): b is overwritten with the solution and 0 returned, or 1 returned with b
+    untouched as soon as a pivot d_j is not above 1e-13 a_jj (not positive definite, singular, or
+    not finite), for the LU solve to decide."""
+    lines = [
+        "/* Solves a x = b for the symmetric a (n x n row-major, read only) by LDL^T without pivoting; x is left in b.",
+        "   Returns 1 with b untouched when a pivot d_j is not above 1e-13 a_jj (then the LU solve decides). */",
+        f"static inline int {prefix}_ldlt(const double *a, double *b)",
+        "{",
+    ]
+
+    def minus(terms: list[str]) -> str:
+        return "".join(f" - {t}" for t in terms)
+
+    for j in range(n):
+        lines.append(f"    const double _d{j} = a[{j * n + j}]{minus([f'_w{j}_{k}*_l{j}_{k}' for k in range(j)])};")
+        lines.append(f"    if (!(_d{j} > 1e-13 * a[{j * n + j}])) return 1;")
+        for i in range(j + 1, n):
+            lines.append(f"    const double _w{i}_{j} = a[{i * n + j}]{minus([f'_w{i}_{k}*_l{j}_{k}' for k in range(j)])};")
+            lines.append(f"    const double _l{i}_{j} = _w{i}_{j}/_d{j};")
+    for i in range(n):
+        lines.append(f"    const double _z{i} = b[{i}]{minus([f'_l{i}_{k}*_z{k}' for k in range(i)])};")
+    for i in reversed(range(n)):
+        lines.append(f"    const double _x{i} = _z{i}/_d{i}{minus([f'_l{k}_{i}*_x{k}' for k in range(i + 1, n)])};")
+    lines += [f"    b[{i}] = _x{i};" for i in range(n)]
+    return "\n".join([*lines, "    return 0;", "}"])
 
 
 def _parenthesized(code: str) -> str:
