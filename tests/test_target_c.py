@@ -104,9 +104,9 @@ def literal(values: Sequence[float]) -> str:
 
 
 def harness(cases: list[Case]) -> str:
-    """A C program calling each case's rhs and energy at its states (one loop per case, so that each
-    header's functions are inlined once), printing `case state status dydt... energy` with 17
-    significant digits."""
+    """A C program calling each case's rhs, multipliers (with kept constraints) and energy at its
+    states (one loop per case, so that each header's functions are inlined once), printing
+    `case state status dydt... lambda... energy` with 17 significant digits."""
     lines = ["#include <stdio.h>", *(f'#include "{case.prefix}.h"' for case in cases), "", "int main(void)", "{", "    int k, j;"]
     for i, case in enumerate(cases):
         n, count, np_ = case.model.n, len(case.states), max(1, len(case.model.parameters))
@@ -122,6 +122,17 @@ def harness(cases: list[Case]) -> str:
             f"            const int status = {case.prefix}_rhs(t[k], y[k], p[k], d);",
             f'            printf("{i} %d %d", k, status);',
             f'            for (j = 0; j < {2 * n}; ++j) printf(" %.17g", d[j]);',
+            *(
+                [
+                    "            {",
+                    f"                double x[{n + len(case.model.constraints)}];",
+                    f"                {case.prefix}_accelerations(t[k], y[k], p[k], x);",
+                    f'                for (j = {n}; j < {n + len(case.model.constraints)}; ++j) printf(" %.17g", x[j]);',
+                    "            }",
+                ]
+                if case.model.constraints
+                else []
+            ),
             f'            printf(" %.17g\\n", {case.prefix}_energy(t[k], y[k], p[k]));',
             "        }",
             "    }",
@@ -149,13 +160,15 @@ def build_and_run(cases: list[Case], folder: Path, compiler: list[str]) -> dict[
 
 
 def python_values(module: Any, model: Model, t: float, y: list[float], p: dict[str, float]) -> tuple[list[float] | None, float | None]:
-    """rhs and energy from the Python module (None where it raises: a singular matrix or a domain error)."""
+    """rhs (followed by the multipliers, with kept constraints) and energy from the Python module
+    (None where it raises: a singular matrix or a domain error)."""
     n = model.n
     arguments: list[Any] = [y[:n], y[n:], p]
     if "t" in inspect.signature(module.energy).parameters:
         arguments.insert(0, t)
     values: list[Any] = []
-    for call in (lambda: [float(v) for v in module.rhs(t, y, p)], lambda: float(module.energy(*arguments))):
+    multipliers = (lambda: list(module.multipliers(t, y, p))) if model.constraints else list
+    for call in (lambda: [float(v) for v in [*module.rhs(t, y, p), *multipliers()]], lambda: float(module.energy(*arguments))):
         try:
             values.append(call())
         except (ZeroDivisionError, ValueError, OverflowError):
@@ -357,3 +370,23 @@ def test_the_readme_rk4_example_compiles_runs_and_conserves_energy(tmp_path: Pat
     initial = python.emit(model)
     module = load_module(initial, tmp_path / "dp.py")
     assert energy == pytest.approx(module.energy([1.0, 0.5], [0.0, 0.0]), abs=1e-6)
+
+
+def test_ldlt_hands_an_indefinite_matrix_to_the_lu_solve(tmp_path: Path) -> None:
+    """The straight-line LDL^T refuses [[0, 1], [1, 0]] (no positive pivot) and leaves b alone; the LU
+    solve with pivoting then solves it; a singular [[1, 1], [1, 1]] is 1 for both."""
+    (tmp_path / "eom.h").write_text(c.emit(model_from(ROOT / "systems" / "double_pendulum.yaml")))
+    (tmp_path / "t.c").write_text(
+        '#include <stdio.h>\n#include "eom.h"\nint main(void)\n{\n'
+        "    double a[4] = {0.0, 1.0, 1.0, 0.0}, b[2] = {2.0, 3.0}, s[4] = {1.0, 1.0, 1.0, 1.0}, c[2] = {1.0, 2.0};\n"
+        "    const int first = eom_ldlt(a, b);\n"
+        '    printf("%d %g %g ", first, b[0], b[1]);\n'
+        "    const int second = eom_solve(2, a, b);\n"
+        '    printf("%d %g %g ", second, b[0], b[1]);\n'
+        "    const int third = eom_ldlt(s, c);\n"
+        '    printf("%d %d\\n", third, eom_solve(2, s, c));\n'
+        "    return 0;\n}\n"
+    )
+    toolchain("gcc")
+    subprocess.run([*GCC, str(tmp_path / "t.c"), "-o", str(tmp_path / "t"), "-lm"], check=True)
+    assert subprocess.run([str(tmp_path / "t")], capture_output=True, text=True, check=True).stdout.split() == ["1", "2", "3", "0", "3", "2", "1", "1"]

@@ -84,8 +84,8 @@ def run(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
         for k, (t, y, p) in enumerate(case.states):
             values = [p[q.name] for q in case.model.parameters]
             script += [
-                f"[d, h] = {case.prefix}({t!r}, {matrix(y, True)}, {matrix(values, False)});",
-                f"printf('value {i} {k}'); printf(' %.17g', d); printf(' %.17g\\n', h);",
+                f"[d, h, lam] = {case.prefix}({t!r}, {matrix(y, True)}, {matrix(values, False)});",
+                f"printf('value {i} {k}'); printf(' %.17g', d); printf(' %.17g', lam); printf(' %.17g\\n', h);",
             ]
     dp = cases()[0]
     script += [
