@@ -228,3 +228,15 @@ def test_an_undefined_function_is_refused(tmp_path: Path) -> None:
 def test_python_module_is_the_reference() -> None:
     """The reference of these tests is `lagrange derive --python`, unchanged."""
     assert "def rhs(" in python.emit(cases()[0].model)
+
+
+def test_a_name_longer_than_matlab_allows_is_refused(tmp_path: Path) -> None:
+    name = "a" * 64
+    path = tmp_path / "long.yaml"
+    path.write_text(f"coordinates: [{name}]\nparameters: {{m: 1.0}}\nparticles:\n  a: {{mass: m, position: [{name}]}}\n")
+    result = runner.invoke(app, ["derive", str(path), "--to", "octave", "-o", str(tmp_path / "eom.m")])
+    assert result.exit_code == 2 and f"the name '{name}' is longer than 63 characters, the most MATLAB allows in an identifier" in result.output, result.output
+    assert not (tmp_path / "eom.m").exists()
+    short = tmp_path / "short.yaml"
+    short.write_text(path.read_text().replace(name, name[:59]))  # its velocity a..a_dot has 63 characters
+    assert runner.invoke(app, ["derive", str(short), "--to", "octave"]).exit_code == 0

@@ -85,7 +85,9 @@ def octave_names(model: Model, function: str) -> dict[str, str]:
     names = mangle(symbols, {*KEYWORDS, *BUILTINS, *LOCALS, function})
     long = [n for n in names.values() if len(n) > 63]
     if long:
-        raise DerivationError(f"{model.source}: the name '{printable(long[0])[:80]}...' is longer than 63 characters, the most MATLAB allows in an identifier")
+        shown = printable(long[0])
+        shown = shown if len(shown) <= 80 else shown[:77] + "..."
+        raise DerivationError(f"{model.source}: the name '{shown}' is longer than 63 characters, the most MATLAB allows in an identifier")
     return {**names, str(model.t): "t"}
 
 
