@@ -399,13 +399,14 @@ def ldlt(prefix: str, n: int) -> str:
     for j in range(n):
         lines.append(f"    const double _d{j} = a[{j * n + j}]{minus([f'_w{j}_{k}*_l{j}_{k}' for k in range(j)])};")
         lines.append(f"    if (!(_d{j} > 1e-13 * a[{j * n + j}])) return 1;")
+        lines.append(f"    const double _r{j} = 1.0/_d{j};")
         for i in range(j + 1, n):
             lines.append(f"    const double _w{i}_{j} = a[{i * n + j}]{minus([f'_w{i}_{k}*_l{j}_{k}' for k in range(j)])};")
-            lines.append(f"    const double _l{i}_{j} = _w{i}_{j}/_d{j};")
+            lines.append(f"    const double _l{i}_{j} = _w{i}_{j}*_r{j};")
     for i in range(n):
         lines.append(f"    const double _z{i} = b[{i}]{minus([f'_l{i}_{k}*_z{k}' for k in range(i)])};")
     for i in reversed(range(n)):
-        lines.append(f"    const double _x{i} = _z{i}/_d{i}{minus([f'_l{k}_{i}*_x{k}' for k in range(i + 1, n)])};")
+        lines.append(f"    const double _x{i} = _z{i}*_r{i}{minus([f'_l{k}_{i}*_x{k}' for k in range(i + 1, n)])};")
     lines += [f"    b[{i}] = _x{i};" for i in range(n)]
     return "\n".join([*lines, "    return 0;", "}"])
 
