@@ -29,11 +29,11 @@ from pathlib import Path
 from typing import Any, ClassVar
 
 from lagrange_cli import __version__
-from lagrange_cli._symengine import to_symengine
+from lagrange_cli._symengine import se, to_symengine
 from lagrange_cli.algebra import check_invertible
 from lagrange_cli.emit.common import printable, require_defined
-from lagrange_cli.emit.printer import ATOM, Code, Printer
-from lagrange_cli.emit.python import mangle
+from lagrange_cli.emit.printer import ATOM, Code, Printer, restructure
+from lagrange_cli.emit.python import mangle, needed
 from lagrange_cli.errors import DerivationError
 from lagrange_cli.model import Model
 
@@ -114,16 +114,34 @@ class _Writer:
         self.definitions = definitions
         self.names = octave_names(model, name)
         self.taken = {*KEYWORDS, *BUILTINS, *LOCALS, name, *self.names.values()}
+        self.constants = frozenset(p.name for p in model.parameters)
+        self.velocities = frozenset(str(v) for v in model.qd)
         n = model.n
         self.upper = [(i, j) for i in range(n) for j in range(i, n)]
         self.index = {str(s): f"y({i + 1})" for i, s in enumerate((*model.q, *model.qd))}
         self.index |= {p.name: f"p({i + 1})" for i, p in enumerate(model.parameters)}
 
     def block(self, exprs: list[Any], prefix: str) -> tuple[list[str], list[str]]:
+        """Assignments computing `exprs` and their result codes: the printer core's restructuring
+        (sin/cos of each angle once, differences as products, collected coefficients) and CSE,
+        its temporaries renamed to `<prefix>0, <prefix>1, ...` (a MATLAB name cannot start with
+        `_`) apart from every name taken, keeping only the lines the results need."""
         printer = OctavePrinter(self.names)
-        temporaries, results = printer.block(exprs, prefix, self.taken)
+        definitions, reduced = restructure(exprs, self.constants, self.velocities)
+        rename: dict[Any, Any] = {}
+        lines: list[tuple[str, str]] = []
+        counter = 0
+        for name, value in definitions:
+            while f"{prefix}{counter}" in self.taken:
+                counter += 1
+            fresh = f"{prefix}{counter}"
+            self.taken.add(fresh)
+            printer.names[fresh] = fresh
+            rename[se.Symbol(name)] = se.Symbol(fresh)
+            lines.append((fresh, printer.doprint(value.xreplace(rename))))
+        temporaries, results = printer.block([e.xreplace(rename) for e in reduced], prefix, self.taken)
         self.taken |= {name for name, _ in temporaries}
-        return [f"{name} = {code};" for name, code in temporaries], results
+        return [f"{name} = {code};" for name, code in needed(lines + temporaries, results)], results
 
     def body(self) -> list[str]:
         model, n, k = self.model, self.model.n, len(self.model.constraints)
