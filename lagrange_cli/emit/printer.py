@@ -373,7 +373,7 @@ def _short(value: Any, limit: int = 60) -> str:
 # -- structure-aware rewriting ------------------------------------------------------------------
 
 
-def restructure(exprs: Sequence[Any], constants: Collection[str], velocities: Collection[str] = (), *, products: bool = True) -> tuple[list[tuple[str, Any]], list[Any]]:
+def restructure(exprs: Sequence[Any], constants: Collection[str], velocities: Collection[str] = (), *, products: bool = True, tag: str = "") -> tuple[list[tuple[str, Any]], list[Any]]:
     """Cheaper-to-evaluate forms of `exprs`, for any target: ([(name, value), ...] to compute
     first, in order, the rewritten expressions using those names as symbols). Linear in the
     number of terms (it never runs a CSE over the big expressions, only over their constant
@@ -394,14 +394,15 @@ def restructure(exprs: Sequence[Any], constants: Collection[str], velocities: Co
       the temporary `_pk<i>`, computed once.
 
     Symbols named in `velocities` (velocities, accelerations, multipliers) are kept out of the
-    x_k. The values are exact rewrites (the same real function), so `exprs` and the result agree
+    x_k. `tag` goes into every name made here (`_sin<tag><k>`, `_k<tag><i>`, ...), so that several
+    restructured blocks can share one function. The values are exact rewrites (the same real function), so `exprs` and the result agree
     up to rounding."""
-    work = _Restructure(frozenset(constants), frozenset(velocities))
+    work = _Restructure(frozenset(constants), frozenset(velocities), tag)
     terms = [work.collect(e) for e in exprs]
     definitions = work.definitions(products)
     taken = {name for name, _ in definitions}
     distinct = list(dict.fromkeys(k for rows in terms for _, _, _, k in rows if not (k.is_Number or k.is_Symbol)))
-    temporaries, reduced = common_subexpressions(distinct, "_k", taken)
+    temporaries, reduced = common_subexpressions(distinct, f"_k{tag}", taken)
     definitions += temporaries
     counts: dict[tuple[Any, Any], int] = {}
     uses: dict[Any, int] = {}
@@ -413,7 +414,7 @@ def restructure(exprs: Sequence[Any], constants: Collection[str], velocities: Co
     shared = 0
     for k, value in zip(distinct, reduced, strict=True):
         if uses[k] > 1 and not value.is_Symbol:  # a product of constants used twice is computed once
-            definitions.append((name := f"_kk{shared}", value))
+            definitions.append((name := f"_kk{tag}{shared}", value))
             shared += 1
             value = se.Symbol(name)
         coefficient[k] = value
@@ -424,7 +425,7 @@ def restructure(exprs: Sequence[Any], constants: Collection[str], velocities: Co
         for c, v, x, k in rows:
             if counts[(x, k)] > 1 and not (x == 1 or k == 1):
                 if (x, k) not in bound:
-                    bound[(x, k)] = symbol = se.Symbol(f"_pk{len(bound)}")
+                    bound[(x, k)] = symbol = se.Symbol(f"_pk{tag}{len(bound)}")
                     definitions.append((str(symbol), x * coefficient.get(k, k)))
                 parts.append(c * v * bound[(x, k)])
             else:
@@ -434,8 +435,9 @@ def restructure(exprs: Sequence[Any], constants: Collection[str], velocities: Co
 
 
 class _Restructure:
-    def __init__(self, constant: frozenset[str], velocities: frozenset[str]) -> None:
+    def __init__(self, constant: frozenset[str], velocities: frozenset[str], tag: str) -> None:
         self.constant = constant
+        self.tag = tag
         self.velocities = velocities
         self.factors: dict[Any, tuple[int, Any, int]] = {}
         """factor -> (sign, replacement, 0 constant / 1 position / 2 velocity)"""
@@ -491,6 +493,9 @@ class _Restructure:
         base, exponent = factor.args if factor.is_Pow else (factor, None)
         names = {str(s) for s in factor.free_symbols}
         kind = 2 if names & self.velocities else 1 if names - self.constant else 0
+        if kind != 0 and base.is_Add:  # a sum inside a product, e.g. g*m3*(-l1*cos(th1) - l2*cos(th2)): rewritten too
+            inner = se.Add(*(c * v * x * k for c, v, x, k in self.collect(base)))
+            return 1, inner if exponent is None else inner**exponent, kind
         if kind != 1 or not isinstance(base, (se.sin, se.cos)):
             return 1, factor, kind
         sign, symbol = self.trig(base)
@@ -516,7 +521,7 @@ class _Restructure:
         if argument.is_Symbol and str(argument) not in self.constant:
             k = self.number(argument)
             self.singles.setdefault(str(argument), set()).add(kind)
-            return 1, se.Symbol(f"_{kind}{k}")
+            return 1, se.Symbol(f"_{kind}{self.tag}{k}")
         if not (argument.is_Add and len(argument.args) == 2):
             return 1, None
         difference = _difference(argument, self.constant)
@@ -525,7 +530,7 @@ class _Restructure:
         a, b, sign = difference
         k, j = self.number(a), self.number(b)
         self.pairs.setdefault((str(a), str(b)), set()).add(kind)
-        symbol = se.Symbol(f"_{'sd' if kind == 'sin' else 'cd'}{k}_{j}")
+        symbol = se.Symbol(f"_{'sd' if kind == 'sin' else 'cd'}{self.tag}{k}_{j}")
         return (sign if kind == "sin" else 1), symbol
 
     def definitions(self, products: bool) -> list[tuple[str, Any]]:
@@ -538,14 +543,14 @@ class _Restructure:
         result: list[tuple[str, Any]] = []
         for name in sorted(needed, key=self.index.__getitem__):
             k, angle = self.index[name], self.angles[name]
-            result += [(f"_{kind}{k}", se.sin(angle) if kind == "sin" else se.cos(angle)) for kind in ("sin", "cos") if kind in needed[name]]
+            result += [(f"_{kind}{self.tag}{k}", se.sin(angle) if kind == "sin" else se.cos(angle)) for kind in ("sin", "cos") if kind in needed[name]]
         for (a, b), kinds in sorted(self.pairs.items(), key=lambda item: (self.index[item[0][0]], self.index[item[0][1]])):
             k, j = self.index[a], self.index[b]
-            sa, ca, sb, cb = (se.Symbol(f"_{kind}{i}") for i, kind in ((k, "sin"), (k, "cos"), (j, "sin"), (j, "cos")))
+            sa, ca, sb, cb = (se.Symbol(f"_{kind}{self.tag}{i}") for i, kind in ((k, "sin"), (k, "cos"), (j, "sin"), (j, "cos")))
             if "sin" in kinds:
-                result.append((f"_sd{k}_{j}", sa * cb - ca * sb if products else se.sin(self.angles[a] - self.angles[b])))
+                result.append((f"_sd{self.tag}{k}_{j}", sa * cb - ca * sb if products else se.sin(self.angles[a] - self.angles[b])))
             if "cos" in kinds:
-                result.append((f"_cd{k}_{j}", ca * cb + sa * sb if products else se.cos(self.angles[a] - self.angles[b])))
+                result.append((f"_cd{self.tag}{k}_{j}", ca * cb + sa * sb if products else se.cos(self.angles[a] - self.angles[b])))
         return result
 
 

@@ -48,6 +48,8 @@ from lagrange_cli.model import Model
 
 # Above this many unknowns the linear solve is numpy's; below, straight-line Python is faster.
 NUMPY_SIZE = 9
+SPLIT = 1000
+"""Statements per numba function above which generated numba code is cut into parts (`split`)."""
 GENERATED = frozenset(
     {
         *("t", "y", "p", "q", "q_dot", "math", "numpy", "numba", "njit", "tolist", "hasattr", "float", "abs", "pow", "copysign", "inf", "nan"),
@@ -62,12 +64,13 @@ MATH_NAMES = frozenset(dir(math))
 
 
 def code_lines(
-    printer: Printer, exprs: Sequence[Any], constants: Collection[str], velocities: Collection[str] = (), *, prefix: str = "_c", products: bool = True
+    printer: Printer, exprs: Sequence[Any], constants: Collection[str], velocities: Collection[str] = (), *, prefix: str = "_c", tag: str = "", products: bool = True
 ) -> tuple[list[tuple[str, str]], list[str]]:
     """Straight-line code computing `exprs` (symengine): `restructure` (trig temporaries, collected
     and factored coefficients), then CSE once over all of them, printed by `printer`:
-    ([(name, code), ...] in order, [result code, ...]). Shared with numeric/codegen.py."""
-    definitions, reduced = restructure(exprs, constants, velocities, products=products)
+    ([(name, code), ...] in order, [result code, ...]). Several blocks in one function need
+    distinct `prefix` and `tag` (see `restructure`). Shared with numeric/codegen.py."""
+    definitions, reduced = restructure(exprs, constants, velocities, products=products, tag=tag)
     printer.names.update((name, name) for name, _ in definitions)
     lines = [(name, printer.doprint(value)) for name, value in definitions]
     temporaries, results = printer.block(reduced, prefix, {name for name, _ in definitions})
@@ -388,7 +391,7 @@ class _Writer:
         return str(forms.t) not in free_names(exprs)
 
 
-def split(inputs: list[str], lines: list[str], tail: list[str], signature: str, name: str, prologue: Sequence[str] = (), limit: int = 250) -> tuple[list[tuple[str, list[str]]], list[str]]:
+def split(inputs: list[str], lines: list[str], tail: list[str], signature: str, name: str, prologue: Sequence[str] = (), limit: int | None = None) -> tuple[list[tuple[str, list[str]]], list[str]]:
     """Straight-line numba code (`inputs` binding scalars from the arguments, statements `lines`,
     then `tail` with the return) cut into parts of at most `limit` statements, because numba's
     compile time grows faster than the size of one function. Each part `<name>_part<k>` takes
@@ -397,7 +400,8 @@ def split(inputs: list[str], lines: list[str], tail: list[str], signature: str, 
     are written in place) and stores in `_w` its locals that later code uses. The main body
     allocates `_w`, calls the parts in order and runs the tail. Returns ([(part name, body)],
     main body): no parts when the code is short. `prologue` (allocations of the arrays that
-    `signature` passes to the parts) starts the main body."""
+    `signature` passes to the parts) starts the main body. `limit` defaults to `SPLIT`."""
+    limit = SPLIT if limit is None else limit
     if len(lines) <= limit:
         return [], [*inputs, *prologue, *lines, *tail]
     chunks = [lines[i : i + limit] for i in range(0, len(lines), limit)]

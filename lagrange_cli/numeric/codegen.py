@@ -108,7 +108,7 @@ class Generator:
         names.update({str(c.multiplier): f"_lam{i}" for i, c in enumerate(model.constraints)})
         names.update({str(qdd): f"_acc{i}" for i, qdd in enumerate(self.forms.qdd)})
         self.printer = PythonPrinter(names)
-        self.prefixes = iter(f"_c{i}_" for i in range(1000))
+        self.tags = iter(f"{i}_" for i in range(1000))
         self.upper = [(i, j) for i in range(n) for j in range(i, n)]
         self.mass = [self.forms.mass[i][j] for i, j in self.upper]
         self.constants = frozenset([*(p.name for p in model.parameters), "_alpha"])
@@ -117,7 +117,8 @@ class Generator:
     # -- helpers --------------------------------------------------------------------------------
 
     def block(self, exprs: Sequence[Any]) -> tuple[list[str], list[str]]:
-        lines, results = code_lines(self.printer, list(exprs), self.constants, self.velocities, prefix=next(self.prefixes))
+        tag = next(self.tags)
+        lines, results = code_lines(self.printer, list(exprs), self.constants, self.velocities, prefix=f"_c{tag}", tag=tag)
         return [f"{name} = {code}" for name, code in lines], results
 
     def unpack(self, exprs: Sequence[Any], state: str = "_y", velocities: bool = True) -> list[str]:

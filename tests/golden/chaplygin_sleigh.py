@@ -83,7 +83,7 @@ def accelerations(t, y, p=PARAMETERS):
     _c0 = phi_dot*phi_dot
     _c2 = y_dot*phi_dot
     _c3 = x_dot*phi_dot
-    _x = _solve([[m, 0, -_pk0, _sin0], [0, m, _pk1, -_cos0], [-_pk0, _pk1, _kk1, 0], [-_sin0, _cos0, -0, 0.0]], [_c0*_pk1, _c0*_pk0, 0, -(-_c2*sin(phi) - _c3*cos(phi))])
+    _x = _solve([[m, 0, -_pk0, _sin0], [0, m, _pk1, -_cos0], [-_pk0, _pk1, _kk1, 0], [-_sin0, _cos0, -0, 0.0]], [_c0*_pk1, _c0*_pk0, 0, -(-_c3*_cos0 - _c2*_sin0)])
     return _x
 
 

@@ -57,7 +57,7 @@ def accelerations(t, y, p=PARAMETERS):
     _sin0 = sin(phi)
     _cos0 = cos(phi)
     _kk0 = g*m*sin(alpha)
-    _x = _solve([[m, 0, 0, _sin0], [0, m, 0, -_cos0], [0, 0, I, 0], [-_sin0, _cos0, -0, 0.0]], [_kk0, 0, 0, -(-sin(phi)*y_dot*phi_dot - cos(phi)*x_dot*phi_dot)])
+    _x = _solve([[m, 0, 0, _sin0], [0, m, 0, -_cos0], [0, 0, I, 0], [-_sin0, _cos0, -0, 0.0]], [_kk0, 0, 0, -(-_cos0*x_dot*phi_dot - _sin0*y_dot*phi_dot)])
     return _x
 
 

@@ -49,7 +49,7 @@ def accelerations(t, y, p=PARAMETERS):
     _kk0 = g*m
     _c0 = y_dot*y_dot
     _c2 = x_dot*x_dot
-    _x = _solve([[m, 0, -2*x], [0, m, -2*y_], [2*x, 2*y_, 0.0]], [0, -_kk0, -(2*_c0 + 2*_c2)])
+    _x = _solve([[m, 0, -2*x], [0, m, -2*y_], [2*x, 2*y_, 0.0]], [0, -_kk0, -(2*_c2 + 2*_c0)])
     return _x
 
 
