@@ -17,9 +17,12 @@
 Everything is `static inline` (the file can be included in several translation units), nothing is
 allocated, the only global is the `const` default array, and the only header is `<math.h>`. The
 solve is Gaussian elimination with scaled partial pivoting (rows divided by their largest entry,
-then the largest pivot; a pivot below 1e-13 of its row is singular), as the Python module's `_solve`.
-Common subexpressions are computed once per function (symengine's CSE). The code compiles cleanly
-as C99 (`gcc -std=c99 -Wall -Wextra -Werror -pedantic`) and as C++.
+then the largest pivot; a pivot below 1e-13 of its row is singular), as the Python module's `_solve`;
+an unconstrained system (M symmetric, positive definite wherever the motion is defined) first tries
+a straight-line LDL^T (up to `LDLT_SIZE` coordinates) and falls back to the LU solve when a pivot
+is not clearly positive. Each function's expressions go through the printer core's `restructure`
+(sin and cos of each angle once, sin/cos of differences as products, collected coefficients) and
+one CSE. The code compiles cleanly as C99 (`gcc -std=c99 -Wall -Wextra -Werror -pedantic`) and as C++.
 
 Safe with any system file: file text (title, file name, names) enters only comments, as printable
 ASCII in which `*/`, `/*` and `??` (a trigraph) are broken apart and no line ends in a backslash;
@@ -37,10 +40,9 @@ from typing import Any, ClassVar
 
 from lagrange_cli import __version__
 from lagrange_cli._symengine import to_symengine
-from lagrange_cli.algebra import check_invertible
 from lagrange_cli.emit.common import printable, require_defined
 from lagrange_cli.emit.printer import ATOM, EXACT, MUL, Code, Printer
-from lagrange_cli.emit.python import code_lines, mangle, needed
+from lagrange_cli.emit.python import check_solvable, code_lines, mangle, needed
 from lagrange_cli.errors import DerivationError
 from lagrange_cli.model import Model
 
@@ -178,7 +180,7 @@ def emit(model: Model, *, name: str = "eom") -> str:
     definitions = model.definitions
     model = model.with_definitions()
     require_defined(model, "C code")
-    check_invertible(model)
+    check_solvable(model)
     return _Writer(model, name, definitions).file()
 
 

@@ -30,10 +30,9 @@ from typing import Any, ClassVar
 
 from lagrange_cli import __version__
 from lagrange_cli._symengine import se, to_symengine
-from lagrange_cli.algebra import check_invertible
 from lagrange_cli.emit.common import printable, require_defined
 from lagrange_cli.emit.printer import ATOM, Code, Printer, restructure
-from lagrange_cli.emit.python import mangle, needed
+from lagrange_cli.emit.python import check_solvable, mangle, needed
 from lagrange_cli.errors import DerivationError
 from lagrange_cli.model import Model
 
@@ -103,7 +102,7 @@ def emit(model: Model, *, name: str = "eom") -> str:
     definitions = model.definitions
     model = model.with_definitions()
     require_defined(model, "Octave code")
-    check_invertible(model)
+    check_solvable(model)
     return _Writer(model, name, definitions).file()
 
 
