@@ -55,5 +55,18 @@ def test_model_depends_only_on_errors_and_symengine() -> None:
 def test_symbolic_modules_import_no_numerics() -> None:
     """The modules `derive` loads; analysis and numeric ones import numpy inside functions."""
     for name, found in modules().items():
-        if not name.startswith(("lagrange_cli.numeric", "lagrange_cli.cli", "lagrange_cli.analysis", "lagrange_cli.report")):
+        if not name.startswith(("lagrange_cli.numeric", "lagrange_cli.cli", "lagrange_cli.analysis", "lagrange_cli.report", *LAZY)):
             assert not any(i.split(".")[0] in ("numpy", "scipy", "matplotlib") for i in found), name
+
+
+LAZY = ("lagrange_cli.api",)
+"""The notebook API and the animations: imported by `import lagrange_cli` on first use only, they
+import numpy and matplotlib inside the functions that need them, never at module level."""
+
+
+def test_the_api_imports_numerics_only_inside_functions() -> None:
+    for name in LAZY:
+        tree = ast.parse((ROOT / (name.replace(".", "/") + ".py")).read_text())
+        top = [node for node in tree.body if isinstance(node, (ast.Import, ast.ImportFrom))]
+        found = {alias.name for node in top if isinstance(node, ast.Import) for alias in node.names} | {node.module or "" for node in top if isinstance(node, ast.ImportFrom)}
+        assert not any(i.split(".")[0] in ("numpy", "scipy", "matplotlib", "typer", "rich") for i in found), name
