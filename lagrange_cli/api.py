@@ -623,6 +623,4 @@ class Trajectory:
         (`_repr_html_`), `save("motion.gif" | ".mp4" | ".html")`, `frame(k)` for one PNG."""
         from lagrange_cli import animate
 
-        return animate.animation(  # type: ignore[attr-defined]
-            self.system.spec, self.system.model, self.run, speed=speed, fps=fps, view=view, trail=trail, frames=frames
-        )
+        return animate.animation(self.system.spec, self.system.model, self.run, speed=speed, fps=fps, view=view, trail=trail, frames=frames)

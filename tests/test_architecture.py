@@ -59,7 +59,7 @@ def test_symbolic_modules_import_no_numerics() -> None:
             assert not any(i.split(".")[0] in ("numpy", "scipy", "matplotlib") for i in found), name
 
 
-LAZY = ("lagrange_cli.api",)
+LAZY = ("lagrange_cli.api", "lagrange_cli.animate")
 """The notebook API and the animations: imported by `import lagrange_cli` on first use only, they
 import numpy and matplotlib inside the functions that need them, never at module level."""
 

@@ -20,7 +20,7 @@ from .conftest import ROOT
 
 runner = CliRunner()
 GROUP = typer.main.get_command(app)
-COMMANDS = ["derive", "check", "info", "equilibria", "linearize", "simulate", "accuracy", "stress"]
+COMMANDS = ["derive", "check", "info", "equilibria", "linearize", "simulate", "animate", "accuracy", "stress"]
 
 
 def helps(command: str | None) -> tuple[str, list[str]]:
