@@ -13,7 +13,7 @@ from typing import Any
 
 __version__ = "0.1.0"
 
-API = ("load", "from_file", "from_text", "targets", "System", "Trajectory", "Equations", "Formula", "Formulas", "Report", "CheckReport", "Plot")
+API = ("load", "from_file", "from_text", "targets", "System", "Trajectory", "Equations", "Formula", "Formulas", "Report", "CheckReport", "Plot", "Animation")
 """The names `lagrange_cli` gives from `lagrange_cli.api`."""
 
 __all__ = [*API, "__version__"]

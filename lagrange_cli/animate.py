@@ -328,7 +328,8 @@ class Animation:
         from lagrange_cli.numeric.output import plain_text
 
         with plain_text(), matplotlib.rc_context({"animation.embed_limit": 1000.0}):
-            return str(self._animation().to_jshtml(fps=self.fps, embed_frames=True, default_mode="loop"))
+            player = str(self._animation().to_jshtml(fps=self.fps, embed_frames=True, default_mode="loop"))
+        return offline(player)
 
     def _repr_html_(self) -> str:
         return self._jshtml()
@@ -355,6 +356,30 @@ class Animation:
                 self._animation().save(str(scratch), writer=writer, dpi=DPI)
             data = scratch.read_bytes()
         atomic_write(target, lambda stream: stream.write(data))
+
+
+ICONS = (
+    "<style>.anim-buttons .fa{font-style:normal;font-family:sans-serif}"
+    ".fa-flip-horizontal{display:inline-block;transform:scaleX(-1)}"
+    '.fa-play:before{content:"\\25B6"}.fa-pause:before{content:"\\275A\\275A"}'
+    '.fa-step-forward:before{content:"\\25B6\\2759"}.fa-step-backward:before{content:"\\2759\\25C0"}'
+    '.fa-fast-forward:before{content:"\\25B6\\25B6"}.fa-fast-backward:before{content:"\\25C0\\25C0"}'
+    '.fa-plus:before{content:"+"}.fa-minus:before{content:"\\2212"}</style>'
+)
+"""The player's button icons as characters: matplotlib's player links Font Awesome from a CDN,
+which an offline page cannot load."""
+
+
+def offline(player: str) -> str:
+    """matplotlib's HTML player with nothing fetched from the network: its stylesheet link to
+    Font Awesome replaced by `ICONS`. A player that still names a web address is an error here,
+    not a page that fails without a network."""
+    import re
+
+    page = re.sub(r"<link\s+rel=\"stylesheet\"\s+href=\"https?://[^\"]*font-awesome[^\"]*\"\s*/?>", lambda _: ICONS, player)
+    if re.search(r"(src|href)=\"https?://", page):
+        raise LagrangeError("matplotlib's HTML player refers to a web address; the page would not work offline")
+    return page
 
 
 def check_output(path: Path) -> str:

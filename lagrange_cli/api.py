@@ -36,6 +36,7 @@ from typing import TYPE_CHECKING, Any
 
 import sympy as sp
 
+from lagrange_cli.animate import Animation
 from lagrange_cli.errors import LagrangeError
 from lagrange_cli.model import Model
 from lagrange_cli.spec import SystemSpec
@@ -43,10 +44,9 @@ from lagrange_cli.spec import SystemSpec
 if TYPE_CHECKING:
     import numpy as np
 
-    from lagrange_cli.animate import Animation
     from lagrange_cli.numeric.simulate import Trajectory as Run
 
-__all__ = ["CheckReport", "Equations", "Formula", "Formulas", "Plot", "Report", "System", "Trajectory", "from_file", "from_text", "load", "targets"]
+__all__ = ["Animation", "CheckReport", "Equations", "Formula", "Formulas", "Plot", "Report", "System", "Trajectory", "from_file", "from_text", "load", "targets"]
 
 TEXT_NAME = "<text>"
 """How messages name a system given as YAML text (`from_text` without a name)."""

@@ -74,13 +74,13 @@ def test_speed_and_sparse_samples_keep_real_time() -> None:
 def test_spatial_systems_in_3d_and_in_projection() -> None:
     system = load("spherical_pendulum")
     run = system.simulate(t_end=0.5, samples=11, backend="python")
-    l = system.parameters["l"]
-    assert l is not None
+    length = system.parameters["l"]
+    assert length is not None
     for view in ("3d", "xz"):
         movie = run.animate(view=view)
         movie.update(6)
         theta, phi = sample(run, movie.times[6])[:2]
-        where = l * np.array([math.sin(theta) * math.cos(phi), math.sin(theta) * math.sin(phi), -math.cos(theta)])
+        where = length * np.array([math.sin(theta) * math.cos(phi), math.sin(theta) * math.sin(phi), -math.cos(theta)])
         if view == "3d":
             assert drawn(movie.dots["bob"], three=True)[0] == pytest.approx(where, abs=1e-12)
         else:
@@ -185,6 +185,8 @@ def test_html_on_stdout_is_a_whole_page() -> None:
     assert result.exit_code == 0, result.output
     assert result.stdout.startswith("<!DOCTYPE html>") and result.stdout.rstrip().endswith("</html>") and "data:image/png;base64" in result.stdout
     assert "3 frames" in result.stderr
+    assert "http://" not in result.stdout and "https://" not in result.stdout  # plays offline: nothing fetched (matplotlib's player links a CDN; replaced)
+    assert ".fa-play:before" in result.stdout
 
 
 def test_file_text_in_the_page_is_escaped(tmp_path: Path) -> None:
@@ -217,6 +219,6 @@ def test_the_html_plays_offline_in_chromium(tmp_path: Path) -> None:
     assert not [line for line in console if "error" in line.lower()], console
     with Image.open(shot) as image:
         pixels = np.asarray(image.convert("RGB"), dtype=int)
-    coloured = np.sum((np.abs(pixels - pixels[:, :, :1]).max(axis=2) > 40))  # saturated: the bobs, not grey lines or text
+    coloured = np.sum(np.abs(pixels - pixels[:, :, :1]).max(axis=2) > 40)  # saturated: the bobs, not grey lines or text
     dark = np.sum(pixels.max(axis=2) < 100)  # the rods and the text
     assert coloured > 500 and dark > 500, (coloured, dark)

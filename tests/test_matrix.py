@@ -38,6 +38,7 @@ INVOCATIONS: dict[str, dict[str, list[str]]] = {
     "simulate": {"": [*SHORT, "--backend", "python", "--method", "DOP853", "--samples", "11"]},
     "accuracy": {"": ["--method", "DOP853:python", "--tolerances", "1e-4,1e-6", "--repeats", "0", "--samples", "11", *SHORT]},
     "stress": {"": ["--method", "DOP853:python", *SHORT, "--long", "2", "--energy", "2"]},
+    "animate": {"": ["-o", "-", *SHORT, "--fps", "10"]},
 }
 """How each command is run in the matrix: variant name -> arguments after the file."""
 
@@ -47,6 +48,7 @@ SHOWS = {
     **{("derive", f"latex-{form}-standalone"): "\\end{document}" for form in ("lagrange", "matrix", "solved")},
     ("info", "json"): '"hamiltonian"',
     ("simulate", ""): "invariants",
+    ("animate", ""): "</html>",
 }
 """What a cell that works must print (on stdout), where a word says it did its job."""
 
