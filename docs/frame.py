@@ -14,7 +14,7 @@ FRAME_TIME = 2.4
 def main() -> None:
     run = load("double_pendulum").simulate(t_end=3.0, samples=76, method="DOP853", backend="python")
     movie = run.animate(fps=25)
-    k = int(round(FRAME_TIME * 25))
+    k = round(FRAME_TIME * 25)
     (Path(__file__).parent / "double_pendulum_frame.png").write_bytes(movie.frame(k))
 
 

@@ -222,3 +222,17 @@ def test_the_html_plays_offline_in_chromium(tmp_path: Path) -> None:
     coloured = np.sum(np.abs(pixels - pixels[:, :, :1]).max(axis=2) > 40)  # saturated: the bobs, not grey lines or text
     dark = np.sum(pixels.max(axis=2) < 100)  # the rods and the text
     assert coloured > 500 and dark > 500, (coloured, dark)
+
+
+def test_a_failed_run_is_animated_up_to_the_failure_and_exits_1(tmp_path: Path) -> None:
+    """x_ddot = 4 x**3 blows up in finite time: the frames up to there are written, then exit 1."""
+    path = tmp_path / "blowup.yaml"
+    path.write_text("coordinates: [x]\nparticles:\n  p: {mass: 1, position: [x]}\npotential: -x**4\ninitial: {x: 1, x_dot: 1}\nsimulate: {t_end: 2}\n")
+    target = tmp_path / "m.gif"
+    result = runner.invoke(app, ["animate", str(path), "-o", str(target), "--fps", "10"])
+    assert result.exit_code == 1, result.output
+    assert f"error: {path}: simulation failed at t = " in result.stderr and "the animation shows the run up to there" in result.stderr
+    from PIL import Image
+
+    with Image.open(target) as image:
+        assert 1 <= image.n_frames < 21
