@@ -27,6 +27,7 @@ from __future__ import annotations
 import functools
 import html
 import importlib
+import importlib.util
 import io
 import os
 from collections.abc import Iterator, Mapping, Sequence
