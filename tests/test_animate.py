@@ -236,3 +236,14 @@ def test_a_failed_run_is_animated_up_to_the_failure_and_exits_1(tmp_path: Path) 
 
     with Image.open(target) as image:
         assert 1 <= image.n_frames < 21
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("path", sorted((ROOT / "systems").glob("*.yaml")), ids=lambda p: p.stem)
+def test_every_bundled_system_animates(path: Path) -> None:
+    """A short run of each bundled system draws: a PNG frame with its title and time stamp."""
+    run = load(path).simulate(t_end=0.1, samples=3, backend="python")
+    assert not run.failed, run.message
+    movie = run.animate()
+    assert len(movie) == 3 and movie.frame(2).startswith(b"\x89PNG")
+    assert movie.stamp.get_text().startswith("t = 0.10")
