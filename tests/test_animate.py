@@ -247,3 +247,12 @@ def test_every_bundled_system_animates(path: Path) -> None:
     movie = run.animate()
     assert len(movie) == 3 and movie.frame(2).startswith(b"\x89PNG")
     assert movie.stamp.get_text().startswith("t = 0.10")
+
+
+def test_animate_without_matplotlib_names_the_extra(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    import sys
+
+    monkeypatch.setitem(sys.modules, "matplotlib", None)  # type: ignore[arg-type]
+    result = runner.invoke(app, ["animate", "simple_pendulum", "-o", str(tmp_path / "m.gif")])
+    assert result.exit_code == 2 and "animate needs matplotlib, which is not installed: `pip install 'lagrange-cli[plot]'`" in result.stderr
+    assert not (tmp_path / "m.gif").exists()
