@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: demo test lint bench fuzz golden latex-deps toolchains clean
+.PHONY: demo test lint bench fuzz golden latex-deps toolchains animate-deps clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -14,7 +14,7 @@ $(STAMP): pyproject.toml
 demo: $(STAMP)
 	$(BIN)/lagrange derive double_pendulum
 
-test: $(STAMP) latex-deps toolchains
+test: $(STAMP) latex-deps toolchains animate-deps
 	$(BIN)/python -m pytest -q
 
 lint: $(STAMP)
@@ -52,6 +52,12 @@ toolchains:
 	@command -v octave >/dev/null 2>&1 || { \
 	  sudo=$$([ "$$(id -u)" = 0 ] || echo sudo); \
 	  $$sudo apt-get update -qq && DEBIAN_FRONTEND=noninteractive $$sudo apt-get install -y -qq --no-install-recommends octave >/dev/null; }
+
+# ffmpeg (MP4 animations) and chromium (the test that plays an HTML animation headless), from Debian.
+animate-deps:
+	@command -v ffmpeg >/dev/null 2>&1 && command -v chromium >/dev/null 2>&1 || { \
+	  sudo=$$([ "$$(id -u)" = 0 ] || echo sudo); \
+	  $$sudo apt-get update -qq && DEBIAN_FRONTEND=noninteractive $$sudo apt-get install -y -qq ffmpeg chromium >/dev/null; }
 
 clean:
 	rm -rf $(VENV) .pytest_cache .mypy_cache .ruff_cache

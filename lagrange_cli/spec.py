@@ -30,11 +30,12 @@ NAME = re.compile(r"[A-Za-z][A-Za-z0-9_]*\Z")
 TOP_KEYS = (
     "title", "description", "coordinates", "parameters", "functions", "gravity", "particles",
     "bodies", "kinetic", "potential", "lagrangian", "dissipation", "forces", "constraints",
-    "eliminate", "initial", "simulate", "exact", "expect",
+    "eliminate", "initial", "simulate", "exact", "expect", "draw",
 )  # fmt: skip
 PARTICLE_KEYS = ("mass", "position", "force", "damping")
 FUNCTION_KEYS = ("arguments", "definition", "description")
 BODY_KEYS = ("mass", "position", "inertia", "angular_velocity")
+DRAW_KEYS = ("segments", "trails")
 EXPECT_KEYS = ("equations", "accelerations", "momenta", "conserved")
 SIMULATE_KEYS = ("t_end", "method", "rtol", "atol", "step", "samples")
 METHODS = ("auto", "RK45", "DOP853", "Radau", "BDF", "LSODA", "symplectic")  # as in numeric/settings.py
@@ -95,6 +96,25 @@ class Constraint:
 
 
 @dataclass(frozen=True)
+class DrawPoint:
+    """A point an animation draws: `label` is the particle or body it names (empty for a position
+    list), `position` its Cartesian position in the file's coordinates, parameters and `t`."""
+
+    label: str
+    position: tuple[sp.Expr, ...]
+    span: Span
+
+
+@dataclass(frozen=True)
+class Drawing:
+    """The `draw` block: segments (pairs of points joined by a line) and trails (points whose
+    recent path is drawn)."""
+
+    segments: tuple[tuple[DrawPoint, DrawPoint], ...] = ()
+    trails: tuple[DrawPoint, ...] = ()
+
+
+@dataclass(frozen=True)
 class Expect:
     equations: tuple[tuple[sp.Expr, Span], ...] = ()
     accelerations: tuple[tuple[str, sp.Expr, Span], ...] = ()
@@ -140,6 +160,8 @@ class SystemSpec:
     `gravity`, `forces.<q>`, `functions.<f>`, `exact.<q>` (so that a bad term found after
     derivation is reported at its source)."""
     expect: Expect = Expect()
+    draw: Drawing | None = None
+    """The `draw` block (None without one: an animation then draws particles and bodies as dots)."""
 
 
 def time_derivative(expr: sp.Expr, q: tuple[sp.Symbol, ...], qd: tuple[sp.Symbol, ...], qdd: tuple[sp.Symbol, ...], t: sp.Symbol) -> sp.Expr:
@@ -626,6 +648,7 @@ class _Reader:
             simulate=self.simulate(value("simulate")),
             exact=self.exact(value("exact"), coordinates, constants),
             expect=Expect(),
+            draw=self.draw(value("draw"), particles, bodies, config),
         )
         expect_node = value("expect")
         if expect_node is not None:
@@ -635,6 +658,55 @@ class _Reader:
         if self.problems:
             raise SpecError(sorted(self.problems, key=lambda d: (d.span.line, d.span.column) if d.span else (0, 0)))
         return spec
+
+    def draw(self, node: yaml.Node | None, particles: tuple[Particle, ...], bodies: tuple[Body, ...], config: Scope) -> Drawing | None:
+        """`draw: {segments: [[A, B], ...], trails: [A, ...]}`, each point a particle's name, a body's
+        name (its centre of mass) or a position list; every point as long as the system's positions."""
+        if node is None:
+            return None
+        fields = {k: v for k, _, v in self.mapping(node, "'draw'", DRAW_KEYS)}
+        items: tuple[Particle | Body, ...] = (*particles, *bodies)
+        length = next((len(item.position) for item in items), None)
+        segments: list[tuple[DrawPoint, DrawPoint]] = []
+        for entry in self.sequence(fields["segments"], "'draw.segments'") if "segments" in fields else []:
+            if not isinstance(entry, yaml.SequenceNode) or len(entry.value) != 2:
+                got = f"{len(entry.value)} item{'s' * (len(entry.value) != 1)}" if isinstance(entry, yaml.SequenceNode) else _kind(entry)
+                self.problem(entry, f"a segment of 'draw.segments' must be a pair of points, got {got}", "`[A, B]`, each a particle or body name or a position list such as `[0, 0]`")
+                continue
+            ends = [self.draw_point(item, particles, bodies, config, length) for item in entry.value]
+            if ends[0] is not None and ends[1] is not None:
+                segments.append((ends[0], ends[1]))
+        trails = [self.draw_point(item, particles, bodies, config, length) for item in (self.sequence(fields["trails"], "'draw.trails'") if "trails" in fields else [])]
+        drawn = [*(p for pair in segments for p in pair), *(t for t in trails if t is not None)]
+        for point in drawn:  # without particles or bodies, the first point sets the length
+            if len(point.position) != len(drawn[0].position):
+                self.problems.append(
+                    Diagnostic(point.span, f"a point of 'draw' has {len(point.position)} components, but the first one has {len(drawn[0].position)}", "points of one length throughout")
+                )
+                break
+        return Drawing(tuple(segments), tuple(t for t in trails if t is not None))
+
+    def draw_point(self, node: yaml.Node, particles: tuple[Particle, ...], bodies: tuple[Body, ...], config: Scope, length: int | None) -> DrawPoint | None:
+        expected = "a particle name (" + (", ".join(p.name for p in particles) or "none declared") + "), a body name (" + (", ".join(b.name for b in bodies) or "none declared") + ")"
+        expected += " or a position list such as `[0, 0]`"
+        if isinstance(node, yaml.SequenceNode):
+            position = self.vector(node, "a point of 'draw'", config, lengths=(length,) if length else (1, 2, 3))
+            return DrawPoint("", position, self.span(node)) if position is not None else None
+        if not isinstance(node, yaml.ScalarNode) or node.tag != "tag:yaml.org,2002:str":
+            self.problem(node, f"a point of 'draw' must be a name or a position list, got {_kind(node)}", expected)
+            return None
+        name = node.value
+        items: tuple[Particle | Body, ...] = (*particles, *bodies)
+        found = next((item for item in items if item.name == name), None)
+        if found is not None:
+            return DrawPoint(name, found.position, self.text_span(node))
+        body, dot, point = name.partition(".")
+        if dot and any(b.name == body for b in bodies):
+            self.problem(node, f"unknown point '{name}': body '{body}' has no point '{point}'", expected)
+        else:
+            hint = _closest(name, [item.name for item in items])
+            self.problem(node, f"unknown point '{name}' in 'draw'", (f"did you mean '{hint}'? " if hint else "") + expected)
+        return None
 
     def string(self, node: yaml.Node | None, what: str) -> str | None:
         if node is None:

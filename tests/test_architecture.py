@@ -55,7 +55,7 @@ def test_model_depends_only_on_errors_and_symengine() -> None:
 def test_symbolic_modules_import_no_numerics() -> None:
     """The modules `derive` loads; analysis and numeric ones import numpy inside functions."""
     for name, found in modules().items():
-        if not name.startswith(("lagrange_cli.numeric", "lagrange_cli.cli", "lagrange_cli.analysis", "lagrange_cli.report")):
+        if not name.startswith(("lagrange_cli.numeric", "lagrange_cli.cli", "lagrange_cli.analysis", "lagrange_cli.report", *LAZY)):
             assert not any(i.split(".")[0] in ("numpy", "scipy", "matplotlib") for i in found), name
 
 
@@ -140,3 +140,16 @@ def test_numeric_caches_are_not_keyed_by_id() -> None:
             continue
         calls = [node for node in ast.walk(ast.parse(path.read_text())) if isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id == "id"]
         assert not calls, path.name
+
+
+LAZY = ("lagrange_cli.api", "lagrange_cli.animate")
+"""The notebook API and the animations: imported by `import lagrange_cli` on first use only, they
+import numpy and matplotlib inside the functions that need them, never at module level."""
+
+
+def test_the_api_imports_numerics_only_inside_functions() -> None:
+    for name in LAZY:
+        tree = ast.parse((ROOT / (name.replace(".", "/") + ".py")).read_text())
+        top = [node for node in tree.body if isinstance(node, (ast.Import, ast.ImportFrom))]
+        found = {alias.name for node in top if isinstance(node, ast.Import) for alias in node.names} | {node.module or "" for node in top if isinstance(node, ast.ImportFrom)}
+        assert not any(i.split(".")[0] in ("numpy", "scipy", "matplotlib", "typer", "rich") for i in found), name

@@ -40,6 +40,7 @@ INVOCATIONS: dict[str, dict[str, list[str]]] = {
     "simulate": {"": [*SHORT, "--backend", "python", "--method", "DOP853", "--samples", "11"]},
     "accuracy": {"": ["--method", "DOP853:python", "--tolerances", "1e-4,1e-6", "--repeats", "0", "--samples", "11", *SHORT]},
     "stress": {"": ["--method", "DOP853:python", *SHORT, "--long", "2", "--energy", "2"]},
+    "animate": {"": ["-o", "-", *SHORT, "--fps", "10"]},
 }
 """How each command is run in the matrix: variant name -> arguments after the file. (The code targets' cells
 only run `derive`; tests/test_target_c.py and tests/test_target_octave.py compile and run every feature's code
@@ -53,6 +54,7 @@ SHOWS = {
     **{("derive", f"latex-{form}-standalone"): "\\end{document}" for form in ("lagrange", "matrix", "solved")},
     ("info", "json"): '"hamiltonian"',
     ("simulate", ""): "invariants",
+    ("animate", ""): "</html>",
 }
 """What a cell that works must print (on stdout), where a word says it did its job."""
 
