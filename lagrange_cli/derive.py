@@ -17,6 +17,7 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import sympy as sp
 
@@ -24,7 +25,7 @@ from lagrange_cli._symengine import se, to_symengine
 from lagrange_cli.algebra import combine_trig, expand_bounded, expandable
 from lagrange_cli.errors import Span, fail
 from lagrange_cli.expr import numeric_value, real_derivative
-from lagrange_cli.model import ConstraintRow, Model
+from lagrange_cli.model import ConstraintRow, Model, SymengineForms
 from lagrange_cli.spec import Body, Constraint, Particle, SystemSpec, time_derivative
 from lagrange_cli.validate import Source, first_refusal, refusal, validate
 
@@ -50,22 +51,55 @@ def derive(spec: SystemSpec) -> Model:
 
 def _derive(spec: SystemSpec) -> Model:
     q, qd, t = _se(spec.q), _se(spec.qd), to_symengine(spec.t)
-    kinetic = combine_trig(kinetic_energy(spec) + to_symengine(spec.kinetic))
-    potential = potential_energy(spec)
+    qdd = _se(spec.qdd)
+    points = [item for item in _masses(spec) if _structured(item, qd, qdd)]
+    others = [item for item in _masses(spec) if not _structured(item, qd, qdd)]
+    quad = point_masses(points, q, qd, t, _se(spec.gravity) if spec.gravity is not None else None)
+    potential = potential_energy(spec, others) + quad.gravity_potential
+    # everything but the point masses' quadratic kinetic energy and gravity: differentiated as written
+    rest_kinetic = combine_trig(quad.linear + quad.constant + kinetic_energy(spec, others) + rotational_energy(spec) + to_symengine(spec.kinetic))
+    kinetic = quad.quadratic() + rest_kinetic
+    rest = rest_kinetic - potential_energy(spec, others) + to_symengine(spec.lagrangian)
     lagrangian = kinetic - potential + to_symengine(spec.lagrangian)
     dissipation = combine_trig(rayleigh(spec))
     forces = generalized_forces(spec)
-    if any(_has(lagrangian, s) for s in _se(spec.qdd)):
+    if any(_has(lagrangian, s) for s in qdd):
         raise fail(None, f"{spec.path}: the Lagrangian depends on accelerations", "a Lagrangian of coordinates, velocities and time")
-    p = momenta(lagrangian, qd)
-    mass, force = euler_lagrange(lagrangian, dissipation, forces, q, qd, t)
-    check_size(spec, tree_size([*(m for row in mass for m in row), *force, kinetic, dissipation, *p], MAX_EQUATION_NODES), MAX_EQUATION_NODES, "the equations of motion")
+    rest_p = momenta(rest, qd)
+    rest_mass, rest_force = euler_lagrange(rest, dissipation, forces, q, qd, t)
+    n = len(q)
+    mass = [[quad.mass[i][j] + rest_mass[i][j] for j in range(n)] for i in range(n)]
+    velocity_force = quad.forces(q, qd, t)
+    force = [velocity_force[i] + quad.gravity[i] + rest_force[i] for i in range(n)]
+    p = [se.Add(*(quad.mass[i][j] * qd[j] for j in range(n) if quad.mass[i][j] != 0)) + rest_p[i] for i in range(n)]
+    energy = quad.quadratic() + quad.gravity_potential + energy_function(rest, rest_p, qd)
+    mass = [[_tidy(m) for m in row] for row in mass]
+    force, p, kinetic, energy = [_tidy(f) for f in force], [_tidy(x) for x in p], _tidy(kinetic), _tidy(energy)
+    check_size(spec, dag_size([*(m for row in mass for m in row), *force, kinetic, dissipation, *p], MAX_EQUATION_NODES), MAX_EQUATION_NODES, "the equations of motion")
     for i, name in enumerate(spec.coordinates):
         if all(m == 0 for m in mass[i]) and force[i] == 0 and not any(_has(c.expr, se.Symbol(name)) or _has(c.expr, qd[i]) for c in map(_se_constraint, spec.constraints)):
             raise fail(
                 spec.spans.get(name), f"coordinate '{name}' appears nowhere in the energies or forces: its equation would be 0 = 0", "a coordinate that the positions, energies or forces depend on"
             )
-    return Model(
+    forms = SymengineForms(
+        q=tuple(q),
+        qd=tuple(qd),
+        qdd=tuple(qdd),
+        t=t,
+        mass=tuple(tuple(row) for row in mass),
+        forcing=tuple(force),
+        kinetic=kinetic,
+        potential=potential,
+        lagrangian=lagrangian,
+        dissipation=dissipation,
+        energy=energy,
+        momenta=tuple(p),
+        generalized_forces=tuple(forces),
+    )
+    forms, given = _kinks(forms, spec)
+    return Model.from_symengine(
+        forms,
+        given,
         title=spec.title,
         source=spec.path,
         coordinates=spec.coordinates,
@@ -74,15 +108,6 @@ def _derive(spec: SystemSpec) -> Model:
         qdd=spec.qdd,
         t=spec.t,
         parameters=spec.parameters,
-        kinetic=_sp(kinetic),
-        potential=_sp(potential),
-        lagrangian=_sp(lagrangian),
-        dissipation=_sp(dissipation),
-        generalized_forces=tuple(_sp(f) for f in forces),
-        mass_matrix=sp.ImmutableMatrix(len(q), len(q), [_sp(m) for row in mass for m in row]),
-        forcing=sp.ImmutableMatrix([_sp(f) for f in force]),
-        momenta=tuple(_sp(x) for x in p),
-        energy=_sp(energy_function(lagrangian, p, qd)),
         constraints=tuple(constraint_row(c, spec) for c in spec.constraints),
         eliminated=getattr(spec, "_eliminated", ()),
         description=spec.description,
@@ -94,11 +119,173 @@ def _derive(spec: SystemSpec) -> Model:
     )
 
 
+def _structured(item: Particle | Body, qd: Sequence[se.Basic], qdd: Sequence[se.Basic]) -> bool:
+    """Whether a mass's translational kinetic energy is a quadratic form in the velocities (its mass and
+    position depend on coordinates and time only), which `point_masses` builds from its Jacobian."""
+    rates = {*qd, *qdd}
+    return not any(rates & to_symengine(e).free_symbols for e in (item.mass, *item.position))
+
+
+@dataclass
+class PointMasses:
+    """The point masses' kinetic energy `1/2 q_dot^T M q_dot + linear + constant` and their weight.
+
+    M_ij = sum_p m_p (dx_p/dq_i . dx_p/dq_j), linear = sum_p m_p (dx_p/dt . J_p q_dot), constant =
+    sum_p m_p |dx_p/dt|^2 / 2; the generalized gravity force Q_i = sum_p m_p (g . dx_p/dq_i). Each of M_ij
+    and Q_i is a sum over geometric terms, each times the sum of the masses that share it (`_grouped`):
+    the general chain's M_ij is l_i l_j cos(q_i - q_j) (m_max(i,j) + ... + m_N), not N products."""
+
+    mass: list[list[se.Basic]]
+    linear: se.Basic
+    constant: se.Basic
+    gravity: list[se.Basic]
+    gravity_potential: se.Basic
+    qd: Sequence[se.Basic]
+
+    def quadratic(self) -> se.Basic:
+        """1/2 q_dot^T M q_dot, each pair of velocities once."""
+        m, v, n = self.mass, self.qd, len(self.mass)
+        return se.Add(*(m[i][i] * v[i] ** 2 / 2 for i in range(n)), *(m[i][j] * v[i] * v[j] for i in range(n) for j in range(i + 1, n)))
+
+    def forces(self, q: Sequence[se.Basic], qd: Sequence[se.Basic], t: se.Basic) -> Vector:
+        """The velocity terms of the equations from the quadratic form, by the Christoffel symbols:
+        F_i = 1/2 sum_jk dM_jk/dq_i qd_j qd_k - sum_jk dM_ij/dq_k qd_j qd_k - sum_j dM_ij/dt qd_j,
+        differentiating each entry of M only by the coordinates it has."""
+        n = len(q)
+        terms: list[list[se.Basic]] = [[] for _ in range(n)]
+        index = {s: k for k, s in enumerate(q)}
+        half = se.Rational(1, 2)
+        for a in range(n):
+            for b in range(a, n):
+                entry = self.mass[a][b]
+                if entry == 0:
+                    continue
+                free = entry.free_symbols
+                for c in sorted(index[s] for s in free if s in index):
+                    d = se.diff(entry, q[c])
+                    if d == 0:
+                        continue
+                    terms[a].append(-d * qd[b] * qd[c])
+                    if a != b:
+                        terms[b].append(-d * qd[a] * qd[c])
+                        terms[c].append(d * qd[a] * qd[b])
+                    else:
+                        terms[c].append(half * d * qd[a] ** 2)
+                if t in free:
+                    d = se.diff(entry, t)
+                    terms[a].append(-d * qd[b])
+                    if a != b:
+                        terms[b].append(-d * qd[a])
+        return [se.Add(*row) for row in terms]
+
+
+def point_masses(items: Sequence[Particle | Body], q: Sequence[se.Basic], qd: Sequence[se.Basic], t: se.Basic, gravity: Sequence[se.Basic] | None) -> PointMasses:
+    """`PointMasses` of `items` (each with a mass and position of coordinates and time only)."""
+    n = len(q)
+    zero = se.Integer(0)
+    pairs: dict[tuple[int, int], list[tuple[tuple[se.Basic, se.Basic], se.Basic]]] = {}
+    weights: dict[int, list[tuple[se.Basic, se.Basic]]] = {}
+    linear: list[se.Basic] = []
+    constant: list[se.Basic] = []
+    potential: list[se.Basic] = []
+    for item in items:
+        m = to_symengine(item.mass)
+        x = _se(item.position)
+        free = set().union(*(xk.free_symbols for xk in x))
+        columns = [(i, tuple(se.diff(xk, qi) for xk in x)) for i, qi in enumerate(q) if qi in free]
+        columns = [(i, col) for i, col in columns if any(c != 0 for c in col)]
+        for k, (i, ci) in enumerate(columns):
+            for j, cj in columns[k:]:
+                pairs.setdefault((i, j), []).append(((ci, cj), m))
+        rate = [se.diff(xk, t) for xk in x] if t in free else []
+        if any(r != 0 for r in rate):
+            linear.append(m * se.Add(*(_dot(ci, rate) * qd[i] for i, ci in columns)))
+            constant.append(m * _dot(rate, rate) / 2)
+        if gravity is not None:
+            potential.append(-m * _dot(gravity, x))
+            for i, ci in columns:
+                weights.setdefault(i, []).append((_dot(gravity, ci), m))
+    mass = [[zero] * n for _ in range(n)]
+    dots: dict[tuple[se.Basic, se.Basic], se.Basic] = {}
+    for (i, j), members in pairs.items():
+        grouped = []
+        for key, m in members:
+            if key not in dots:
+                dots[key] = combine_trig(_dot(*key))
+            grouped.append((dots[key], m))
+        mass[i][j] = mass[j][i] = _grouped(grouped)
+    forces = [_grouped([(combine_trig(g), m) for g, m in weights.get(i, [])]) for i in range(n)]
+    return PointMasses(mass, se.Add(*linear), se.Add(*constant), forces, se.Add(*potential), qd)
+
+
+def _dot(a: Sequence[se.Basic], b: Sequence[se.Basic]) -> se.Basic:
+    return se.Add(*(x * y for x, y in zip(a, b, strict=True)))
+
+
+MAX_TIDY_NODES = 400
+"""Largest expression (distinct nodes) that `_tidy` tries to expand."""
+
+
+def _tidy(expr: se.Basic) -> se.Basic:
+    """`expr` expanded when that makes it shorter (fewer distinct nodes), else as it is: combining only
+    what pays. `2*l*m*x_dot*theta_dot + 2*m*x*x_dot*theta_dot` beats `x_dot*theta_dot*(2*l*m + 2*m*x)`,
+    but `l1*l2*cos(th1 - th2)*(m2 + m3)` stays (its expansion repeats the geometric factor per mass)."""
+    size = dag_size([expr], MAX_TIDY_NODES)
+    if size > MAX_TIDY_NODES or not expandable(expr):
+        return expr
+    expanded = se.expand(expr)
+    return expanded if dag_size([expanded], size) < size else expr
+
+
+def _grouped(terms: Sequence[tuple[se.Basic, se.Basic]]) -> se.Basic:
+    """sum_k g_k w_k, written as sum over the distinct terms r of the g_k of r times the sum of the
+    weights (with their numeric coefficients) that multiply r: the masses that share a geometric term
+    are added before multiplying."""
+    by_term: dict[se.Basic, list[se.Basic]] = {}
+    for g, w in terms:
+        for term in se.Add.make_args(g):
+            coefficient, rest = _split(term)
+            by_term.setdefault(rest, []).append(coefficient * w)
+    return se.Add(*(_times(rest, ws) for rest, ws in by_term.items()))
+
+
+def _times(factor: se.Basic, weights: Sequence[se.Basic]) -> se.Basic:
+    """factor * (sum of weights), with the sign outside when every weight is negative: -g*(m1 + m2)."""
+    if len(weights) > 1 and all(_split(w)[0].is_negative for w in weights):
+        return -factor * se.Add(*(-w for w in weights))
+    return factor * se.Add(*weights)
+
+
+def _split(term: se.Basic) -> tuple[se.Basic, se.Basic]:
+    """A term as (numeric coefficient, the rest)."""
+    if term.is_Number:
+        return term, se.Integer(1)
+    if isinstance(term, se.Mul):
+        args = term.args
+        if args[0].is_Number:
+            return args[0], se.Mul(*args[1:])
+    return se.Integer(1), term
+
+
 MAX_INPUT_WORK = 100_000
 """Largest sum over the file's expressions of (terms and factors) x (coordinates and velocities in it + 1)."""
 MAX_EQUATION_NODES = 250_000
 """Largest number of terms and factors of the derived equations (about 5 s to turn into sympy here; the
 bundled systems have at most a few hundred)."""
+
+
+def dag_size(exprs: Sequence[se.Basic], limit: int = 10**9) -> int:
+    """The number of distinct nodes of symengine expressions (shared sub-expressions counted once:
+    what printing with common subexpressions and the numeric code cost), counting stops past `limit`."""
+    seen: set[se.Basic] = set()
+    stack = list(exprs)
+    while stack and len(seen) <= limit:
+        node = stack.pop()
+        if node in seen:
+            continue
+        seen.add(node)
+        stack.extend(node.args)
+    return len(seen)
 
 
 def tree_size(expr: object, limit: int = 10**9) -> int:
@@ -180,14 +367,19 @@ def check_masses(spec: SystemSpec) -> None:
                 raise fail(item.spans.get(key), f"the {key} of '{item.name}' is written non-zero ({value}) but is 0 in double precision", "a value between 1e-300 and 1e300 in size")
 
 
-def kinetic_energy(spec: SystemSpec) -> se.Basic:
-    """K = sum 1/2 m |x_dot|^2 over particles and bodies, plus 1/2 I omega^2 (planar)
-    or 1/2 sum I_k omega_k^2 (spatial, principal body axes) for bodies."""
+def kinetic_energy(spec: SystemSpec, items: Sequence[Particle | Body]) -> se.Basic:
+    """K = sum 1/2 m |x_dot|^2 over `items` (particles and bodies), by differentiating their positions."""
     q, qd, t = _se(spec.q), _se(spec.qd), to_symengine(spec.t)
     total = se.Integer(0)
-    for item in _masses(spec):
+    for item in items:
         v = velocity(_se(item.position), q, qd, t)
         total += to_symengine(item.mass) * sum((vi**2 for vi in v), se.Integer(0)) / 2
+    return total
+
+
+def rotational_energy(spec: SystemSpec) -> se.Basic:
+    """1/2 I omega^2 (planar) or 1/2 sum I_k omega_k^2 (spatial, principal body axes) over bodies."""
+    total = se.Integer(0)
     for body in spec.bodies:
         inertia, omega = _se(body.inertia), _se(body.angular_velocity)
         total += sum((i * w**2 for i, w in zip(inertia, omega, strict=True)), se.Integer(0)) / 2
@@ -199,12 +391,12 @@ def velocity(position: Sequence[se.Basic], q: Sequence[se.Basic], qd: Sequence[s
     return [sum((se.diff(x, qi) * qdi for qi, qdi in zip(q, qd, strict=True)), se.diff(x, t)) for x in position]
 
 
-def potential_energy(spec: SystemSpec) -> se.Basic:
-    """U = U_file - sum m g . x over particles and bodies (a uniform field g)."""
+def potential_energy(spec: SystemSpec, items: Sequence[Particle | Body] | None = None) -> se.Basic:
+    """U = U_file - sum m g . x over `items` (default: every particle and body; a uniform field g)."""
     total = to_symengine(spec.potential)
     if spec.gravity is not None:
         g = _se(spec.gravity)
-        for item in _masses(spec):
+        for item in _masses(spec) if items is None else items:
             total -= to_symengine(item.mass) * sum((gi * xi for gi, xi in zip(g, _se(item.position), strict=True)), se.Integer(0))
     return total
 
@@ -530,6 +722,39 @@ def _substitute(spec: SystemSpec, k: int, solution: sp.Expr, used: Constraint) -
     earlier = tuple((name, sub(e)) for name, e in getattr(spec, "_eliminated", ()))  # in the coordinates that remain
     object.__setattr__(changed, "_eliminated", (*earlier, (spec.coordinates[k], solution)))
     return changed
+
+
+def _kinks(forms: SymengineForms, spec: SystemSpec) -> tuple[SymengineForms, dict[str, object]]:
+    """Derivatives of Abs and sign, which symengine leaves as `Derivative(Abs(u), v)`, taken in sympy
+    (`_sp`): d|u|/dv = sign(u) du/dv, and a Dirac delta that vanishes where it sits dropped. Only a file
+    with Abs or sign has them; its fields are then computed in sympy here (and the symengine forms
+    converted back), the rest of the time nothing is converted."""
+    if not any(e.has(sp.Abs, sp.sign) for source in sources(spec) for e in source.exprs):
+        return forms, {}
+    converted: dict[str, object] = {}
+
+    def one(value: se.Basic) -> tuple[se.Basic, sp.Expr]:
+        result = _sp(value)
+        try:
+            return to_symengine(result), result
+        except TypeError:  # a Dirac delta that stays: `validate` refuses it at the entry it comes from
+            return value, result
+
+    def many(values: Sequence[se.Basic]) -> tuple[tuple[se.Basic, ...], tuple[sp.Expr, ...]]:
+        pairs = [one(v) for v in values]
+        return tuple(a for a, _ in pairs), tuple(b for _, b in pairs)
+
+    changes: dict[str, Any] = {}
+    for name in ("kinetic", "potential", "lagrangian", "dissipation", "energy"):
+        changes[name], converted[name] = one(getattr(forms, name))
+    for name in ("momenta", "generalized_forces"):
+        changes[name], converted[name] = many(getattr(forms, name))
+    changes["forcing"], forcing = many(forms.forcing)
+    converted["forcing"] = sp.ImmutableMatrix(len(forcing), 1, forcing)
+    rows = [many(row) for row in forms.mass]
+    changes["mass"] = tuple(a for a, _ in rows)
+    converted["mass_matrix"] = sp.ImmutableMatrix(len(rows), len(rows), [e for _, b in rows for e in b])
+    return dataclasses.replace(forms, **changes), converted
 
 
 def _se_constraint(constraint: Constraint) -> Constraint:

@@ -140,6 +140,83 @@ def _check_node(node: sp.Basic, defined: frozenset[str]) -> Refusal | None:
     return Refusal(node, cause or f"the function '{name}', which is not one of the supported functions", HINTS.get(name, DEFAULT_HINT))
 
 
+def _symengine_parts(model: Model) -> list[object]:
+    """The expressions of `model.symengine`: the parts of `model_parts` that `derive` computes in symengine."""
+    forms = model.symengine
+    return [forms.kinetic, forms.potential, forms.lagrangian, forms.dissipation, forms.energy, *forms.generalized_forces, *forms.momenta, *forms.forcing, *(m for row in forms.mass for m in row)]
+
+
+def _sympy_parts(model: Model) -> Iterator[tuple[str, sp.Basic]]:
+    """The parts of `model_parts` that are sympy from the start (constraints, eliminated coordinates, exact solutions)."""
+    for row in model.constraints:
+        for part in (row.expr, *row.jacobian, row.bias, row.acceleration_bias):
+            yield f"constraint '{row.name}'", part
+    for name, solution in model.eliminated:
+        yield f"the solution for the eliminated '{name}'", solution
+    for name, exact in model.exact.items():
+        yield f"the exact solution for '{name}'", exact
+
+
+def _symengine_functions() -> frozenset[str]:
+    """The symengine class names of the parser's functions (exp becomes a power of E in symengine)."""
+    from lagrange_cli._symengine import to_symengine
+
+    x, y = sp.symbols("x y")
+    names = set()
+    for function in SUPPORTED_FUNCTIONS:
+        converted = to_symengine(function(x, y) if function is sp.atan2 else function(x))
+        if converted.is_Function:
+            names.add(type(converted).__name__)
+    return frozenset(names)
+
+
+_SE_FUNCTIONS: frozenset[str] | None = None
+
+
+def clean(exprs: Iterable[object]) -> bool:
+    """True when every node of these symengine expressions is one that `refusal` allows once converted
+    to sympy: symbols, pi, E, numbers with no `float_problem`, + * ** (no power of 0, no exponent above
+    `MAX_EXPONENT`), the parser's functions, declared functions and their derivatives at their own plain
+    symbols. Anything else (a `Subs`, an infinity, a derivative of Abs, ...) is not cleared here, and
+    the caller checks the sympy form, which decides and says where it comes from. Each distinct node is
+    visited once."""
+    from lagrange_cli._symengine import se
+
+    global _SE_FUNCTIONS
+    if _SE_FUNCTIONS is None:
+        _SE_FUNCTIONS = _symengine_functions()
+    functions = _SE_FUNCTIONS
+    seen: set[object] = set()
+    stack = list(exprs)
+    while stack:
+        node = stack.pop()
+        if node in seen:
+            continue
+        seen.add(node)
+        kind = type(node).__name__
+        if kind in ("Add", "Mul") or node.is_Symbol:  # type: ignore[attr-defined]
+            pass
+        elif node.is_Number:  # type: ignore[attr-defined]
+            if kind not in ("Integer", "Rational", "RealDouble", "Zero", "One", "NegativeOne", "Half") or float_problem(sp.sympify(node)):
+                return False
+        elif kind == "Pow":
+            base, exponent = node.args  # type: ignore[attr-defined]
+            if base == 0 or (exponent.is_Integer and abs(int(exponent)) > MAX_EXPONENT):
+                return False
+        elif node == se.pi or node == se.E:
+            continue
+        elif kind == "FunctionSymbol" or kind in functions:
+            pass
+        elif kind == "Derivative":
+            inner, *variables = node.args  # type: ignore[attr-defined]
+            if not (type(inner).__name__ == "FunctionSymbol" and all(v.is_Symbol and v in inner.args for v in variables)):
+                return False
+        else:
+            return False
+        stack.extend(node.args)  # type: ignore[attr-defined]
+    return True
+
+
 def model_parts(model: Model) -> Iterator[tuple[str, sp.Basic]]:
     """Every expression of a model, each with where it is in the model."""
     yield "the kinetic energy", model.kinetic
@@ -166,8 +243,18 @@ def model_parts(model: Model) -> Iterator[tuple[str, sp.Basic]]:
 
 
 def validate(model: Model, sources: Sequence[Source], variables: Sequence[sp.Symbol]) -> None:
-    """Raise a `SpecError` at the entry of the file that a refused node comes from; see the module docstring."""
+    """Raise a `SpecError` at the entry of the file that a refused node comes from; see the module docstring.
+
+    A model made by `derive` is first checked on its symengine forms (`clean`, an allow-list no wider than
+    `refusal`'s), which needs no sympy conversion; only when that finds a node it does not clear, or the
+    model has definitions, are the sympy fields checked (and the culprit located) as below."""
     defined = set(model.definitions)
+    if model.native and not model.definitions and clean(_symengine_parts(model)):
+        for part, expr in _sympy_parts(model):
+            found = refusal(expr, defined)
+            if found is not None:
+                raise _located(model, part, found, sources, variables, defined)
+        return
     for part, expr in model_parts(model):
         found = refusal(expr, defined)
         if found is not None:

@@ -33,6 +33,7 @@ import re
 from collections.abc import Collection, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any, ClassVar
 
 import sympy as sp
 from sympy.printing.pycode import PythonCodePrinter
@@ -41,6 +42,7 @@ from lagrange_cli import __version__
 from lagrange_cli._symengine import se, to_symengine
 from lagrange_cli.algebra import check_invertible
 from lagrange_cli.emit.common import require_defined
+from lagrange_cli.emit.printer import ATOM, Code, Printer
 from lagrange_cli.errors import DerivationError
 from lagrange_cli.model import Model
 
@@ -56,6 +58,7 @@ GENERATED = frozenset(
 RESERVED = frozenset({*keyword.kwlist, *keyword.softkwlist, *dir(builtins), *dir(math), *GENERATED})
 """What no user symbol may be called in generated Python (besides any name starting with `_`)."""
 AMBIGUOUS = frozenset({"l", "I", "O"})
+MATH_NAMES = frozenset(dir(math))
 
 
 class CodePrinter(PythonCodePrinter):
@@ -466,3 +469,25 @@ def define(name: str, signature: str, doc: str, body: list[str]) -> str:
 def _rhs_doc(model: Model) -> str:
     state = ", ".join(map(str, (*model.q, *model.qd)))
     return f"dy/dt for y = [{state}] (for scipy.integrate.solve_ivp)."
+
+
+class PythonPrinter(Printer):
+    """Python with bare `math` names (those used are in `used`; `abs` is the builtin): real
+    arithmetic, a non-integer power as `pow` (math.pow, a ValueError for a negative base)."""
+
+    functions: ClassVar[Mapping[str, str]] = {**Printer.functions, "Abs": "abs", "pow": "pow"}
+
+    def nonfinite(self, value: float) -> Code:
+        name = "nan" if math.isnan(value) else "inf"
+        self.used.add(name)
+        return name, ATOM
+
+    def _print_sign(self, expr: Any) -> Code:
+        (argument,) = expr.args
+        x = self.doprint(argument)
+        self.used.add("copysign")
+        return f"(0.0 if {x} == 0 else copysign(1.0, {x}))", ATOM
+
+    def imports(self) -> list[str]:
+        """The `math` names the printed code uses."""
+        return sorted(self.used & MATH_NAMES)

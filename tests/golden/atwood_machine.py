@@ -19,7 +19,7 @@ def forcing(q, q_dot, p=PARAMETERS):
     m1 = p["m1"]
     m2 = p["m2"]
     g = p["g"]
-    return [g*m1 - g*m2]
+    return [g*(m1 - m2)]
 
 
 def energy(q, q_dot, p=PARAMETERS):
@@ -41,4 +41,4 @@ def rhs(t, y, p=PARAMETERS):
     m2 = p["m2"]
     g = p["g"]
     _, y1_dot = y.tolist() if hasattr(y, "tolist") else y
-    return [y1_dot, (g*m1 - g*m2)/(m1 + m2)]
+    return [y1_dot, (g*(m1 - m2))/(m1 + m2)]

@@ -28,9 +28,8 @@ def forcing(q, q_dot, p=PARAMETERS):
     alpha = p["alpha"]
     _, theta = q
     _, theta_dot = q_dot
-    _c0 = g*sin(alpha)
-    _c1 = l*m
-    return [M*_c0 + _c0*m + _c1*theta_dot*theta_dot*sin(alpha + theta), -_c1*g*sin(theta)]
+    _c0 = l*m
+    return [_c0*theta_dot*theta_dot*sin(alpha + theta) + g*(M + m)*sin(alpha), -_c0*g*sin(theta)]
 
 
 def energy(q, q_dot, p=PARAMETERS):
@@ -59,11 +58,10 @@ def rhs(t, y, p=PARAMETERS):
     _, theta, s_dot, theta_dot = y.tolist() if hasattr(y, "tolist") else y
     _c0 = alpha + theta
     _c1 = l*m
-    _c2 = g*sin(alpha)
     _m00 = (3/2)*M + m
     _m01 = _c1*cos(_c0)
     _m11 = l*l*m
-    _f0 = M*_c2 + _c1*theta_dot*theta_dot*sin(_c0) + _c2*m
+    _f0 = _c1*theta_dot*theta_dot*sin(_c0) + g*(M + m)*sin(alpha)
     _f1 = -_c1*g*sin(theta)
     _det = _m00*_m11 - _m01*_m01
     return [s_dot, theta_dot, (_m11*_f0 - _m01*_f1)/_det, (_m00*_f1 - _m01*_f0)/_det]

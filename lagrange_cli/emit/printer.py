@@ -1,0 +1,547 @@
+"""The printer core shared by every code target: symengine expressions to code, one subclass per language.
+
+In the spirit of sympy's printers (`sympy/printing/printer.py`): a `Printer` dispatches on the
+class of each node, `_print_<ClassName>`, walking the class's MRO (so `sin` falls back to
+`_print_Function`, `Zero` to `_print_Integer`). Unlike sympy's, it prints *symengine* expressions
+directly (the big-system path never converts to sympy), and every handler returns the text
+together with its precedence, so that parentheses are exactly the ones the grammar needs:
+
+    class PythonPrinter(Printer):
+        functions = {**Printer.functions, "Abs": "abs"}
+        def _print_Pi(self, expr): return "pi_literal", ATOM
+
+Subclasses override only what differs between languages, through these hooks:
+
+- `functions`: symengine function class name (`sin`, `atan2`, `Abs`, ...) -> the language's
+  name; every name printed is recorded in `used` (for imports). `cot`, `sec` and `csc` print
+  as `1/tan(x)`, `1/cos(x)`, `1/sin(x)` through the table; `sign` and anything not in the
+  table raise `DerivationError` unless the subclass defines `_print_sign` / `_print_<Name>`.
+- `integer(n)`, `rational(p, q)`, `real(x)`, `nonfinite(x)`: number literals. The defaults
+  round-trip exactly: integers below 2**53 as they are, larger ones (and rationals with a
+  part that large) as the nearest double; a rational as the exact division `p/q` (IEEE
+  division of two exact doubles is correctly rounded, so `1/3` *is* the double nearest 1/3
+  in any language with float division; C-like languages override `rational` to `1.0/3.0`);
+  a float as `repr`, the shortest text that reads back as the same double.
+- `integer_power(base, n)` (integer n >= 2): `b**n` with `power_operator`, else `pow(b, n)`;
+  `power(base, exponent)` for every other real power: `pow(b, e)`. Squares of names print as
+  `b*b`, x**(1/2) as `sqrt(x)`, negative powers as divisions `1/...`, E**x as `exp(x)`.
+- `call(name, args)`: a function call, `name(a, b)` by default.
+
+Precedence levels (`ATOM` > `POWER` > `UNARY` > `MUL` > `ADD`) follow Python's and C's grammar:
+unary minus binds looser than `**` (so `-x**2` is `-(x**2)`), `a*b/c` is left-associative, and
+a divisor is parenthesised unless it is an atom or a power. Sums print their positive terms
+first (`a + b - c`); products their numerator, then `/` and the denominator (`2*x/(3*y)`).
+
+`common_subexpressions` runs CSE once over everything a function computes (M and F together),
+naming the temporaries `<prefix>0, <prefix>1, ...` while skipping any name in `taken` and any
+symbol already in the expressions, so that no temporary can meet a user's (mangled) name.
+`Printer.block` is CSE plus printing: the (name, code) assignments in order and the results.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Collection, Iterable, Mapping, Sequence
+from typing import Any, ClassVar
+
+from lagrange_cli._symengine import se
+from lagrange_cli.errors import DerivationError
+
+ATOM = 100
+"""A name, a call, a non-negative number: never needs parentheses."""
+POWER = 60
+UNARY = 50
+MUL = 40
+ADD = 30
+
+EXACT = 2**53
+"""Integers below this are exact doubles (and fit every language's integer type we print)."""
+
+Code = tuple[str, int]
+"""Printed text and its precedence."""
+
+
+class Printer:
+    """Prints symengine expressions as code in one language; one subclass per language.
+
+    `names` maps a symbol's name (`str(symbol)`) to its identifier in the generated code (after
+    `mangle`). A symbol not in `names` is an error, never printed under its own name. Dispatch
+    is by node class name (`_print_Add`, `_print_Mul`, `_print_Pow`, `_print_Symbol`,
+    `_print_Integer`, `_print_Rational`, `_print_RealDouble`, `_print_Function`, `_print_Pi`,
+    `_print_Exp1`, ...), each handler returning `(text, precedence)`."""
+
+    functions: ClassVar[Mapping[str, str]] = {
+        **{name: name for name in ("sin", "cos", "tan", "asin", "acos", "atan", "atan2", "sinh", "cosh", "tanh", "exp", "log", "sqrt")},
+        "Abs": "fabs",
+    }
+    """symengine function class name -> the target language's function name."""
+    reciprocals: ClassVar[Mapping[str, str]] = {"cot": "tan", "sec": "cos", "csc": "sin"}
+    power_operator: ClassVar[str | None] = "**"
+    """The infix power operator (`**`), or None for languages where integer powers are `pow(b, n)` too."""
+
+    def __init__(self, names: Mapping[str, str]) -> None:
+        self.names: dict[str, str] = dict(names)
+        self.used: set[str] = set()
+        """The language names of the functions and constants printed so far (for imports)."""
+        self._handlers: dict[type, Callable[[Any], Code]] = {}
+
+    # -- entry points -----------------------------------------------------------------------------
+
+    def doprint(self, expr: Any) -> str:
+        """The code of `expr`."""
+        return self._print(expr)[0]
+
+    def block(self, exprs: Sequence[Any], prefix: str, taken: Collection[str] = ()) -> tuple[list[tuple[str, str]], list[str]]:
+        """CSE once over `exprs`, then printing: ([(temporary, code), ...] in order, [result code, ...]).
+        The temporaries are added to `names`, and avoid `taken`, the names already known to this
+        printer and the symbols of `exprs` (see `common_subexpressions`)."""
+        temporaries, reduced = common_subexpressions(exprs, prefix, {*taken, *self.names.values()})
+        self.names.update((name, name) for name, _ in temporaries)
+        return [(name, self.doprint(value)) for name, value in temporaries], [self.doprint(e) for e in reduced]
+
+    # -- dispatch ---------------------------------------------------------------------------------
+
+    def _print(self, expr: Any) -> Code:
+        handler = self._handlers.get(type(expr))
+        if handler is None:
+            handler = self._handler(type(expr))
+            self._handlers[type(expr)] = handler
+        return handler(expr)
+
+    def _handler(self, cls: type) -> Callable[[Any], Code]:
+        for klass in cls.__mro__:
+            method = getattr(self, f"_print_{klass.__name__}", None)
+            if method is not None:
+                return method  # type: ignore[no-any-return]
+        return self._unsupported
+
+    def parenthesize(self, expr: Any, level: int) -> str:
+        """The code of `expr`, in parentheses when it binds looser than `level`."""
+        text, precedence = self._print(expr)
+        return f"({text})" if precedence < level else text
+
+    def _unsupported(self, expr: Any) -> Code:
+        raise DerivationError(f"cannot write code for {type(expr).__name__} ({_short(expr)}): not supported by this target")
+
+    # -- hooks ------------------------------------------------------------------------------------
+
+    def integer(self, value: int) -> Code:
+        """An integer literal (non-negative `value`): exact below 2**53, else the nearest double."""
+        return (str(value), ATOM) if value < EXACT else self.real(float(value))
+
+    def rational(self, p: int, q: int) -> Code:
+        """p/q (p, q > 0, q > 1) as an exact division, correctly rounded by any float division."""
+        if max(p, q) >= EXACT:
+            return self.real(p / q)
+        return f"{p}/{q}", MUL
+
+    def real(self, value: float) -> Code:
+        """A non-negative float literal that reads back as the same double."""
+        return (repr(value), ATOM) if math.isfinite(value) else self.nonfinite(value)
+
+    def nonfinite(self, value: float) -> Code:
+        """Infinity or NaN; no default, since each language spells them differently."""
+        raise DerivationError(f"cannot write the number {value} in this target")
+
+    def call(self, name: str, args: Iterable[str]) -> Code:
+        self.used.add(name)
+        return f"{name}({', '.join(args)})", ATOM
+
+    def function_name(self, name: str) -> str:
+        """The language's name of symengine's function `name` (a DerivationError when it has none)."""
+        try:
+            return self.functions[name]
+        except KeyError:
+            raise DerivationError(f"cannot write code for the function '{name}': not supported by this target") from None
+
+    def integer_power(self, base: Any, n: int) -> Code:
+        """base**n for an integer n >= 2 (squares of names print as `x*x` before this is asked):
+        `b**n` with `power_operator`, else `pow(b, n)`."""
+        if self.power_operator is None:
+            return self.call(self.functions.get("pow", "pow"), [self.doprint(base), self.integer(n)[0]])
+        return f"{self.parenthesize(base, ATOM)}{self.power_operator}{self.integer(n)[0]}", POWER
+
+    def power(self, base: Any, exponent: Any) -> Code:
+        """A real power with a non-integer (or symbolic) exponent: `pow(b, e)`."""
+        return self.call(self.functions.get("pow", "pow"), [self.doprint(base), self.doprint(exponent)])
+
+    # -- atoms ------------------------------------------------------------------------------------
+
+    def _print_Symbol(self, expr: Any) -> Code:
+        name = str(expr)
+        try:
+            return self.names[name], ATOM
+        except KeyError:
+            raise DerivationError(f"cannot write code for the symbol '{_short(name)}', which is not a coordinate, velocity, parameter or t") from None
+
+    def _print_Integer(self, expr: Any) -> Code:
+        value = int(expr)
+        if value < 0:
+            text, _ = self.integer(-value)
+            return "-" + text, UNARY
+        return self.integer(value)
+
+    def _print_Rational(self, expr: Any) -> Code:
+        p, q = (int(v) for v in expr.get_num_den())
+        if p < 0:
+            text, _ = self.rational(-p, q)
+            return "-" + text, UNARY
+        return self.rational(p, q)
+
+    def _print_RealDouble(self, expr: Any) -> Code:
+        value = float(expr)
+        if value < 0 or (value == 0 and math.copysign(1.0, value) < 0):
+            text, _ = self.real(-value)
+            return "-" + text, UNARY
+        return self.real(value)
+
+    _print_Float = _print_RealDouble
+
+    def _print_Infinity(self, expr: Any) -> Code:
+        return self.nonfinite(math.inf)
+
+    def _print_NegativeInfinity(self, expr: Any) -> Code:
+        text, _ = self.nonfinite(math.inf)
+        return "-" + text, UNARY
+
+    def _print_NaN(self, expr: Any) -> Code:
+        return self.nonfinite(math.nan)
+
+    def _print_Pi(self, expr: Any) -> Code:
+        return self.real(math.pi)
+
+    def _print_Exp1(self, expr: Any) -> Code:
+        return self.real(math.e)
+
+    def _print_Complex(self, expr: Any) -> Code:
+        raise DerivationError("the equations contain the imaginary unit; generated code computes with real numbers only")
+
+    _print_ImaginaryUnit = _print_Complex
+    _print_ComplexDouble = _print_Complex
+    _print_ComplexInfinity = _print_Complex
+
+    # -- arithmetic -------------------------------------------------------------------------------
+
+    def _print_Add(self, expr: Any) -> Code:
+        positive: list[str] = []
+        negative: list[str] = []
+        for term in expr.args:
+            minus, text = self._signed(term)
+            (negative if minus else positive).append(text)
+        if positive:
+            return " + ".join(positive) + "".join(" - " + text for text in negative), ADD
+        return "-" + " - ".join(negative), ADD
+
+    def _signed(self, term: Any) -> tuple[bool, str]:
+        """(True, text of -term) when `term` is negative in form (a negative number or product), else (False, text of term)."""
+        if term.is_Mul:
+            minus, text, _ = self._product(term)
+            return minus, text
+        text, precedence = self._print(term)
+        if precedence == UNARY and text.startswith("-"):
+            return True, text[1:]
+        return False, text
+
+    def _print_Mul(self, expr: Any) -> Code:
+        minus, text, precedence = self._product(expr)
+        return ("-" + text, UNARY) if minus else (text, precedence)
+
+    def _product(self, expr: Any) -> tuple[bool, str, int]:
+        """(sign, text of the product without its sign, its precedence): the coefficient and the
+        other factors, then `/` and the denominator (negative powers and the coefficient's q)."""
+        numerator: list[Code] = []
+        denominator: list[Any] = []
+        coefficient_q = ""
+        minus = False
+        for factor in expr.args:
+            if factor.is_Number:
+                minus, top, coefficient_q = self._coefficient(factor)
+                if top != ("1", ATOM):
+                    numerator.insert(0, top)
+            elif factor.is_Pow and _negative_number(factor.args[1]):
+                denominator.append(factor.args[0] if factor.args[1] == -1 else se.Pow(factor.args[0], -factor.args[1]))
+            else:
+                numerator.append(self._print(factor))
+        if not numerator:
+            text, precedence = "1", ATOM
+        elif len(numerator) == 1:
+            text, precedence = numerator[0]
+            if precedence < MUL:  # -(a + b), (a + b)/c
+                text, precedence = f"({text})", ATOM
+        else:
+            text, precedence = "*".join(f"({t})" if p < MUL else t for t, p in numerator), MUL
+        parts = ([coefficient_q] if coefficient_q else []) + [self.parenthesize(d, MUL) for d in denominator]
+        if not parts:
+            return minus, text, precedence
+        if len(parts) == 1:
+            below = parts[0] if coefficient_q else self.parenthesize(denominator[0], POWER)
+            return minus, f"{text}/{below}", MUL
+        return minus, f"{text}/({'*'.join(parts)})", MUL
+
+    def _coefficient(self, number: Any) -> tuple[bool, Code, str]:
+        """(negative, numerator code, denominator text or "") of a product's numeric coefficient."""
+        if isinstance(number, se.Integer):
+            value = int(number)
+            return value < 0, self.integer(abs(value)), ""
+        if isinstance(number, se.Rational):
+            p, q = (int(v) for v in number.get_num_den())
+            if max(abs(p), q) >= EXACT:
+                return p < 0, self.real(abs(p) / q), ""
+            return p < 0, self.integer(abs(p)), self.integer(q)[0]
+        text, precedence = self._print(number)
+        if precedence == UNARY and text.startswith("-"):
+            return True, (text[1:], ATOM), ""
+        return False, (text, precedence), ""
+
+    def _print_Pow(self, expr: Any) -> Code:
+        base, exponent = expr.args
+        if type(base) is _EXP1:
+            return self.call(self.function_name("exp"), [self.doprint(exponent)])
+        if _negative_number(exponent):
+            below = base if exponent == -1 else se.Pow(base, -exponent)
+            return f"1/{self.parenthesize(below, POWER)}", MUL
+        if isinstance(exponent, se.Integer):
+            n = int(exponent)
+            if n == 1:
+                return self._print(base)
+            if n == 2 and (base.is_Symbol or (base.is_Number and not base.is_negative)):
+                text = self.doprint(base)
+                return f"{text}*{text}", MUL
+            return self.integer_power(base, n)
+        if isinstance(exponent, se.Rational) and exponent == _HALF:
+            return self.call(self.function_name("sqrt"), [self.doprint(base)])
+        return self.power(base, exponent)
+
+    # -- functions --------------------------------------------------------------------------------
+
+    def _print_Function(self, expr: Any) -> Code:
+        name = type(expr).__name__
+        if name in self.reciprocals:
+            text, _ = self.call(self.function_name(self.reciprocals[name]), [self.doprint(a) for a in expr.args])
+            return f"1/{text}", MUL
+        return self.call(self.function_name(name), [self.doprint(a) for a in expr.args])
+
+    def _print_FunctionSymbol(self, expr: Any) -> Code:
+        raise DerivationError(f"cannot write code for the undefined function {_short(expr)}; give it a definition in the file's `functions`")
+
+    def _print_Derivative(self, expr: Any) -> Code:
+        raise DerivationError(f"cannot write code for the derivative {_short(expr)} of an undefined function; give the function a definition in the file's `functions`")
+
+    _print_Subs = _print_Derivative
+
+
+def common_subexpressions(exprs: Sequence[Any], prefix: str, taken: Collection[str] = ()) -> tuple[list[tuple[str, Any]], list[Any]]:
+    """CSE once over all of `exprs` (e.g. M and F together): ([(temporary name, value), ...] in
+    order of computation, the reduced expressions), values and reduced expressions referring to
+    earlier temporaries as symbols of those names. The names are `<prefix>0, <prefix>1, ...`,
+    skipping any name in `taken` (the user's names after mangle) or of a symbol of `exprs`."""
+    exprs = [se.sympify(e) if not isinstance(e, se.Basic) else e for e in exprs]
+    if not exprs:
+        return [], []
+    replacements, reduced = se.cse(exprs)
+    if not replacements:
+        return [], list(reduced)
+    avoid = set(taken)
+    for e in exprs:
+        avoid.update(str(s) for s in e.free_symbols)
+    rename: dict[Any, Any] = {}
+    counter = 0
+    for symbol, _ in replacements:
+        while f"{prefix}{counter}" in avoid:
+            counter += 1
+        rename[symbol] = se.Symbol(f"{prefix}{counter}")
+        counter += 1
+    temporaries = [(str(rename[symbol]), value.xreplace(rename)) for symbol, value in replacements]
+    return temporaries, [e.xreplace(rename) for e in reduced]
+
+
+_EXP1 = type(se.E)
+_HALF = se.Rational(1, 2)
+
+
+def _negative_number(value: Any) -> bool:
+    return bool(value.is_Number and value.is_negative)
+
+
+def _short(value: Any, limit: int = 60) -> str:
+    """A short, printable rendering of a symbol or expression for an error message (file text stays data)."""
+    text = str(value)
+    text = "".join(char if " " <= char <= "~" else "?" for char in text)
+    return text if len(text) <= limit else text[: limit - 3] + "..."
+
+
+# -- structure-aware rewriting ------------------------------------------------------------------
+
+
+def restructure(exprs: Sequence[Any], constants: Collection[str], *, products: bool = True) -> tuple[list[tuple[str, Any]], list[Any]]:
+    """Cheaper-to-evaluate forms of `exprs`, for any target: ([(name, value), ...] to compute
+    first, in order, the rewritten expressions using those names as symbols).
+
+    - sin and cos of a single varying symbol (a coordinate, a velocity, t) become the
+      temporaries `_sin<k>`, `_cos<k>`, computed once; sin and cos of a difference of two such
+      symbols, `a - b`, become `_sd<k>_<l>`, `_cd<k>_<l>` (one per unordered pair, the reversed
+      difference being `-_sd` and `_cd`), computed from them as products when `products`
+      (cos(a - b) = cos a cos b + sin a sin b, sin(a - b) = sin a cos b - cos a sin b: no
+      further calls) or by one call each otherwise. Only factors of the terms of a sum (or of a
+      product) are rewritten; trig nested deeper stays as it is;
+    - each sum is collected by its varying part, sum_k v_k(q, q_dot, t) P_k(constants), and each
+      P_k, a polynomial in the constants `constants` (symbol names), factored greedily
+      (Horner): l1*l2*m2 + l1*l2*m3 = l1*l2*(m2 + m3). CSE then shares the suffix sums
+      (m2 + m3 within m1 + m2 + m3) and the products of constants between M and F.
+
+    The values are exact rewrites (the same real function), so `exprs` and the result agree
+    up to rounding. Linear in the number of terms; no symengine traversal beyond them."""
+    work = _Restructure(frozenset(constants))
+    rewritten = [work.collect(e) for e in exprs]
+    return work.definitions(products), rewritten
+
+
+class _Restructure:
+    def __init__(self, constant: frozenset[str]) -> None:
+        self.constant = constant
+        self.factors: dict[Any, tuple[int, Any, bool]] = {}
+        """factor -> (sign, replacement, varying)"""
+        self.index: dict[str, int] = {}
+        """angle name -> k of `_sin<k>`, in order of first sight"""
+        self.angles: dict[str, Any] = {}
+        self.singles: dict[str, set[str]] = {}
+        self.pairs: dict[tuple[str, str], set[str]] = {}
+
+    def collect(self, expr: Any) -> Any:
+        """`expr` collected by its varying parts, coefficients factored, trig factors replaced."""
+        terms = expr.args if expr.is_Add else (expr,)
+        groups: dict[Any, list[tuple[Any, dict[Any, Any]]]] = {}
+        for term in terms:
+            coefficient: Any = _ONE
+            moving: list[Any] = []
+            fixed: dict[Any, Any] = {}
+            for factor in term.args if term.is_Mul else (term,):
+                if factor.is_Number:
+                    coefficient = coefficient * factor
+                    continue
+                info = self.factors.get(factor)
+                if info is None:
+                    info = self.classify(factor)
+                    self.factors[factor] = info
+                sign, replacement, varying = info
+                if sign < 0:
+                    coefficient = -coefficient
+                if varying:
+                    moving.append(replacement)
+                elif replacement.is_Pow and replacement.args[1].is_Number and replacement.args[1].is_positive:
+                    fixed[replacement.args[0]] = replacement.args[1]
+                else:
+                    fixed[replacement] = _ONE
+            groups.setdefault(se.Mul(*moving), []).append((coefficient, fixed))
+        return se.Add(*(part * _horner(items) for part, items in groups.items()))
+
+    def classify(self, factor: Any) -> tuple[int, Any, bool]:
+        """(sign, replacement, varying) of one factor of a term."""
+        base, exponent = factor.args if factor.is_Pow else (factor, None)
+        varying = any(str(s) not in self.constant for s in factor.free_symbols)
+        if not varying or not isinstance(base, (se.sin, se.cos)):
+            return 1, factor, varying
+        sign, symbol = self.trig(base)
+        if symbol is None:
+            return 1, factor, varying
+        if exponent is None:
+            return sign, symbol, True
+        if sign < 0 and exponent.is_Integer and int(exponent) % 2 == 1:
+            return -1, symbol**exponent, True
+        return 1, symbol**exponent, True
+
+    def number(self, angle: Any) -> int:
+        name = str(angle)
+        if name not in self.index:
+            self.index[name] = len(self.index)
+            self.angles[name] = angle
+        return self.index[name]
+
+    def trig(self, node: Any) -> tuple[int, Any]:
+        """(sign, temporary) standing for sin/cos `node`, or (1, None) when it is of another argument."""
+        (argument,) = node.args
+        kind = "sin" if isinstance(node, se.sin) else "cos"
+        if argument.is_Symbol and str(argument) not in self.constant:
+            k = self.number(argument)
+            self.singles.setdefault(str(argument), set()).add(kind)
+            return 1, se.Symbol(f"_{kind}{k}")
+        if not (argument.is_Add and len(argument.args) == 2):
+            return 1, None
+        difference = _difference(argument, self.constant)
+        if difference is None:
+            return 1, None
+        a, b, sign = difference
+        k, l = self.number(a), self.number(b)
+        self.pairs.setdefault((str(a), str(b)), set()).add(kind)
+        symbol = se.Symbol(f"_{'sd' if kind == 'sin' else 'cd'}{k}_{l}")
+        return (sign if kind == "sin" else 1), symbol
+
+    def definitions(self, products: bool) -> list[tuple[str, Any]]:
+        """The temporaries in order: sin and cos of single angles, then of the differences."""
+        needed = {name: set(kinds) for name, kinds in self.singles.items()}
+        if products:
+            for a, b in self.pairs:
+                needed.setdefault(a, set()).update(("sin", "cos"))
+                needed.setdefault(b, set()).update(("sin", "cos"))
+        result: list[tuple[str, Any]] = []
+        for name in sorted(needed, key=self.index.__getitem__):
+            k, angle = self.index[name], self.angles[name]
+            result += [(f"_{kind}{k}", se.sin(angle) if kind == "sin" else se.cos(angle)) for kind in ("sin", "cos") if kind in needed[name]]
+        for (a, b), kinds in sorted(self.pairs.items(), key=lambda item: (self.index[item[0][0]], self.index[item[0][1]])):
+            k, l = self.index[a], self.index[b]
+            sa, ca, sb, cb = (se.Symbol(f"_{kind}{i}") for i, kind in ((k, "sin"), (k, "cos"), (l, "sin"), (l, "cos")))
+            if "sin" in kinds:
+                result.append((f"_sd{k}_{l}", sa * cb - ca * sb if products else se.sin(self.angles[a] - self.angles[b])))
+            if "cos" in kinds:
+                result.append((f"_cd{k}_{l}", ca * cb + sa * sb if products else se.cos(self.angles[a] - self.angles[b])))
+        return result
+
+
+def _difference(argument: Any, constant: frozenset[str]) -> tuple[Any, Any, int] | None:
+    """(a, b, sign) with argument = sign*(a - b), a before b by name, for a difference of two varying symbols."""
+    first, second = argument.args
+    plus = [t for t in (first, second) if t.is_Symbol]
+    minus = [t.args[1] for t in (first, second) if t.is_Mul and len(t.args) == 2 and t.args[0] == -1 and t.args[1].is_Symbol]
+    if len(plus) != 1 or len(minus) != 1:
+        return None
+    a, b = plus[0], minus[0]
+    if str(a) in constant or str(b) in constant:
+        return None
+    return (a, b, 1) if str(a) < str(b) else (b, a, -1)
+
+
+def _horner(items: list[tuple[Any, dict[Any, Any]]]) -> Any:
+    """sum of coefficient * prod(base**exponent) over `items`, common factors pulled out greedily
+    (the most frequent first), a shared numeric coefficient too: -a - b = -(a + b)."""
+    if len(items) == 1:
+        return _monomial(*items[0])
+    coefficients = {c for c, _ in items}
+    if len(coefficients) == 1 and (shared := next(iter(coefficients))) != 1:
+        return shared * _horner([(_ONE, powers) for _, powers in items])
+    counts: dict[Any, int] = {}
+    for _, powers in items:
+        for base in powers:
+            counts[base] = counts.get(base, 0) + 1
+    if not counts or max(counts.values()) < 2:
+        return se.Add(*(_monomial(c, p) for c, p in items))
+    top = max(counts.values())
+    best = min((base for base, count in counts.items() if count == top), key=str)
+    inside = [item for item in items if best in item[1]]
+    exponent = min(powers[best] for _, powers in inside)
+    reduced = []
+    for c, powers in inside:
+        rest = dict(powers)
+        left = rest.pop(best) - exponent
+        if left != 0:
+            rest[best] = left
+        reduced.append((c, rest))
+    common = best**exponent * _horner(reduced)
+    without = [item for item in items if best not in item[1]]
+    return common + _horner(without) if without else common
+
+
+def _monomial(coefficient: Any, powers: dict[Any, Any]) -> Any:
+    return se.Mul(coefficient, *(base if exponent == 1 else base**exponent for base, exponent in powers.items()))
+
+
+_ONE = se.Integer(1)
