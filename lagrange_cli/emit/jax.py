@@ -34,7 +34,7 @@ from lagrange_cli import __version__
 from lagrange_cli._symengine import to_symengine
 from lagrange_cli.algebra import check_invertible
 from lagrange_cli.emit.common import require_defined
-from lagrange_cli.emit.printer import ATOM, Code, Printer
+from lagrange_cli.emit.printer import ATOM, Code, Printer, restructure
 from lagrange_cli.emit.python import define, docstring, literal, mangle
 from lagrange_cli.model import Model
 
@@ -116,9 +116,17 @@ class _Writer:
         return lines
 
     def block(self, exprs: Sequence[Any]) -> tuple[list[str], list[str]]:
+        """Straight-line code for `exprs`: the printer core's `restructure` (sin and cos of each
+        angle once, those of differences as products, sums collected by their varying part), then
+        one CSE over everything; the lines and the result of each expression."""
         printer = self.printer()
-        temporaries, results = printer.block(exprs, "_c", self.names.values())
-        return [f"{lhs} = {code}" for lhs, code in temporaries], results
+        definitions, rewritten = restructure(exprs, [p.name for p in self.model.parameters])
+        lines = []
+        for lhs, value in definitions:
+            lines.append(f"{lhs} = {printer.doprint(value)}")
+            printer.names[lhs] = lhs
+        temporaries, results = printer.block(rewritten, "_c", [*self.names.values(), *(lhs for lhs, _ in definitions)])
+        return lines + [f"{lhs} = {code}" for lhs, code in temporaries], results
 
     def function(self, name: str, doc: str, exprs: Sequence[Any], state: str, shape: str) -> str:
         lines, results = self.block(exprs)
