@@ -373,9 +373,11 @@ def _short(value: Any, limit: int = 60) -> str:
 # -- structure-aware rewriting ------------------------------------------------------------------
 
 
-def restructure(exprs: Sequence[Any], constants: Collection[str], *, products: bool = True) -> tuple[list[tuple[str, Any]], list[Any]]:
+def restructure(exprs: Sequence[Any], constants: Collection[str], velocities: Collection[str] = (), *, products: bool = True, tag: str = "") -> tuple[list[tuple[str, Any]], list[Any]]:
     """Cheaper-to-evaluate forms of `exprs`, for any target: ([(name, value), ...] to compute
-    first, in order, the rewritten expressions using those names as symbols).
+    first, in order, the rewritten expressions using those names as symbols). Linear in the
+    number of terms (it never runs a CSE over the big expressions, only over their constant
+    coefficients), so that it scales to big systems.
 
     - sin and cos of a single varying symbol (a coordinate, a velocity, t) become the
       temporaries `_sin<k>`, `_cos<k>`, computed once; sin and cos of a difference of two such
@@ -384,36 +386,76 @@ def restructure(exprs: Sequence[Any], constants: Collection[str], *, products: b
       (cos(a - b) = cos a cos b + sin a sin b, sin(a - b) = sin a cos b - cos a sin b: no
       further calls) or by one call each otherwise. Only factors of the terms of a sum (or of a
       product) are rewritten; trig nested deeper stays as it is;
-    - each sum is collected by its varying part, sum_k v_k(q, q_dot, t) P_k(constants), and each
-      P_k, a polynomial in the constants `constants` (symbol names), factored greedily
-      (Horner): l1*l2*m2 + l1*l2*m3 = l1*l2*(m2 + m3). CSE then shares the suffix sums
-      (m2 + m3 within m1 + m2 + m3) and the products of constants between M and F.
+    - each sum is collected by its varying part, sum_k c_k v_k(q_dot) x_k(q, t) K_k(constants),
+      each K_k, a polynomial in the constants (symbol names `constants`), factored greedily
+      (Horner: l1*l2*m2 + l1*l2*m3 = l1*l2*(m2 + m3)) and all of them CSE'd together (sharing
+      the suffix sums m2 + m3 within m1 + m2 + m3, and products of constants);
+    - a product x_k K_k met more than once (e.g. l_i l_j S sin(q_i - q_j) in F_i and F_j) is
+      the temporary `_pk<i>`, computed once.
 
-    The values are exact rewrites (the same real function), so `exprs` and the result agree
-    up to rounding. Linear in the number of terms; no symengine traversal beyond them."""
-    work = _Restructure(frozenset(constants))
-    rewritten = [work.collect(e) for e in exprs]
-    return work.definitions(products), rewritten
+    Symbols named in `velocities` (velocities, accelerations, multipliers) are kept out of the
+    x_k. `tag` goes into every name made here (`_sin<tag><k>`, `_k<tag><i>`, ...), so that several
+    restructured blocks can share one function. The values are exact rewrites (the same real function), so `exprs` and the result agree
+    up to rounding."""
+    work = _Restructure(frozenset(constants), frozenset(velocities), tag)
+    terms = [work.collect(e) for e in exprs]
+    definitions = work.definitions(products)
+    taken = {name for name, _ in definitions}
+    distinct = list(dict.fromkeys(k for rows in terms for _, _, _, k in rows if not (k.is_Number or k.is_Symbol)))
+    temporaries, reduced = common_subexpressions(distinct, f"_k{tag}", taken)
+    definitions += temporaries
+    counts: dict[tuple[Any, Any], int] = {}
+    uses: dict[Any, int] = {}
+    for rows in terms:
+        for _, _, x, k in rows:
+            counts[(x, k)] = counts.get((x, k), 0) + 1
+            uses[k] = uses.get(k, 0) + 1
+    coefficient = {}
+    shared = 0
+    for k, value in zip(distinct, reduced, strict=True):
+        if uses[k] > 1 and not value.is_Symbol:  # a product of constants used twice is computed once
+            definitions.append((name := f"_kk{tag}{shared}", value))
+            shared += 1
+            value = se.Symbol(name)
+        coefficient[k] = value
+    bound: dict[tuple[Any, Any], Any] = {}
+    result = []
+    for rows in terms:
+        parts = []
+        for c, v, x, k in rows:
+            if counts[(x, k)] > 1 and not (x == 1 or k == 1):
+                if (x, k) not in bound:
+                    bound[(x, k)] = symbol = se.Symbol(f"_pk{tag}{len(bound)}")
+                    definitions.append((str(symbol), x * coefficient.get(k, k)))
+                parts.append(c * v * bound[(x, k)])
+            else:
+                parts.append(c * v * x * coefficient.get(k, k))
+        result.append(se.Add(*parts))
+    return definitions, result
 
 
 class _Restructure:
-    def __init__(self, constant: frozenset[str]) -> None:
+    def __init__(self, constant: frozenset[str], velocities: frozenset[str], tag: str) -> None:
         self.constant = constant
-        self.factors: dict[Any, tuple[int, Any, bool]] = {}
-        """factor -> (sign, replacement, varying)"""
+        self.tag = tag
+        self.velocities = velocities
+        self.factors: dict[Any, tuple[int, Any, int]] = {}
+        """factor -> (sign, replacement, 0 constant / 1 position / 2 velocity)"""
         self.index: dict[str, int] = {}
         """angle name -> k of `_sin<k>`, in order of first sight"""
         self.angles: dict[str, Any] = {}
         self.singles: dict[str, set[str]] = {}
         self.pairs: dict[tuple[str, str], set[str]] = {}
 
-    def collect(self, expr: Any) -> Any:
-        """`expr` collected by its varying parts, coefficients factored, trig factors replaced."""
+    def collect(self, expr: Any) -> list[tuple[Any, Any, Any, Any]]:
+        """`expr` as terms (c, v, x, K): number, velocity part, position part, constant part
+        (factored, numeric coefficient moved into c), one per distinct varying part."""
         terms = expr.args if expr.is_Add else (expr,)
-        groups: dict[Any, list[tuple[Any, dict[Any, Any]]]] = {}
+        groups: dict[tuple[Any, Any], list[tuple[Any, dict[Any, Any]]]] = {}
         for term in terms:
             coefficient: Any = _ONE
-            moving: list[Any] = []
+            position: list[Any] = []
+            velocity: list[Any] = []
             fixed: dict[Any, Any] = {}
             for factor in term.args if term.is_Mul else (term,):
                 if factor.is_Number:
@@ -423,32 +465,47 @@ class _Restructure:
                 if info is None:
                     info = self.classify(factor)
                     self.factors[factor] = info
-                sign, replacement, varying = info
+                sign, replacement, kind = info
                 if sign < 0:
                     coefficient = -coefficient
-                if varying:
-                    moving.append(replacement)
+                if kind == 2:
+                    velocity.append(replacement)
+                elif kind == 1:
+                    position.append(replacement)
                 elif replacement.is_Pow and replacement.args[1].is_Number and replacement.args[1].is_positive:
                     fixed[replacement.args[0]] = replacement.args[1]
                 else:
                     fixed[replacement] = _ONE
-            groups.setdefault(se.Mul(*moving), []).append((coefficient, fixed))
-        return se.Add(*(part * _horner(items) for part, items in groups.items()))
+            groups.setdefault((se.Mul(*velocity), se.Mul(*position)), []).append((coefficient, fixed))
+        rows = []
+        for (v, x), items in groups.items():
+            k = _horner(items)
+            c: Any = _ONE
+            if k.is_Number:
+                c, k = k, _ONE
+            elif k.is_Mul and k.args[0].is_Number:
+                c, k = k.args[0], k / k.args[0]
+            rows.append((c, v, x, k))
+        return rows
 
-    def classify(self, factor: Any) -> tuple[int, Any, bool]:
-        """(sign, replacement, varying) of one factor of a term."""
+    def classify(self, factor: Any) -> tuple[int, Any, int]:
+        """(sign, replacement, kind) of one factor of a term: kind 0 constant, 1 position, 2 velocity."""
         base, exponent = factor.args if factor.is_Pow else (factor, None)
-        varying = any(str(s) not in self.constant for s in factor.free_symbols)
-        if not varying or not isinstance(base, (se.sin, se.cos)):
-            return 1, factor, varying
+        names = {str(s) for s in factor.free_symbols}
+        kind = 2 if names & self.velocities else 1 if names - self.constant else 0
+        if kind != 0 and base.is_Add:  # a sum inside a product, e.g. g*m3*(-l1*cos(th1) - l2*cos(th2)): rewritten too
+            inner = se.Add(*(c * v * x * k for c, v, x, k in self.collect(base)))
+            return 1, inner if exponent is None else inner**exponent, kind
+        if kind != 1 or not isinstance(base, (se.sin, se.cos)):
+            return 1, factor, kind
         sign, symbol = self.trig(base)
         if symbol is None:
-            return 1, factor, varying
+            return 1, factor, kind
         if exponent is None:
-            return sign, symbol, True
+            return sign, symbol, 1
         if sign < 0 and exponent.is_Integer and int(exponent) % 2 == 1:
-            return -1, symbol**exponent, True
-        return 1, symbol**exponent, True
+            return -1, symbol**exponent, 1
+        return 1, symbol**exponent, 1
 
     def number(self, angle: Any) -> int:
         name = str(angle)
@@ -464,16 +521,16 @@ class _Restructure:
         if argument.is_Symbol and str(argument) not in self.constant:
             k = self.number(argument)
             self.singles.setdefault(str(argument), set()).add(kind)
-            return 1, se.Symbol(f"_{kind}{k}")
+            return 1, se.Symbol(f"_{kind}{self.tag}{k}")
         if not (argument.is_Add and len(argument.args) == 2):
             return 1, None
         difference = _difference(argument, self.constant)
         if difference is None:
             return 1, None
         a, b, sign = difference
-        k, l = self.number(a), self.number(b)
+        k, j = self.number(a), self.number(b)
         self.pairs.setdefault((str(a), str(b)), set()).add(kind)
-        symbol = se.Symbol(f"_{'sd' if kind == 'sin' else 'cd'}{k}_{l}")
+        symbol = se.Symbol(f"_{'sd' if kind == 'sin' else 'cd'}{self.tag}{k}_{j}")
         return (sign if kind == "sin" else 1), symbol
 
     def definitions(self, products: bool) -> list[tuple[str, Any]]:
@@ -486,14 +543,14 @@ class _Restructure:
         result: list[tuple[str, Any]] = []
         for name in sorted(needed, key=self.index.__getitem__):
             k, angle = self.index[name], self.angles[name]
-            result += [(f"_{kind}{k}", se.sin(angle) if kind == "sin" else se.cos(angle)) for kind in ("sin", "cos") if kind in needed[name]]
+            result += [(f"_{kind}{self.tag}{k}", se.sin(angle) if kind == "sin" else se.cos(angle)) for kind in ("sin", "cos") if kind in needed[name]]
         for (a, b), kinds in sorted(self.pairs.items(), key=lambda item: (self.index[item[0][0]], self.index[item[0][1]])):
-            k, l = self.index[a], self.index[b]
-            sa, ca, sb, cb = (se.Symbol(f"_{kind}{i}") for i, kind in ((k, "sin"), (k, "cos"), (l, "sin"), (l, "cos")))
+            k, j = self.index[a], self.index[b]
+            sa, ca, sb, cb = (se.Symbol(f"_{kind}{self.tag}{i}") for i, kind in ((k, "sin"), (k, "cos"), (j, "sin"), (j, "cos")))
             if "sin" in kinds:
-                result.append((f"_sd{k}_{l}", sa * cb - ca * sb if products else se.sin(self.angles[a] - self.angles[b])))
+                result.append((f"_sd{self.tag}{k}_{j}", sa * cb - ca * sb if products else se.sin(self.angles[a] - self.angles[b])))
             if "cos" in kinds:
-                result.append((f"_cd{k}_{l}", ca * cb + sa * sb if products else se.cos(self.angles[a] - self.angles[b])))
+                result.append((f"_cd{self.tag}{k}_{j}", ca * cb + sa * sb if products else se.cos(self.angles[a] - self.angles[b])))
         return result
 
 

@@ -27,6 +27,7 @@ Safe with any system file (shared with numeric/codegen.py, and meant for every f
 from __future__ import annotations
 
 import builtins
+import functools
 import keyword
 import math
 import re
@@ -36,18 +37,19 @@ from pathlib import Path
 from typing import Any, ClassVar
 
 import sympy as sp
-from sympy.printing.pycode import PythonCodePrinter
 
 from lagrange_cli import __version__
 from lagrange_cli._symengine import se, to_symengine
 from lagrange_cli.algebra import check_invertible
 from lagrange_cli.emit.common import require_defined
-from lagrange_cli.emit.printer import ATOM, Code, Printer
+from lagrange_cli.emit.printer import ATOM, Code, Printer, restructure
 from lagrange_cli.errors import DerivationError
 from lagrange_cli.model import Model
 
 # Above this many unknowns the linear solve is numpy's; below, straight-line Python is faster.
 NUMPY_SIZE = 9
+SPLIT = 1000
+"""Statements per numba function above which generated numba code is cut into parts (`split`)."""
 GENERATED = frozenset(
     {
         *("t", "y", "p", "q", "q_dot", "math", "numpy", "numba", "njit", "tolist", "hasattr", "float", "abs", "pow", "copysign", "inf", "nan"),
@@ -61,146 +63,185 @@ AMBIGUOUS = frozenset({"l", "I", "O"})
 MATH_NAMES = frozenset(dir(math))
 
 
-class CodePrinter(PythonCodePrinter):
-    """Bare `math` names (recorded in `module_imports`), symbols by a fixed name map, constants as literals."""
-
-    def __init__(self, names: dict[sp.Symbol, str]) -> None:
-        super().__init__({"fully_qualified_modules": False, "strict": True})
-        self.names = names
-
-    def _print_Symbol(self, expr: sp.Symbol) -> str:
-        if expr not in self.names:
-            raise DerivationError(f"cannot write code for the symbol '{literal(str(expr))[1:-1]}', which is not a coordinate, velocity, parameter or t")
-        return self.names[expr]
-
-    def _print_ImaginaryUnit(self, expr: sp.Expr) -> str:
-        raise DerivationError("the equations contain the imaginary unit; generated code computes with real numbers only")
-
-    def _print_Integer(self, expr: sp.Integer) -> str:
-        """Exact below 2**53; larger integers as floats (numba has no big integers)."""
-        return str(expr.p) if abs(expr.p) < 2**53 else self._float(expr)
-
-    def _print_Rational(self, expr: sp.Rational) -> str:
-        return str(super()._print_Rational(expr)) if max(abs(expr.p), expr.q) < 2**53 else self._float(expr)
-
-    def _float(self, expr: sp.Expr) -> str:
-        value = float(expr)
-        return repr(value) if math.isfinite(value) else ("-" if value < 0 else "") + self._module_format("math.inf")
-
-    def _print_Pi(self, expr: sp.Expr) -> str:
-        return repr(math.pi)
-
-    def _print_Exp1(self, expr: sp.Expr) -> str:
-        return repr(math.e)
-
-    def _print_Pow(self, expr: sp.Pow, rational: bool = False) -> str:
-        """`x*x` for squares, `**` for other integer powers, sqrt(x) and 1/sqrt(x), and
-        math.pow otherwise: real powers, a ValueError for a negative base where `**` would
-        silently give a complex number."""
-        if _squared(expr):
-            b = self._print(expr.base)
-            return f"{b}*{b}"
-        if expr.exp.is_Integer or expr.exp in (sp.S.Half, -sp.S.Half):
-            return str(super()._print_Pow(expr, rational))
-        return f"{self._module_format('math.pow')}({self._print(expr.base)}, {self._print(expr.exp)})"
-
-    def _print_Mul(self, expr: sp.Mul) -> str:
-        """sympy's, except that a lone divisor printed as a product is parenthesized: `k/(r*r)`, not `k/r*r`."""
-        text = str(super()._print_Mul(expr))
-        below = [f for f in expr.args if f.is_Pow and f.exp.is_Rational and f.exp.is_negative]
-        if len(below) == 1 and _squared(1 / below[0]):
-            square = self._print(1 / below[0])
-            if text.endswith("/" + square):
-                text = f"{text[: -len(square)]}({square})"
-        return text
+def code_lines(
+    printer: Printer, exprs: Sequence[Any], constants: Collection[str], velocities: Collection[str] = (), *, prefix: str = "_c", tag: str = "", products: bool = True
+) -> tuple[list[tuple[str, str]], list[str]]:
+    """Straight-line code computing `exprs` (symengine): `restructure` (trig temporaries, collected
+    and factored coefficients), then CSE once over all of them, printed by `printer`:
+    ([(name, code), ...] in order, [result code, ...]). Several blocks in one function need
+    distinct `prefix` and `tag` (see `restructure`). Shared with numeric/codegen.py."""
+    definitions, reduced = restructure(exprs, constants, velocities, products=products, tag=tag)
+    printer.names.update((name, name) for name, _ in definitions)
+    lines = [(name, printer.doprint(value)) for name, value in definitions]
+    temporaries, results = printer.block(reduced, prefix, {name for name, _ in definitions})
+    return lines + temporaries, results
 
 
 @dataclass(frozen=True)
-class Block:
-    """Straight-line code: assignments of common subexpressions, then the results."""
+class Rows:
+    """The constraint rows of a model as symengine expressions (constrained systems are small:
+    converting their rows costs nothing next to the rest)."""
 
-    lines: tuple[str, ...]
-    results: tuple[str, ...]
+    expr: tuple[Any, ...]
+    jacobian: tuple[tuple[Any, ...], ...]
+    bias: tuple[Any, ...]
+    acceleration_bias: tuple[Any, ...]
+
+    @classmethod
+    def of(cls, model: Model) -> Rows:
+        rows = model.constraints
+        return cls(
+            tuple(to_symengine(c.expr) for c in rows),
+            tuple(tuple(to_symengine(a) for a in c.jacobian) for c in rows),
+            tuple(to_symengine(c.bias) for c in rows),
+            tuple(to_symengine(c.acceleration_bias) for c in rows),
+        )
 
 
-def cse_block(exprs: Sequence[sp.Expr], prefix: str, printer: CodePrinter) -> Block:
-    """Straight-line code computing `exprs`: CSE by symengine on renamed symbols (so that its
-    x0, x1 cannot clash with the user's names), temporaries `_<prefix>0, ...` added to
-    `printer.names`. Shared with the numeric package, which compiles the same code."""
-    free = sorted(set().union(*(e.free_symbols for e in exprs)), key=str) if exprs else []
-    safe = {to_symengine(s): se.Symbol(f"_s{i}") for i, s in enumerate(free)}
-    back = {v: s for s, v in zip(free, safe.values(), strict=True)}
-    converted = [to_symengine(e).xreplace(safe) if e.free_symbols else to_symengine(e) for e in exprs]
-    replacements, reduced = se.cse(converted)
-    temporaries = {lhs: sp.Symbol(f"_{prefix}{i}") for i, (lhs, _) in enumerate(replacements)}
-    mapping = {**back, **temporaries}
-    for symbol in temporaries.values():
-        printer.names[symbol] = str(symbol)
+def symbol_names(model: Model) -> dict[str, str]:
+    """`python_names` keyed by the symbols' names, as the printer core looks them up."""
+    return {str(symbol): name for symbol, name in python_names(model).items()}
 
-    renames = {sp.sympify(a): b for a, b in mapping.items()}
 
-    def convert(e: se.Basic) -> sp.Expr:
-        return sp.sympify(e).xreplace(renames)
+def free_names(exprs: Sequence[Any]) -> set[str]:
+    """The names of the symbols in `exprs` (symengine)."""
+    names: set[str] = set()
+    for e in exprs:
+        names.update(str(s) for s in e.free_symbols)
+    return names
 
-    lines = tuple(f"{temporaries[lhs]} = {printer.doprint(convert(rhs))}" for lhs, rhs in replacements)
-    return Block(lines, tuple(printer.doprint(convert(e)) for e in reduced))
+
+def check_solvable(model: Model) -> None:
+    """`check_invertible` without the sympy fields for an unconstrained model: M evaluated by
+    symengine at a random point, pivots by `pivot_ratio`'s rule; only a doubtful M (a zero row, a
+    tiny pivot, no finite value) goes to `check_invertible` for its verdict and message."""
+    if model.constraints:
+        check_invertible(model)
+        return
+    import random
+
+    forms = model.symengine
+    rng = random.Random(1)
+    point = {se.Symbol(p.name): se.RealDouble(p.value if p.value else rng.uniform(0.5, 2.0)) for p in model.parameters}
+    point.update({s: se.RealDouble(rng.uniform(0.2, 1.3)) for s in (*forms.q, *forms.qd, forms.t)})
+    try:
+        rows = [[float(m.xreplace(point)) if m != 0 else 0.0 for m in row] for row in forms.mass]
+    except (RuntimeError, TypeError, ValueError, OverflowError, ZeroDivisionError):
+        check_invertible(model)
+        return
+    if not all(math.isfinite(x) for row in rows for x in row) or _pivot_ratio(rows) < 1e-12:
+        check_invertible(model)
+
+
+def _pivot_ratio(rows: list[list[float]]) -> float:
+    """Smallest over largest pivot of the row-normalised matrix (as algebra.pivot_ratio)."""
+    pivots = []
+    for row in rows:
+        norm = sum(x * x for x in row) ** 0.5
+        if norm == 0.0:
+            return 0.0
+        row[:] = [x / norm for x in row]
+    n = len(rows)
+    for k in range(n):
+        pivot = max(range(k, n), key=lambda i: abs(rows[i][k]))
+        if rows[pivot][k] == 0.0:
+            return 0.0
+        rows[k], rows[pivot] = rows[pivot], rows[k]
+        pivots.append(abs(rows[k][k]))
+        for i in range(k + 1, n):
+            factor = rows[i][k] / rows[k][k]
+            if factor:
+                for j in range(k, n):
+                    rows[i][j] -= factor * rows[k][j]
+    return min(pivots) / max(pivots)
 
 
 def emit(model: Model, numba: bool = False) -> str:
     """The module's source; with `numba=True` its rhs is compiled by numba (cached on disk).
-    The file's function definitions are written out (`Model.with_definitions`)."""
+    The file's function definitions are written out (`Model.with_definitions`). Printed from
+    `model.symengine` by the printer core: the sympy fields are not read (a model with defined
+    functions or constraints, always small, converts what it needs)."""
     definitions = model.definitions
-    model = model.with_definitions()
-    require_defined(model, "Python code")
-    check_invertible(model)
-    return _Writer(model, numba, definitions).module()
+    if model.constraints:
+        require_defined(model, "Python code")
+    numeric = model.with_definitions()
+    try:
+        check_solvable(numeric)
+        return _Writer(numeric, numba, definitions).module()
+    except DerivationError:
+        require_defined(model, "Python code")  # a function left general: say so, by name
+        raise
 
 
 class _Writer:
     def __init__(self, model: Model, numba: bool = False, definitions: Mapping[str, sp.Lambda] | None = None) -> None:
         self.model = model
+        self.forms = model.symengine
+        self.rows = Rows.of(model)
         self.definitions = definitions or {}
         self.numba = numba
-        self.names = python_names(model)
-        self.printer = CodePrinter(self.names)
+        self.names = symbol_names(model)
+        self.printer = PythonPrinter(self.names)
+        self.constants = frozenset(p.name for p in model.parameters)
+        self.velocities = frozenset(str(v) for v in self.forms.qd)
         self.uses_numpy = False
         self.uses_solve = False
         n, k = model.n, len(model.constraints)
         self.size = n + k
         self.upper = [(i, j) for i in range(n) for j in range(i, n)]
+        self.mass = [self.forms.mass[i][j] for i, j in self.upper]
 
     # -- pieces ---------------------------------------------------------------------------------
 
-    def block(self, exprs: Sequence[sp.Expr], prefix: str) -> Block:
-        return cse_block(exprs, prefix, self.printer)
+    @functools.cached_property
+    def shared(self) -> tuple[list[tuple[str, str]], dict[Any, str]]:
+        """Everything the module computes (M, F, the energy, the constraint rows), restructured
+        and CSE'd once: (lines, expression -> its result code). Each function keeps the lines
+        its results need (`block`)."""
+        rows = self.rows
+        exprs = [*self.mass, *self.forms.forcing, self.forms.energy, *(-a for row in rows.jacobian for a in row), *(-c for c in rows.acceleration_bias), *rows.expr]
+        exprs = list(dict.fromkeys(exprs))
+        lines, results = code_lines(self.printer, exprs, self.constants, self.velocities)
+        return lines, dict(zip(exprs, results, strict=True))
 
-    def unpack(self, exprs: Sequence[sp.Expr], state: str) -> list[str]:
+    def block(self, exprs: Sequence[Any]) -> tuple[list[str], list[str]]:
+        """The lines computing `exprs` (all among `shared`'s), and their result codes."""
+        lines, codes = self.shared
+        results = [codes[e] for e in exprs]
+        return [f"{name} = {code}" for name, code in needed(lines, results)], results
+
+    def unpack(self, exprs: Sequence[Any], state: str) -> list[str]:
         """Lines binding the parameters used, then the coordinates/velocities from `state`."""
-        used = set().union(*(e.free_symbols for e in exprs)) if exprs else set()
+        used = free_names(exprs)
         lines = []
         for parameter in self.model.parameters:
-            if parameter.symbol in used:
-                lines.append(f"{self.names[parameter.symbol]} = p[{literal(parameter.name)}]" + _noqa(self.names[parameter.symbol]))
-        groups = [("y", [*self.model.q, *self.model.qd])] if state == "y" else [(g, v) for g, v in (("q", self.model.q), ("q_dot", self.model.qd)) if g in state.split(",")]
+            if parameter.name in used:
+                name = self.names[parameter.name]
+                lines.append(f"{name} = p[{literal(parameter.name)}]" + _noqa(name))
+        forms = self.forms
+        groups = [("y", [*forms.q, *forms.qd])] if state == "y" else [(g, v) for g, v in (("q", forms.q), ("q_dot", forms.qd)) if g in state.split(",")]
         for group, variables in groups:
-            keep = [v in used or (group == "y" and v in self.model.qd) for v in variables]
+            keep = [str(v) in used or (group == "y" and v in forms.qd) for v in variables]
             if any(keep):
-                targets = [self.names[v] if k else "_" for v, k in zip(variables, keep, strict=True)]
+                targets = [self.names[str(v)] if k else "_" for v, k in zip(variables, keep, strict=True)]
                 source = f'{group}.tolist() if hasattr({group}, "tolist") else {group}' if group == "y" else group
                 lines.append(f"{', '.join(targets)}{',' * (len(targets) == 1)} = {source}" + _noqa(*targets))
         return lines
 
-    def signature(self, exprs: Sequence[sp.Expr], state: str) -> str:
-        has_t = any(e.has(self.model.t) for e in exprs)
+    def signature(self, exprs: Sequence[Any], state: str) -> str:
+        has_t = str(self.forms.t) in free_names(exprs)
         return ", ".join(["t"] * has_t + state.split(",") + ["p=PARAMETERS"])
 
-    def function(self, name: str, doc: str, exprs: Sequence[sp.Expr], state: str, shape: str) -> str:
-        block = self.block(exprs, "c")
-        body = [*self.unpack(exprs, state), *block.lines]
-        results = list(block.results)
+    def function(self, name: str, doc: str, exprs: Sequence[Any], state: str, shape: str) -> str:
+        lines, results = self.block(exprs)
+        body = [*self.unpack(exprs, state), *lines]
         if shape == "matrix":
             n = self.model.n
             cell = dict(zip(self.upper, results, strict=True))
+            for (i, j), code in list(cell.items()):
+                if i != j and not _simple(code):  # each off-diagonal entry computed once, used twice
+                    body.append(f"_m{i}_{j} = {code}")
+                    cell[(i, j)] = f"_m{i}_{j}"
             rows = ["[" + ", ".join(cell[(min(i, j), max(i, j))] for j in range(n)) + "]" for i in range(n)]
             body.append("return [" + ", ".join(rows) + "]")
         elif shape == "vector":
@@ -210,26 +251,24 @@ class _Writer:
         return define(name, self.signature(exprs, state), doc, body)
 
     def rhs(self) -> str:
-        model, n = self.model, self.model.n
-        mass = [model.mass_matrix[i, j] for i, j in self.upper]
-        force = list(model.forcing)
-        rows = model.constraints
-        extra = [-a for c in rows for a in c.jacobian] + [-c.acceleration_bias for c in rows]
-        exprs = [*mass, *force, *extra]
-        block = self.block(exprs, "c")
-        m = dict(zip(self.upper, block.results[: len(mass)], strict=True))
-        f = list(block.results[len(mass) : len(mass) + n])
+        model, n, rows = self.model, self.model.n, self.rows
+        force = list(self.forms.forcing)
+        extra = [-a for row in rows.jacobian for a in row] + [-c for c in rows.acceleration_bias]
+        exprs = [*self.mass, *force, *extra]  # the order of `shared`
         if self.numba:
-            return self.compiled_rhs(exprs, block, m, f)
-        body = [*self.unpack(exprs, "y"), *block.lines]
-        velocities = [self.names[v] for v in model.qd]
-        if rows or n > 2:
+            return self.compiled_rhs(exprs)
+        lines, results = self.block(exprs)
+        m = dict(zip(self.upper, results[: len(self.mass)], strict=True))
+        f = list(results[len(self.mass) : len(self.mass) + n])
+        body = [*self.unpack(exprs, "y"), *lines]
+        velocities = [self.names[str(v)] for v in self.forms.qd]
+        if rows.expr or n > 2:
             body += [f"_m{i}_{j} = {code}" for (i, j), code in m.items() if not _simple(code)]
             m = {(i, j): code if _simple(code) else f"_m{i}_{j}" for (i, j), code in m.items()}
-        if rows:
-            a = block.results[len(mass) + n : len(mass) + n + n * len(rows)]
-            c = block.results[len(mass) + n + n * len(rows) :]
-            k = len(rows)
+        if rows.expr:
+            a = results[len(self.mass) + n : len(self.mass) + n + n * len(rows.expr)]
+            c = results[len(self.mass) + n + n * len(rows.expr) :]
+            k = len(rows.expr)
             matrix = [[m[(min(i, j), max(i, j))] for j in range(n)] + [a[r * n + i] for r in range(k)] for i in range(n)]
             matrix += [[_negate(a[r * n + j]) for j in range(n)] + ["0.0"] * k for r in range(k)]
             body += self.solve(matrix, [*f, *c], "_x")
@@ -246,65 +285,73 @@ class _Writer:
             body.append(f"return [{velocities[0]}, {velocities[1]}, (_m11*_f0 - _m01*_f1)/_det, (_m00*_f1 - _m01*_f0)/_det]")
         else:
             matrix = [[m[(min(i, j), max(i, j))] for j in range(n)] for i in range(n)]
-            body += self.solve(matrix, f, "_x")
+            body += self.solve(matrix, f, "_x", symmetric=True)
             body.append(f"return [{', '.join(velocities)}, *_x]")
         return define("rhs", "t, y, p=PARAMETERS", _rhs_doc(model), body)
 
-    def compiled_rhs(self, exprs: Sequence[sp.Expr], block: Block, m: dict[tuple[int, int], str], f: list[str]) -> str:
-        """rhs as a thin wrapper around a numba kernel taking y as an array and the used
-        parameters as scalars; the kernel fills [M, -A^T; A, 0] and solves with numpy."""
+    def compiled_rhs(self, exprs: Sequence[Any]) -> str:
+        """rhs as a thin wrapper around numba kernels taking y and the used parameters as arrays;
+        the last kernel fills [M, -A^T; A, 0] and solves with numpy. Big systems are split into
+        several kernels (`split`), each compiled on its own: numba's compile time grows faster
+        than the size of one function."""
         model, n = self.model, self.model.n
-        rows = model.constraints
-        k = len(rows)
-        used = set().union(*(e.free_symbols for e in exprs))
-        parameters = [p for p in model.parameters if p.symbol in used]
-        names = [self.names[p.symbol] for p in parameters]
-        state = [*model.q, *model.qd]
-        body = [f"{self.names[v]} = y[{i}]" + _noqa(self.names[v]) for i, v in enumerate(state) if v in used]
-        body += list(block.lines)
+        k = len(self.rows.expr)
         size = n + k
-        body.append(f"_a = numpy.zeros(({size}, {size}))")
-        body += [f"_a[{i}, {j}] = {m[(i, j)]}" + (f"\n_a[{j}, {i}] = _a[{i}, {j}]" if i != j else "") for i, j in self.upper if m[(i, j)] != "0"]
-        if rows:
-            a = block.results[len(self.upper) + n : len(self.upper) + n + n * k]
-            c = block.results[len(self.upper) + n + n * k :]
+        used = free_names(exprs)
+        parameters = [p for p in model.parameters if p.name in used]
+        lines, results = self.block(exprs)
+        m = dict(zip(self.upper, results[: len(self.mass)], strict=True))
+        f = list(results[len(self.mass) : len(self.mass) + n])
+        inputs = [f"{self.names[p.name]} = _p[{i}]" + _noqa(self.names[p.name]) for i, p in enumerate(parameters)]
+        inputs += [f"{self.names[str(v)]} = y[{i}]" + _noqa(self.names[str(v)]) for i, v in enumerate([*self.forms.q, *self.forms.qd]) if str(v) in used]
+        prologue = [f"_a = numpy.zeros(({size}, {size}))", f"_b = numpy.empty({size})"]
+        fill = []
+        for i, j in self.upper:
+            if m[(i, j)] != "0":
+                fill += [f"_a[{i}, {j}] = {m[(i, j)]}"] + ([f"_a[{j}, {i}] = _a[{i}, {j}]"] if i != j else [])
+        if k:
+            a = results[len(self.upper) + n : len(self.upper) + n + n * k]
+            c = results[len(self.upper) + n + n * k :]
             for r in range(k):
                 for j in range(n):
                     if a[r * n + j] != "0":
-                        body += [f"_a[{j}, {n + r}] = {a[r * n + j]}", f"_a[{n + r}, {j}] = -_a[{j}, {n + r}]"]
+                        fill += [f"_a[{j}, {n + r}] = {a[r * n + j]}", f"_a[{n + r}, {j}] = -_a[{j}, {n + r}]"]
             f = [*f, *c]
-        body.append(f"_b = numpy.empty({size})")
-        body += [f"_b[{i}] = {value}" for i, value in enumerate(f)]
-        body += ["_x = numpy.linalg.solve(_a, _b)", f"_out = numpy.empty({2 * n})", f"_out[:{n}] = y[{n}:]", f"_out[{n}:] = _x[:{n}]", "return _out"]
-        kernel = "@numba.njit(cache=True)\n" + define("_rhs", ", ".join(["t", "y", *names]), "The compiled right-hand side.", body).replace("\n_a[", "\n    _a[")
-        arguments = ", ".join(["t", "numpy.asarray(y, dtype=numpy.float64)", *(f"p[{literal(p.name)}]" for p in parameters)])
+        fill += [f"_b[{i}] = {value}" for i, value in enumerate(f)]
+        tail = ["_x = numpy.linalg.solve(_a, _b)", f"_out = numpy.empty({2 * n})", f"_out[:{n}] = y[{n}:]", f"_out[{n}:] = _x[:{n}]", "return _out"]
+        parts, body = split(inputs, [*lines, *fill], tail, "t, y, _p, _a, _b", "_rhs", prologue)
+        kernels = [
+            "@numba.njit(cache=True)\n" + define(name, "t, y, _p, _a, _b, _w", "Part of the compiled right-hand side: fills _a and _b, keeps temporaries in _w.", part_body)
+            for name, part_body in parts
+        ]
+        kernels.append("@numba.njit(cache=True)\n" + define("_rhs", "t, y, _p", "The compiled right-hand side.", body))
+        vector = "numpy.array([" + ", ".join(f"float(p[{literal(p.name)}])" for p in parameters) + "])" if parameters else "numpy.empty(0)"
+        arguments = ", ".join(["t", "numpy.asarray(y, dtype=numpy.float64)", vector])
         wrapper = define("rhs", "t, y, p=PARAMETERS", _rhs_doc(model) + " Compiled by numba; returns an array.", [f"return _rhs({arguments})"])
         self.uses_numpy = True
-        return kernel + "\n\n\n" + wrapper
+        return "\n\n\n".join([*kernels, wrapper])
 
-    def solve(self, matrix: list[list[str]], vector: list[str], target: str) -> list[str]:
-        rows = "[" + ", ".join("[" + ", ".join(row) + "]" for row in matrix) + "]"
-        if len(matrix) >= NUMPY_SIZE:
+    def solve(self, matrix: list[list[str]], vector: list[str], target: str, symmetric: bool = False) -> list[str]:
+        n = len(matrix)
+        if n >= NUMPY_SIZE:
             self.uses_numpy = True
-            n = len(matrix)
             flat = ", ".join(x for row in matrix for x in row)
             return [f"{target} = numpy.linalg.solve(numpy.fromiter(({flat}), float, {n * n}).reshape({n}, {n}), numpy.fromiter(({', '.join(vector)}), float, {n})).tolist()"]
         self.uses_solve = True
+        rows = "[" + ", ".join("[" + ", ".join(row) + "]" for row in matrix) + "]"
         return [f"{target} = _solve({rows}, [{', '.join(vector)}])"]
 
     def residuals(self) -> str:
-        model = self.model
-        exprs = [c.expr for c in model.constraints]
-        return self.function("constraint_residuals", "Each constraint's residual: f(q, t) for holonomic ones, a . q_dot + b for velocity ones.", exprs, "q,q_dot", "vector")
+        return self.function("constraint_residuals", "Each constraint's residual: f(q, t) for holonomic ones, a . q_dot + b for velocity ones.", list(self.rows.expr), "q,q_dot", "vector")
 
     # -- the module -----------------------------------------------------------------------------
 
     def module(self) -> str:
-        model = self.model
+        model, forms = self.model, self.forms
         functions = [
-            self.function("mass_matrix", "The mass matrix M as a list of rows.", [model.mass_matrix[i, j] for i, j in self.upper], "q", "matrix"),
-            self.function("forcing", "The forcing F of M q_ddot = F" + (" + A^T lambda" if model.constraints else "") + ".", list(model.forcing), "q,q_dot", "vector"),
-            self.function("energy", "The energy function h = sum p_i q_dot_i - L.", [model.energy], "q,q_dot", "scalar"),
+            self.function("mass_matrix", "The mass matrix M as a list of rows.", self.mass, "q", "matrix"),
+            self.function("forcing", "The forcing F of M q_ddot = F" + (" + A^T lambda" if model.constraints else "") + ".", list(forms.forcing), "q,q_dot", "vector"),
+            self.function("energy", "The energy function h = sum p_i q_dot_i - L.", [forms.energy], "q,q_dot", "scalar"),
         ]
         if model.constraints:
             functions.append(self.residuals())
@@ -312,7 +359,7 @@ class _Writer:
         if self.uses_solve:
             functions.append(SOLVE)
         imports = []
-        math_names = sorted(self.printer.module_imports.get("math", set()))
+        math_names = self.printer.imports()
         if math_names:
             imports.append(f"from math import {', '.join(math_names)}")
         if self.numba:
@@ -321,16 +368,11 @@ class _Writer:
             imports.append("import numpy")
         parameters = ", ".join(f"{literal(p.name)}: {_number(p.value)}" for p in model.parameters if p.value is not None)
         missing = [p.name for p in model.parameters if p.value is None]
+        time = "" if self.autonomous() else ", t"
         header = [
             f"{model.title}: equations of motion generated by lagrange {__version__} from {Path(model.source).name}.",
             "",
-            "M(q"
-            + (", t" if not model.autonomous else "")
-            + ") q_ddot = F(q, q_dot"
-            + (", t" if not model.autonomous else "")
-            + ")"
-            + (" + A^T lambda" if model.constraints else "")
-            + f", with y = [{', '.join(map(str, (*model.q, *model.qd)))}].",
+            f"M(q{time}) q_ddot = F(q, q_dot{time})" + (" + A^T lambda" if model.constraints else "") + f", with y = [{', '.join(map(str, (*model.q, *model.qd)))}].",
         ]
         if self.definitions:
             written = "; ".join(f"{name}({', '.join(map(str, f.variables))}) = {sp.sstr(f.expr)}" for name, f in sorted(self.definitions.items()))
@@ -341,6 +383,71 @@ class _Writer:
         coordinates = ", ".join(literal(c) for c in model.coordinates)
         parts.append(f"COORDINATES = ({coordinates}{',' * (model.n == 1)})\nPARAMETERS = {{{parameters}}}")
         return "\n\n".join(parts) + "\n\n\n" + "\n\n\n".join(functions) + "\n"
+
+    def autonomous(self) -> bool:
+        """No explicit t in M, F or the constraint rows (from the symengine forms)."""
+        forms, rows = self.forms, self.rows
+        exprs = [*self.mass, *forms.forcing, *(a for row in rows.jacobian for a in row), *rows.bias, *rows.acceleration_bias]
+        return str(forms.t) not in free_names(exprs)
+
+
+def split(inputs: list[str], lines: list[str], tail: list[str], signature: str, name: str, prologue: Sequence[str] = (), limit: int | None = None) -> tuple[list[tuple[str, list[str]]], list[str]]:
+    """Straight-line numba code (`inputs` binding scalars from the arguments, statements `lines`,
+    then `tail` with the return) cut into parts of at most `limit` statements, because numba's
+    compile time grows faster than the size of one function. Each part `<name>_part<k>` takes
+    the function's arguments (`signature`) and a work array `_w`: it binds the inputs it uses,
+    loads from `_w` the locals of earlier parts it uses, runs its statements (array arguments
+    are written in place) and stores in `_w` its locals that later code uses. The main body
+    allocates `_w`, calls the parts in order and runs the tail. Returns ([(part name, body)],
+    main body): no parts when the code is short. `prologue` (allocations of the arrays that
+    `signature` passes to the parts) starts the main body. `limit` defaults to `SPLIT`."""
+    limit = SPLIT if limit is None else limit
+    if len(lines) <= limit:
+        return [], [*inputs, *prologue, *lines, *tail]
+    chunks = [lines[i : i + limit] for i in range(0, len(lines), limit)]
+
+    def target(line: str) -> str | None:
+        left = line.split(" = ", 1)[0]
+        return left if left.isidentifier() else None
+
+    def uses(line: str) -> set[str]:
+        left, _, right = line.partition(" = ")
+        return set(_IDENTIFIER.findall(right)) | (set() if left.isidentifier() else set(_IDENTIFIER.findall(left)))
+
+    words = [set().union(*(uses(line) for line in chunk)) for chunk in chunks]
+    tail_words = set().union(*(_IDENTIFIER.findall(line) for line in tail))
+    later = [tail_words | set().union(*words[k + 1 :]) for k in range(len(chunks))]
+    input_names = [line.split(" = ", 1)[0] for line in inputs]
+    slot: dict[str, int] = {}
+    parts: list[tuple[str, list[str]]] = []
+    for k, chunk in enumerate(chunks):
+        body = [line for line, bound in zip(inputs, input_names, strict=True) if bound in words[k]]
+        body += [f"{v} = _w[{slot[v]}]" for v in slot if v in words[k]]
+        body += chunk
+        for line in chunk:
+            v = target(line)
+            if v is not None and v in later[k] and v not in slot:
+                slot[v] = len(slot)
+                body.append(f"_w[{slot[v]}] = {v}")
+        parts.append((f"{name}_part{k}", body))
+    main = [*prologue, f"_w = numpy.empty({max(len(slot), 1)})"] + [f"{part}({signature}, _w)" for part, _ in parts]
+    main += [line for line, bound in zip(inputs, input_names, strict=True) if bound in tail_words]
+    main += [f"{v} = _w[{slot[v]}]" for v in slot if v in tail_words]
+    return parts, main + tail
+
+
+_IDENTIFIER = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
+
+
+def needed(lines: Sequence[tuple[str, str]], results: Sequence[str]) -> list[tuple[str, str]]:
+    """The assignments `lines` that `results` need, directly or through other lines, in order."""
+    wanted = set().union(*(_IDENTIFIER.findall(code) for code in results)) if results else set()
+    kept = []
+    for name, code in reversed(lines):
+        if name in wanted:
+            kept.append((name, code))
+            wanted.update(_IDENTIFIER.findall(code))
+    return kept[::-1]
 
 
 SOLVE = '''def _solve(a, b):
@@ -437,11 +544,6 @@ def docstring(text: str, indent: str = "") -> str:
 def _number(value: float) -> str:
     """A float literal; a non-finite value as `float("inf")`, never a bare name."""
     return repr(float(value)) if math.isfinite(value) else f'float("{value}")'
-
-
-def _squared(expr: sp.Expr) -> bool:
-    """`x**2` of a name or a function call, which prints as `x*x`."""
-    return isinstance(expr, sp.Pow) and expr.exp == 2 and bool(expr.base.is_Symbol or expr.base.is_Function)
 
 
 def _simple(code: str) -> bool:

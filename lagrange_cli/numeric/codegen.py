@@ -1,7 +1,10 @@
 """Source code of a system's numeric functions, for numba (arrays in, arrays out) or plain Python.
 
-Every function evaluates one piece of the model, its common subexpressions eliminated by the
-same `cse_block` as the Python emitter:
+Every function evaluates one piece of the model, printed from the symengine forms of the model
+(`Model.symengine`: the sympy fields are never read for an unconstrained system without defined
+functions, so a big system never pays their conversion) by the printer core, restructured and
+with its common subexpressions eliminated by the same `code_lines` as the Python emitter. For
+numba, a long function is cut into parts compiled one by one (`emit.python.split`):
 
 - `accel`: x = [q_ddot; lambda] from the index-1 system [[M, -A^T], [A, 0]] x = [F; -c_s], where
   c_s = c + 2 alpha (A q_dot + b) + alpha^2 f (Baumgarte stabilisation of a holonomic f(q, t) = 0;
@@ -29,22 +32,23 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import sympy as sp
 
-from lagrange_cli._symengine import to_symengine
-from lagrange_cli.emit.python import Block, CodePrinter, cse_block, define, python_names
+from lagrange_cli._symengine import se, to_symengine
+from lagrange_cli.emit.python import PythonPrinter, Rows, code_lines, define, free_names, split, symbol_names
 from lagrange_cli.model import Model
 
-ALPHA = sp.Symbol("_alpha")
+ALPHA = se.Symbol("_alpha")
 
 
 @dataclass(frozen=True)
 class Symbols:
     """The symbols of the generated code besides the model's: accelerations, multipliers, alpha."""
 
-    acc: tuple[sp.Symbol, ...]
-    lam: tuple[sp.Symbol, ...]
+    acc: tuple[Any, ...]
+    lam: tuple[Any, ...]
 
 
 def parameter_names(model: Model) -> tuple[str, ...]:
@@ -54,31 +58,39 @@ def parameter_names(model: Model) -> tuple[str, ...]:
 
 def ignorable(model: Model) -> tuple[int, ...]:
     """Indices of the ignorable coordinates, whose momenta are conserved (with the file's
-    definitions written out, as in the generated `_momenta`)."""
+    definitions written out, as in the generated `_momenta`): dL/dq_i = 0, dR/dq_dot_i = 0,
+    Q_i = 0 and no constraint row along q_i (Model.ignorable, from the symengine forms)."""
     model = model.with_definitions()
-    return tuple(i for i in range(model.n) if model.ignorable(i))
+    forms, rows = model.symengine, Rows.of(model)
+    return tuple(
+        i
+        for i in range(model.n)
+        if forms.lagrangian.diff(forms.q[i]) == 0 and forms.dissipation.diff(forms.qd[i]) == 0 and forms.generalized_forces[i] == 0 and all(row[i] == 0 for row in rows.jacobian)
+    )
 
 
-def stabilised_bias(model: Model) -> list[sp.Expr]:
+def stabilised_bias(model: Model) -> list[Any]:
     """c_s for each constraint row: c + 2 alpha (A q_dot + b) + alpha^2 f, or c + alpha (A q_dot + b)."""
+    forms, rows = model.symengine, Rows.of(model)
     result = []
-    for row in model.constraints:
-        velocity = sum((a * v for a, v in zip(row.jacobian, model.qd, strict=True)), sp.Integer(0)) + row.bias
-        extra = 2 * ALPHA * velocity + ALPHA**2 * row.expr if row.holonomic else ALPHA * velocity
-        result.append(row.acceleration_bias + extra)
+    for r, row in enumerate(model.constraints):
+        velocity = se.Add(*(a * v for a, v in zip(rows.jacobian[r], forms.qd, strict=True))) + rows.bias[r]
+        extra = 2 * ALPHA * velocity + ALPHA**2 * rows.expr[r] if row.holonomic else ALPHA * velocity
+        result.append(rows.acceleration_bias[r] + extra)
     return result
 
 
-def real_diff(expr: sp.Expr, variable: sp.Symbol) -> sp.Expr:
+def real_diff(expr: Any, variable: Any) -> Any:
     """d expr / d variable for real quantities (by symengine): d|u| = sign(u) du, d sign(u) = 0
     (as derive.py takes them), never an unprintable Derivative(Abs(u), x)."""
-    result = sp.sympify(to_symengine(expr).diff(to_symengine(variable)))
-    if result.has(sp.Derivative):
-        result = result.replace(
-            lambda e: isinstance(e, sp.Derivative) and isinstance(e.expr, (sp.Abs, sp.sign)),
-            lambda e: sp.sign(e.expr.args[0]) * sp.diff(e.expr.args[0], *e.variables) if isinstance(e.expr, sp.Abs) else sp.Integer(0),
-        )
-    return result
+    result = expr.diff(variable)
+    if not result.atoms(se.Derivative):
+        return result
+    converted = sp.sympify(result).replace(
+        lambda e: isinstance(e, sp.Derivative) and isinstance(e.expr, (sp.Abs, sp.sign)),
+        lambda e: sp.sign(e.expr.args[0]) * sp.diff(e.expr.args[0], *e.variables) if isinstance(e.expr, sp.Abs) else sp.Integer(0),
+    )
+    return to_symengine(converted)
 
 
 class Generator:
@@ -87,40 +99,46 @@ class Generator:
     def __init__(self, model: Model, target: str) -> None:
         model = model.with_definitions()
         self.model, self.target = model, target
+        self.forms, self.rows = model.symengine, Rows.of(model)
         n, k = model.n, len(model.constraints)
         self.n, self.k, self.size = n, k, n + k
-        self.symbols = Symbols(tuple(sp.Symbol(f"_acc{i}") for i in range(n)), tuple(sp.Symbol(f"_lam{i}") for i in range(k)))
-        names = python_names(model)
-        names.update({s: str(s) for s in (*self.symbols.acc, *self.symbols.lam, ALPHA)})
-        names.update({c.multiplier: f"_lam{i}" for i, c in enumerate(model.constraints)})
-        names.update({qdd: f"_acc{i}" for i, qdd in enumerate(model.qdd)})
-        self.printer = CodePrinter(names)
-        self.prefixes = iter(f"c{i}_" for i in range(1000))
+        self.symbols = Symbols(tuple(se.Symbol(f"_acc{i}") for i in range(n)), tuple(se.Symbol(f"_lam{i}") for i in range(k)))
+        names = symbol_names(model)
+        names.update({str(s): str(s) for s in (*self.symbols.acc, *self.symbols.lam, ALPHA)})
+        names.update({str(c.multiplier): f"_lam{i}" for i, c in enumerate(model.constraints)})
+        names.update({str(qdd): f"_acc{i}" for i, qdd in enumerate(self.forms.qdd)})
+        self.printer = PythonPrinter(names)
+        self.tags = iter(f"{i}_" for i in range(1000))
         self.upper = [(i, j) for i in range(n) for j in range(i, n)]
+        self.mass = [self.forms.mass[i][j] for i, j in self.upper]
+        self.constants = frozenset([*(p.name for p in model.parameters), "_alpha"])
+        self.velocities = frozenset(str(s) for s in (*self.forms.qd, *self.forms.qdd, *self.symbols.acc, *self.symbols.lam, *model.multipliers))
 
     # -- helpers --------------------------------------------------------------------------------
 
-    def block(self, exprs: Sequence[sp.Expr]) -> Block:
-        return cse_block(list(exprs), next(self.prefixes), self.printer)
+    def block(self, exprs: Sequence[Any]) -> tuple[list[str], list[str]]:
+        tag = next(self.tags)
+        lines, results = code_lines(self.printer, list(exprs), self.constants, self.velocities, prefix=f"_c{tag}", tag=tag)
+        return [f"{name} = {code}" for name, code in lines], results
 
-    def unpack(self, exprs: Sequence[sp.Expr], state: str = "_y", velocities: bool = True) -> list[str]:
+    def unpack(self, exprs: Sequence[Any], state: str = "_y", velocities: bool = True) -> list[str]:
         """Bind the parameters and state variables that `exprs` use (p and y are vectors)."""
-        used = set().union(*(e.free_symbols for e in exprs)) if exprs else set()
+        used = free_names(exprs)
         names = self.printer.names
-        lines = [f"{names[p.symbol]} = _p[{i}]" for i, p in enumerate(self.model.parameters) if p.symbol in used]
-        if ALPHA in used:
+        lines = [f"{names[p.name]} = _p[{i}]" for i, p in enumerate(self.model.parameters) if p.name in used]
+        if "_alpha" in used:
             lines.append(f"_alpha = _p[{len(self.model.parameters)}]")
-        variables = [*self.model.q, *(self.model.qd if velocities else ())]
-        lines += [f"{names[v]} = {state}[{i}]" for i, v in enumerate(variables) if v in used]
+        variables = [*self.forms.q, *(self.forms.qd if velocities else ())]
+        lines += [f"{names[str(v)]} = {state}[{i}]" for i, v in enumerate(variables) if str(v) in used]
         return lines
 
-    def augmented(self) -> tuple[list[sp.Expr], list[tuple[int, int, int]]]:
+    def augmented(self) -> tuple[list[Any], list[tuple[int, int, int]]]:
         """The distinct entries of [[M, -A^T], [A, 0]] and where each goes: (index, row, col)."""
-        model, n = self.model, self.n
-        entries: list[sp.Expr] = [model.mass_matrix[i, j] for i, j in self.upper]
+        n = self.n
+        entries: list[Any] = list(self.mass)
         places = [(e, i, j) for e, (i, j) in enumerate(self.upper)] + [(e, j, i) for e, (i, j) in enumerate(self.upper) if i != j]
-        for r, row in enumerate(model.constraints):
-            for j, a in enumerate(row.jacobian):
+        for r, row in enumerate(self.rows.jacobian):
+            for j, a in enumerate(row):
                 places += [(len(entries), n + r, j), (-len(entries) - 1, j, n + r)]
                 entries.append(a)
         return entries, places
@@ -130,7 +148,8 @@ class Generator:
         lines = [f"{matrix}[:, :] = 0.0"]
         for e, i, j in places:
             value = results[e] if e >= 0 else f"-({results[-e - 1]})"
-            lines.append(f"{matrix}[{i}, {j}] = {value}")
+            if value not in ("0", "-(0)"):
+                lines.append(f"{matrix}[{i}, {j}] = {value}")
         return lines
 
     def python_matrix(self, results: Sequence[str], places: Sequence[tuple[int, int, int]]) -> str:
@@ -139,87 +158,90 @@ class Generator:
             cells[i][j] = results[e] if e >= 0 else f"-({results[-e - 1]})"
         return "[" + ", ".join("[" + ", ".join(row) + "]" for row in cells) + "]"
 
+    def numba_function(self, name: str, signature: str, doc: str, inputs: list[str], lines: list[str], tail: list[str]) -> str:
+        """A numba function, cut into parts when long (`split`): the parts take the same arguments and `_w`."""
+        parts, body = split(inputs, lines, tail, signature, name)
+        functions = [define(part, f"{signature}, _w", f"Part {k} of {name}.", part_body) for k, (part, part_body) in enumerate(parts)]
+        if parts:
+            self.uses_numpy = True
+        return "\n\n\n".join([*functions, define(name, signature, doc, body)])
+
     # -- functions ------------------------------------------------------------------------------
 
     def accel(self) -> str:
         """x = [q_ddot; lambda] solving the augmented system."""
         entries, places = self.augmented()
-        exprs = [*entries, *self.model.forcing, *(-c for c in stabilised_bias(self.model))]
-        block = self.block(exprs)
-        body = [*self.unpack(exprs), *block.lines]
-        vector = list(block.results[len(entries) :])
+        exprs = [*entries, *self.forms.forcing, *(-c for c in stabilised_bias(self.model))]
+        lines, results = self.block(exprs)
+        inputs = self.unpack(exprs)
+        vector = list(results[len(entries) :])
         if self.target == "numba":
-            body += self.fill("_a", block.results, places)
-            body += [f"_x[{i}] = {v}" for i, v in enumerate(vector)]
-            body.append("return _lu_solve(_a, _x)")
-            return define("_accel", "t, _y, _p, _x, _a", "x = [q_ddot; lambda]; returns 1 when the matrix is singular.", body)
-        body.append(f"return _solve({self.python_matrix(block.results, places)}, [{', '.join(vector)}])")
+            statements = [*lines, *self.fill("_a", results, places), *(f"_x[{i}] = {v}" for i, v in enumerate(vector))]
+            return self.numba_function("_accel", "t, _y, _p, _x, _a", "x = [q_ddot; lambda]; returns 1 when the matrix is singular.", inputs, statements, ["return _lu_solve(_a, _x)"])
+        body = [*inputs, *lines, f"return _solve({self.python_matrix(results, places)}, [{', '.join(vector)}])"]
         return define("_accel", "t, _y, _p", "x = [q_ddot; lambda] (ZeroDivisionError when the matrix is singular).", body)
 
     def jac(self) -> str:
         """d(q_dot, q_ddot)/d(q, q_dot) by differentiating the augmented system (Python target)."""
-        model, n = self.model, self.n
+        n = self.n
         entries, places = self.augmented()
         phi = self.residual()
-        columns = [real_diff(f, v) for f in phi for v in (*model.q, *model.qd)]
+        columns = [real_diff(f, v) for f in phi for v in (*self.forms.q, *self.forms.qd)]
         exprs = [*entries, *columns]
-        block = self.block(exprs)
+        lines, results = self.block(exprs)
         unpack_x = [f"_acc{i} = _x[{i}]" for i in range(n)] + [f"_lam{r} = _x[{n + r}]" for r in range(self.k)]
-        body = [*self.unpack(exprs), *unpack_x, *block.lines]
-        d = block.results[len(entries) :]
-        body.insert(0, "_x = _accel(t, _y, _p)")
+        body = ["_x = _accel(t, _y, _p)", *self.unpack(exprs), *unpack_x, *lines]
+        d = results[len(entries) :]
         rows = "[" + ", ".join("[" + ", ".join(d[i * 2 * n : (i + 1) * 2 * n]) + "]" for i in range(self.size)) + "]"
-        body += [f"_d = numpy.linalg.solve({self.python_matrix(block.results, places)}, {rows})", f"_j = numpy.zeros(({2 * n}, {2 * n}))"]
+        body += [f"_d = numpy.linalg.solve({self.python_matrix(results, places)}, {rows})", f"_j = numpy.zeros(({2 * n}, {2 * n}))"]
         body += [f"_j[:{n}, {n}:] = numpy.eye({n})", f"_j[{n}:, :] = _d[:{n}, :]", "return _j"]
         return define("_jac", "t, _y, _p", "The Jacobian of rhs.", body)
 
-    def residual(self) -> list[sp.Expr]:
+    def residual(self) -> list[Any]:
         """Phi = [F + A^T lambda - M q_ddot; -c_s - A q_ddot] with q_ddot, lambda as symbols."""
-        model, acc, lam = self.model, self.symbols.acc, self.symbols.lam
-        rows = []
+        forms, rows, acc, lam = self.forms, self.rows, self.symbols.acc, self.symbols.lam
+        result = []
         for i in range(self.n):
-            value = model.forcing[i] - sum((model.mass_matrix[i, j] * acc[j] for j in range(self.n)), sp.Integer(0))
-            rows.append(value + sum((c.jacobian[i] * lam[r] for r, c in enumerate(model.constraints)), sp.Integer(0)))
-        for row, bias in zip(model.constraints, stabilised_bias(model), strict=True):
-            rows.append(-bias - sum((a * acc[j] for j, a in enumerate(row.jacobian)), sp.Integer(0)))
-        return rows
+            value = forms.forcing[i] - se.Add(*(forms.mass[i][j] * acc[j] for j in range(self.n)))
+            result.append(value + se.Add(*(rows.jacobian[r][i] * lam[r] for r in range(self.k))))
+        for r, bias in enumerate(stabilised_bias(self.model)):
+            result.append(-bias - se.Add(*(a * acc[j] for j, a in enumerate(rows.jacobian[r]))))
+        return result
 
     def hamilton(self) -> str:
         """(q_dot, p_dot) at z = (q, p): M q_dot = p - p(q, 0, t), then p_dot = dL/dq - dR/dq_dot + Q."""
-        model, n = self.model, self.n
-        zero = dict.fromkeys(model.qd, sp.Integer(0))
-        offsets = [sp.sympify(m).xreplace(zero) for m in model.momenta]
-        mass = [model.mass_matrix[i, j] for i, j in self.upper]
-        force = [real_diff(model.lagrangian, q) - real_diff(model.dissipation, qd) + model.generalized_forces[i] for i, (q, qd) in enumerate(zip(model.q, model.qd, strict=True))]
-        first = self.block([*mass, *offsets])
-        body = [*self.unpack([*mass, *offsets, *force], "_z", velocities=False), *first.lines]
+        forms, n = self.forms, self.n
+        zero = {v: se.Integer(0) for v in forms.qd}
+        offsets = [m.xreplace(zero) for m in forms.momenta]
+        force = [real_diff(forms.lagrangian, q) - real_diff(forms.dissipation, qd) + forms.generalized_forces[i] for i, (q, qd) in enumerate(zip(forms.q, forms.qd, strict=True))]
+        first_lines, first = self.block([*self.mass, *offsets])
         places = [(e, i, j) for e, (i, j) in enumerate(self.upper)] + [(e, j, i) for e, (i, j) in enumerate(self.upper) if i != j]
-        body += self.fill("_a", first.results, places)
-        body += [f"_x[{i}] = _z[{n + i}] - ({first.results[len(mass) + i]})" for i in range(n)]
-        body.append("_status = _lu_solve(_a, _x)")
-        second = self.block(force)
-        used = set().union(*(f.free_symbols for f in force))
-        body += [f"{self.printer.names[model.qd[i]]} = _x[{i}]" for i in range(n) if model.qd[i] in used]
-        body += second.lines
-        body += [f"_out[{i}] = _x[{i}]" for i in range(n)] + [f"_out[{n + i}] = {v}" for i, v in enumerate(second.results)]
-        body.append("return _status")
-        return define("_hamilton", "t, _z, _p, _out, _x, _a", "(q_dot, p_dot) at z = (q, p) into _out; returns 1 when M is singular.", body)
+        statements = [*first_lines, *self.fill("_a", first, places)]
+        statements += [f"_x[{i}] = _z[{n + i}] - ({first[len(self.mass) + i]})" for i in range(n)]
+        statements.append("_status = _lu_solve(_a, _x)")
+        second_lines, second = self.block(force)
+        used = free_names(force)
+        statements += [f"{self.printer.names[str(forms.qd[i])]} = _x[{i}]" for i in range(n) if str(forms.qd[i]) in used]
+        statements += second_lines
+        statements += [f"_out[{i}] = _x[{i}]" for i in range(n)] + [f"_out[{n + i}] = {v}" for i, v in enumerate(second)]
+        inputs = self.unpack([*self.mass, *offsets, *force], "_z", velocities=False)
+        return self.numba_function("_hamilton", "t, _z, _p, _out, _x, _a", "(q_dot, p_dot) at z = (q, p) into _out; returns 1 when M is singular.", inputs, statements, ["return int(_status)"])
 
-    def vector(self, name: str, doc: str, exprs: Sequence[sp.Expr]) -> str:
+    def vector(self, name: str, doc: str, exprs: Sequence[Any]) -> str:
         """A function of (t, y, p) writing `exprs` into _out (numba) or returning them as a list."""
         exprs = list(exprs)
-        block = self.block(exprs)
-        body = [*self.unpack(exprs), *block.lines]
+        lines, results = self.block(exprs)
+        body = [*self.unpack(exprs), *lines]
         if self.target == "numba":
-            body += [f"_out[{i}] = {v}" for i, v in enumerate(block.results)] + ["return 0"]
+            body += [f"_out[{i}] = {v}" for i, v in enumerate(results)] + ["return 0"]
             return define(name, "t, _y, _p, _out", doc, body)
-        body.append(f"return [{', '.join(block.results)}]")
+        body.append(f"return [{', '.join(results)}]")
         return define(name, "t, _y, _p", doc, body)
 
-    def scalar(self, name: str, doc: str, expr: sp.Expr, needs_accel: bool) -> str:
+    def scalar(self, name: str, doc: str, expr: Any, needs_accel: bool) -> str:
         """A scalar function of (t, y, p), solving for q_ddot and lambda first when it uses them."""
-        block = self.block([expr])
-        body = [*self.unpack([expr]), *block.lines, f"return float({block.results[0]})"]
+        lines, results = self.block([expr])
+        body = [*self.unpack([expr]), *lines, f"return float({results[0]})"]
         if needs_accel:
             n = self.n
             first = "_status = _accel(t, _y, _p, _x, _a)" if self.target == "numba" else "_x = _accel(t, _y, _p)"
@@ -232,23 +254,27 @@ class Generator:
 
         numba: `_accel`, `_hamilton` (unconstrained systems) and `_event`, which the compiled
         loops call; Python: `_accel` (and `_jac`) for scipy, and the monitored quantities."""
-        model = self.model
-        uses_accel = event is not None and bool(event.free_symbols & {*model.qdd, *model.multipliers})
-        stop = self.scalar("_event", "The stop condition, whose sign change ends the run.", event if event is not None else sp.Float(1.0), uses_accel)
+        model, forms = self.model, self.forms
+        self.uses_numpy = False
+        stop_expr = to_symengine(event) if event is not None else se.RealDouble(1.0)
+        uses_accel = bool(free_names([stop_expr]) & {*(str(a) for a in forms.qdd), *(str(m) for m in model.multipliers)})
+        stop = self.scalar("_event", "The stop condition, whose sign change ends the run.", stop_expr, uses_accel)
         parts = [self.accel()]
         if self.target == "numba":
             parts += [self.hamilton()] if not model.constraints else []
         else:
             parts += [self.jac()] if jacobian else []
             parts += [
-                self.scalar("_energy", "The energy function h = sum p q_dot - L.", model.energy, False),
-                self.vector("_momenta", "The momenta of the ignorable coordinates.", [model.momenta[i] for i in ignorable(model)] or [sp.Integer(0)]),
-                self.vector("_residuals", "Each kept constraint's residual: f(q, t), or a . q_dot + b for a velocity constraint.", [c.expr for c in model.constraints] or [sp.Integer(0)]),
-                self.vector("_canonical", "The momenta p = dL/dq_dot of every coordinate.", model.momenta),
+                self.scalar("_energy", "The energy function h = sum p q_dot - L.", forms.energy, False),
+                self.vector("_momenta", "The momenta of the ignorable coordinates.", [forms.momenta[i] for i in ignorable(model)] or [se.Integer(0)]),
+                self.vector("_residuals", "Each kept constraint's residual: f(q, t), or a . q_dot + b for a velocity constraint.", list(self.rows.expr) or [se.Integer(0)]),
+                self.vector("_canonical", "The momenta p = dL/dq_dot of every coordinate.", forms.momenta),
             ]
         parts.append(stop)
-        math_names = sorted(self.printer.module_imports.get("math", set()))
+        math_names = self.printer.imports()
         header = [f"_N = {self.n}", f"_K = {self.k}", f"_SIZE = {self.size}"]
+        if self.uses_numpy:
+            header.insert(0, "import numpy")
         if math_names:
             header.insert(0, f"from math import {', '.join(math_names)}")
         return "\n".join(header) + "\n\n\n" + "\n\n\n".join(parts) + "\n"

@@ -11,7 +11,8 @@ def mass_matrix(q, p=PARAMETERS):
     """The mass matrix M as a list of rows."""
     m1 = p["m1"]
     m2 = p["m2"]
-    return [[m1 + m2]]
+    _kk0 = m1 + m2
+    return [[_kk0]]
 
 
 def forcing(q, q_dot, p=PARAMETERS):
@@ -30,9 +31,8 @@ def energy(q, q_dot, p=PARAMETERS):
     l = p["l"]  # noqa: E741
     y1, = q
     y1_dot, = q_dot
-    _c0 = (1/2)*y1_dot*y1_dot
-    _c1 = g*y1
-    return _c0*m1 + _c0*m2 - _c1*m1 + _c1*m2 - g*l*m2
+    _kk0 = m1 + m2
+    return g*(m2 - m1)*y1 + _kk0*y1_dot*y1_dot/2 - g*l*m2
 
 
 def rhs(t, y, p=PARAMETERS):
@@ -41,4 +41,5 @@ def rhs(t, y, p=PARAMETERS):
     m2 = p["m2"]
     g = p["g"]
     _, y1_dot = y.tolist() if hasattr(y, "tolist") else y
-    return [y1_dot, (g*(m1 - m2))/(m1 + m2)]
+    _kk0 = m1 + m2
+    return [y1_dot, (g*(m1 - m2))/(_kk0)]

@@ -19,7 +19,9 @@ def forcing(q, q_dot, p=PARAMETERS):
     m1 = p["m1"]
     m2 = p["m2"]
     g = p["g"]
-    return [g*m1, g*m2]
+    _kk0 = g*m1
+    _kk1 = g*m2
+    return [_kk0, _kk1]
 
 
 def energy(q, q_dot, p=PARAMETERS):
@@ -29,14 +31,16 @@ def energy(q, q_dot, p=PARAMETERS):
     g = p["g"]
     y1, y2 = q
     y1_dot, y2_dot = q_dot
-    return -g*m1*y1 - g*m2*y2 + (1/2)*m1*y1_dot*y1_dot + (1/2)*m2*y2_dot*y2_dot
+    _kk0 = g*m1
+    _kk1 = g*m2
+    return m2*y2_dot*y2_dot/2 + m1*y1_dot*y1_dot/2 - y1*_kk0 - y2*_kk1
 
 
 def constraint_residuals(q, q_dot, p=PARAMETERS):
     """Each constraint's residual: f(q, t) for holonomic ones, a . q_dot + b for velocity ones."""
     l = p["l"]  # noqa: E741
     y1, y2 = q
-    return [-l + y1 + y2]
+    return [y2 + y1 - l]
 
 
 def accelerations(t, y, p=PARAMETERS):
@@ -45,7 +49,9 @@ def accelerations(t, y, p=PARAMETERS):
     m2 = p["m2"]
     g = p["g"]
     _, _, y1_dot, y2_dot = y.tolist() if hasattr(y, "tolist") else y
-    _x = _solve([[m1, 0, -1], [0, m2, -1], [1, 1, 0.0]], [g*m1, g*m2, 0])
+    _kk0 = g*m1
+    _kk1 = g*m2
+    _x = _solve([[m1, 0, -1], [0, m2, -1], [1, 1, 0.0]], [_kk0, _kk1, 0])
     return _x
 
 

@@ -15,7 +15,12 @@ def mass_matrix(q, p=PARAMETERS):
     m = p["m"]
     l = p["l"]  # noqa: E741
     _, theta = q
-    return [[M + m, l*m*cos(theta)], [l*m*cos(theta), l*l*m]]
+    _cos0 = cos(theta)
+    _k0 = l*m
+    _kk0 = m + M
+    _kk1 = l*l*m
+    _pk0 = _k0*_cos0
+    return [[_kk0, _pk0], [_pk0, _kk1]]
 
 
 def forcing(q, q_dot, p=PARAMETERS):
@@ -26,8 +31,11 @@ def forcing(q, q_dot, p=PARAMETERS):
     u = p["u"]
     _, theta = q
     _, theta_dot = q_dot
-    _c0 = l*m*sin(theta)
-    return [_c0*theta_dot*theta_dot + u, _c0*g]
+    _sin0 = sin(theta)
+    _k0 = l*m
+    _kk2 = g*_k0
+    _c0 = theta_dot*theta_dot
+    return [_k0*_c0*_sin0 + u, _kk2*_sin0]
 
 
 def energy(q, q_dot, p=PARAMETERS):
@@ -38,8 +46,14 @@ def energy(q, q_dot, p=PARAMETERS):
     g = p["g"]
     _, theta = q
     x_dot, theta_dot = q_dot
-    _c0 = l*m*cos(theta)
-    return _c0*g + _c0*theta_dot*x_dot + (1/2)*l*l*m*theta_dot*theta_dot + (1/2)*x_dot*x_dot*(M + m)
+    _cos0 = cos(theta)
+    _k0 = l*m
+    _kk0 = m + M
+    _kk1 = l*l*m
+    _kk2 = g*_k0
+    _pk0 = _k0*_cos0
+    _c0 = theta_dot*theta_dot
+    return _kk0*x_dot*x_dot/2 + _c0*_kk1/2 + _pk0*x_dot*theta_dot + _kk2*_cos0
 
 
 def rhs(t, y, p=PARAMETERS):
@@ -50,12 +64,18 @@ def rhs(t, y, p=PARAMETERS):
     g = p["g"]
     u = p["u"]
     _, theta, x_dot, theta_dot = y.tolist() if hasattr(y, "tolist") else y
-    _c0 = l*m
-    _c1 = _c0*sin(theta)
-    _m00 = M + m
-    _m01 = _c0*cos(theta)
-    _m11 = l*l*m
-    _f0 = _c1*theta_dot*theta_dot + u
-    _f1 = _c1*g
+    _sin0 = sin(theta)
+    _cos0 = cos(theta)
+    _k0 = l*m
+    _kk0 = m + M
+    _kk1 = l*l*m
+    _kk2 = g*_k0
+    _pk0 = _k0*_cos0
+    _c0 = theta_dot*theta_dot
+    _m00 = _kk0
+    _m01 = _pk0
+    _m11 = _kk1
+    _f0 = _k0*_c0*_sin0 + u
+    _f1 = _kk2*_sin0
     _det = _m00*_m11 - _m01*_m01
     return [x_dot, theta_dot, (_m11*_f0 - _m01*_f1)/_det, (_m00*_f1 - _m01*_f0)/_det]

@@ -14,10 +14,21 @@ def mass_matrix(q, p=PARAMETERS):
     m = p["m"]
     l = p["l"]  # noqa: E741
     theta1, theta2, theta3 = q
-    _c0 = l*l*m
-    _c1 = -theta1
-    _c2 = 2*_c0
-    return [[3*_c0, _c2*cos(_c1 + theta2), _c0*cos(_c1 + theta3)], [_c2*cos(_c1 + theta2), _c2, _c0*cos(theta2 - theta3)], [_c0*cos(_c1 + theta3), _c0*cos(theta2 - theta3), _c0]]
+    _sin0 = sin(theta1)
+    _cos0 = cos(theta1)
+    _sin1 = sin(theta2)
+    _cos1 = cos(theta2)
+    _sin2 = sin(theta3)
+    _cos2 = cos(theta3)
+    _cd0_1 = _sin0*_sin1 + _cos0*_cos1
+    _cd0_2 = _sin2*_sin0 + _cos0*_cos2
+    _cd1_2 = _sin2*_sin1 + _cos2*_cos1
+    _kk0 = l*l*m
+    _pk0 = _kk0*_cd0_1
+    _pk1 = _kk0*_cd0_2
+    _pk2 = _kk0*_cd1_2
+    _c0 = 2*_pk0
+    return [[3*_kk0, _c0, _pk1], [_c0, 2*_kk0, _pk2], [_pk1, _pk2, _kk0]]
 
 
 def forcing(q, q_dot, p=PARAMETERS):
@@ -27,16 +38,27 @@ def forcing(q, q_dot, p=PARAMETERS):
     g = p["g"]
     theta1, theta2, theta3 = q
     theta1_dot, theta2_dot, theta3_dot = q_dot
-    _c0 = theta3_dot*theta3_dot
-    _c1 = -theta1
-    _c2 = l*l*m
-    _c3 = _c2*sin(_c1 + theta3)
-    _c4 = theta2_dot*theta2_dot
-    _c5 = 2*_c2*sin(_c1 + theta2)
-    _c6 = g*l*m
-    _c7 = -_c2*sin(theta2 - theta3)
-    _c8 = theta1_dot*theta1_dot
-    return [_c0*_c3 + _c4*_c5 - 3*_c6*sin(theta1), _c0*_c7 - _c5*_c8 - 2*_c6*sin(theta2), -_c3*_c8 - _c4*_c7 - _c6*sin(theta3)]
+    _sin0 = sin(theta1)
+    _cos0 = cos(theta1)
+    _sin1 = sin(theta2)
+    _cos1 = cos(theta2)
+    _sin2 = sin(theta3)
+    _cos2 = cos(theta3)
+    _sd0_1 = _sin0*_cos1 - _sin1*_cos0
+    _sd0_2 = _sin0*_cos2 - _sin2*_cos0
+    _sd1_2 = _sin1*_cos2 - _sin2*_cos1
+    _kk0 = l*l*m
+    _kk1 = g*l*m
+    _pk3 = _kk0*_sd0_2
+    _pk4 = _kk0*_sd0_1
+    _pk5 = _kk0*_sd1_2
+    _c1 = theta2_dot*theta2_dot
+    _c2 = 2*_pk4
+    _c3 = theta3_dot*theta3_dot
+    _c4 = 3*_kk1
+    _c5 = theta1_dot*theta1_dot
+    _c6 = 2*_kk1
+    return [-_c1*_c2 - _c3*_pk3 - _c4*_sin0, _c2*_c5 - _c3*_pk5 - _c6*_sin1, _c5*_pk3 + _c1*_pk5 - _kk1*_sin2]
 
 
 def energy(q, q_dot, p=PARAMETERS):
@@ -46,11 +68,27 @@ def energy(q, q_dot, p=PARAMETERS):
     g = p["g"]
     theta1, theta2, theta3 = q
     theta1_dot, theta2_dot, theta3_dot = q_dot
-    _c0 = l*l*m
-    _c1 = -theta1
-    _c2 = g*l*m
-    _c3 = _c0*theta3_dot
-    return (3/2)*_c0*theta1_dot*theta1_dot + 2*_c0*theta1_dot*theta2_dot*cos(_c1 + theta2) + _c0*theta2_dot*theta2_dot + (1/2)*_c0*theta3_dot*theta3_dot - 3*_c2*cos(theta1) - 2*_c2*cos(theta2) - _c2*cos(theta3) + _c3*theta1_dot*cos(_c1 + theta3) + _c3*theta2_dot*cos(theta2 - theta3)
+    _sin0 = sin(theta1)
+    _cos0 = cos(theta1)
+    _sin1 = sin(theta2)
+    _cos1 = cos(theta2)
+    _sin2 = sin(theta3)
+    _cos2 = cos(theta3)
+    _cd0_1 = _sin0*_sin1 + _cos0*_cos1
+    _cd0_2 = _sin2*_sin0 + _cos0*_cos2
+    _cd1_2 = _sin2*_sin1 + _cos2*_cos1
+    _kk0 = l*l*m
+    _kk1 = g*l*m
+    _pk0 = _kk0*_cd0_1
+    _pk1 = _kk0*_cd0_2
+    _pk2 = _kk0*_cd1_2
+    _c0 = 2*_pk0
+    _c1 = theta2_dot*theta2_dot
+    _c3 = theta3_dot*theta3_dot
+    _c4 = 3*_kk1
+    _c5 = theta1_dot*theta1_dot
+    _c6 = 2*_kk1
+    return _pk2*theta3_dot*theta2_dot + _c0*theta2_dot*theta1_dot + _pk1*theta3_dot*theta1_dot + _c3*_kk0/2 + _c1*_kk0 + 3*_c5*_kk0/2 - _kk1*_cos2 - _c4*_cos0 - _c6*_cos1
 
 
 def rhs(t, y, p=PARAMETERS):
@@ -59,24 +97,36 @@ def rhs(t, y, p=PARAMETERS):
     l = p["l"]  # noqa: E741
     g = p["g"]
     theta1, theta2, theta3, theta1_dot, theta2_dot, theta3_dot = y.tolist() if hasattr(y, "tolist") else y
-    _c0 = l*l*m
-    _c1 = -theta1
-    _c2 = _c1 + theta2
-    _c3 = 2*_c0
-    _c4 = _c1 + theta3
-    _c5 = -theta2 + theta3
-    _c6 = theta3_dot*theta3_dot
-    _c7 = _c0*sin(_c4)
-    _c8 = theta2_dot*theta2_dot
-    _c9 = _c3*sin(_c2)
-    _c10 = g*l*m
-    _c11 = _c0*sin(_c5)
-    _c12 = theta1_dot*theta1_dot
-    _m0_0 = 3*_c0
-    _m0_1 = _c3*cos(_c2)
-    _m0_2 = _c0*cos(_c4)
-    _m1_2 = _c0*cos(_c5)
-    _x = _solve([[_m0_0, _m0_1, _m0_2], [_m0_1, _c3, _m1_2], [_m0_2, _m1_2, _c0]], [-3*_c10*sin(theta1) + _c6*_c7 + _c8*_c9, -2*_c10*sin(theta2) + _c11*_c6 - _c12*_c9, -_c10*sin(theta3) - _c11*_c8 - _c12*_c7])
+    _sin0 = sin(theta1)
+    _cos0 = cos(theta1)
+    _sin1 = sin(theta2)
+    _cos1 = cos(theta2)
+    _sin2 = sin(theta3)
+    _cos2 = cos(theta3)
+    _sd0_1 = _sin0*_cos1 - _sin1*_cos0
+    _cd0_1 = _sin0*_sin1 + _cos0*_cos1
+    _sd0_2 = _sin0*_cos2 - _sin2*_cos0
+    _cd0_2 = _sin2*_sin0 + _cos0*_cos2
+    _sd1_2 = _sin1*_cos2 - _sin2*_cos1
+    _cd1_2 = _sin2*_sin1 + _cos2*_cos1
+    _kk0 = l*l*m
+    _kk1 = g*l*m
+    _pk0 = _kk0*_cd0_1
+    _pk1 = _kk0*_cd0_2
+    _pk2 = _kk0*_cd1_2
+    _pk3 = _kk0*_sd0_2
+    _pk4 = _kk0*_sd0_1
+    _pk5 = _kk0*_sd1_2
+    _c0 = 2*_pk0
+    _c1 = theta2_dot*theta2_dot
+    _c2 = 2*_pk4
+    _c3 = theta3_dot*theta3_dot
+    _c4 = 3*_kk1
+    _c5 = theta1_dot*theta1_dot
+    _c6 = 2*_kk1
+    _m0_0 = 3*_kk0
+    _m1_1 = 2*_kk0
+    _x = _solve([[_m0_0, _c0, _pk1], [_c0, _m1_1, _pk2], [_pk1, _pk2, _kk0]], [-_c1*_c2 - _c3*_pk3 - _c4*_sin0, _c2*_c5 - _c3*_pk5 - _c6*_sin1, _c5*_pk3 + _c1*_pk5 - _kk1*_sin2])
     return [theta1_dot, theta2_dot, theta3_dot, *_x]
 
 

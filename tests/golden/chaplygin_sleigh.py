@@ -15,8 +15,13 @@ def mass_matrix(q, p=PARAMETERS):
     I = p["I"]  # noqa: E741
     a = p["a"]
     _, _, phi = q
-    _c0 = a*m
-    return [[m, 0, -_c0*sin(phi)], [0, m, _c0*cos(phi)], [-_c0*sin(phi), _c0*cos(phi), I + a*a*m]]
+    _sin0 = sin(phi)
+    _cos0 = cos(phi)
+    _kk0 = a*m
+    _kk1 = I + a*a*m
+    _pk0 = _kk0*_sin0
+    _pk1 = _kk0*_cos0
+    return [[m, 0, -_pk0], [0, m, _pk1], [-_pk0, _pk1, _kk1]]
 
 
 def forcing(q, q_dot, p=PARAMETERS):
@@ -25,8 +30,13 @@ def forcing(q, q_dot, p=PARAMETERS):
     a = p["a"]
     _, _, phi = q
     _, _, phi_dot = q_dot
-    _c0 = a*m*phi_dot*phi_dot
-    return [_c0*cos(phi), _c0*sin(phi), 0]
+    _sin0 = sin(phi)
+    _cos0 = cos(phi)
+    _kk0 = a*m
+    _pk0 = _kk0*_sin0
+    _pk1 = _kk0*_cos0
+    _c0 = phi_dot*phi_dot
+    return [_c0*_pk1, _c0*_pk0, 0]
 
 
 def energy(q, q_dot, p=PARAMETERS):
@@ -36,17 +46,26 @@ def energy(q, q_dot, p=PARAMETERS):
     a = p["a"]
     _, _, phi = q
     x_dot, y_dot, phi_dot = q_dot
+    _sin0 = sin(phi)
+    _cos0 = cos(phi)
+    _kk0 = a*m
+    _kk1 = I + a*a*m
+    _pk0 = _kk0*_sin0
+    _pk1 = _kk0*_cos0
     _c0 = phi_dot*phi_dot
-    _c1 = (1/2)*m
-    _c2 = a*m*phi_dot
-    return (1/2)*I*_c0 + _c0*_c1*a*a + _c1*x_dot*x_dot + _c1*y_dot*y_dot - _c2*x_dot*sin(phi) + _c2*y_dot*cos(phi)
+    _c1 = m/2
+    _c2 = y_dot*phi_dot
+    _c3 = x_dot*phi_dot
+    return _c1*x_dot*x_dot + _c1*y_dot*y_dot + _c2*_pk1 + _c0*_kk1/2 - _c3*_pk0
 
 
 def constraint_residuals(q, q_dot, p=PARAMETERS):
     """Each constraint's residual: f(q, t) for holonomic ones, a . q_dot + b for velocity ones."""
     _, _, phi = q
     x_dot, y_dot, _ = q_dot
-    return [-x_dot*sin(phi) + y_dot*cos(phi)]
+    _sin0 = sin(phi)
+    _cos0 = cos(phi)
+    return [_cos0*y_dot - _sin0*x_dot]
 
 
 def accelerations(t, y, p=PARAMETERS):
@@ -55,14 +74,16 @@ def accelerations(t, y, p=PARAMETERS):
     I = p["I"]  # noqa: E741
     a = p["a"]
     _, _, phi, x_dot, y_dot, phi_dot = y.tolist() if hasattr(y, "tolist") else y
-    _c0 = sin(phi)
-    _c1 = a*m
-    _c2 = _c0*_c1
-    _c3 = cos(phi)
-    _c4 = _c1*_c3
-    _c5 = phi_dot*phi_dot
-    _m2_2 = I + a*a*m
-    _x = _solve([[m, 0, -_c2, _c0], [0, m, _c4, -_c3], [-_c2, _c4, _m2_2, 0], [-_c0, _c3, -0, 0.0]], [_c4*_c5, _c2*_c5, 0, _c0*phi_dot*y_dot + _c3*phi_dot*x_dot])
+    _sin0 = sin(phi)
+    _cos0 = cos(phi)
+    _kk0 = a*m
+    _kk1 = I + a*a*m
+    _pk0 = _kk0*_sin0
+    _pk1 = _kk0*_cos0
+    _c0 = phi_dot*phi_dot
+    _c2 = y_dot*phi_dot
+    _c3 = x_dot*phi_dot
+    _x = _solve([[m, 0, -_pk0, _sin0], [0, m, _pk1, -_cos0], [-_pk0, _pk1, _kk1, 0], [-_sin0, _cos0, -0, 0.0]], [_c0*_pk1, _c0*_pk0, 0, -(-_c3*_cos0 - _c2*_sin0)])
     return _x
 
 

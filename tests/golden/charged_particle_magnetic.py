@@ -18,15 +18,15 @@ def forcing(q, q_dot, p=PARAMETERS):
     qc = p["qc"]
     B = p["B"]
     x_dot, y_dot = q_dot
-    _c0 = B*qc
-    return [_c0*y_dot, -_c0*x_dot]
+    _kk0 = B*qc
+    return [_kk0*y_dot, -_kk0*x_dot]
 
 
 def energy(q, q_dot, p=PARAMETERS):
     """The energy function h = sum p_i q_dot_i - L."""
     m = p["m"]
     x_dot, y_dot = q_dot
-    _c0 = (1/2)*m
+    _c0 = m/2
     return _c0*x_dot*x_dot + _c0*y_dot*y_dot
 
 
@@ -36,11 +36,11 @@ def rhs(t, y, p=PARAMETERS):
     qc = p["qc"]
     B = p["B"]
     _, _, x_dot, y_dot = y.tolist() if hasattr(y, "tolist") else y
-    _c0 = B*qc
+    _kk0 = B*qc
     _m00 = m
     _m01 = 0
     _m11 = m
-    _f0 = _c0*y_dot
-    _f1 = -_c0*x_dot
+    _f0 = _kk0*y_dot
+    _f1 = -_kk0*x_dot
     _det = _m00*_m11 - _m01*_m01
     return [x_dot, y_dot, (_m11*_f0 - _m01*_f1)/_det, (_m00*_f1 - _m01*_f0)/_det]

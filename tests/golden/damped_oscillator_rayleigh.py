@@ -13,7 +13,8 @@ def mass_matrix(q, p=PARAMETERS):
     """The mass matrix M as a list of rows."""
     m = p["m"]
     r, _ = q
-    return [[m, 0], [0, m*r*r]]
+    _pk0 = m*r*r
+    return [[m, 0], [0, _pk0]]
 
 
 def forcing(q, q_dot, p=PARAMETERS):
@@ -24,17 +25,17 @@ def forcing(q, q_dot, p=PARAMETERS):
     k_y = p["k_y"]
     r, theta = q
     r_dot, theta_dot = q_dot
-    _c0 = m*r
-    _c1 = cos(theta)
-    _c2 = _c1*_c1
-    _c3 = k_x*r_dot
-    _c4 = sin(theta)
-    _c5 = _c4*_c4
-    _c6 = k_y*r_dot
-    _c7 = _c1*_c4*r
-    _c8 = _c7*theta_dot
-    _c9 = r*r*theta_dot
-    return [_c0*theta_dot*theta_dot - _c2*_c3 - _c5*_c6 + _c8*k_x - _c8*k_y - kappa*r, -2*_c0*r_dot*theta_dot - _c2*_c9*k_y + _c3*_c7 - _c5*_c9*k_x - _c6*_c7]
+    _sin0 = sin(theta)
+    _cos0 = cos(theta)
+    _kk0 = k_x - k_y
+    _pk1 = m*r
+    _pk2 = r*_kk0*_sin0*_cos0
+    _c0 = _sin0*_sin0
+    _c1 = _cos0*_cos0
+    _c2 = theta_dot*theta_dot
+    _c3 = r*r
+    _c4 = _c3*theta_dot
+    return [_pk2*theta_dot + _c2*_pk1 - _c0*k_y*r_dot - _c1*k_x*r_dot - r*kappa, _pk2*r_dot - _c4*_c1*k_y - _c4*_c0*k_x - 2*_pk1*r_dot*theta_dot]
 
 
 def energy(q, q_dot, p=PARAMETERS):
@@ -43,8 +44,10 @@ def energy(q, q_dot, p=PARAMETERS):
     kappa = p["kappa"]
     r, _ = q
     r_dot, theta_dot = q_dot
-    _c0 = (1/2)*r*r
-    return _c0*kappa + _c0*m*theta_dot*theta_dot + (1/2)*m*r_dot*r_dot
+    _pk0 = m*r*r
+    _c2 = theta_dot*theta_dot
+    _c3 = r*r
+    return m*r_dot*r_dot/2 + _c2*_pk0/2 + _c3*kappa/2
 
 
 def rhs(t, y, p=PARAMETERS):
@@ -54,21 +57,21 @@ def rhs(t, y, p=PARAMETERS):
     k_x = p["k_x"]
     k_y = p["k_y"]
     r, theta, r_dot, theta_dot = y.tolist() if hasattr(y, "tolist") else y
-    _c0 = r*r
-    _c1 = m*r
-    _c2 = cos(theta)
-    _c3 = _c2*_c2
-    _c4 = k_x*r_dot
-    _c5 = sin(theta)
-    _c6 = _c5*_c5
-    _c7 = k_y*r_dot
-    _c8 = _c2*_c5*r
-    _c9 = _c8*theta_dot
-    _c10 = _c0*theta_dot
+    _sin0 = sin(theta)
+    _cos0 = cos(theta)
+    _kk0 = k_x - k_y
+    _pk0 = m*r*r
+    _pk1 = m*r
+    _pk2 = r*_kk0*_sin0*_cos0
+    _c0 = _sin0*_sin0
+    _c1 = _cos0*_cos0
+    _c2 = theta_dot*theta_dot
+    _c3 = r*r
+    _c4 = _c3*theta_dot
     _m00 = m
     _m01 = 0
-    _m11 = _c0*m
-    _f0 = _c1*theta_dot*theta_dot - _c3*_c4 - _c6*_c7 + _c9*k_x - _c9*k_y - kappa*r
-    _f1 = -2*_c1*r_dot*theta_dot - _c10*_c3*k_y - _c10*_c6*k_x + _c4*_c8 - _c7*_c8
+    _m11 = _pk0
+    _f0 = _pk2*theta_dot + _c2*_pk1 - _c0*k_y*r_dot - _c1*k_x*r_dot - r*kappa
+    _f1 = _pk2*r_dot - _c4*_c1*k_y - _c4*_c0*k_x - 2*_pk1*r_dot*theta_dot
     _det = _m00*_m11 - _m01*_m01
     return [r_dot, theta_dot, (_m11*_f0 - _m01*_f1)/_det, (_m00*_f1 - _m01*_f0)/_det]

@@ -14,8 +14,14 @@ def mass_matrix(q, p=PARAMETERS):
     m = p["m"]
     l = p["l"]  # noqa: E741
     theta, phi = q
-    _c0 = l*l*m
-    return [[2*_c0, _c0*cos(phi - theta)], [_c0*cos(phi - theta), _c0]]
+    _sin0 = sin(phi)
+    _cos0 = cos(phi)
+    _sin1 = sin(theta)
+    _cos1 = cos(theta)
+    _cd0_1 = _sin0*_sin1 + _cos0*_cos1
+    _kk0 = l*l*m
+    _pk0 = _kk0*_cd0_1
+    return [[2*_kk0, _pk0], [_pk0, _kk0]]
 
 
 def forcing(q, q_dot, p=PARAMETERS):
@@ -25,9 +31,18 @@ def forcing(q, q_dot, p=PARAMETERS):
     g = p["g"]
     theta, phi = q
     theta_dot, phi_dot = q_dot
-    _c0 = -l*l*m*sin(phi - theta)
-    _c1 = g*l*m
-    return [-_c0*phi_dot*phi_dot - 2*_c1*sin(theta), _c0*theta_dot*theta_dot - _c1*sin(phi)]
+    _sin0 = sin(phi)
+    _cos0 = cos(phi)
+    _sin1 = sin(theta)
+    _cos1 = cos(theta)
+    _sd0_1 = _sin0*_cos1 - _sin1*_cos0
+    _kk0 = l*l*m
+    _kk1 = g*l*m
+    _pk1 = _kk0*_sd0_1
+    _c0 = phi_dot*phi_dot
+    _c1 = 2*_kk1
+    _c2 = theta_dot*theta_dot
+    return [_c0*_pk1 - _c1*_sin1, -_c2*_pk1 - _kk1*_sin0]
 
 
 def energy(q, q_dot, p=PARAMETERS):
@@ -37,9 +52,18 @@ def energy(q, q_dot, p=PARAMETERS):
     g = p["g"]
     theta, phi = q
     theta_dot, phi_dot = q_dot
-    _c0 = l*l*m
-    _c1 = g*l*m
-    return (1/2)*_c0*phi_dot*phi_dot + _c0*phi_dot*theta_dot*cos(phi - theta) + _c0*theta_dot*theta_dot - _c1*cos(phi) - 2*_c1*cos(theta)
+    _sin0 = sin(phi)
+    _cos0 = cos(phi)
+    _sin1 = sin(theta)
+    _cos1 = cos(theta)
+    _cd0_1 = _sin0*_sin1 + _cos0*_cos1
+    _kk0 = l*l*m
+    _kk1 = g*l*m
+    _pk0 = _kk0*_cd0_1
+    _c0 = phi_dot*phi_dot
+    _c1 = 2*_kk1
+    _c2 = theta_dot*theta_dot
+    return _c2*_kk0 + _pk0*phi_dot*theta_dot + _c0*_kk0/2 - _c1*_cos1 - _kk1*_cos0
 
 
 def rhs(t, y, p=PARAMETERS):
@@ -48,14 +72,23 @@ def rhs(t, y, p=PARAMETERS):
     l = p["l"]  # noqa: E741
     g = p["g"]
     theta, phi, theta_dot, phi_dot = y.tolist() if hasattr(y, "tolist") else y
-    _c0 = l*l*m
-    _c1 = -phi + theta
-    _c2 = _c0*sin(_c1)
-    _c3 = g*l*m
-    _m00 = 2*_c0
-    _m01 = _c0*cos(_c1)
-    _m11 = _c0
-    _f0 = -_c2*phi_dot*phi_dot - 2*_c3*sin(theta)
-    _f1 = _c2*theta_dot*theta_dot - _c3*sin(phi)
+    _sin0 = sin(phi)
+    _cos0 = cos(phi)
+    _sin1 = sin(theta)
+    _cos1 = cos(theta)
+    _sd0_1 = _sin0*_cos1 - _sin1*_cos0
+    _cd0_1 = _sin0*_sin1 + _cos0*_cos1
+    _kk0 = l*l*m
+    _kk1 = g*l*m
+    _pk0 = _kk0*_cd0_1
+    _pk1 = _kk0*_sd0_1
+    _c0 = phi_dot*phi_dot
+    _c1 = 2*_kk1
+    _c2 = theta_dot*theta_dot
+    _m00 = 2*_kk0
+    _m01 = _pk0
+    _m11 = _kk0
+    _f0 = _c0*_pk1 - _c1*_sin1
+    _f1 = -_c2*_pk1 - _kk1*_sin0
     _det = _m00*_m11 - _m01*_m01
     return [theta_dot, phi_dot, (_m11*_f0 - _m01*_f1)/_det, (_m00*_f1 - _m01*_f0)/_det]

@@ -14,7 +14,11 @@ def mass_matrix(q, p=PARAMETERS):
     m = p["m"]
     l = p["l"]  # noqa: E741
     x, _ = q
-    return [[m, 0], [0, l*l*m + 2*l*m*x + m*x*x]]
+    _kk0 = l*m
+    _kk1 = l*l*m
+    _pk0 = m*x*x
+    _pk1 = x*_kk0
+    return [[m, 0], [0, _kk1 + 2*_pk1 + _pk0]]
 
 
 def forcing(q, q_dot, p=PARAMETERS):
@@ -25,11 +29,16 @@ def forcing(q, q_dot, p=PARAMETERS):
     g = p["g"]
     x, theta = q
     x_dot, theta_dot = q_dot
-    _c0 = g*m
-    _c1 = m*theta_dot*theta_dot
-    _c2 = _c0*sin(theta)
-    _c3 = 2*m*theta_dot*x_dot
-    return [_c0*cos(theta) + _c1*l + _c1*x - k*x, -_c2*l - _c2*x - _c3*l - _c3*x]
+    _sin0 = sin(theta)
+    _cos0 = cos(theta)
+    _k0 = g*m
+    _kk0 = l*m
+    _kk2 = l*_k0
+    _pk2 = m*x
+    _c0 = _k0*_cos0
+    _c1 = theta_dot*theta_dot
+    _c2 = 2*x_dot*theta_dot
+    return [_c0 + _c1*_pk2 + _c1*_kk0 - k*x, -_c2*_kk0 - x*_k0*_sin0 - _c2*_pk2 - _kk2*_sin0]
 
 
 def energy(q, q_dot, p=PARAMETERS):
@@ -40,12 +49,17 @@ def energy(q, q_dot, p=PARAMETERS):
     g = p["g"]
     x, theta = q
     x_dot, theta_dot = q_dot
-    _c0 = (1/2)*m
-    _c1 = (1/2)*x*x
-    _c2 = theta_dot*theta_dot
-    _c3 = _c2*m
-    _c4 = g*m*cos(theta)
-    return _c0*_c2*l*l + _c0*x_dot*x_dot + _c1*_c3 + _c1*k + _c3*l*x - _c4*l - _c4*x
+    _cos0 = cos(theta)
+    _k0 = g*m
+    _kk0 = l*m
+    _kk1 = l*l*m
+    _kk2 = l*_k0
+    _pk0 = m*x*x
+    _pk1 = x*_kk0
+    _c0 = _k0*_cos0
+    _c1 = theta_dot*theta_dot
+    _c3 = _c1/2
+    return m*x_dot*x_dot/2 + _c3*_kk1 + _c1*_pk1 + k*x*x/2 + _c3*_pk0 - x*_c0 - _kk2*_cos0
 
 
 def rhs(t, y, p=PARAMETERS):
@@ -55,15 +69,22 @@ def rhs(t, y, p=PARAMETERS):
     l = p["l"]  # noqa: E741
     g = p["g"]
     x, theta, x_dot, theta_dot = y.tolist() if hasattr(y, "tolist") else y
-    _c0 = 2*m*x
-    _c1 = g*m
-    _c2 = m*theta_dot*theta_dot
-    _c3 = _c1*sin(theta)
-    _c4 = theta_dot*x_dot
+    _sin0 = sin(theta)
+    _cos0 = cos(theta)
+    _k0 = g*m
+    _kk0 = l*m
+    _kk1 = l*l*m
+    _kk2 = l*_k0
+    _pk0 = m*x*x
+    _pk1 = x*_kk0
+    _pk2 = m*x
+    _c0 = _k0*_cos0
+    _c1 = theta_dot*theta_dot
+    _c2 = 2*x_dot*theta_dot
     _m00 = m
     _m01 = 0
-    _m11 = _c0*l + l*l*m + m*x*x
-    _f0 = _c1*cos(theta) + _c2*l + _c2*x - k*x
-    _f1 = -_c0*_c4 - _c3*l - _c3*x - 2*_c4*l*m
+    _m11 = _kk1 + 2*_pk1 + _pk0
+    _f0 = _c0 + _c1*_pk2 + _c1*_kk0 - k*x
+    _f1 = -_c2*_kk0 - x*_k0*_sin0 - _c2*_pk2 - _kk2*_sin0
     _det = _m00*_m11 - _m01*_m01
     return [x_dot, theta_dot, (_m11*_f0 - _m01*_f1)/_det, (_m00*_f1 - _m01*_f0)/_det]

@@ -14,8 +14,12 @@ def mass_matrix(q, p=PARAMETERS):
     I_perp = p["I_perp"]
     I_par = p["I_par"]
     theta, _, _ = q
-    _c0 = cos(theta)
-    return [[I_perp, 0, 0], [0, I_par*_c0*_c0 + I_perp*sin(theta)*sin(theta), I_par*_c0], [0, I_par*_c0, I_par]]
+    _sin0 = sin(theta)
+    _cos0 = cos(theta)
+    _pk0 = _sin0*_sin0*I_perp
+    _pk1 = _cos0*_cos0*I_par
+    _pk2 = _cos0*I_par
+    return [[I_perp, 0, 0], [0, _pk1 + _pk0, _pk2], [0, _pk2, I_par]]
 
 
 def forcing(q, q_dot, p=PARAMETERS):
@@ -24,15 +28,14 @@ def forcing(q, q_dot, p=PARAMETERS):
     I_par = p["I_par"]
     theta, _, _ = q
     theta_dot, phi_dot, psi_dot = q_dot
-    _c0 = cos(theta)
-    _c1 = _c0*phi_dot*phi_dot
-    _c2 = sin(theta)
-    _c3 = I_perp*_c2
-    _c4 = I_par*_c2
-    _c5 = _c4*phi_dot
-    _c6 = 2*_c0
-    _c7 = _c5*theta_dot
-    return [_c1*_c3 - _c1*_c4 - _c5*psi_dot, -_c3*_c6*phi_dot*theta_dot + _c4*psi_dot*theta_dot + _c6*_c7, _c7]
+    _sin0 = sin(theta)
+    _cos0 = cos(theta)
+    _pk3 = _sin0*I_par
+    _c0 = phi_dot*phi_dot
+    _c1 = _sin0*_cos0
+    _c2 = phi_dot*psi_dot
+    _c3 = _pk3*theta_dot
+    return [_c1*_c0*(I_perp - I_par) - _c2*_pk3, _c3*psi_dot + _c1*phi_dot*(2*I_par - 2*I_perp)*theta_dot, _c3*phi_dot]
 
 
 def energy(q, q_dot, p=PARAMETERS):
@@ -41,11 +44,15 @@ def energy(q, q_dot, p=PARAMETERS):
     I_par = p["I_par"]
     theta, _, _ = q
     theta_dot, phi_dot, psi_dot = q_dot
-    _c0 = (1/2)*I_par
-    _c1 = (1/2)*I_perp
-    _c2 = cos(theta)
-    _c3 = phi_dot*phi_dot
-    return I_par*_c2*phi_dot*psi_dot + _c0*_c2*_c2*_c3 + _c0*psi_dot*psi_dot + _c1*_c3*sin(theta)*sin(theta) + _c1*theta_dot*theta_dot
+    _sin0 = sin(theta)
+    _cos0 = cos(theta)
+    _pk0 = _sin0*_sin0*I_perp
+    _pk1 = _cos0*_cos0*I_par
+    _pk2 = _cos0*I_par
+    _c0 = phi_dot*phi_dot
+    _c2 = phi_dot*psi_dot
+    _c4 = _c0/2
+    return _c4*_pk0 + I_perp*theta_dot*theta_dot/2 + _c4*_pk1 + I_par*psi_dot*psi_dot/2 + _c2*_pk2
 
 
 def rhs(t, y, p=PARAMETERS):
@@ -53,16 +60,18 @@ def rhs(t, y, p=PARAMETERS):
     I_perp = p["I_perp"]
     I_par = p["I_par"]
     theta, _, _, theta_dot, phi_dot, psi_dot = y.tolist() if hasattr(y, "tolist") else y
-    _c0 = cos(theta)
-    _c1 = sin(theta)
-    _c2 = I_par*_c0
-    _c3 = _c1*phi_dot*phi_dot
-    _c4 = I_perp*_c0
-    _c5 = _c1*phi_dot
-    _c6 = I_par*_c5
-    _c7 = 2*_c5*theta_dot
-    _m1_1 = I_par*_c0*_c0 + I_perp*_c1*_c1
-    _x = _solve([[I_perp, 0, 0], [0, _m1_1, _c2], [0, _c2, I_par]], [-_c2*_c3 + _c3*_c4 - _c6*psi_dot, I_par*_c1*psi_dot*theta_dot + _c2*_c7 - _c4*_c7, _c6*theta_dot])
+    _sin0 = sin(theta)
+    _cos0 = cos(theta)
+    _pk0 = _sin0*_sin0*I_perp
+    _pk1 = _cos0*_cos0*I_par
+    _pk2 = _cos0*I_par
+    _pk3 = _sin0*I_par
+    _c0 = phi_dot*phi_dot
+    _c1 = _sin0*_cos0
+    _c2 = phi_dot*psi_dot
+    _c3 = _pk3*theta_dot
+    _m1_1 = _pk1 + _pk0
+    _x = _solve([[I_perp, 0, 0], [0, _m1_1, _pk2], [0, _pk2, I_par]], [_c1*_c0*(I_perp - I_par) - _c2*_pk3, _c3*psi_dot + _c1*phi_dot*(2*I_par - 2*I_perp)*theta_dot, _c3*phi_dot])
     return [theta_dot, phi_dot, psi_dot, *_x]
 
 

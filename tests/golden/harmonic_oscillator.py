@@ -26,7 +26,7 @@ def energy(q, q_dot, p=PARAMETERS):
     k = p["k"]
     x, = q
     x_dot, = q_dot
-    return (1/2)*k*x*x + (1/2)*m*x_dot*x_dot
+    return k*x*x/2 + m*x_dot*x_dot/2
 
 
 def rhs(t, y, p=PARAMETERS):

@@ -16,10 +16,14 @@ def mass_matrix(q, p=PARAMETERS):
     I_perp = p["I_perp"]
     I_par = p["I_par"]
     theta, _, _ = q
-    _c0 = l*l*m
-    _c1 = cos(theta)
-    _c2 = sin(theta)*sin(theta)
-    return [[I_perp + _c0, 0, 0], [0, I_par*_c1*_c1 + I_perp*_c2 + _c0*_c2, I_par*_c1], [0, I_par*_c1, I_par]]
+    _sin0 = sin(theta)
+    _cos0 = cos(theta)
+    _k0 = l*l*m
+    _k1 = _k0 + I_perp
+    _pk0 = _k1*_sin0*_sin0
+    _pk1 = _cos0*_cos0*I_par
+    _pk2 = _cos0*I_par
+    return [[_k1, 0, 0], [0, _pk1 + _pk0, _pk2], [0, _pk2, I_par]]
 
 
 def forcing(q, q_dot, p=PARAMETERS):
@@ -31,19 +35,17 @@ def forcing(q, q_dot, p=PARAMETERS):
     I_par = p["I_par"]
     theta, _, _ = q
     theta_dot, phi_dot, psi_dot = q_dot
-    _c0 = cos(theta)
-    _c1 = _c0*phi_dot*phi_dot
-    _c2 = sin(theta)
-    _c3 = I_perp*_c2
-    _c4 = _c2*m
-    _c5 = I_par*_c2
-    _c6 = _c5*psi_dot
-    _c7 = _c4*l*l
-    _c8 = phi_dot*theta_dot
-    _c9 = 2*_c0
-    _c10 = _c8*_c9
-    _c11 = _c5*_c8
-    return [_c1*_c3 - _c1*_c5 + _c1*_c7 + _c4*g*l - _c6*phi_dot, -_c10*_c3 - _c10*_c7 + _c11*_c9 + _c6*theta_dot, _c11]
+    _sin0 = sin(theta)
+    _cos0 = cos(theta)
+    _k0 = l*l*m
+    _k1 = _k0 + I_perp
+    _kk0 = g*l*m
+    _pk3 = _sin0*I_par
+    _c0 = phi_dot*psi_dot
+    _c1 = phi_dot*phi_dot
+    _c2 = _sin0*_cos0
+    _c3 = _pk3*theta_dot
+    return [_kk0*_sin0 + _c1*_c2*(_k1 - I_par) - _c0*_pk3, _c3*psi_dot + _c2*phi_dot*(2*I_par - 2*I_perp - 2*_k0)*theta_dot, _c3*phi_dot]
 
 
 def energy(q, q_dot, p=PARAMETERS):
@@ -55,13 +57,18 @@ def energy(q, q_dot, p=PARAMETERS):
     I_par = p["I_par"]
     theta, _, _ = q
     theta_dot, phi_dot, psi_dot = q_dot
-    _c0 = (1/2)*I_par
-    _c1 = cos(theta)
-    _c2 = (1/2)*theta_dot*theta_dot
-    _c3 = l*l*m
-    _c4 = phi_dot*phi_dot
-    _c5 = (1/2)*_c4*sin(theta)*sin(theta)
-    return I_par*_c1*phi_dot*psi_dot + I_perp*_c2 + I_perp*_c5 + _c0*_c1*_c1*_c4 + _c0*psi_dot*psi_dot + _c1*g*l*m + _c2*_c3 + _c3*_c5
+    _sin0 = sin(theta)
+    _cos0 = cos(theta)
+    _k0 = l*l*m
+    _k1 = _k0 + I_perp
+    _kk0 = g*l*m
+    _pk0 = _k1*_sin0*_sin0
+    _pk1 = _cos0*_cos0*I_par
+    _pk2 = _cos0*I_par
+    _c0 = phi_dot*psi_dot
+    _c1 = phi_dot*phi_dot
+    _c4 = _c1/2
+    return _k1*theta_dot*theta_dot/2 + _kk0*_cos0 + _c4*_pk0 + _c0*_pk2 + I_par*psi_dot*psi_dot/2 + _c4*_pk1
 
 
 def rhs(t, y, p=PARAMETERS):
@@ -72,20 +79,21 @@ def rhs(t, y, p=PARAMETERS):
     I_perp = p["I_perp"]
     I_par = p["I_par"]
     theta, _, _, theta_dot, phi_dot, psi_dot = y.tolist() if hasattr(y, "tolist") else y
-    _c0 = l*l*m
-    _c1 = cos(theta)
-    _c2 = sin(theta)
-    _c3 = _c2*_c2
-    _c4 = I_par*_c1
-    _c5 = _c2*phi_dot*phi_dot
-    _c6 = I_perp*_c1
-    _c7 = _c2*phi_dot
-    _c8 = _c0*_c1
-    _c9 = I_par*_c2*theta_dot
-    _c10 = 2*_c7*theta_dot
-    _m0_0 = I_perp + _c0
-    _m1_1 = I_par*_c1*_c1 + I_perp*_c3 + _c0*_c3
-    _x = _solve([[_m0_0, 0, 0], [0, _m1_1, _c4], [0, _c4, I_par]], [-I_par*_c7*psi_dot + _c2*g*l*m - _c4*_c5 + _c5*_c6 + _c5*_c8, _c10*_c4 - _c10*_c6 - _c10*_c8 + _c9*psi_dot, _c9*phi_dot])
+    _sin0 = sin(theta)
+    _cos0 = cos(theta)
+    _k0 = l*l*m
+    _k1 = _k0 + I_perp
+    _kk0 = g*l*m
+    _pk0 = _k1*_sin0*_sin0
+    _pk1 = _cos0*_cos0*I_par
+    _pk2 = _cos0*I_par
+    _pk3 = _sin0*I_par
+    _c0 = phi_dot*psi_dot
+    _c1 = phi_dot*phi_dot
+    _c2 = _sin0*_cos0
+    _c3 = _pk3*theta_dot
+    _m1_1 = _pk1 + _pk0
+    _x = _solve([[_k1, 0, 0], [0, _m1_1, _pk2], [0, _pk2, I_par]], [_kk0*_sin0 + _c1*_c2*(_k1 - I_par) - _c0*_pk3, _c3*psi_dot + _c2*phi_dot*(2*I_par - 2*I_perp - 2*_k0)*theta_dot, _c3*phi_dot])
     return [theta_dot, phi_dot, psi_dot, *_x]
 
 

@@ -13,7 +13,8 @@ def mass_matrix(q, p=PARAMETERS):
     """The mass matrix M as a list of rows."""
     m = p["m"]
     l = p["l"]  # noqa: E741
-    return [[l*l*m]]
+    _kk0 = l*l*m
+    return [[_kk0]]
 
 
 def forcing(t, q, q_dot, p=PARAMETERS):
@@ -24,8 +25,13 @@ def forcing(t, q, q_dot, p=PARAMETERS):
     a = p["a"]
     omega = p["omega"]
     theta, = q
-    _c0 = l*m*sin(theta)
-    return [_c0*a*omega*omega*cos(omega*t) - _c0*g]
+    _sin0 = sin(theta)
+    _k0 = m*omega*omega
+    _k1 = g*m
+    _kk1 = l*_k1
+    _c0 = t*omega
+    _c1 = a*cos(_c0)
+    return [l*_k0*_c1*_sin0 - _kk1*_sin0]
 
 
 def energy(t, q, q_dot, p=PARAMETERS):
@@ -37,10 +43,14 @@ def energy(t, q, q_dot, p=PARAMETERS):
     omega = p["omega"]
     theta, = q
     theta_dot, = q_dot
-    _c0 = (1/2)*m
-    _c1 = omega*t
-    _c2 = g*m
-    return -_c0*a*a*omega*omega*sin(_c1)*sin(_c1) + _c0*l*l*theta_dot*theta_dot + _c2*a*cos(_c1) - _c2*l*cos(theta)
+    _cos0 = cos(theta)
+    _k0 = m*omega*omega
+    _k1 = g*m
+    _kk0 = l*l*m
+    _kk1 = l*_k1
+    _c0 = t*omega
+    _c1 = a*cos(_c0)
+    return _k1*_c1 + _kk0*theta_dot*theta_dot/2 - a*a*_k0*sin(_c0)**2/2 - _kk1*_cos0
 
 
 def rhs(t, y, p=PARAMETERS):
@@ -51,5 +61,11 @@ def rhs(t, y, p=PARAMETERS):
     a = p["a"]
     omega = p["omega"]
     theta, theta_dot = y.tolist() if hasattr(y, "tolist") else y
-    _c0 = l*m*sin(theta)
-    return [theta_dot, (_c0*a*omega*omega*cos(omega*t) - _c0*g)/(l*l*m)]
+    _sin0 = sin(theta)
+    _k0 = m*omega*omega
+    _k1 = g*m
+    _kk0 = l*l*m
+    _kk1 = l*_k1
+    _c0 = t*omega
+    _c1 = a*cos(_c0)
+    return [theta_dot, (l*_k0*_c1*_sin0 - _kk1*_sin0)/(_kk0)]

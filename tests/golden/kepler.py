@@ -11,7 +11,8 @@ def mass_matrix(q, p=PARAMETERS):
     """The mass matrix M as a list of rows."""
     m = p["m"]
     r, _ = q
-    return [[m, 0], [0, m*r*r]]
+    _pk0 = m*r*r
+    return [[m, 0], [0, _pk0]]
 
 
 def forcing(q, q_dot, p=PARAMETERS):
@@ -20,8 +21,9 @@ def forcing(q, q_dot, p=PARAMETERS):
     k = p["k"]
     r, _ = q
     r_dot, theta_dot = q_dot
-    _c0 = m*r
-    return [_c0*theta_dot*theta_dot - k/(r*r), -2*_c0*r_dot*theta_dot]
+    _pk1 = m*r
+    _c0 = theta_dot*theta_dot
+    return [_c0*_pk1 - k/(r*r), -2*_pk1*r_dot*theta_dot]
 
 
 def energy(q, q_dot, p=PARAMETERS):
@@ -30,8 +32,9 @@ def energy(q, q_dot, p=PARAMETERS):
     k = p["k"]
     r, _ = q
     r_dot, theta_dot = q_dot
-    _c0 = (1/2)*m
-    return _c0*r*r*theta_dot*theta_dot + _c0*r_dot*r_dot - k/r
+    _pk0 = m*r*r
+    _c0 = theta_dot*theta_dot
+    return m*r_dot*r_dot/2 + _c0*_pk0/2 - k/r
 
 
 def rhs(t, y, p=PARAMETERS):
@@ -39,12 +42,13 @@ def rhs(t, y, p=PARAMETERS):
     m = p["m"]
     k = p["k"]
     r, _, r_dot, theta_dot = y.tolist() if hasattr(y, "tolist") else y
-    _c0 = r*r
-    _c1 = m*r
+    _pk0 = m*r*r
+    _pk1 = m*r
+    _c0 = theta_dot*theta_dot
     _m00 = m
     _m01 = 0
-    _m11 = _c0*m
-    _f0 = _c1*theta_dot*theta_dot - k/_c0
-    _f1 = -2*_c1*r_dot*theta_dot
+    _m11 = _pk0
+    _f0 = _c0*_pk1 - k/(r*r)
+    _f1 = -2*_pk1*r_dot*theta_dot
     _det = _m00*_m11 - _m01*_m01
     return [r_dot, theta_dot, (_m11*_f0 - _m01*_f1)/_det, (_m00*_f1 - _m01*_f0)/_det]

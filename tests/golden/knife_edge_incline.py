@@ -21,7 +21,8 @@ def forcing(q, q_dot, p=PARAMETERS):
     m = p["m"]
     g = p["g"]
     alpha = p["alpha"]
-    return [g*m*sin(alpha), 0, 0]
+    _kk0 = g*m*sin(alpha)
+    return [_kk0, 0, 0]
 
 
 def energy(q, q_dot, p=PARAMETERS):
@@ -32,15 +33,18 @@ def energy(q, q_dot, p=PARAMETERS):
     alpha = p["alpha"]
     x, _, _ = q
     x_dot, y_dot, phi_dot = q_dot
-    _c0 = (1/2)*m
-    return (1/2)*I*phi_dot*phi_dot + _c0*x_dot*x_dot + _c0*y_dot*y_dot - g*m*x*sin(alpha)
+    _kk0 = g*m*sin(alpha)
+    _c0 = m/2
+    return _c0*x_dot*x_dot + _c0*y_dot*y_dot + I*phi_dot*phi_dot/2 - x*_kk0
 
 
 def constraint_residuals(q, q_dot, p=PARAMETERS):
     """Each constraint's residual: f(q, t) for holonomic ones, a . q_dot + b for velocity ones."""
     _, _, phi = q
     x_dot, y_dot, _ = q_dot
-    return [-x_dot*sin(phi) + y_dot*cos(phi)]
+    _sin0 = sin(phi)
+    _cos0 = cos(phi)
+    return [_cos0*y_dot - _sin0*x_dot]
 
 
 def accelerations(t, y, p=PARAMETERS):
@@ -50,9 +54,10 @@ def accelerations(t, y, p=PARAMETERS):
     g = p["g"]
     alpha = p["alpha"]
     _, _, phi, x_dot, y_dot, phi_dot = y.tolist() if hasattr(y, "tolist") else y
-    _c0 = sin(phi)
-    _c1 = cos(phi)
-    _x = _solve([[m, 0, 0, _c0], [0, m, 0, -_c1], [0, 0, I, 0], [-_c0, _c1, -0, 0.0]], [g*m*sin(alpha), 0, 0, _c0*phi_dot*y_dot + _c1*phi_dot*x_dot])
+    _sin0 = sin(phi)
+    _cos0 = cos(phi)
+    _kk0 = g*m*sin(alpha)
+    _x = _solve([[m, 0, 0, _sin0], [0, m, 0, -_cos0], [0, 0, I, 0], [-_sin0, _cos0, -0, 0.0]], [_kk0, 0, 0, -(-_cos0*x_dot*phi_dot - _sin0*y_dot*phi_dot)])
     return _x
 
 

@@ -13,7 +13,8 @@ def mass_matrix(q, p=PARAMETERS):
     """The mass matrix M as a list of rows."""
     m = p["m"]
     l = p["l"]  # noqa: E741
-    return [[l*l*m]]
+    _kk0 = l*l*m
+    return [[_kk0]]
 
 
 def forcing(t, q, q_dot, p=PARAMETERS):
@@ -24,8 +25,13 @@ def forcing(t, q, q_dot, p=PARAMETERS):
     A = p["A"]
     omega = p["omega"]
     theta, = q
-    _c0 = l*m
-    return [A*_c0*omega*omega*cos(theta)*cos(omega*t) - _c0*g*sin(theta)]
+    _sin0 = sin(theta)
+    _cos0 = cos(theta)
+    _k0 = omega*omega
+    _k1 = l*m
+    _kk1 = g*_k1
+    _c0 = t*omega
+    return [A*_k1*_k0*cos(_c0)*_cos0 - _kk1*_sin0]
 
 
 def energy(t, q, q_dot, p=PARAMETERS):
@@ -37,8 +43,13 @@ def energy(t, q, q_dot, p=PARAMETERS):
     omega = p["omega"]
     theta, = q
     theta_dot, = q_dot
-    _c0 = (1/2)*m
-    return -A*A*_c0*omega*omega*sin(omega*t)*sin(omega*t) + _c0*l*l*theta_dot*theta_dot - g*l*m*cos(theta)
+    _cos0 = cos(theta)
+    _k0 = omega*omega
+    _k1 = l*m
+    _kk0 = l*l*m
+    _kk1 = g*_k1
+    _c0 = t*omega
+    return _kk0*theta_dot*theta_dot/2 - A*A*m*_k0*sin(_c0)**2/2 - _kk1*_cos0
 
 
 def rhs(t, y, p=PARAMETERS):
@@ -49,5 +60,11 @@ def rhs(t, y, p=PARAMETERS):
     A = p["A"]
     omega = p["omega"]
     theta, theta_dot = y.tolist() if hasattr(y, "tolist") else y
-    _c0 = l*m
-    return [theta_dot, (A*_c0*omega*omega*cos(theta)*cos(omega*t) - _c0*g*sin(theta))/(l*l*m)]
+    _sin0 = sin(theta)
+    _cos0 = cos(theta)
+    _k0 = omega*omega
+    _k1 = l*m
+    _kk0 = l*l*m
+    _kk1 = g*_k1
+    _c0 = t*omega
+    return [theta_dot, (A*_k1*_k0*cos(_c0)*_cos0 - _kk1*_sin0)/(_kk0)]

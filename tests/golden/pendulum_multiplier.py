@@ -17,7 +17,8 @@ def forcing(q, q_dot, p=PARAMETERS):
     """The forcing F of M q_ddot = F + A^T lambda."""
     m = p["m"]
     g = p["g"]
-    return [0, -g*m]
+    _kk0 = g*m
+    return [0, -_kk0]
 
 
 def energy(q, q_dot, p=PARAMETERS):
@@ -26,15 +27,18 @@ def energy(q, q_dot, p=PARAMETERS):
     g = p["g"]
     _, y_ = q
     x_dot, y_dot = q_dot
-    _c0 = (1/2)*m
-    return _c0*x_dot*x_dot + _c0*y_dot*y_dot + g*m*y_
+    _kk0 = g*m
+    _c0 = y_dot*y_dot
+    _c1 = m/2
+    _c2 = x_dot*x_dot
+    return _c1*_c0 + _c1*_c2 + y_*_kk0
 
 
 def constraint_residuals(q, q_dot, p=PARAMETERS):
     """Each constraint's residual: f(q, t) for holonomic ones, a . q_dot + b for velocity ones."""
     l = p["l"]  # noqa: E741
     x, y_ = q
-    return [-l*l + x*x + y_*y_]
+    return [x*x + y_*y_ - l*l]
 
 
 def accelerations(t, y, p=PARAMETERS):
@@ -42,7 +46,10 @@ def accelerations(t, y, p=PARAMETERS):
     m = p["m"]
     g = p["g"]
     x, y_, x_dot, y_dot = y.tolist() if hasattr(y, "tolist") else y
-    _x = _solve([[m, 0, -2*x], [0, m, -2*y_], [2*x, 2*y_, 0.0]], [0, -g*m, -2*x_dot*x_dot - 2*y_dot*y_dot])
+    _kk0 = g*m
+    _c0 = y_dot*y_dot
+    _c2 = x_dot*x_dot
+    _x = _solve([[m, 0, -2*x], [0, m, -2*y_], [2*x, 2*y_, 0.0]], [0, -_kk0, -(2*_c2 + 2*_c0)])
     return _x
 
 

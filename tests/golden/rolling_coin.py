@@ -13,8 +13,9 @@ def mass_matrix(q, p=PARAMETERS):
     """The mass matrix M as a list of rows."""
     m = p["m"]
     R = p["R"]
-    _c0 = R*R*m
-    return [[m, 0, 0, 0], [0, m, 0, 0], [0, 0, (1/4)*_c0, 0], [0, 0, 0, (1/2)*_c0]]
+    _kk0 = R*R*m
+    _c0 = _kk0/4
+    return [[m, 0, 0, 0], [0, m, 0, 0], [0, 0, _c0, 0], [0, 0, 0, _kk0/2]]
 
 
 def forcing(q, q_dot, p=PARAMETERS):
@@ -28,9 +29,10 @@ def energy(q, q_dot, p=PARAMETERS):
     R = p["R"]
     g = p["g"]
     x_dot, y_dot, phi_dot, theta_dot = q_dot
-    _c0 = (1/2)*m
-    _c1 = R*R*m
-    return R*g*m + _c0*x_dot*x_dot + _c0*y_dot*y_dot + (1/8)*_c1*phi_dot*phi_dot + (1/4)*_c1*theta_dot*theta_dot
+    _kk0 = R*R*m
+    _c0 = _kk0/4
+    _c1 = m/2
+    return _c1*x_dot*x_dot + _c1*y_dot*y_dot + R*g*m + _kk0*phi_dot*phi_dot/8 + _c0*theta_dot*theta_dot
 
 
 def constraint_residuals(q, q_dot, p=PARAMETERS):
@@ -38,8 +40,13 @@ def constraint_residuals(q, q_dot, p=PARAMETERS):
     R = p["R"]
     _, _, phi, _ = q
     x_dot, y_dot, _, theta_dot = q_dot
-    _c0 = R*theta_dot
-    return [-_c0*cos(phi) + x_dot, -_c0*sin(phi) + y_dot]
+    _sin0 = sin(phi)
+    _cos0 = cos(phi)
+    _pk0 = R*_cos0
+    _pk1 = R*_sin0
+    _c2 = _pk1*theta_dot
+    _c3 = _pk0*theta_dot
+    return [x_dot - _c3, y_dot - _c2]
 
 
 def accelerations(t, y, p=PARAMETERS):
@@ -47,13 +54,16 @@ def accelerations(t, y, p=PARAMETERS):
     m = p["m"]
     R = p["R"]
     _, _, phi, _, x_dot, y_dot, phi_dot, theta_dot = y.tolist() if hasattr(y, "tolist") else y
-    _c0 = R*R*m
-    _c1 = R*cos(phi)
-    _c2 = R*sin(phi)
-    _c3 = phi_dot*theta_dot
-    _m2_2 = (1/4)*_c0
-    _m3_3 = (1/2)*_c0
-    _x = _solve([[m, 0, 0, 0, -1, 0], [0, m, 0, 0, 0, -1], [0, 0, _m2_2, 0, 0, 0], [0, 0, 0, _m3_3, _c1, _c2], [1, -0, -0, -_c1, 0.0, 0.0], [-0, 1, -0, -_c2, 0.0, 0.0]], [0, 0, 0, 0, -_c2*_c3, _c1*_c3])
+    _sin0 = sin(phi)
+    _cos0 = cos(phi)
+    _kk0 = R*R*m
+    _pk0 = R*_cos0
+    _pk1 = R*_sin0
+    _c0 = _kk0/4
+    _c2 = _pk1*theta_dot
+    _c3 = _pk0*theta_dot
+    _m3_3 = _kk0/2
+    _x = _solve([[m, 0, 0, 0, -1, 0], [0, m, 0, 0, 0, -1], [0, 0, _c0, 0, 0, 0], [0, 0, 0, _m3_3, _pk0, _pk1], [1, -0, -0, -_pk0, 0.0, 0.0], [-0, 1, -0, -_pk1, 0.0, 0.0]], [0, 0, 0, 0, -_c2*phi_dot, _c3*phi_dot])
     return _x
 
 

@@ -16,7 +16,10 @@ def mass_matrix(q, p=PARAMETERS):
     l = p["l"]  # noqa: E741
     alpha = p["alpha"]
     _, theta = q
-    return [[(3/2)*M + m, l*m*cos(alpha + theta)], [l*m*cos(alpha + theta), l*l*m]]
+    _k0 = l*m
+    _kk0 = l*l*m
+    _pk0 = cos(theta + alpha)*_k0
+    return [[m + 3*M/2, _pk0], [_pk0, _kk0]]
 
 
 def forcing(q, q_dot, p=PARAMETERS):
@@ -28,8 +31,12 @@ def forcing(q, q_dot, p=PARAMETERS):
     alpha = p["alpha"]
     _, theta = q
     _, theta_dot = q_dot
-    _c0 = l*m
-    return [_c0*theta_dot*theta_dot*sin(alpha + theta) + g*(M + m)*sin(alpha), -_c0*g*sin(theta)]
+    _sin0 = sin(theta)
+    _k0 = l*m
+    _kk1 = (M + m)*g*sin(alpha)
+    _kk2 = g*_k0
+    _c0 = theta_dot*theta_dot
+    return [sin(alpha + theta)*_k0*_c0 + _kk1, -_kk2*_sin0]
 
 
 def energy(q, q_dot, p=PARAMETERS):
@@ -41,11 +48,14 @@ def energy(q, q_dot, p=PARAMETERS):
     alpha = p["alpha"]
     s, theta = q
     s_dot, theta_dot = q_dot
-    _c0 = s_dot*s_dot
-    _c1 = (1/2)*m
-    _c2 = s*sin(alpha)
-    _c3 = g*m
-    return (3/4)*M*_c0 - M*_c2*g + _c0*_c1 + _c1*l*l*theta_dot*theta_dot - _c2*_c3 - _c3*l*cos(theta) + l*m*s_dot*theta_dot*cos(alpha + theta)
+    _cos0 = cos(theta)
+    _k0 = l*m
+    _kk0 = l*l*m
+    _kk1 = (M + m)*g*sin(alpha)
+    _kk2 = g*_k0
+    _pk0 = cos(theta + alpha)*_k0
+    _c0 = theta_dot*theta_dot
+    return _pk0*s_dot*theta_dot + (3*M/4 + m/2)*s_dot*s_dot + _c0*_kk0/2 - s*_kk1 - _kk2*_cos0
 
 
 def rhs(t, y, p=PARAMETERS):
@@ -56,12 +66,17 @@ def rhs(t, y, p=PARAMETERS):
     g = p["g"]
     alpha = p["alpha"]
     _, theta, s_dot, theta_dot = y.tolist() if hasattr(y, "tolist") else y
-    _c0 = alpha + theta
-    _c1 = l*m
-    _m00 = (3/2)*M + m
-    _m01 = _c1*cos(_c0)
-    _m11 = l*l*m
-    _f0 = _c1*theta_dot*theta_dot*sin(_c0) + g*(M + m)*sin(alpha)
-    _f1 = -_c1*g*sin(theta)
+    _sin0 = sin(theta)
+    _k0 = l*m
+    _kk0 = l*l*m
+    _kk1 = (M + m)*g*sin(alpha)
+    _kk2 = g*_k0
+    _pk0 = cos(theta + alpha)*_k0
+    _c0 = theta_dot*theta_dot
+    _m00 = m + 3*M/2
+    _m01 = _pk0
+    _m11 = _kk0
+    _f0 = sin(alpha + theta)*_k0*_c0 + _kk1
+    _f1 = -_kk2*_sin0
     _det = _m00*_m11 - _m01*_m01
     return [s_dot, theta_dot, (_m11*_f0 - _m01*_f1)/_det, (_m00*_f1 - _m01*_f0)/_det]

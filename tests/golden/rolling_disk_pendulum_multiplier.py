@@ -17,7 +17,12 @@ def mass_matrix(q, p=PARAMETERS):
     l = p["l"]  # noqa: E741
     alpha = p["alpha"]
     _, _, theta = q
-    return [[M + m, 0, l*m*cos(alpha + theta)], [0, (1/2)*M*R*R, 0], [l*m*cos(alpha + theta), 0, l*l*m]]
+    _k0 = M + m
+    _k1 = l*m
+    _kk0 = M*R*R
+    _kk1 = l*l*m
+    _pk0 = cos(theta + alpha)*_k1
+    return [[_k0, 0, _pk0], [0, _kk0/2, 0], [_pk0, 0, _kk1]]
 
 
 def forcing(q, q_dot, p=PARAMETERS):
@@ -29,8 +34,13 @@ def forcing(q, q_dot, p=PARAMETERS):
     alpha = p["alpha"]
     _, _, theta = q
     _, _, theta_dot = q_dot
-    _c0 = l*m
-    return [_c0*theta_dot*theta_dot*sin(alpha + theta) + g*(M + m)*sin(alpha), 0, -_c0*g*sin(theta)]
+    _sin0 = sin(theta)
+    _k0 = M + m
+    _k1 = l*m
+    _kk2 = g*_k0*sin(alpha)
+    _kk3 = g*_k1
+    _c0 = theta_dot*theta_dot
+    return [sin(alpha + theta)*_k1*_c0 + _kk2, 0, -_kk3*_sin0]
 
 
 def energy(q, q_dot, p=PARAMETERS):
@@ -43,17 +53,23 @@ def energy(q, q_dot, p=PARAMETERS):
     alpha = p["alpha"]
     s, _, theta = q
     s_dot, phi_dot, theta_dot = q_dot
-    _c0 = (1/2)*s_dot*s_dot
-    _c1 = l*m
-    _c2 = g*s*sin(alpha)
-    return (1/4)*M*R*R*phi_dot*phi_dot + M*_c0 - M*_c2 + _c0*m - _c1*g*cos(theta) + _c1*s_dot*theta_dot*cos(alpha + theta) - _c2*m + (1/2)*l*l*m*theta_dot*theta_dot
+    _cos0 = cos(theta)
+    _k0 = M + m
+    _k1 = l*m
+    _kk0 = M*R*R
+    _kk1 = l*l*m
+    _kk2 = g*_k0*sin(alpha)
+    _kk3 = g*_k1
+    _pk0 = cos(theta + alpha)*_k1
+    _c0 = theta_dot*theta_dot
+    return _pk0*s_dot*theta_dot + _c0*_kk1/2 + _kk0*phi_dot*phi_dot/4 + _k0*s_dot*s_dot/2 - s*_kk2 - _kk3*_cos0
 
 
 def constraint_residuals(q, q_dot, p=PARAMETERS):
     """Each constraint's residual: f(q, t) for holonomic ones, a . q_dot + b for velocity ones."""
     R = p["R"]
     s, phi, _ = q
-    return [-R*phi + s]
+    return [s - R*phi]
 
 
 def accelerations(t, y, p=PARAMETERS):
@@ -65,13 +81,17 @@ def accelerations(t, y, p=PARAMETERS):
     g = p["g"]
     alpha = p["alpha"]
     _, _, theta, s_dot, phi_dot, theta_dot = y.tolist() if hasattr(y, "tolist") else y
-    _c0 = M + m
-    _c1 = alpha + theta
-    _c2 = l*m
-    _m0_2 = _c2*cos(_c1)
-    _m1_1 = (1/2)*M*R*R
-    _m2_2 = l*l*m
-    _x = _solve([[_c0, 0, _m0_2, -1], [0, _m1_1, 0, R], [_m0_2, 0, _m2_2, 0], [1, -R, -0, 0.0]], [_c0*g*sin(alpha) + _c2*theta_dot*theta_dot*sin(_c1), 0, -_c2*g*sin(theta), 0])
+    _sin0 = sin(theta)
+    _k0 = M + m
+    _k1 = l*m
+    _kk0 = M*R*R
+    _kk1 = l*l*m
+    _kk2 = g*_k0*sin(alpha)
+    _kk3 = g*_k1
+    _pk0 = cos(theta + alpha)*_k1
+    _c0 = theta_dot*theta_dot
+    _m1_1 = _kk0/2
+    _x = _solve([[_k0, 0, _pk0, -1], [0, _m1_1, 0, R], [_pk0, 0, _kk1, 0], [1, -R, -0, 0.0]], [sin(alpha + theta)*_k1*_c0 + _kk2, 0, -_kk3*_sin0, 0])
     return _x
 
 

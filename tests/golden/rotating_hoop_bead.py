@@ -13,7 +13,8 @@ def mass_matrix(q, p=PARAMETERS):
     """The mass matrix M as a list of rows."""
     m = p["m"]
     a = p["a"]
-    return [[a*a*m]]
+    _k0 = a*a*m
+    return [[_k0]]
 
 
 def forcing(t, q, q_dot, p=PARAMETERS):
@@ -23,7 +24,13 @@ def forcing(t, q, q_dot, p=PARAMETERS):
     g = p["g"]
     omega = p["omega"]
     theta, = q
-    return [-a*a*m*omega*omega*sin(theta) - a*g*m*cos(omega*t + theta)]
+    _k0 = a*a*m
+    _kk0 = _k0*omega*omega
+    _kk1 = a*g*m
+    _c0 = t*omega
+    _c1 = _c0 + theta
+    _c2 = _c0 - _c1
+    return [sin(_c2)*_kk0 - cos(_c1)*_kk1]
 
 
 def energy(t, q, q_dot, p=PARAMETERS):
@@ -34,11 +41,13 @@ def energy(t, q, q_dot, p=PARAMETERS):
     omega = p["omega"]
     theta, = q
     theta_dot, = q_dot
-    _c0 = a*a*m
-    _c1 = _c0*omega*omega
-    _c2 = omega*t
-    _c3 = a*g*m
-    return (1/2)*_c0*theta_dot*theta_dot - _c1*cos(theta) - _c1 + _c3*sin(_c2) + _c3*sin(_c2 + theta)
+    _k0 = a*a*m
+    _kk0 = _k0*omega*omega
+    _kk1 = a*g*m
+    _c0 = t*omega
+    _c1 = _c0 + theta
+    _c2 = _c0 - _c1
+    return sin(_c1)*_kk1 + sin(_c0)*_kk1 + _k0*theta_dot*theta_dot/2 - cos(_c2)*_kk0 - _kk0
 
 
 def rhs(t, y, p=PARAMETERS):
@@ -48,5 +57,10 @@ def rhs(t, y, p=PARAMETERS):
     g = p["g"]
     omega = p["omega"]
     theta, theta_dot = y.tolist() if hasattr(y, "tolist") else y
-    _c0 = a*a*m
-    return [theta_dot, (-_c0*omega*omega*sin(theta) - a*g*m*cos(omega*t + theta))/(_c0)]
+    _k0 = a*a*m
+    _kk0 = _k0*omega*omega
+    _kk1 = a*g*m
+    _c0 = t*omega
+    _c1 = _c0 + theta
+    _c2 = _c0 - _c1
+    return [theta_dot, (sin(_c2)*_kk0 - cos(_c1)*_kk1)/(_k0)]

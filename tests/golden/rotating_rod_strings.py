@@ -13,7 +13,8 @@ def mass_matrix(q, p=PARAMETERS):
     """The mass matrix M as a list of rows."""
     m = p["m"]
     l = p["l"]  # noqa: E741
-    return [[l*l*m]]
+    _k0 = l*l*m
+    return [[_k0]]
 
 
 def forcing(q, q_dot, p=PARAMETERS):
@@ -23,8 +24,12 @@ def forcing(q, q_dot, p=PARAMETERS):
     g = p["g"]
     omega = p["omega"]
     theta, = q
-    _c0 = m*sin(theta)
-    return [-_c0*g*l + _c0*l*l*omega*omega*cos(theta)]
+    _sin0 = sin(theta)
+    _cos0 = cos(theta)
+    _k0 = l*l*m
+    _kk0 = _k0*omega*omega
+    _kk1 = g*l*m
+    return [_kk0*_sin0*_cos0 - _kk1*_sin0]
 
 
 def energy(q, q_dot, p=PARAMETERS):
@@ -35,8 +40,12 @@ def energy(q, q_dot, p=PARAMETERS):
     omega = p["omega"]
     theta, = q
     theta_dot, = q_dot
-    _c0 = (1/2)*l*l*m
-    return -_c0*omega*omega*sin(theta)*sin(theta) + _c0*theta_dot*theta_dot - g*l*m*cos(theta)
+    _sin0 = sin(theta)
+    _cos0 = cos(theta)
+    _k0 = l*l*m
+    _kk0 = _k0*omega*omega
+    _kk1 = g*l*m
+    return _k0*theta_dot*theta_dot/2 - _kk0*_sin0*_sin0/2 - _kk1*_cos0
 
 
 def rhs(t, y, p=PARAMETERS):
@@ -46,6 +55,9 @@ def rhs(t, y, p=PARAMETERS):
     g = p["g"]
     omega = p["omega"]
     theta, theta_dot = y.tolist() if hasattr(y, "tolist") else y
-    _c0 = l*l*m
-    _c1 = sin(theta)
-    return [theta_dot, (_c0*_c1*omega*omega*cos(theta) - _c1*g*l*m)/(_c0)]
+    _sin0 = sin(theta)
+    _cos0 = cos(theta)
+    _k0 = l*l*m
+    _kk0 = _k0*omega*omega
+    _kk1 = g*l*m
+    return [theta_dot, (_kk0*_sin0*_cos0 - _kk1*_sin0)/(_k0)]

@@ -13,7 +13,8 @@ def mass_matrix(q, p=PARAMETERS):
     """The mass matrix M as a list of rows."""
     m = p["m"]
     l = p["l"]  # noqa: E741
-    return [[l*l*m]]
+    _kk0 = l*l*m
+    return [[_kk0]]
 
 
 def forcing(q, q_dot, p=PARAMETERS):
@@ -22,7 +23,9 @@ def forcing(q, q_dot, p=PARAMETERS):
     l = p["l"]  # noqa: E741
     g = p["g"]
     theta, = q
-    return [-g*l*m*sin(theta)]
+    _sin0 = sin(theta)
+    _kk1 = g*l*m
+    return [-_kk1*_sin0]
 
 
 def energy(q, q_dot, p=PARAMETERS):
@@ -32,7 +35,10 @@ def energy(q, q_dot, p=PARAMETERS):
     g = p["g"]
     theta, = q
     theta_dot, = q_dot
-    return -g*l*m*cos(theta) + (1/2)*l*l*m*theta_dot*theta_dot
+    _cos0 = cos(theta)
+    _kk0 = l*l*m
+    _kk1 = g*l*m
+    return _kk0*theta_dot*theta_dot/2 - _kk1*_cos0
 
 
 def rhs(t, y, p=PARAMETERS):
@@ -41,4 +47,7 @@ def rhs(t, y, p=PARAMETERS):
     l = p["l"]  # noqa: E741
     g = p["g"]
     theta, theta_dot = y.tolist() if hasattr(y, "tolist") else y
-    return [theta_dot, (-g*l*m*sin(theta))/(l*l*m)]
+    _sin0 = sin(theta)
+    _kk0 = l*l*m
+    _kk1 = g*l*m
+    return [theta_dot, (-_kk1*_sin0)/(_kk0)]

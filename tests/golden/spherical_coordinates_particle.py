@@ -13,8 +13,10 @@ def mass_matrix(q, p=PARAMETERS):
     """The mass matrix M as a list of rows."""
     m = p["m"]
     r, theta, _ = q
-    _c0 = m*r*r
-    return [[m, 0, 0], [0, _c0, 0], [0, 0, _c0*sin(theta)*sin(theta)]]
+    _sin0 = sin(theta)
+    _pk0 = m*r*r
+    _pk1 = m*r*r*_sin0*_sin0
+    return [[m, 0, 0], [0, _pk0, 0], [0, 0, _pk1]]
 
 
 def forcing(q, q_dot, p=PARAMETERS):
@@ -25,13 +27,15 @@ def forcing(q, q_dot, p=PARAMETERS):
     F_phi = p["F_phi"]
     r, theta, _ = q
     r_dot, theta_dot, phi_dot = q_dot
-    _c0 = m*r
-    _c1 = phi_dot*phi_dot
-    _c2 = sin(theta)
-    _c3 = _c0*_c2*_c2
-    _c4 = 2*r_dot
-    _c5 = _c2*m*r*r*cos(theta)
-    return [F_r + _c0*theta_dot*theta_dot + _c1*_c3, F_theta*r - _c0*_c4*theta_dot + _c1*_c5, F_phi*_c2*r - _c3*_c4*phi_dot - 2*_c5*phi_dot*theta_dot]
+    _sin0 = sin(theta)
+    _cos0 = cos(theta)
+    _pk2 = m*r*_sin0*_sin0
+    _pk3 = m*r
+    _pk4 = m*r*r*_sin0*_cos0
+    _c0 = phi_dot*phi_dot
+    _c1 = theta_dot*theta_dot
+    _c2 = 2*theta_dot
+    return [_c0*_pk2 + _c1*_pk3 + F_r, _c0*_pk4 + r*F_theta - _c2*_pk3*r_dot, r*F_phi*_sin0 - 2*_pk2*r_dot*phi_dot - _c2*_pk4*phi_dot]
 
 
 def energy(q, q_dot, p=PARAMETERS):
@@ -39,9 +43,12 @@ def energy(q, q_dot, p=PARAMETERS):
     m = p["m"]
     r, theta, _ = q
     r_dot, theta_dot, phi_dot = q_dot
-    _c0 = (1/2)*m
-    _c1 = _c0*r*r
-    return _c0*r_dot*r_dot + _c1*phi_dot*phi_dot*sin(theta)*sin(theta) + _c1*theta_dot*theta_dot
+    _sin0 = sin(theta)
+    _pk0 = m*r*r
+    _pk1 = m*r*r*_sin0*_sin0
+    _c0 = phi_dot*phi_dot
+    _c1 = theta_dot*theta_dot
+    return m*r_dot*r_dot/2 + _c1*_pk0/2 + _c0*_pk1/2
 
 
 def rhs(t, y, p=PARAMETERS):
@@ -51,16 +58,17 @@ def rhs(t, y, p=PARAMETERS):
     F_theta = p["F_theta"]
     F_phi = p["F_phi"]
     r, theta, _, r_dot, theta_dot, phi_dot = y.tolist() if hasattr(y, "tolist") else y
-    _c0 = m*r*r
-    _c1 = sin(theta)
-    _c2 = _c1*_c1
-    _c3 = m*r
-    _c4 = phi_dot*phi_dot
-    _c5 = _c2*_c3
-    _c6 = 2*r_dot
-    _c7 = _c0*_c1*cos(theta)
-    _m2_2 = _c0*_c2
-    _x = _solve([[m, 0, 0], [0, _c0, 0], [0, 0, _m2_2]], [F_r + _c3*theta_dot*theta_dot + _c4*_c5, F_theta*r - _c3*_c6*theta_dot + _c4*_c7, F_phi*_c1*r - _c5*_c6*phi_dot - 2*_c7*phi_dot*theta_dot])
+    _sin0 = sin(theta)
+    _cos0 = cos(theta)
+    _pk0 = m*r*r
+    _pk1 = m*r*r*_sin0*_sin0
+    _pk2 = m*r*_sin0*_sin0
+    _pk3 = m*r
+    _pk4 = m*r*r*_sin0*_cos0
+    _c0 = phi_dot*phi_dot
+    _c1 = theta_dot*theta_dot
+    _c2 = 2*theta_dot
+    _x = _solve([[m, 0, 0], [0, _pk0, 0], [0, 0, _pk1]], [_c0*_pk2 + _c1*_pk3 + F_r, _c0*_pk4 + r*F_theta - _c2*_pk3*r_dot, r*F_phi*_sin0 - 2*_pk2*r_dot*phi_dot - _c2*_pk4*phi_dot])
     return [r_dot, theta_dot, phi_dot, *_x]
 
 

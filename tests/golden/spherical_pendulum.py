@@ -14,8 +14,10 @@ def mass_matrix(q, p=PARAMETERS):
     m = p["m"]
     l = p["l"]  # noqa: E741
     theta, _ = q
-    _c0 = l*l*m
-    return [[_c0, 0], [0, _c0*sin(theta)*sin(theta)]]
+    _sin0 = sin(theta)
+    _kk0 = l*l*m
+    _pk0 = _kk0*_sin0*_sin0
+    return [[_kk0, 0], [0, _pk0]]
 
 
 def forcing(q, q_dot, p=PARAMETERS):
@@ -25,9 +27,13 @@ def forcing(q, q_dot, p=PARAMETERS):
     g = p["g"]
     theta, _ = q
     theta_dot, phi_dot = q_dot
-    _c0 = m*sin(theta)
-    _c1 = _c0*l*l*cos(theta)
-    return [-_c0*g*l + _c1*phi_dot*phi_dot, -2*_c1*phi_dot*theta_dot]
+    _sin0 = sin(theta)
+    _cos0 = cos(theta)
+    _kk0 = l*l*m
+    _kk1 = g*l*m
+    _pk1 = _kk0*_sin0*_cos0
+    _c0 = phi_dot*phi_dot
+    return [_c0*_pk1 - _kk1*_sin0, -2*_pk1*phi_dot*theta_dot]
 
 
 def energy(q, q_dot, p=PARAMETERS):
@@ -37,8 +43,13 @@ def energy(q, q_dot, p=PARAMETERS):
     g = p["g"]
     theta, _ = q
     theta_dot, phi_dot = q_dot
-    _c0 = (1/2)*l*l*m
-    return _c0*phi_dot*phi_dot*sin(theta)*sin(theta) + _c0*theta_dot*theta_dot - g*l*m*cos(theta)
+    _sin0 = sin(theta)
+    _cos0 = cos(theta)
+    _kk0 = l*l*m
+    _kk1 = g*l*m
+    _pk0 = _kk0*_sin0*_sin0
+    _c0 = phi_dot*phi_dot
+    return _kk0*theta_dot*theta_dot/2 + _c0*_pk0/2 - _kk1*_cos0
 
 
 def rhs(t, y, p=PARAMETERS):
@@ -47,13 +58,17 @@ def rhs(t, y, p=PARAMETERS):
     l = p["l"]  # noqa: E741
     g = p["g"]
     theta, _, theta_dot, phi_dot = y.tolist() if hasattr(y, "tolist") else y
-    _c0 = l*l*m
-    _c1 = sin(theta)
-    _c2 = _c0*_c1*cos(theta)
-    _m00 = _c0
+    _sin0 = sin(theta)
+    _cos0 = cos(theta)
+    _kk0 = l*l*m
+    _kk1 = g*l*m
+    _pk0 = _kk0*_sin0*_sin0
+    _pk1 = _kk0*_sin0*_cos0
+    _c0 = phi_dot*phi_dot
+    _m00 = _kk0
     _m01 = 0
-    _m11 = _c0*_c1*_c1
-    _f0 = -_c1*g*l*m + _c2*phi_dot*phi_dot
-    _f1 = -2*_c2*phi_dot*theta_dot
+    _m11 = _pk0
+    _f0 = _c0*_pk1 - _kk1*_sin0
+    _f1 = -2*_pk1*phi_dot*theta_dot
     _det = _m00*_m11 - _m01*_m01
     return [theta_dot, phi_dot, (_m11*_f0 - _m01*_f1)/_det, (_m00*_f1 - _m01*_f0)/_det]
