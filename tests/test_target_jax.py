@@ -9,6 +9,7 @@ import ast
 import dataclasses
 import inspect
 import random
+import sys
 from collections.abc import Callable
 from pathlib import Path
 from types import ModuleType
@@ -213,3 +214,17 @@ def test_hostile_names_from_files_agree_with_the_python_module(path: Path, tmp_p
 def test_the_signature_is_the_target_contract() -> None:
     signature = inspect.signature(jax_target.emit)
     assert list(signature.parameters) == ["model", "name"] and signature.parameters["name"].kind is inspect.Parameter.KEYWORD_ONLY
+
+
+def test_the_readme_example_runs(tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]) -> None:
+    """The README's JAX example, with the module it names written by this target."""
+    readme = (ROOT / "README.md").read_text()
+    example = readme.split("### JAX", 1)[1].split("```python\n", 1)[1].split("```", 1)[0]
+    (tmp_path / "eom.py").write_text(jax_target.emit(model_from(ROOT / "systems" / "double_pendulum.yaml")))
+    monkeypatch.syspath_prepend(str(tmp_path))
+    monkeypatch.delitem(sys.modules, "eom", raising=False)
+    namespace: dict[str, Any] = {}
+    exec(compile(example, "README.md", "exec"), namespace)  # the project's own README
+    assert namespace["rates"].shape == (10_000, 4)
+    assert np.isfinite(float(capsys.readouterr().out))
+    sys.modules.pop("eom", None)

@@ -198,3 +198,9 @@ def test_hostile_files_give_valid_documents(path: Path) -> None:
     point = {s: rng.uniform(0.5, 1.5) for s in reader.symbols.values()} | {reader.time: 0.3}
     for expression, original in zip(data["forcing"], model.forcing, strict=True):
         assert float(reader.read(expression).xreplace(point)) == pytest.approx(float(original.xreplace(point)), rel=1e-12)
+
+
+def test_every_key_of_the_schema_is_documented() -> None:
+    documentation = (ROOT / "docs" / "json.md").read_text()
+    for key in SCHEMA["required"]:
+        assert f"`{key}`" in documentation, key
