@@ -16,7 +16,7 @@ import sympy as sp
 
 from lagrange_cli.emit import jsonmodel, latex
 from lagrange_cli.errors import DerivationError, Span
-from lagrange_cli.expr import Scope, parse_expression
+from lagrange_cli.expr import SUPPORTED_FUNCTIONS, Scope, parse_expression
 from lagrange_cli.model import Model
 
 from .conftest import ROOT, SYSTEMS
@@ -113,6 +113,10 @@ def test_numbers_are_exact_and_derivatives_read_back() -> None:
         text = jsonmodel.text(expr)
         assert parse_expression(text, Span("x", 1, 1), scope) == expr, text
     assert "Derivative(Derivative(U(x), x)" not in jsonmodel.text(sp.diff(U(x), x, 2))
+
+
+def test_the_functions_are_the_parsers() -> None:
+    assert jsonmodel.FUNCTIONS == SUPPORTED_FUNCTIONS
 
 
 def test_what_the_file_syntax_cannot_say_is_refused() -> None:

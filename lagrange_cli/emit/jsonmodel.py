@@ -30,9 +30,10 @@ from sympy.printing.str import StrPrinter
 from lagrange_cli import __version__
 from lagrange_cli.emit import latex
 from lagrange_cli.errors import DerivationError
-from lagrange_cli.expr import SUPPORTED_FUNCTIONS
 from lagrange_cli.model import Model
 
+FUNCTIONS = frozenset({sp.sin, sp.cos, sp.tan, sp.cot, sp.sec, sp.csc, sp.asin, sp.acos, sp.atan, sp.atan2, sp.sinh, sp.cosh, sp.tanh, sp.exp, sp.log, sp.Abs, sp.sign})
+"""The functions of the system-file syntax (the parser's, `expr.SUPPORTED_FUNCTIONS`; emitters do not import the frontend)."""
 FORMAT = "lagrange-model"
 SCHEMA_VERSION = 1
 """Raised when a key changes meaning or disappears; adding keys keeps the version."""
@@ -166,7 +167,7 @@ def _check_supported(expr: sp.Expr) -> None:
                 raise DerivationError(f"cannot write the derivative {item} in the system-file syntax")
             stack.append(item.expr)
             continue
-        if isinstance(item, (sp.Add, sp.Mul, sp.Pow, AppliedUndef)) or type(item) in SUPPORTED_FUNCTIONS:
+        if isinstance(item, (sp.Add, sp.Mul, sp.Pow, AppliedUndef)) or type(item) in FUNCTIONS:
             stack.extend(item.args)
             continue
         raise DerivationError(f"cannot write '{type(item).__name__}' in the system-file syntax")
