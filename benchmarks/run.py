@@ -70,8 +70,9 @@ class Runner:
     """Runs whole processes with the tree under test on PYTHONPATH, a fresh cache directory
     each, a hard timeout, and wall + CPU time."""
 
-    def __init__(self, tree: Path, tmp: Path, timeout: float) -> None:
+    def __init__(self, tree: Path, tmp: Path, timeout: float, clock: str = "wall") -> None:
         self.tree = tree
+        self.clock = "cpu" if clock == "cpu" else "seconds"  # the key the targets and ratios use
         self.tmp = tmp
         self.timeout = timeout
         self.loads: list[float] = []
@@ -118,7 +119,7 @@ class Runner:
             value = self.run(command, **extra)
             if "error" in value:
                 return value
-            if found is None or value["seconds"] < found["seconds"]:
+            if found is None or value[self.clock] < found[self.clock]:
                 found = value
             found["runs"] = run
             if value["seconds"] > SLOW:
@@ -257,6 +258,7 @@ class Bench:
         return value
 
     def chain_row(self, kind: str) -> None:
+        clock = self.runner.clock
         rows: list[list[object]] = []
         ours: dict[int, dict[str, Any]] = {}
         theirs: dict[int, dict[str, Any]] = {}
@@ -269,7 +271,7 @@ class Bench:
                 phases = peer.get("phases", {})
                 split = " / ".join(seconds(phases.get(k)) for k in ("import", "derive", "lambdify")) if phases else "-"
                 fair = "error" not in value and "error" not in peer and value["check"].get("ok") and peer["check"].get("ok")
-                row += [timed(peer), split, verdict(peer.get("check")), ratio(peer["seconds"] / value["seconds"]) if fair else "-"]
+                row += [timed(peer), split, verdict(peer.get("check")), ratio(peer[clock] / value[clock]) if fair else "-"]
             else:
                 row += ["not run" + (" (--quick)" if self.quick and n <= PEER_MAX[kind] else ""), "-", "-", "-"]
             rows.append(row)
@@ -284,7 +286,7 @@ class Bench:
             "`module vs reference`: the largest relative deviation of M, F and the rhs (list and numpy y; accelerations as the backward error |M a - F| / (|M| |a| + |F|)) "
             "from the hand-written M and F at 3 random states, one with perturbed parameters, in its own process; `ok` below 1e-9."
         ]
-        measured = {n: v["seconds"] for n, v in ours.items() if "error" not in v}
+        measured = {n: v[clock] for n, v in ours.items() if "error" not in v}
         timeouts = {n for n, v in ours.items() if v.get("timeout")}
         fit_points = [(n, measured[n]) for n in FIT_SIZES if n in measured]
         fit = power_fit(fit_points)
@@ -294,10 +296,10 @@ class Bench:
         if 30 in measured and 60 in measured:
             local = (math.log(measured[60] / measured[30]) / math.log(2), False)
         elif 30 in measured and 60 in timeouts:
-            local = (math.log(self.runner.timeout / measured[30]) / math.log(2), True)
+            local = (math.log(self.runner.timeout / ours[30]["seconds"]) / math.log(2), True)  # wall: the timeout is wall
         if local:
             notes.append(f"Local exponent from N = 30 to 60: log2(t60 / t30) = {'over ' if local[1] else ''}{local[0]:.2f}.")
-        peer_points = [(n, v["seconds"]) for n, v in theirs.items() if "error" not in v and n >= 5]
+        peer_points = [(n, v[clock]) for n, v in theirs.items() if "error" not in v and n >= 5]
         peer_fit = power_fit(peer_points)
         if peer_fit and len(peer_points) >= 2:
             c, k = peer_fit
@@ -327,11 +329,11 @@ class Bench:
             self.target("general chain N = 15, file to Python module, peer / lagrange", ">= 60x", why, False if "error" in value else None)
         else:
             fair = value["check"].get("ok") and peer["check"].get("ok")
-            r = peer["seconds"] / value["seconds"]
+            r = peer[clock] / value[clock]
             self.target(
                 "general chain N = 15, file to Python module, peer / lagrange",
                 ">= 60x",
-                f"{ratio(r)} ({seconds(peer['seconds'])} / {seconds(value['seconds'])})" if fair else "modules disagree with the reference",
+                f"{ratio(r)} ({seconds(peer[clock])} / {seconds(value[clock])})" if fair else "modules disagree with the reference",
                 bool(fair and r >= 60),
             )
         for n, limit in ((30, 3.0), (60, 20.0)):
@@ -343,7 +345,7 @@ class Bench:
                 self.target(what, f"< {limit:g} s", error_text(value), False)
             else:
                 ok = bool(value["check"].get("ok"))
-                self.target(what, f"< {limit:g} s", timed(value) + ("" if ok else ", module disagrees with the reference"), ok and value["seconds"] < limit)
+                self.target(what, f"< {limit:g} s", timed(value) + ("" if ok else ", module disagrees with the reference"), ok and value[clock] < limit)
         fitted = f"; fitted over N = {', '.join(str(n) for n, _ in fit_points)}: N^{fit[1]:.2f}" if fit else ""
         if local:
             shown = ("over " if local[1] else "") + f"N^{local[0]:.2f}{fitted}"
@@ -378,7 +380,7 @@ class Bench:
                 rows.append([n, f"`{flag}`", timed(value), size])
                 if n == PRINT_TARGET:
                     what = f"general chain N = 30, `lagrange derive {flag}` (whole process)"
-                    self.target(what, "< 3 s", timed(value), "error" not in value and value["seconds"] < 3)
+                    self.target(what, "< 3 s", timed(value), "error" not in value and value[self.runner.clock] < 3)
         if PRINT_TARGET not in sizes:
             self.target("general chain N = 30, `--text` and `--latex`", "< 3 s", "not measured (N = 30 not in --sizes)", None)
         text = table(["N", "output", "wall (CPU)", "size"], rows)
@@ -458,12 +460,12 @@ class Bench:
             self.target(what, "< 20 s", error_text(first), False)
             return
         ok = bool(first["check"]["ok"])
-        compile_time = first["first call"]
+        compile_time = first["first call cpu" if self.runner.clock == "cpu" else "first call"]
         rows = [
             ["`lagrange derive CHAIN.yaml --python --numba -o out.py` (whole process)", timed(derive)],
             ["fresh process, empty numba cache: `import numba`", seconds(first["import numba"])],
             ["... import the module", seconds(first["import module"])],
-            ["... **first call of rhs (numba compiles the generated module)**", seconds(compile_time)],
+            ["... **first call of rhs (numba compiles the generated module)**: wall (CPU)", f"{seconds(first['first call'])} ({seconds(first['first call cpu'])})"],
             ["... second call", seconds(first["second call"])],
             ["that whole process, wall (CPU)", timed(first)],
             ["everything: derive process + first-call process", seconds(derive["seconds"] + first["seconds"])],
@@ -577,6 +579,8 @@ def report(bench: Bench, source: str, started: datetime.datetime, elapsed: float
         "",
         "### Targets",
         "",
+        f"Times, ratios and fits are judged on the **{'CPU' if bench.runner.clock == 'cpu' else 'wall'} time** of whole processes (`--clock`); both are shown.",
+        "",
         table(["what", "target", "measured (whole processes: wall, CPU in parentheses)", "result"], rows),
         "",
         "### Commands",
@@ -619,6 +623,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--sizes", type=sizes_list, default=list(SIZES), help=f"chain sizes of the general and equal rows (default {','.join(map(str, SIZES))})")
     parser.add_argument("--repeats", type=int, default=3, help="runs per measurement (the fastest is kept; one run when it takes over 10 s)")
     parser.add_argument("--timeout", type=float, default=TIMEOUT, help="seconds after which a process is killed and reported as over that time")
+    parser.add_argument("--clock", choices=("wall", "cpu"), default="wall", help="the time targets, ratios and fits use: wall (default) or CPU time of the processes (both are always shown)")
     parser.add_argument("--tree", type=Path, default=ROOT, help="the lagrange tree under test (put on PYTHONPATH); default: this checkout")
     parser.add_argument("--write", action="store_true", help="write BENCHMARKS.md even when not a complete run")
     parser.add_argument("--no-write", action="store_true", help="print only")
@@ -631,7 +636,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     clock = time.perf_counter()
     load_before = os.getloadavg()[0]
     with tempfile.TemporaryDirectory(prefix="lagrange-bench-") as tmp:
-        runner = Runner(args.tree.resolve(), Path(tmp), args.timeout)
+        runner = Runner(args.tree.resolve(), Path(tmp), args.timeout, args.clock)
         source = imported_from(runner)
         if not Path(source).resolve().is_relative_to(runner.tree):
             parser.error(f"lagrange_cli is imported from {source}, not from the tree under test {runner.tree}")

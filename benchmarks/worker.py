@@ -142,12 +142,23 @@ def numba_first(kind: str, n: int, path: str) -> None:
     imported = time.perf_counter()
     module = load_module(path)
     loaded = time.perf_counter()
+    cpu = time.process_time()
     module.rhs(0.0, numpy.array(pendulum.state(n)))
     called = time.perf_counter()
+    cpu = time.process_time() - cpu
     again = time.perf_counter()
     module.rhs(0.0, numpy.array(pendulum.state(n)))
     second = time.perf_counter() - again
-    result({"import numba": imported - start, "import module": loaded - imported, "first call": called - loaded, "second call": second, "check": check_module(module, pendulum.Chain(kind, n))})
+    result(
+        {
+            "import numba": imported - start,
+            "import module": loaded - imported,
+            "first call": called - loaded,
+            "first call cpu": cpu,
+            "second call": second,
+            "check": check_module(module, pendulum.Chain(kind, n)),
+        }
+    )
 
 
 TASKS: dict[str, Callable[..., None]] = {"check": check, "rhs": rhs, "numba-first": numba_first}
