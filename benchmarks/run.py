@@ -103,8 +103,7 @@ class Runner:
         after = resource.getrusage(resource.RUSAGE_CHILDREN)
         cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
         if process.returncode != 0:
-            lines = [line for line in err.strip().splitlines() if line.strip()]
-            return {"error": (lines[-1] if lines else f"exit status {process.returncode}")[:300]}
+            return {"error": f"exit {process.returncode}: " + failure(err)}
         value: dict[str, Any] = {"seconds": seconds, "cpu": cpu}
         for line in reversed(out.splitlines()):
             if line.startswith("RESULT "):
@@ -129,6 +128,19 @@ class Runner:
 
     def worker(self, *args: object) -> dict[str, Any]:
         return self.run([PYTHON, str(HERE / "worker.py"), *map(str, args)])
+
+
+def failure(stderr: str) -> str:
+    """The gist of a failed process's stderr: its `error:` line (lagrange's diagnostics) with the
+    `expected:` line after it, or else the last line (a traceback's exception)."""
+    lines = [" ".join(line.split()) for line in stderr.splitlines() if line.strip()]
+    errors = [i for i, line in enumerate(lines) if "error:" in line.lower()]
+    if errors:
+        gist = lines[errors[0]]
+        gist = gist[gist.lower().index("error:") :]
+        expected = [line for line in lines[errors[0] + 1 :] if line.lower().startswith("expected:")]
+        return (gist + ("; " + expected[0] if expected else ""))[:300]
+    return (lines[-1] if lines else "no output")[:300]
 
 
 # -- formatting -------------------------------------------------------------------------------
@@ -157,7 +169,7 @@ def table(header: Sequence[str], rows: Sequence[Sequence[object]]) -> str:
 def error_text(value: dict[str, Any]) -> str:
     if value.get("timeout"):
         return str(value["error"])
-    return "error: " + str(value["error"]).replace("|", "/")[:160]
+    return "failed: " + str(value["error"]).replace("|", "/")[:220]
 
 
 def timed(value: dict[str, Any]) -> str:

@@ -104,7 +104,9 @@ def test_a_process_over_the_timeout_is_killed_and_reported(tmp_path: Path) -> No
     assert value == {"error": "over 0.5 s", "timeout": True}
     assert run.timed(value) == "over 0.5 s"
     failed = runner.run([sys.executable, "-c", "raise SystemExit('broken on purpose')"])
-    assert failed["error"] == "broken on purpose"
+    assert failed["error"] == "exit 1: broken on purpose"
+    diagnostic = "x.yaml: error: too big\n  ^\nexpected: a smaller system\n"
+    assert run.failure(diagnostic) == "error: too big; expected: a smaller system"
 
 
 def test_whole_process_row_at_n2(capsys: pytest.CaptureFixture[str]) -> None:
