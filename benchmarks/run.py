@@ -564,6 +564,7 @@ def machine(runner: Runner, source: str) -> list[str]:
         except metadata.PackageNotFoundError:
             versions.append(f"{package} (not installed)")
     commit = git(runner.tree, "rev-parse", "--short", "HEAD") or "unknown"
+    changed = git(runner.tree, "log", "-1", "--format=%h", "--", "lagrange_cli")
     branch = git(runner.tree, "rev-parse", "--abbrev-ref", "HEAD")
     dirty = git(runner.tree, "status", "--porcelain", "--", "lagrange_cli")
     return [
@@ -572,12 +573,13 @@ def machine(runner: Runner, source: str) -> list[str]:
         f"- Libraries: {', '.join(versions)}",
         f"- lagrange source: commit {commit}"
         + (f" (branch {branch})" if branch and branch != "HEAD" else "")
+        + (f", lagrange_cli/ last changed in {changed}" if changed else "")
         + (" plus uncommitted changes in lagrange_cli/" if dirty else "")
         + f"; `lagrange_cli` imported from `{source}`",
     ]
 
 
-def report(bench: Bench, source: str, started: datetime.datetime, elapsed: float, loads: tuple[float, float], argv: Sequence[str]) -> str:
+def report(bench: Bench, info: list[str], started: datetime.datetime, elapsed: float, loads: tuple[float, float], argv: Sequence[str]) -> str:
     rows = [[what, goal, measured, {True: "PASS", False: "**FAIL**", None: "not measured"}[passed]] for what, goal, measured, passed in bench.targets]
     during = bench.runner.loads or [loads[0]]
     command = ".venv/bin/python benchmarks/run.py" + "".join(" " + shlex.quote(a) for a in argv)
@@ -585,7 +587,7 @@ def report(bench: Bench, source: str, started: datetime.datetime, elapsed: float
     lines = [
         f"Run on {started:%Y-%m-%d %H:%M} UTC with `{command}` (took {elapsed / 60:.1f} min).",
         "",
-        *machine(bench.runner, source),
+        *info,
         f"- Load average (1 min) at start / end: {loads[0]:.2f} / {loads[1]:.2f}; at the start of each measured process: {min(during):.2f} to {max(during):.2f}"
         + (": the machine was shared with other work, so absolute times are noisy (CPU times are shown beside wall times); the ratios are measured side by side." if busy else ": quiet."),
         "",
@@ -652,11 +654,12 @@ def main(argv: Sequence[str] | None = None) -> int:
         source = imported_from(runner)
         if not Path(source).resolve().is_relative_to(runner.tree):
             parser.error(f"lagrange_cli is imported from {source}, not from the tree under test {runner.tree}")
+        info = machine(runner, source)  # at the start: the commit measured, not one made during the run
         bench = Bench(runner, args.sizes, args.quick, args.repeats)
         for name in ROWS:
             if name in only:
                 getattr(bench, METHODS.get(name, name))()
-        markdown = report(bench, source, started, time.perf_counter() - clock, (load_before, os.getloadavg()[0]), sys.argv[1:] if argv is None else argv)
+        markdown = report(bench, info, started, time.perf_counter() - clock, (load_before, os.getloadavg()[0]), sys.argv[1:] if argv is None else argv)
     print(markdown)
     complete = not args.quick and set(only) == set(ROWS) and args.sizes == list(SIZES) and args.tree.resolve() == ROOT
     if not args.no_write and (complete or args.write):
