@@ -113,7 +113,8 @@ def test_whole_process_row_at_n2(capsys: pytest.CaptureFixture[str]) -> None:
     """One tiny row: the installed CLI and the peer as whole processes, both modules checked."""
     before = (ROOT / "BENCHMARKS.md").read_text()
     run = load_run()
-    assert run.main(["--only", "general", "--sizes", "2", "--repeats", "1", "--no-write", "--timeout", "1800"])  # a deadlock net only (as tests/limits.py on main) == 0
+    # the timeout is a deadlock net only (as tests/limits.py on main), never a verdict on speed
+    assert run.main(["--only", "general", "--sizes", "2", "--repeats", "1", "--no-write", "--timeout", "1800"]) == 0
     out = capsys.readouterr().out
     row = next(line for line in out.splitlines() if line.startswith("| 2 |"))
     cells = [c.strip() for c in row.strip("|").split("|")]
