@@ -23,7 +23,7 @@ lint: $(STAMP)
 	$(BIN)/mypy lagrange_cli
 
 bench: $(STAMP)
-	$(BIN)/python benchmarks/run.py
+	$(BIN)/python benchmarks/run.py  # issue 14: the general chain, whole processes against sympy.physics.mechanics, N up to 60
 	$(BIN)/python benchmarks/simulate_bench.py --write
 	$(BIN)/python benchmarks/study_bench.py
 	$(BIN)/python benchmarks/every_system.py --write  # about an hour: accuracy and stress on every file in systems/

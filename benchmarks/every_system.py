@@ -13,8 +13,8 @@ stdout, and with --write into BENCHMARKS.md between the `every-system` markers.
 
 With NAMEs, --write replaces only those systems' rows of the table already there.
 
-A full sweep takes about an hour on a 2-core machine (stress spends most of it on runs stopped
-at its 5 s budget: scipy's methods on long horizons).
+A full sweep takes about an hour on a 2-core machine (stress spends most of it on scipy's methods on
+long horizons, which run until their counted step budget, `--max-steps`).
 """
 
 from __future__ import annotations

@@ -1,101 +1,105 @@
-"""One measurement in a fresh interpreter: `python benchmarks/worker.py TASK ARGS...`.
+"""Checks and in-process measurements, each in a fresh interpreter: `python benchmarks/worker.py TASK ARGS...`.
 
-Each task prints one line `RESULT <json>` last. Library imports happen before the clock
-starts, so the times are of the work, not of importing sympy; every derivation runs in
-its own process so that no run profits from caches warmed by another (sympy's cache in
-particular).
+Each task prints one line `RESULT <json>` last. run.py times whole processes itself (the
+`lagrange` CLI and `peer.py`); this worker only looks at the modules they wrote:
 
-Tasks:
-    derive-lagrange N FILE          spec.load + derive.derive; M, F at the reference state
-    derive-peer N [PICKLE]          LagrangesMethod; M, F at the reference state; optionally
-                                    pickles M, F (plain symbols) for the rhs benchmark
-    emit N FILE OUT                 spec.load + derive + python.emit, module written to OUT
-    rhs N MODULE [PICKLE]           per-call time of the emitted rhs against its peer
+    check KIND N MODULE                   the module against the hand-written reference
+    rhs KIND N MODULE [PEER_MODULE]       per-call time of the module's rhs against the peer's
+                                          (and the hand-written `math` rhs at N = 2)
+    numba-first KIND N MODULE             import and first call of a `--numba` module (its
+                                          numba compile when NUMBA_CACHE_DIR is empty), then check
 """
 
 from __future__ import annotations
 
 import importlib.util
 import json
+import math
 import sys
 import time
 import timeit
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
 import pendulum
+
+AGREE = 1e-9  # max relative deviation from the reference for a module to count as right
+SEEDS = (2024, 2025, 2026)  # random states; the last one with perturbed parameters
 
 
 def result(value: dict[str, Any]) -> None:
     print("RESULT " + json.dumps(value), flush=True)
 
 
-def model_numeric(model: Any, y: list[float]) -> tuple[list[list[float]], list[float]]:
-    import sympy as sp
-
-    n = model.n
-    parameters = [p.symbol for p in model.parameters]
-    f = sp.lambdify([list(model.q), list(model.qd), parameters], (model.mass_matrix.tolist(), list(model.forcing)), modules="math", cse=True)
-    m, F = f(y[:n], y[n:], [pendulum.PARAMETERS[p.name] for p in model.parameters])
-    return [[float(x) for x in row] for row in m], [float(x) for x in F]
-
-
-def derive_lagrange(n: int, path: str) -> None:
-    from lagrange_cli import derive, spec
-
-    start = time.perf_counter()
-    system = spec.load(Path(path))
-    loaded = time.perf_counter()
-    model = derive.derive(system)
-    done = time.perf_counter()
-    m, f = model_numeric(model, pendulum.state(n))
-    result({"seconds": done - start, "load": loaded - start, "derive": done - loaded, "M": m, "F": f})
-
-
-def derive_peer(n: int, save: str | None = None) -> None:
-    import peer
-
-    start = time.perf_counter()
-    mass, forcing, q = peer.derive(n)
-    done = time.perf_counter()
-    mass, forcing, qs, us = peer.plain(mass, forcing, q)
-    if save:
-        import pickle
-
-        Path(save).write_bytes(pickle.dumps((mass, forcing, qs, us)))
-    m, f = peer.numeric(mass, forcing, qs, us, pendulum.state(n))
-    result({"seconds": done - start, "M": m, "F": f})
-
-
-def emit(n: int, path: str, out: str) -> None:
-    from lagrange_cli import derive, spec
-    from lagrange_cli.emit import python
-
-    start = time.perf_counter()
-    system = spec.load(Path(path))
-    loaded = time.perf_counter()
-    model = derive.derive(system)
-    derived = time.perf_counter()
-    code = python.emit(model)
-    done = time.perf_counter()
-    Path(out).write_text(code)
-    Path(out).with_name(Path(out).stem + "_numba.py").write_text(python.emit(model, numba=True))
-    result({"seconds": done - start, "load": loaded - start, "derive": derived - loaded, "emit": done - derived, "lines": code.count("\n")})
-
-
-def load_module(path: str) -> Any:
-    spec = importlib.util.spec_from_file_location(f"emitted_{Path(path).stem}", path)
+def load_module(path: str | Path, name: str | None = None) -> Any:
+    spec = importlib.util.spec_from_file_location(name or f"emitted_{Path(path).stem}", path)
     assert spec is not None and spec.loader is not None
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
     return module
 
 
-def per_call(candidates: dict[str, Callable[..., Any]], y: Any, rounds: int = 25, sample: float = 0.04) -> dict[str, float]:
+def _floats(values: Any) -> list[float]:
+    return [float(v) for v in (values.tolist() if hasattr(values, "tolist") else values)]
+
+
+def _relative(found: Sequence[float], expected: Sequence[float]) -> float:
+    if len(found) != len(expected):
+        return math.inf
+    scale = max(abs(v) for v in expected) or 1.0
+    worst = max(abs(a - b) for a, b in zip(found, expected, strict=True))
+    return worst / scale if math.isfinite(worst) else math.inf
+
+
+def residual(mass: list[list[float]], force: list[float], accel: Sequence[float]) -> float:
+    """Backward error of accelerations a for M a = F: |M a - F| / (|M| |a| + |F|) in the
+    infinity norm. Independent of M's condition number, which grows large in long chains."""
+    n = len(force)
+    if len(accel) != n or not all(math.isfinite(v) for v in accel):
+        return math.inf
+    worst = max(abs(sum(mass[i][j] * accel[j] for j in range(n)) - force[i]) for i in range(n))
+    norm_m = max(sum(abs(v) for v in row) for row in mass)
+    return worst / (norm_m * max(abs(v) for v in accel) + max(abs(v) for v in force) or 1.0)
+
+
+def check_module(module: Any, chain: pendulum.Chain) -> dict[str, Any]:
+    """Evaluate a module's mass_matrix, forcing (when it has them) and rhs (y a list and a numpy
+    array) at random states, the last with perturbed parameters, against the hand-written
+    reference. `ok` is True when every deviation is below AGREE."""
+    import numpy
+
+    n = chain.n
+    worst = {"M": 0.0, "F": 0.0, "rhs velocities": 0.0, "rhs residual": 0.0}
+    has_matrices = hasattr(module, "mass_matrix") and hasattr(module, "forcing")
+    if not has_matrices:
+        del worst["M"], worst["F"]
+    for k, seed in enumerate(SEEDS):
+        y = pendulum.state(n, seed)
+        p = chain.perturbed(seed) if k == len(SEEDS) - 1 else chain.parameters()
+        mass, force = chain.reference_matrices(y, p)
+        if has_matrices:
+            found = [_floats(row) for row in module.mass_matrix(y[:n], p)]
+            flat = [v for row in found for v in row] if len(found) == n else []
+            worst["M"] = max(worst["M"], _relative(flat, [v for row in mass for v in row]))
+            worst["F"] = max(worst["F"], _relative(_floats(module.forcing(y[:n], y[n:], p)), force))
+        for given in (list(y), numpy.array(y)):
+            out = _floats(module.rhs(0.0, given, p))
+            if len(out) != 2 * n:
+                worst["rhs velocities"] = math.inf
+                continue
+            worst["rhs velocities"] = max(worst["rhs velocities"], _relative(out[:n], y[n:]))
+            worst["rhs residual"] = max(worst["rhs residual"], residual(mass, force, out[n:]))
+    return {"deviation": worst, "ok": all(v < AGREE for v in worst.values()), "states": len(SEEDS)}
+
+
+def check(kind: str, n: int, path: str) -> None:
+    result(check_module(load_module(path), pendulum.Chain(kind, n)))
+
+
+def per_call(candidates: dict[str, Callable[..., Any]], y: Any, p: dict[str, float], rounds: int = 25, sample: float = 0.04) -> dict[str, float]:
     """Seconds per call rhs(0.0, y, p), min over `rounds` samples of ~`sample` s each.
     The candidates are sampled in turn within each round, so load drift hits them alike."""
-    p = dict(pendulum.PARAMETERS)
     timers = {name: timeit.Timer("rhs(t, y, p)", globals={"rhs": fn, "t": 0.0, "y": y, "p": p}) for name, fn in candidates.items()}
     numbers = {}
     for name, timer in timers.items():
@@ -108,42 +112,57 @@ def per_call(candidates: dict[str, Callable[..., Any]], y: Any, rounds: int = 25
     return best
 
 
-def rhs(n: int, module_path: str, pickle_path: str | None = None) -> None:
+class _Namespace:
+    def __init__(self, rhs: Callable[..., Any]) -> None:
+        self.rhs = rhs
+
+
+def rhs(kind: str, n: int, module_path: str, peer_path: str | None = None) -> None:
     import numpy
 
-    candidates: dict[str, Callable[..., Any]] = {"lagrange": load_module(module_path).rhs}
-    compiled = Path(module_path).with_name(Path(module_path).stem + "_numba.py")
-    info: dict[str, Any] = {}
-    if compiled.exists():
-        candidates["numba"] = load_module(str(compiled)).rhs
-        start = time.perf_counter()
-        candidates["numba"](0.0, pendulum.state(n), dict(pendulum.PARAMETERS))
-        info["numba_first_call_seconds"] = time.perf_counter() - start
+    chain = pendulum.Chain(kind, n)
+    modules: dict[str, Any] = {"lagrange": load_module(module_path)}
+    if peer_path:
+        modules["peer"] = load_module(peer_path, "peer_module")
     if n == 2:
-        candidates["hand"] = pendulum.hand_rhs
-    if pickle_path:
-        import pickle
-
-        import peer
-
-        mass, forcing, qs, us = pickle.loads(Path(pickle_path).read_bytes())
-        start = time.perf_counter()
-        candidates["peer"] = peer.make_rhs(mass, forcing, qs, us)
-        info["peer_lambdify_seconds"] = time.perf_counter() - start
+        modules["hand"] = _Namespace(pendulum.hand_rhs)
+    checks = {name: check_module(module, chain) for name, module in modules.items()}
+    p = chain.parameters()
     y = pendulum.state(n)
-    reference = pendulum.reference_rhs(y)
-    scale = max(abs(v) for v in reference)
-    info["max_error"] = {name: max(abs(float(a) - b) for a, b in zip(fn(0.0, list(y)), reference, strict=True)) / scale for name, fn in candidates.items()}
-    if "peer" in candidates:
-        peer_values = candidates["peer"](0.0, list(y))
-        info["lagrange_vs_peer"] = max(abs(float(a) - float(b)) for a, b in zip(candidates["lagrange"](0.0, list(y)), peer_values, strict=True)) / scale
-    info["list"] = per_call(candidates, list(y))
-    info["ndarray"] = per_call(candidates, numpy.array(y))
-    result(info)
+    candidates = {name: module.rhs for name, module in modules.items()}
+    result({"checks": checks, "list": per_call(candidates, list(y), p), "ndarray": per_call(candidates, numpy.array(y), p)})
 
 
-TASKS: dict[str, Callable[..., None]] = {"derive-lagrange": derive_lagrange, "derive-peer": derive_peer, "emit": emit, "rhs": rhs}
+def numba_first(kind: str, n: int, path: str) -> None:
+    import numpy
+
+    start = time.perf_counter()
+    import numba  # noqa: F401
+
+    imported = time.perf_counter()
+    module = load_module(path)
+    loaded = time.perf_counter()
+    cpu = time.process_time()
+    module.rhs(0.0, numpy.array(pendulum.state(n)))
+    called = time.perf_counter()
+    cpu = time.process_time() - cpu
+    again = time.perf_counter()
+    module.rhs(0.0, numpy.array(pendulum.state(n)))
+    second = time.perf_counter() - again
+    result(
+        {
+            "import numba": imported - start,
+            "import module": loaded - imported,
+            "first call": called - loaded,
+            "first call cpu": cpu,
+            "second call": second,
+            "check": check_module(module, pendulum.Chain(kind, n)),
+        }
+    )
+
+
+TASKS: dict[str, Callable[..., None]] = {"check": check, "rhs": rhs, "numba-first": numba_first}
 
 if __name__ == "__main__":
-    task, n, *rest = sys.argv[1:]
-    TASKS[task](int(n), *rest)
+    task, kind, n, *rest = sys.argv[1:]
+    TASKS[task](kind, int(n), *rest)
