@@ -97,21 +97,22 @@ def scene(spec: SystemSpec, model: Model) -> Scene:
 def position_function(scene: Scene, model: Model) -> Callable[[float, Sequence[float], Sequence[float]], list[float]]:
     """`positions(t, y, p)`: every point's components, flattened, at time t, state y = [q..., q_dot...]
     and parameter values p (in the model's order); generated code, names mangled."""
-    from lagrange_cli.emit.python import CodePrinter, cse_block, define, python_names
+    from lagrange_cli._symengine import to_symengine
+    from lagrange_cli.emit.python import PythonPrinter, define, python_names
 
     names = python_names(model)
-    printer = CodePrinter(dict(names))
     exprs = [x for point in scene.points for x in point]
-    used = set().union(*(e.free_symbols for e in exprs))
+    used = set().union(*(sp.sympify(e).free_symbols for e in exprs))
     unknown = sorted(str(s) for s in used if s not in names)
     if unknown:  # a coordinate removed without a substitute, which derive would have refused
         raise LagrangeError(f"{model.source}: a drawn position uses {', '.join(unknown)}, which is not a coordinate, parameter or t of the derived system")
-    block = cse_block(exprs, "d", printer)
+    printer = PythonPrinter({str(symbol): name for symbol, name in names.items()})
+    temporaries, results = printer.block([to_symengine(sp.sympify(e)) for e in exprs], "_d")
     body = [f"{names[p.symbol]} = _p[{i}]" for i, p in enumerate(model.parameters) if p.symbol in used]
     body += [f"{names[q]} = _y[{i}]" for i, q in enumerate(model.q) if q in used]
-    body += [*block.lines, f"return [{', '.join(f'float({r})' for r in block.results)}]"]
+    body += [*(f"{name} = {code}" for name, code in temporaries), f"return [{', '.join(f'float({r})' for r in results)}]"]
     source = define("_positions", "t, _y, _p", "The drawn points' positions, flattened.", body)
-    math_names = sorted(printer.module_imports.get("math", set()))
+    math_names = printer.imports()
     namespace: dict[str, Any] = {}
     code = (f"from math import {', '.join(math_names)}\n" if math_names else "") + source + "\n"
     exec(compile(code, "<lagrange animate: positions>", "exec"), namespace)  # generated code, no file text

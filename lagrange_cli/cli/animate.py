@@ -32,7 +32,7 @@ def animate(
     try:
         from lagrange_cli import animate as core
         from lagrange_cli import derive, spec
-        from lagrange_cli.cli.numeric import _assignments
+        from lagrange_cli.cli.numeric import assignments_of
 
         core.check_output(Path("motion.html") if to_stdout else output_path)
         if view is not None and view.lower() not in core.VIEWS:
@@ -40,7 +40,7 @@ def animate(
         system = spec.load(spec.resolve(file))
         model = derive.derive(system)
         core.scene(system, model)  # nothing to draw: refused before the run
-        parameters, values = _assignments(model, set_ or [], "--set"), _assignments(model, initial or [], "--initial")
+        parameters, values = assignments_of(model, set_ or [], "--set"), assignments_of(model, initial or [], "--initial")
         run = core.simulate_for(model, speed=speed, fps=fps, t_end=t_end, method=method, parameters=parameters, initial=values)
         movie = core.animation(system, model, run, speed=speed, fps=fps, view=view, trail=trail)
         if to_stdout:
