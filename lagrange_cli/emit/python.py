@@ -567,7 +567,7 @@ def vectorize(inputs: list[str], lines: list[str], tail: list[str], name: str, f
     each other, so the order within a level is free. A statement of another form (a call such as
     `_lu_solve(_a, _x)`, a slice) is a barrier: the code before and after it is scheduled apart.
     Returns (the module-level tables, the body: `_w`, the code, the tail)."""
-    statements = [line.split("  #", 1)[0] for line in [*inputs, *lines]]
+    statements = [piece for line in [*inputs, *lines] for piece in _accumulate(line.split("  #", 1)[0])]
     slots: dict[str, int] = {}
     for line in statements:
         match = _STATEMENT.match(line)
@@ -596,6 +596,30 @@ def vectorize(inputs: list[str], lines: list[str], tail: list[str], name: str, f
 
 _CALL = re.compile(r"([A-Za-z_][\w.]*)\(")
 MATH_CALLS = frozenset({*MATH_NAMES, "abs", "float"})
+
+
+def _accumulate(line: str, longest: int = 4) -> list[str]:
+    """`x = a + b - c + ...` (a sum of more than `longest` terms) as `x = a`, `x = x + b`,
+    `x = x - c`, ...: one statement per term, which `vectorize` turns into loops across the
+    sums of the same shape (the rows of F). Other statements as they are."""
+    match = _STATEMENT.match(line)
+    if not match:
+        return [line]
+    left, right = match.groups()
+    terms: list[str] = []
+    depth, start = 0, 0
+    for i, char in enumerate(right):
+        if char in "([":
+            depth += 1
+        elif char in ")]":
+            depth -= 1
+        elif depth == 0 and i > start and right[i - 1] == " " and char in "+-" and i + 1 < len(right) and right[i + 1] == " ":
+            terms.append(right[start : i - 1])
+            start = i
+    terms.append(right[start:])
+    if len(terms) <= longest:
+        return [line]
+    return [f"{left} = {terms[0]}"] + [f"{left} = {left} {term[0]} {term[2:]}" for term in terms[1:]]
 
 
 def _pure(code: str) -> bool:
