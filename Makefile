@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: demo test lint bench fuzz golden latex-deps clean
+.PHONY: demo test lint bench fuzz golden latex-deps toolchains animate-deps clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -14,7 +14,7 @@ $(STAMP): pyproject.toml
 demo: $(STAMP)
 	$(BIN)/lagrange derive double_pendulum
 
-test: $(STAMP) latex-deps
+test: $(STAMP) latex-deps toolchains animate-deps
 	$(BIN)/python -m pytest -q
 
 lint: $(STAMP)
@@ -42,6 +42,22 @@ latex-deps:
 	@command -v pdflatex >/dev/null 2>&1 || { \
 	  sudo=$$([ "$$(id -u)" = 0 ] || echo sudo); \
 	  $$sudo apt-get update -qq && DEBIAN_FRONTEND=noninteractive $$sudo apt-get install -y -qq texlive-latex-base >/dev/null; }
+
+# The compilers and interpreters the code targets are tested in (tests/test_target_c.py, tests/test_target_octave.py):
+# gcc and g++ for `derive --to c`, Octave for `derive --to octave` (large: without its recommends).
+toolchains:
+	@command -v gcc >/dev/null 2>&1 && command -v g++ >/dev/null 2>&1 || { \
+	  sudo=$$([ "$$(id -u)" = 0 ] || echo sudo); \
+	  $$sudo apt-get update -qq && DEBIAN_FRONTEND=noninteractive $$sudo apt-get install -y -qq gcc g++ libc6-dev >/dev/null; }
+	@command -v octave >/dev/null 2>&1 || { \
+	  sudo=$$([ "$$(id -u)" = 0 ] || echo sudo); \
+	  $$sudo apt-get update -qq && DEBIAN_FRONTEND=noninteractive $$sudo apt-get install -y -qq --no-install-recommends octave >/dev/null; }
+
+# ffmpeg (MP4 animations) and chromium (the test that plays an HTML animation headless), from Debian.
+animate-deps:
+	@command -v ffmpeg >/dev/null 2>&1 && command -v chromium >/dev/null 2>&1 || { \
+	  sudo=$$([ "$$(id -u)" = 0 ] || echo sudo); \
+	  $$sudo apt-get update -qq && DEBIAN_FRONTEND=noninteractive $$sudo apt-get install -y -qq ffmpeg chromium >/dev/null; }
 
 clean:
 	rm -rf $(VENV) .pytest_cache .mypy_cache .ruff_cache

@@ -112,14 +112,20 @@ class Model:
     def from_symengine(cls, forms: SymengineForms, sympy: Mapping[str, Any] | None = None, **fields: Any) -> Model:
         """A model whose equations are `forms`; each field of `LAZY_FIELDS` is converted to sympy on first
         access, unless `sympy` gives it already (a value computed in sympy on the way)."""
+        import lagrange_cli._symengine as convert
+
         given = dict(sympy or {})
         n = len(forms.q)
+        cache: dict[Any, Any] = {}  # shared by the fields: an entry of M is converted once for M, K, p and h
+
+        def conv(value: Any) -> Any:
+            return convert.to_sympy(value, cache)
 
         def one(value: Any) -> Lazy:
-            return Lazy(lambda: sp.sympify(value))
+            return Lazy(lambda: conv(value))
 
         def many(values: tuple[Any, ...]) -> Lazy:
-            return Lazy(lambda: tuple(sp.sympify(v) for v in values))
+            return Lazy(lambda: tuple(conv(v) for v in values))
 
         lazy: dict[str, Any] = {
             "kinetic": one(forms.kinetic),
@@ -129,8 +135,8 @@ class Model:
             "energy": one(forms.energy),
             "generalized_forces": many(forms.generalized_forces),
             "momenta": many(forms.momenta),
-            "mass_matrix": Lazy(lambda: sp.ImmutableMatrix(n, n, [sp.sympify(m) for row in forms.mass for m in row])),
-            "forcing": Lazy(lambda: sp.ImmutableMatrix(n, 1, [sp.sympify(f) for f in forms.forcing])),
+            "mass_matrix": Lazy(lambda: sp.ImmutableMatrix(n, n, [conv(m) for row in forms.mass for m in row])),
+            "forcing": Lazy(lambda: sp.ImmutableMatrix(n, 1, [conv(f) for f in forms.forcing])),
         }
         lazy.update(given)
         model = cls(**fields, **lazy)

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import json
 import math
+from collections.abc import Mapping
+from dataclasses import dataclass
 
 import sympy as sp
 
@@ -148,3 +150,66 @@ def _complex(value: complex) -> str:
 
 def _yes(value: bool) -> str:
     return "yes" if value else "no"
+
+
+# -- equilibria: the points, each linearized, and the steady motions (the `equilibria` command and the API) --
+
+
+@dataclass(frozen=True)
+class Equilibria:
+    """The equilibrium points found, each with its linearization (or why there is none), and the
+    steady motions of ignorable coordinates."""
+
+    points: tuple[Mapping[sp.Symbol, sp.Expr], ...]
+    linearizations: tuple[Linearization | str, ...]
+    steady: tuple[tuple[sp.Symbol, sp.Expr], ...]
+
+
+def equilibria(model: Model, ranges: Mapping[sp.Symbol, tuple[float, float]] | None = None) -> Equilibria:
+    """`analysis.equilibria` in `ranges`, each point linearized (a point that cannot be is kept
+    with the reason), and `analysis.steady_motions`."""
+    from lagrange_cli.analysis import equilibria as find
+    from lagrange_cli.analysis import linearize, steady_motions
+    from lagrange_cli.errors import LagrangeError
+
+    points = find(model, ranges or {})
+    steady = steady_motions(model)
+    results: list[Linearization | str] = []
+    for point in points:
+        try:
+            results.append(linearize(model, point))
+        except LagrangeError as error:
+            results.append(str(error))
+    return Equilibria(tuple(points), tuple(results), tuple(steady))
+
+
+def _free(point: Mapping[sp.Symbol, sp.Expr]) -> list[str]:
+    """The coordinates a manifold of equilibria leaves free (their value is the symbol `<q>_0`)."""
+    return [str(k) for k, v in point.items() if v == sp.Symbol(f"{k}_0")]
+
+
+def equilibria_json(model: Model, found: Equilibria) -> str:
+    items = [
+        {"point": {str(k): str(v) for k, v in p.items()}, "free": _free(p), **({"error": lin} if isinstance(lin, str) else linearization_json(model, lin))}
+        for p, lin in zip(found.points, found.linearizations, strict=True)
+    ]
+    motions = [{"velocity": str(v), "equals": str(x)} for v, x in found.steady]
+    return json.dumps({"title": model.title, "equilibria": items, "steady_motions": motions}, indent=2) + "\n"
+
+
+def equilibria_text(model: Model, found: Equilibria) -> str:
+    from lagrange_cli.analysis import MAX_NUMERIC_POINTS
+
+    points = found.points
+    lines = [f"{model.title}: {len(points)} equilibri{'um' if len(points) == 1 else 'a'}" + (" (none found)" if not points else "")]
+    if len(points) >= MAX_NUMERIC_POINTS and all(v.is_Float for p in points for v in p.values()):
+        lines.append(f"(the numeric search stops at {MAX_NUMERIC_POINTS} distinct points: the equilibria may form a curve or surface; narrow the search with --range)")
+    free = sorted({q for p in points for q in _free(p)})
+    if free:
+        lines.append(f"(a manifold of equilibria: {', '.join(f'{q}_0' for q in free)} may take any value)")
+    for point, lin in zip(points, found.linearizations, strict=True):
+        lines.append(linearization_text(model, lin) if not isinstance(lin, str) else f"at {dict(point)}: {lin}\n")
+    if found.steady:
+        lines.append("steady motions (the other coordinates at rest, ignorable ones turning steadily):")
+        lines += [f"  {v} = {x}" for v, x in found.steady]
+    return "\n".join(lines) + "\n"

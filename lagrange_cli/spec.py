@@ -30,11 +30,12 @@ NAME = re.compile(r"[A-Za-z][A-Za-z0-9_]*\Z")
 TOP_KEYS = (
     "title", "description", "coordinates", "parameters", "functions", "gravity", "particles",
     "bodies", "kinetic", "potential", "lagrangian", "dissipation", "forces", "constraints",
-    "eliminate", "initial", "simulate", "exact", "expect",
+    "eliminate", "initial", "simulate", "exact", "expect", "draw",
 )  # fmt: skip
 PARTICLE_KEYS = ("mass", "position", "force", "damping")
 FUNCTION_KEYS = ("arguments", "definition", "description")
 BODY_KEYS = ("mass", "position", "inertia", "angular_velocity")
+DRAW_KEYS = ("segments", "trails")
 EXPECT_KEYS = ("equations", "accelerations", "momenta", "conserved")
 SIMULATE_KEYS = ("t_end", "method", "rtol", "atol", "step", "samples")
 METHODS = ("auto", "RK45", "DOP853", "Radau", "BDF", "LSODA", "symplectic")  # as in numeric/settings.py
@@ -95,6 +96,25 @@ class Constraint:
 
 
 @dataclass(frozen=True)
+class DrawPoint:
+    """A point an animation draws: `label` is the particle or body it names (empty for a position
+    list), `position` its Cartesian position in the file's coordinates, parameters and `t`."""
+
+    label: str
+    position: tuple[sp.Expr, ...]
+    span: Span
+
+
+@dataclass(frozen=True)
+class Drawing:
+    """The `draw` block: segments (pairs of points joined by a line) and trails (points whose
+    recent path is drawn)."""
+
+    segments: tuple[tuple[DrawPoint, DrawPoint], ...] = ()
+    trails: tuple[DrawPoint, ...] = ()
+
+
+@dataclass(frozen=True)
 class Expect:
     equations: tuple[tuple[sp.Expr, Span], ...] = ()
     accelerations: tuple[tuple[str, sp.Expr, Span], ...] = ()
@@ -140,6 +160,8 @@ class SystemSpec:
     `gravity`, `forces.<q>`, `functions.<f>`, `exact.<q>` (so that a bad term found after
     derivation is reported at its source)."""
     expect: Expect = Expect()
+    draw: Drawing | None = None
+    """The `draw` block (None without one: an animation then draws particles and bodies as dots)."""
 
 
 def time_derivative(expr: sp.Expr, q: tuple[sp.Symbol, ...], qd: tuple[sp.Symbol, ...], qdd: tuple[sp.Symbol, ...], t: sp.Symbol) -> sp.Expr:
@@ -214,6 +236,36 @@ def parse(text: str, filename: str = "<string>") -> SystemSpec:
 
 
 def _compose(text: str, filename: str) -> yaml.Node:
+    """The YAML tree of `text`. An ASCII file that libyaml reads without a problem is read by libyaml
+    (30 times faster: it matters for a 60-link chain); anything else, and every error message, comes
+    from pyyaml's own reader, whose marks count characters (libyaml's count bytes)."""
+    fast = getattr(yaml, "CSafeLoader", None)
+    if fast is not None and text.isascii():
+        try:
+            root = _composed(text, filename, fast)
+        except (yaml.YAMLError, LagrangeError, RecursionError):
+            pass
+        else:
+            _plain_style(root)
+            return root
+    return _composed(text, filename, yaml.SafeLoader)
+
+
+def _plain_style(root: yaml.Node) -> None:
+    """libyaml marks a plain scalar with style '' where pyyaml has None: make them alike."""
+    stack = [root]
+    while stack:
+        node = stack.pop()
+        if isinstance(node, yaml.ScalarNode):
+            if node.style == "":
+                node.style = None
+        elif isinstance(node, yaml.SequenceNode):
+            stack.extend(node.value)
+        elif isinstance(node, yaml.MappingNode):
+            stack.extend(item for pair in node.value for item in pair)
+
+
+def _composed(text: str, filename: str, loader: Any) -> yaml.Node:
     lines = text.splitlines()
 
     def span(mark: Any) -> Span:
@@ -226,7 +278,7 @@ def _compose(text: str, filename: str) -> yaml.Node:
         # Check the event stream before building anything: aliases (billion laughs), deep
         # nesting (the composer recurses) and sheer size are refused at their first sign.
         depth = 0
-        for count, event in enumerate(yaml.parse(text, Loader=yaml.SafeLoader)):
+        for count, event in enumerate(yaml.parse(text, Loader=loader)):
             if isinstance(event, yaml.AliasEvent) or getattr(event, "anchor", None):
                 raise fail(span(event.start_mark), "YAML anchors and aliases are not supported", "plain values written out in full")
             if isinstance(event, yaml.CollectionStartEvent):
@@ -237,7 +289,7 @@ def _compose(text: str, filename: str) -> yaml.Node:
                 depth -= 1
             if count > MAX_YAML_VALUES:
                 raise fail(span(event.start_mark), f"the file holds more than {MAX_YAML_VALUES} YAML values", "a system file of a reasonable size")
-        root = yaml.compose(text, Loader=yaml.SafeLoader)
+        root = yaml.compose(text, Loader=loader)
     except yaml.MarkedYAMLError as exc:
         mark = exc.problem_mark or exc.context_mark
         message = f"malformed YAML: {exc.problem or exc.context}"
@@ -596,6 +648,7 @@ class _Reader:
             simulate=self.simulate(value("simulate")),
             exact=self.exact(value("exact"), coordinates, constants),
             expect=Expect(),
+            draw=self.draw(value("draw"), particles, bodies, config),
         )
         expect_node = value("expect")
         if expect_node is not None:
@@ -605,6 +658,55 @@ class _Reader:
         if self.problems:
             raise SpecError(sorted(self.problems, key=lambda d: (d.span.line, d.span.column) if d.span else (0, 0)))
         return spec
+
+    def draw(self, node: yaml.Node | None, particles: tuple[Particle, ...], bodies: tuple[Body, ...], config: Scope) -> Drawing | None:
+        """`draw: {segments: [[A, B], ...], trails: [A, ...]}`, each point a particle's name, a body's
+        name (its centre of mass) or a position list; every point as long as the system's positions."""
+        if node is None:
+            return None
+        fields = {k: v for k, _, v in self.mapping(node, "'draw'", DRAW_KEYS)}
+        items: tuple[Particle | Body, ...] = (*particles, *bodies)
+        length = next((len(item.position) for item in items), None)
+        segments: list[tuple[DrawPoint, DrawPoint]] = []
+        for entry in self.sequence(fields["segments"], "'draw.segments'") if "segments" in fields else []:
+            if not isinstance(entry, yaml.SequenceNode) or len(entry.value) != 2:
+                got = f"{len(entry.value)} item{'s' * (len(entry.value) != 1)}" if isinstance(entry, yaml.SequenceNode) else _kind(entry)
+                self.problem(entry, f"a segment of 'draw.segments' must be a pair of points, got {got}", "`[A, B]`, each a particle or body name or a position list such as `[0, 0]`")
+                continue
+            ends = [self.draw_point(item, particles, bodies, config, length) for item in entry.value]
+            if ends[0] is not None and ends[1] is not None:
+                segments.append((ends[0], ends[1]))
+        trails = [self.draw_point(item, particles, bodies, config, length) for item in (self.sequence(fields["trails"], "'draw.trails'") if "trails" in fields else [])]
+        drawn = [*(p for pair in segments for p in pair), *(t for t in trails if t is not None)]
+        for point in drawn:  # without particles or bodies, the first point sets the length
+            if len(point.position) != len(drawn[0].position):
+                self.problems.append(
+                    Diagnostic(point.span, f"a point of 'draw' has {len(point.position)} components, but the first one has {len(drawn[0].position)}", "points of one length throughout")
+                )
+                break
+        return Drawing(tuple(segments), tuple(t for t in trails if t is not None))
+
+    def draw_point(self, node: yaml.Node, particles: tuple[Particle, ...], bodies: tuple[Body, ...], config: Scope, length: int | None) -> DrawPoint | None:
+        expected = "a particle name (" + (", ".join(p.name for p in particles) or "none declared") + "), a body name (" + (", ".join(b.name for b in bodies) or "none declared") + ")"
+        expected += " or a position list such as `[0, 0]`"
+        if isinstance(node, yaml.SequenceNode):
+            position = self.vector(node, "a point of 'draw'", config, lengths=(length,) if length else (1, 2, 3))
+            return DrawPoint("", position, self.span(node)) if position is not None else None
+        if not isinstance(node, yaml.ScalarNode) or node.tag != "tag:yaml.org,2002:str":
+            self.problem(node, f"a point of 'draw' must be a name or a position list, got {_kind(node)}", expected)
+            return None
+        name = node.value
+        items: tuple[Particle | Body, ...] = (*particles, *bodies)
+        found = next((item for item in items if item.name == name), None)
+        if found is not None:
+            return DrawPoint(name, found.position, self.text_span(node))
+        body, dot, point = name.partition(".")
+        if dot and any(b.name == body for b in bodies):
+            self.problem(node, f"unknown point '{name}': body '{body}' has no point '{point}'", expected)
+        else:
+            hint = _closest(name, [item.name for item in items])
+            self.problem(node, f"unknown point '{name}' in 'draw'", (f"did you mean '{hint}'? " if hint else "") + expected)
+        return None
 
     def string(self, node: yaml.Node | None, what: str) -> str | None:
         if node is None:

@@ -24,7 +24,7 @@ from sympy.core.function import AppliedUndef
 
 from lagrange_cli.errors import Span, fail
 from lagrange_cli.expr import SUPPORTED_FUNCTIONS, float_problem, real_derivative
-from lagrange_cli.model import Model, apply_definitions
+from lagrange_cli.model import Model, SymengineForms, apply_definitions
 
 MAX_CANDIDATES = 400
 """Most expressions and derivatives examined to find the entry a refused node comes from (only on the
@@ -140,9 +140,13 @@ def _check_node(node: sp.Basic, defined: frozenset[str]) -> Refusal | None:
     return Refusal(node, cause or f"the function '{name}', which is not one of the supported functions", HINTS.get(name, DEFAULT_HINT))
 
 
-def _symengine_parts(model: Model) -> list[object]:
+def symengine_parts(model: Model) -> list[object]:
     """The expressions of `model.symengine`: the parts of `model_parts` that `derive` computes in symengine."""
-    forms = model.symengine
+    return forms_parts(model.symengine)
+
+
+def forms_parts(forms: SymengineForms) -> list[object]:
+    """The expressions of symengine forms, in the order of `model_parts`."""
     return [forms.kinetic, forms.potential, forms.lagrangian, forms.dissipation, forms.energy, *forms.generalized_forces, *forms.momenta, *forms.forcing, *(m for row in forms.mass for m in row)]
 
 
@@ -173,48 +177,78 @@ def _symengine_functions() -> frozenset[str]:
 _SE_FUNCTIONS: frozenset[str] | None = None
 
 
-def clean(exprs: Iterable[object]) -> bool:
-    """True when every node of these symengine expressions is one that `refusal` allows once converted
-    to sympy: symbols, pi, E, numbers with no `float_problem`, + * ** (no power of 0, no exponent above
-    `MAX_EXPONENT`), the parser's functions, declared functions and their derivatives at their own plain
-    symbols. Anything else (a `Subs`, an infinity, a derivative of Abs, ...) is not cleared here, and
-    the caller checks the sympy form, which decides and says where it comes from. Each distinct node is
-    visited once."""
-    from lagrange_cli._symengine import se
+def survey(exprs: Iterable[object], limit: int = 10**9) -> tuple[int, int, bool]:
+    """One walk over the distinct nodes of symengine expressions: (their number, counting stops past
+    `limit`; the size of the expressions as trees, each repetition of a shared node counted, which
+    is what printing them without common subexpressions costs; whether every node is one that
+    `refusal` allows once converted to sympy: symbols, pi, E, numbers with no `float_problem`,
+    + * ** (no power of 0, no exponent above `MAX_EXPONENT`), the parser's functions, declared
+    functions and their derivatives at their own plain symbols).
 
+    Anything else (a `Subs`, an infinity, a derivative of Abs, ...) is not cleared here, and the caller
+    checks the sympy form, which decides and says where it comes from."""
     global _SE_FUNCTIONS
     if _SE_FUNCTIONS is None:
         _SE_FUNCTIONS = _symengine_functions()
+        _PLAIN.update(_plain_kinds())
     functions = _SE_FUNCTIONS
-    seen: set[object] = set()
-    stack = list(exprs)
-    while stack:
-        node = stack.pop()
-        if node in seen:
+    roots = list(exprs)
+    sizes: dict[object, int] = {}
+    stack: list[tuple[object, tuple[object, ...] | None]] = [(e, None) for e in roots]
+    cleared = True
+    while stack and len(sizes) <= limit:
+        node, args = stack.pop()
+        if args is not None:  # its arguments are done
+            sizes[node] = 1 + sum(sizes[a] for a in args)
             continue
-        seen.add(node)
-        kind = type(node).__name__
-        if kind in ("Add", "Mul") or node.is_Symbol:  # type: ignore[attr-defined]
-            pass
-        elif node.is_Number:  # type: ignore[attr-defined]
-            if kind not in ("Integer", "Rational", "RealDouble", "Zero", "One", "NegativeOne", "Half") or float_problem(sp.sympify(node)):
-                return False
-        elif kind == "Pow":
-            base, exponent = node.args  # type: ignore[attr-defined]
-            if base == 0 or (exponent.is_Integer and abs(int(exponent)) > MAX_EXPONENT):
-                return False
-        elif node == se.pi or node == se.E:
+        if node in sizes:
             continue
-        elif kind == "FunctionSymbol" or kind in functions:
-            pass
-        elif kind == "Derivative":
-            inner, *variables = node.args  # type: ignore[attr-defined]
-            if not (type(inner).__name__ == "FunctionSymbol" and all(v.is_Symbol and v in inner.args for v in variables)):
-                return False
-        else:
+        if cleared and not _PLAIN.get(type(node), False):
+            cleared = _cleared(node, functions)
+        args = node.args  # type: ignore[attr-defined]
+        if not args:
+            sizes[node] = 1
+            continue
+        stack.append((node, args))
+        stack.extend((a, None) for a in args if a not in sizes)
+    if stack:
+        return len(sizes) + 1, 0, cleared
+    return len(sizes), sum(sizes[e] for e in roots), cleared
+
+
+def _plain_kinds() -> dict[type, bool]:
+    from lagrange_cli._symengine import se
+
+    return {se.Add: True, se.Mul: True, se.Symbol: True}
+
+
+_PLAIN: dict[type, bool] = {}
+
+
+def _cleared(node: object, functions: frozenset[str]) -> bool:
+    """Whether one symengine node (not an Add, Mul or Symbol) is allowed; see `survey`."""
+    from lagrange_cli._symengine import se
+
+    kind = type(node).__name__
+    if node.is_Number:  # type: ignore[attr-defined]
+        if kind not in ("Integer", "Rational", "RealDouble", "Zero", "One", "NegativeOne", "Half"):
             return False
-        stack.extend(node.args)  # type: ignore[attr-defined]
-    return True
+        value = sp.sympify(node)  # a RealDouble nan or inf becomes sympy's nan or oo, not a Float
+        return bool(value.is_Float or value.is_Rational) and not float_problem(value)
+    if kind == "Pow":
+        base, exponent = node.args  # type: ignore[attr-defined]
+        return not (base == 0 or (exponent.is_Integer and abs(int(exponent)) > MAX_EXPONENT))
+    if node.is_Symbol or kind == "FunctionSymbol" or kind in functions or node == se.pi or node == se.E:  # type: ignore[attr-defined]
+        return True
+    if kind == "Derivative":
+        inner, *variables = node.args  # type: ignore[attr-defined]
+        return type(inner).__name__ == "FunctionSymbol" and all(v.is_Symbol and v in inner.args for v in variables)
+    return False
+
+
+def clean(exprs: Iterable[object]) -> bool:
+    """Whether every node of these symengine expressions is cleared by `survey`."""
+    return survey(exprs)[2]
 
 
 def model_parts(model: Model) -> Iterator[tuple[str, sp.Basic]]:
@@ -242,14 +276,15 @@ def model_parts(model: Model) -> Iterator[tuple[str, sp.Basic]]:
         yield f"the definition of '{name}'", definition.expr
 
 
-def validate(model: Model, sources: Sequence[Source], variables: Sequence[sp.Symbol]) -> None:
+def validate(model: Model, sources: Sequence[Source], variables: Sequence[sp.Symbol], cleared: bool | None = None) -> None:
     """Raise a `SpecError` at the entry of the file that a refused node comes from; see the module docstring.
 
     A model made by `derive` is first checked on its symengine forms (`clean`, an allow-list no wider than
     `refusal`'s), which needs no sympy conversion; only when that finds a node it does not clear, or the
-    model has definitions, are the sympy fields checked (and the culprit located) as below."""
+    model has definitions, are the sympy fields checked (and the culprit located) as below. `cleared`
+    is `survey`'s verdict on `symengine_parts(model)` when the caller has it already."""
     defined = set(model.definitions)
-    if model.native and not model.definitions and clean(_symengine_parts(model)):
+    if model.native and not model.definitions and (cleared if cleared is not None else clean(symengine_parts(model))):
         for part, expr in _sympy_parts(model):
             found = refusal(expr, defined)
             if found is not None:

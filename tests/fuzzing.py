@@ -342,7 +342,9 @@ def innermost(error: BaseException) -> str:
 
 @contextlib.contextmanager
 def alarm(seconds: float) -> Iterator[None]:
-    """Raise Hang after `seconds` (a safety net; main thread only)."""
+    """Raise Hang after `seconds` of this process's CPU time (a safety net; main thread only).
+
+    CPU time (ITIMER_PROF), not wall time, so that the load of other programs cannot trip it."""
 
     def expire(signum: int, frame: object) -> None:
         raise Hang
@@ -350,13 +352,13 @@ def alarm(seconds: float) -> Iterator[None]:
     if not hasattr(signal, "setitimer") or seconds <= 0:
         yield
         return
-    previous = signal.signal(signal.SIGALRM, expire)
-    signal.setitimer(signal.ITIMER_REAL, seconds, 1.0)  # again every second: an exception raised in a gc callback is dropped
+    previous = signal.signal(signal.SIGPROF, expire)
+    signal.setitimer(signal.ITIMER_PROF, seconds, 1.0)  # again every CPU second: an exception raised in a gc callback is dropped
     try:
         yield
     finally:
-        signal.setitimer(signal.ITIMER_REAL, 0)
-        signal.signal(signal.SIGALRM, previous)
+        signal.setitimer(signal.ITIMER_PROF, 0)
+        signal.signal(signal.SIGPROF, previous)
 
 
 class Runner:

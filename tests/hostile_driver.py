@@ -45,6 +45,30 @@ def run(argv: list[str]) -> tuple[int, str, str]:
     return code, out.getvalue(), err.getvalue()
 
 
+class Watchdog:
+    """Ends the whole process (exit 124) when one command has used `limit` seconds of CPU time.
+
+    CPU time, not wall time: another program loading the machine slows a command down but does
+    not add to its CPU time, so the verdict does not depend on the load. A command that hangs
+    without using CPU (a deadlock) is caught by the far longer wall-clock net of the caller."""
+
+    def __init__(self, limit: float, argv: list[str]) -> None:
+        self.limit, self.argv, self.start = limit, argv, time.process_time()
+        self.done = threading.Event()
+        self.thread = threading.Thread(target=self.watch, daemon=True)
+        self.thread.start()
+
+    def watch(self) -> None:
+        while not self.done.wait(0.25):
+            if time.process_time() - self.start > self.limit:
+                sys.__stderr__.write(f"HANG: lagrange {' '.join(self.argv)} used over {self.limit:g} s of CPU time\n")
+                os._exit(124)
+
+    def stop(self) -> None:
+        self.done.set()
+        self.thread.join()
+
+
 def main(args: list[str]) -> int:
     limit = 20.0
     if args and args[0] == "--limit":
@@ -56,12 +80,10 @@ def main(args: list[str]) -> int:
         else:
             commands[-1].append(item)
     for argv in commands:
-        watchdog = threading.Timer(limit, lambda argv=argv: (sys.__stderr__.write(f"HANG: lagrange {' '.join(argv)} ran over {limit:g} s\n"), os._exit(124)))
-        watchdog.daemon = True
-        watchdog.start()
+        watchdog = Watchdog(limit, argv)
         start = time.perf_counter()
         code, out, err = run(argv)
-        watchdog.cancel()
+        watchdog.stop()
         with open(results, "a", encoding="utf-8") as stream:
             stream.write(json.dumps({"argv": argv, "code": code, "stdout": out, "stderr": err, "seconds": time.perf_counter() - start}) + "\n")
     return 0

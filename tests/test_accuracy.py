@@ -7,6 +7,7 @@ import csv
 import io
 import json
 import math
+from collections.abc import Callable
 from pathlib import Path
 
 import pytest
@@ -164,3 +165,108 @@ def test_accuracy_command_writes_table_csv_json_and_plot(tmp_path: Path) -> None
 def test_accuracy_bad_options_exit_2(args: list[str], text: str) -> None:
     result = runner.invoke(app, ["accuracy", "harmonic_oscillator", *args])
     assert result.exit_code == 2 and text in result.output and "Traceback" not in result.output
+
+
+BLOW_UP = """
+coordinates: [x]
+parameters: {m: 1.0}
+particles:
+  p: {mass: m, position: [x, 0]}
+potential: -x**4
+initial: {x: 1.0, x_dot: 0.0}
+simulate: {t_end: 10.0}
+"""
+
+
+def test_a_failed_reference_run_is_a_failed_run_exit_1_with_time_state_and_cause(tmp_path: Path) -> None:
+    """x'' = 4 x^3 from x = 1 blows up in finite time: the reference cannot reach t_end. That is a
+    failed numerical run (exit 1, naming the time, the state and the cause), not bad input (exit 2)."""
+    path = tmp_path / "blow_up.yaml"
+    path.write_text(BLOW_UP)
+    with pytest.raises(accuracy.ReferenceFailed) as caught:
+        accuracy.study(model_from(path), candidates=[Candidate("RK45", "python")], tolerances=[1e-4], repeats=0, samples=11)
+    assert caught.value.exit_code == 1 and "reference run" in str(caught.value)
+    result = runner.invoke(app, ["accuracy", str(path), "--method", "RK45:python", "--tolerances", "1e-4", "--repeats", "0", "--samples", "11"])
+    assert result.exit_code == 1, result.output
+    text = " ".join(result.output.split())
+    assert "reference run" in text and "at t = " in text and "state: x = " in text and "Traceback" not in text
+    assert any(cause in text for cause in ("infinite or NaN", "step size collapsed", "step budget")), text
+
+
+def test_a_reference_over_its_budget_says_where_it_stopped() -> None:
+    model = model_from(ROOT / "systems" / "simple_pendulum.yaml")
+    setup = accuracy.Setup(1e5, tuple(float(t) for t in range(0, 100_001, 10_000)), max_steps=1, reference_max_steps=1)  # far beyond one pause of a compiled loop
+    with pytest.raises(accuracy.ReferenceFailed) as caught:
+        accuracy.computed_reference(model, setup, 1e-10)
+    message = str(caught.value)
+    assert caught.value.exit_code == 1 and "within" in message and "stopped at t = " in message and "state: theta = " in message, message
+
+
+def test_the_error_is_the_largest_over_the_samples_not_an_average() -> None:
+    """A run exact at the end but 1e-3 off at one sample in the middle: its final and RMS errors (0
+    and 1e-4) hide what the pointwise maximum shows, and 'fastest' (like stress's 'meets') judges by
+    the maximum."""
+    from types import SimpleNamespace
+
+    import numpy as np
+
+    t, reference_y = np.linspace(0.0, 1.0, 100), np.zeros((100, 2))
+    y = reference_y.copy()
+    y[50, 0] = 1e-3
+    trajectory = SimpleNamespace(t=t, y=y, invariants=(), energy=np.zeros(100))
+    reference = accuracy.Reference("exact", "zero", 0.0, t, reference_y, np.zeros(100), 0.0)
+    found = accuracy.errors(trajectory, reference, np.ones(2))  # type: ignore[arg-type]
+    assert found.final == 0.0 and found.rms == pytest.approx(1e-4) and found.largest == 1e-3
+    point = accuracy.Point("DOP853", "DOP853 (compiled)", 1e-6, None, "finished", "", found.final, found.rms, 0.0, None, 0.01, 1, 0.0, 10, 0, 5, max_error=found.largest)
+    assert point.error == 1e-3 and point.final_rms_error == pytest.approx(1e-4)
+    assert [level for level, _ in accuracy.fastest([point])][-1] == 1e-3  # not 1e-4
+
+
+def test_a_study_reports_the_largest_error_next_to_final_and_rms() -> None:
+    model = model_from(ROOT / "systems" / "harmonic_oscillator.yaml")
+    result = accuracy.study(model, candidates=[Candidate("RK45", "python")], tolerances=[1e-4], repeats=0, samples=21)
+    (point,) = result.points
+    assert point.ok and point.max_error >= max(point.final_error, point.rms_error) and point.error == point.max_error
+    (row,) = json.loads(accuracy.json_text(result))["points"]
+    assert row["max_error"] == point.max_error and "max_error" in accuracy.csv_text(result).splitlines()[0]
+
+
+def timed_point(candidate: Candidate, seconds: float, error: float = 1e-7) -> accuracy.Point:
+    ran = accuracy.Ran(candidate.method, "python")
+    return accuracy.Point(candidate.label, str(ran), 1e-6, None, "finished", "", error, error, 0.0, None, seconds, 1, 0.0, 10, 0, 5, candidate=candidate, ran=ran, max_error=error)
+
+
+def test_candidates_are_timed_in_turns() -> None:
+    calls: list[str] = []
+
+    def timer(name: str, seconds: float) -> Callable[[], float]:
+        def timed() -> float:
+            calls.append(name)
+            return seconds
+
+        return timed
+
+    times = accuracy.interleave([timer("a", 1.0), timer("b", 2.0), timer("c", 3.0)], [3, 2, 0])
+    assert calls == ["a", "b", "a", "b", "a"] and times == [[1.0, 1.0, 1.0], [2.0, 2.0], []]
+
+
+def test_close_run_times_are_ties_not_wins() -> None:
+    """The verdict comes from the (injected) timings alone: within 10% is a tie, beyond it a win."""
+    dop, rk, radau = timed_point(Candidate("DOP853"), 0.1), timed_point(Candidate("RK45"), 0.108), timed_point(Candidate("Radau"), 0.12)
+    assert accuracy.ties([dop, rk, radau], dop, 1e-6) == (rk,)
+    assert accuracy.ties([dop, rk, radau], dop, 1e-8) == ()  # RK45 does not reach 1e-8
+    setup = accuracy.Setup(1.0, (0.0, 1.0))
+    clock = {"DOP853": [0.13, 0.104], "RK45": [0.1, 0.12], "Radau": [0.095, 0.2]}  # measured in turns: one sample per round each
+
+    def timer(point: accuracy.Point) -> Callable[[], float]:
+        values = iter(clock[point.method])
+        return lambda: next(values)
+
+    retimed = accuracy.retime(None, [dop, rk, radau], setup, 2, timer=timer)  # type: ignore[arg-type]
+    assert [(p.seconds, p.runs) for p in retimed] == [(0.104, 2), (0.1, 2), (0.095, 2)]
+    best = min(retimed, key=lambda p: p.seconds)
+    assert best.method == "Radau" and {p.method for p in accuracy.ties(retimed, best, 1e-6)} == {"RK45", "DOP853"}
+    reference = accuracy.Reference("exact", "none", 0.0, __import__("numpy").zeros(2), __import__("numpy").zeros((2, 2)), __import__("numpy").zeros(2), 0.0)
+    study = accuracy.Study("s", "s.yaml", 1.0, 1.0, reference, None, tuple(retimed))
+    _, fastest = study.fastest[-1]
+    assert fastest.method == "Radau" and [t["ties"] for t in json.loads(accuracy.json_text(study))["fastest"]][-1] == ["RK45", "DOP853"]

@@ -55,5 +55,101 @@ def test_model_depends_only_on_errors_and_symengine() -> None:
 def test_symbolic_modules_import_no_numerics() -> None:
     """The modules `derive` loads; analysis and numeric ones import numpy inside functions."""
     for name, found in modules().items():
-        if not name.startswith(("lagrange_cli.numeric", "lagrange_cli.cli", "lagrange_cli.analysis", "lagrange_cli.report")):
+        if not name.startswith(("lagrange_cli.numeric", "lagrange_cli.cli", "lagrange_cli.analysis", "lagrange_cli.report", *LAZY)):
             assert not any(i.split(".")[0] in ("numpy", "scipy", "matplotlib") for i in found), name
+
+
+FRONTEND = ("lagrange_cli.spec", "lagrange_cli.expr", "lagrange_cli.derive", "lagrange_cli.files", "lagrange_cli.cli")
+"""What `numeric` may not import: the frontend (files in, the spec, the deriver) and the CLI."""
+NUMERIC_EXCEPTIONS = {
+    ("lagrange_cli.numeric.settings", "lagrange_cli.expr"): "the library's `simulate(until=...)` takes the stop condition as text and parses it with the safe parser",
+    ("lagrange_cli.numeric.compile", "lagrange_cli.files"): "the compile cache writes its files atomically",
+    ("lagrange_cli.numeric.output", "lagrange_cli.files"): "`write_plot`/`write_npz` write the user's outputs atomically",
+    ("lagrange_cli.numeric.reports", "lagrange_cli.files"): "`write_plot` writes the user's output atomically",
+}
+"""Known imports of the frontend from `numeric`, each with why (files.py is the ground floor of STYLE.md's layout)."""
+
+
+def test_numeric_does_not_import_the_frontend() -> None:
+    found = []
+    for name, imported in modules().items():
+        if name.startswith("lagrange_cli.numeric"):
+            for module in imported:
+                banned = next((f for f in FRONTEND if module == f or module.startswith(f + ".")), None)
+                if banned is not None and (name, banned) not in NUMERIC_EXCEPTIONS:
+                    found.append(f"{name} imports {module}")
+    assert not found, found
+
+
+def private_uses(path: Path) -> list[str]:
+    """Names starting with `_` taken from another lagrange_cli module: `from m import _x`, or
+    `m._x` where `m` is a lagrange_cli module imported by name."""
+    tree = ast.parse(path.read_text())
+    modules_by_alias: dict[str, str] = {}
+    found = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.ImportFrom) and node.module and node.module.startswith("lagrange_cli"):
+            for alias in node.names:
+                if alias.name.startswith("_") and not alias.name.startswith("__"):
+                    found.append(f"from {node.module} import {alias.name}")
+                elif (PACKAGE / Path(*node.module.split(".")[1:]) / f"{alias.name}.py").exists():
+                    modules_by_alias[alias.asname or alias.name] = f"{node.module}.{alias.name}"
+        elif isinstance(node, ast.Import):
+            for alias in node.names:
+                if alias.name.startswith("lagrange_cli") and alias.asname:
+                    modules_by_alias[alias.asname] = alias.name
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Attribute) and isinstance(node.value, ast.Name) and node.value.id in modules_by_alias and node.attr.startswith("_") and not node.attr.startswith("__"):
+            found.append(f"{modules_by_alias[node.value.id]}.{node.attr}")
+    return found
+
+
+def test_numeric_uses_no_private_names_of_other_modules() -> None:
+    found = {str(p.relative_to(ROOT)): private_uses(p) for p in (PACKAGE / "numeric").rglob("*.py")}
+    assert not {k: v for k, v in found.items() if v}, found
+
+
+def test_the_private_name_check_can_fail(tmp_path: Path) -> None:
+    source = tmp_path / "m.py"
+    source.write_text("from lagrange_cli.numeric.settings import _positive\nfrom lagrange_cli.numeric import integrators\nintegrators._drive\n")
+    assert private_uses(source) == ["from lagrange_cli.numeric.settings import _positive", "lagrange_cli.numeric.integrators._drive"]
+
+
+def test_the_kernels_status_codes_are_defined_once() -> None:
+    """Status codes and counter indices live in numeric/status.py, which imports nothing (no numba):
+    no other numeric module assigns them."""
+    names = {"RUNNING", "DONE", "EVENT", "SINGULAR", "NONFINITE", "STEP_COLLAPSE", "NO_CONVERGENCE", "BUDGET", "NFEV", "NJEV", "NSTEPS", "NREJECT", "HMIN", "HMAX", "PAUSE_STEPS"}
+    status = PACKAGE / "numeric" / "status.py"
+    assert {i.split(".")[0] for i in imports(status)} <= {"__future__", "enum"}
+    for path in (PACKAGE / "numeric").rglob("*.py"):
+        if path == status:
+            continue
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.Assign):
+                targets = [t for target in node.targets for t in (target.elts if isinstance(target, ast.Tuple) else [target])]
+                assigned = {t.id for t in targets if isinstance(t, ast.Name)}
+                assert not (assigned & names) or all(isinstance(v, ast.Attribute) for v in (node.value.elts if isinstance(node.value, ast.Tuple) else [node.value])), (path.name, assigned & names)
+
+
+def test_numeric_caches_are_not_keyed_by_id() -> None:
+    """A cache keyed by `id(model)` hands a new model the entry of a dead one with the same id;
+    per-model values live on the model (numeric/memo.py). compile.py keeps the model alive in each
+    entry it keys by id (safe, if not tidy), so it is not checked here."""
+    for path in (PACKAGE / "numeric").glob("*.py"):
+        if path.name == "compile.py":
+            continue
+        calls = [node for node in ast.walk(ast.parse(path.read_text())) if isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id == "id"]
+        assert not calls, path.name
+
+
+LAZY = ("lagrange_cli.api", "lagrange_cli.animate")
+"""The notebook API and the animations: imported by `import lagrange_cli` on first use only, they
+import numpy and matplotlib inside the functions that need them, never at module level."""
+
+
+def test_the_api_imports_numerics_only_inside_functions() -> None:
+    for name in LAZY:
+        tree = ast.parse((ROOT / (name.replace(".", "/") + ".py")).read_text())
+        top = [node for node in tree.body if isinstance(node, (ast.Import, ast.ImportFrom))]
+        found = {alias.name for node in top if isinstance(node, ast.Import) for alias in node.names} | {node.module or "" for node in top if isinstance(node, ast.ImportFrom)}
+        assert not any(i.split(".")[0] in ("numpy", "scipy", "matplotlib", "typer", "rich") for i in found), name

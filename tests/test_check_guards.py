@@ -14,6 +14,7 @@ from lagrange_cli import check, derive, spec
 from lagrange_cli.errors import SpecError
 
 from .conftest import ROOT
+from .limits import DEADLOCK
 
 SPRING = """
 coordinates: [x, y]
@@ -137,7 +138,7 @@ def test_velocities_satisfy_the_constraints() -> None:
 
 
 def cli(*args: str) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([sys.executable, "-m", "lagrange_cli", *args], capture_output=True, text=True, cwd=ROOT, timeout=120)
+    return subprocess.run([sys.executable, "-m", "lagrange_cli", *args], capture_output=True, text=True, cwd=ROOT, timeout=DEADLOCK)
 
 
 def test_cli_undecidable_entry_exits_2_naming_the_file_and_line(tmp_path: Path) -> None:

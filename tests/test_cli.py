@@ -11,6 +11,7 @@ from typer.testing import CliRunner
 from lagrange_cli.cli import app
 
 from .conftest import ROOT
+from .limits import DEADLOCK
 
 runner = CliRunner()
 
@@ -72,7 +73,7 @@ def test_check_rejects_a_wrong_answer(tmp_path: Path) -> None:
 
 def imported_modules(*args: str) -> set[str]:
     code = "import sys; from lagrange_cli.cli import app\ntry:\n    app(" + repr(list(args)) + ")\nexcept SystemExit:\n    pass\nprint(' '.join(sorted(sys.modules)), file=sys.stderr)"
-    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT, timeout=120)
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT, timeout=DEADLOCK)
     return set(result.stderr.split())
 
 
@@ -88,5 +89,5 @@ def test_derive_imports_no_numerics() -> None:
 
 
 def test_python_dash_m_entry_point() -> None:
-    result = subprocess.run([sys.executable, "-m", "lagrange_cli", "--help"], capture_output=True, text=True, cwd=ROOT, timeout=60)
+    result = subprocess.run([sys.executable, "-m", "lagrange_cli", "--help"], capture_output=True, text=True, cwd=ROOT, timeout=DEADLOCK)
     assert result.returncode == 0 and "derive" in result.stdout

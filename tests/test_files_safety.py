@@ -20,6 +20,7 @@ from lagrange_cli.errors import LagrangeError, SpecError
 from lagrange_cli.files import atomic_write, read_limited, write_text
 
 from .conftest import ROOT
+from .limits import DEADLOCK
 
 runner = CliRunner()
 PENDULUM = ROOT / "systems" / "simple_pendulum.yaml"
@@ -35,7 +36,7 @@ def run(*args: str) -> tuple[int, str]:
 def lagrange(*args: str, cwd: Path) -> subprocess.CompletedProcess[str]:
     """The real command in a subprocess; the timeout only keeps a regression (a hang) from stalling the suite."""
     environment = {**os.environ, "PYTHONPATH": str(ROOT)}
-    return subprocess.run([sys.executable, "-m", "lagrange_cli", *args], cwd=cwd, capture_output=True, text=True, timeout=120, env=environment)
+    return subprocess.run([sys.executable, "-m", "lagrange_cli", *args], cwd=cwd, capture_output=True, text=True, timeout=DEADLOCK, env=environment)
 
 
 @pytest.fixture
@@ -168,7 +169,7 @@ def test_dev_stdout_writes_through_the_open_descriptor(tmp_path: Path) -> None:
         stream.write(b"first\n")
         stream.flush()
         inode = os.fstat(stream.fileno()).st_ino
-        done = subprocess.run([sys.executable, "-m", "lagrange_cli", "derive", "simple_pendulum", "-o", "/dev/stdout"], stdout=stream, stderr=subprocess.PIPE, timeout=120, env=environment)
+        done = subprocess.run([sys.executable, "-m", "lagrange_cli", "derive", "simple_pendulum", "-o", "/dev/stdout"], stdout=stream, stderr=subprocess.PIPE, timeout=DEADLOCK, env=environment)
         stream.write(b"last\n")
     assert done.returncode == 0, done.stderr
     lines = target.read_text().splitlines()

@@ -17,10 +17,11 @@ from lagrange_cli import __version__
 from lagrange_cli.cli import app
 
 from .conftest import ROOT
+from .limits import DEADLOCK
 
 runner = CliRunner()
 GROUP = typer.main.get_command(app)
-COMMANDS = ["derive", "check", "info", "equilibria", "linearize", "simulate", "accuracy", "stress"]
+COMMANDS = ["derive", "check", "info", "equilibria", "linearize", "simulate", "animate", "accuracy", "stress"]
 
 
 def helps(command: str | None) -> tuple[str, list[str]]:
@@ -88,7 +89,7 @@ def test_a_reader_that_stops_early_ends_the_run_quietly(args: list[str]) -> None
         assert process.stdout is not None and process.stderr is not None
         process.stdout.close()
         stderr = process.stderr.read()
-        assert process.wait(timeout=120) == 0 and stderr == b""
+        assert process.wait(timeout=DEADLOCK) == 0 and stderr == b""
 
 
 def test_head_takes_the_first_line(tmp_path: Path) -> None:
@@ -96,7 +97,7 @@ def test_head_takes_the_first_line(tmp_path: Path) -> None:
     command = f"{sys.executable} -m lagrange_cli simulate simple_pendulum --t-end 1 --samples 20000 -o -"
     shell = f"{command} | head -1; exit ${{PIPESTATUS[0]}}"
     env = {**os.environ, "LAGRANGE_CACHE_DIR": str(tmp_path)}
-    result = subprocess.run(["bash", "-c", shell], cwd=ROOT, capture_output=True, text=True, timeout=120, env=env)
+    result = subprocess.run(["bash", "-c", shell], cwd=ROOT, capture_output=True, text=True, timeout=DEADLOCK, env=env)
     assert result.returncode == 0 and result.stdout == "t,theta,theta_dot,energy\n"
     assert not re.search("Traceback|Broken|Exception ignored|error", result.stderr), result.stderr
 
@@ -112,5 +113,5 @@ def test_a_reader_that_stops_early_keeps_checks_verdict(tmp_path: Path, json_rep
         assert process.stdout is not None and process.stderr is not None
         process.stdout.close()
         stderr = process.stderr.read()
-        assert process.wait(timeout=120) == 1, stderr
+        assert process.wait(timeout=DEADLOCK) == 1, stderr
         assert b"Traceback" not in stderr

@@ -13,7 +13,7 @@ must show, for every command:
 - nothing executed: no file named PWNED* appears in the folder or in the current directory, also
   when the written Python module is imported and the written LaTeX document is compiled (which
   must then succeed, without reading /etc/passwd);
-- an end (the driver's 90 s watchdog is a safety net against hangs; the cases take a few seconds).
+- an end (the driver's watchdog, 90 s of CPU time, is a safety net against hangs; the cases take a few seconds, and the load of other programs does not count).
 
 A case file starts with comment lines that say what applies (adding a case is adding a file):
 
@@ -40,9 +40,12 @@ from pathlib import Path
 
 import pytest
 
+from .limits import DEADLOCK
+
 ROOT = Path(__file__).resolve().parent.parent
 CASES = sorted((ROOT / "tests" / "hostile").glob("*.yaml"))
 LIMIT = 90.0
+"""CPU seconds one command may use (the driver's watchdog): a safety net against hangs, far above any case."""
 """Seconds before a command counts as hung: a safety net far above any case (the slowest take a few
 seconds on a quiet machine), so that a loaded machine cannot fail the test."""
 MARKER = "PWNED"
@@ -151,9 +154,9 @@ def test_hostile_file(path: Path, tmp_path: Path) -> None:
         argv += ["--", *command_line(name, file)]
     before = set(markers(Path.cwd()))
     try:
-        driver = subprocess.run(argv, cwd=work, env=environment(tmp_path), capture_output=True, text=True, timeout=LIMIT * len(case.commands) + 30)
+        driver = subprocess.run(argv, cwd=work, env=environment(tmp_path), capture_output=True, text=True, timeout=DEADLOCK * len(case.commands))
     except subprocess.TimeoutExpired:
-        pytest.fail(f"{path.name}: the commands ran over {LIMIT * len(case.commands) + 30:g} s together")
+        pytest.fail(f"{path.name}: the commands ran over {DEADLOCK * len(case.commands):g} s of wall time together (a deadlock: the CPU-time watchdog did not fire)")
     ran = [json.loads(line) for line in results.read_text(encoding="utf-8").splitlines()] if results.exists() else []
     problems = [f"driver: {driver.stderr.strip()[-2000:]}"] if driver.returncode != 0 else []
     for name, result in zip(case.commands, ran, strict=False):
@@ -200,7 +203,7 @@ def follow_up(case: Case, work: Path, tmp: Path) -> list[str]:
         script = "import runpy, json, sys; m = runpy.run_path(sys.argv[1]); y = json.loads(sys.argv[2]); print(json.dumps([float(v) for v in m['rhs'](0.0, y)] if y else []))"
         y = json.dumps(case.rhs[0] if case.rhs else [])
         try:
-            run = subprocess.run([sys.executable, "-c", script, str(module), y], cwd=work, env=environment(tmp), capture_output=True, text=True, timeout=LIMIT)
+            run = subprocess.run([sys.executable, "-c", script, str(module), y], cwd=work, env=environment(tmp), capture_output=True, text=True, timeout=DEADLOCK)
         except subprocess.TimeoutExpired:
             return [f"importing the written module ran over {LIMIT:g} s"]
         if run.returncode != 0:
@@ -230,7 +233,7 @@ def compile_latex(work: Path, name: str, wrapper: str | None) -> list[str]:
     if wrapper:
         (latex / "main.tex").write_text(wrapper)
     try:
-        run = subprocess.run(["pdflatex", "-no-shell-escape", "-halt-on-error", "-interaction=nonstopmode", "main.tex"], cwd=latex, capture_output=True, text=True, errors="replace", timeout=LIMIT)
+        run = subprocess.run(["pdflatex", "-no-shell-escape", "-halt-on-error", "-interaction=nonstopmode", "main.tex"], cwd=latex, capture_output=True, text=True, errors="replace", timeout=DEADLOCK)
     except subprocess.TimeoutExpired:
         return [f"pdflatex on {name} ran over {LIMIT:g} s"]
     log = (latex / "main.log").read_text(errors="replace") if (latex / "main.log").exists() else ""

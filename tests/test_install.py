@@ -21,6 +21,7 @@ from typer.testing import CliRunner
 from lagrange_cli.cli import app
 
 from .conftest import ROOT
+from .limits import DEADLOCK
 
 runner = CliRunner()
 
@@ -74,20 +75,20 @@ def test_without_numba_accuracy_runs_the_rest_and_names_the_extra_for_symplectic
 def run(venv: Path, cwd: Path, *args: str) -> subprocess.CompletedProcess[str]:
     env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "VIRTUAL_ENV")}
     env.update(LAGRANGE_CACHE_DIR=str(cwd / "cache"), COLUMNS="100", PYTHONDONTWRITEBYTECODE="1")
-    return subprocess.run([str(venv / "bin" / "lagrange"), *args], cwd=cwd, capture_output=True, text=True, timeout=600, env=env)
+    return subprocess.run([str(venv / "bin" / "lagrange"), *args], cwd=cwd, capture_output=True, text=True, timeout=DEADLOCK, env=env)
 
 
 @pytest.mark.slow
 def test_a_plain_install_runs_every_command(tmp_path: Path) -> None:
     wheels = tmp_path / "wheels"
-    built = subprocess.run([sys.executable, "-m", "pip", "wheel", "--no-deps", "-q", "-w", str(wheels), str(ROOT)], capture_output=True, text=True, timeout=600)
+    built = subprocess.run([sys.executable, "-m", "pip", "wheel", "--no-deps", "-q", "-w", str(wheels), str(ROOT)], capture_output=True, text=True, timeout=DEADLOCK)
     assert built.returncode == 0, built.stderr
     venv = tmp_path / "venv"
-    subprocess.run([sys.executable, "-m", "venv", str(venv)], check=True, timeout=300)
+    subprocess.run([sys.executable, "-m", "venv", str(venv)], check=True, timeout=DEADLOCK)
     pip = [str(venv / "bin" / "python"), "-m", "pip", "install", "-q"]
-    installed = subprocess.run([*pip, *map(str, wheels.glob("*.whl"))], capture_output=True, text=True, timeout=900)
+    installed = subprocess.run([*pip, *map(str, wheels.glob("*.whl"))], capture_output=True, text=True, timeout=DEADLOCK)
     assert installed.returncode == 0, installed.stderr
-    listed = subprocess.run([str(venv / "bin" / "python"), "-m", "pip", "list"], capture_output=True, text=True, timeout=120).stdout.lower()
+    listed = subprocess.run([str(venv / "bin" / "python"), "-m", "pip", "list"], capture_output=True, text=True, timeout=DEADLOCK).stdout.lower()
     assert "numpy" in listed and "scipy" in listed and "numba" not in listed and "matplotlib" not in listed
 
     work = tmp_path / "work"  # away from the source tree: bundled systems come from the installed package

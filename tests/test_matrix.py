@@ -30,6 +30,8 @@ INVOCATIONS: dict[str, dict[str, list[str]]] = {
         **{f"{fmt}-{form}": [f"--{fmt}", "--form", form] for fmt in ("text", "latex") for form in ("lagrange", "matrix", "solved")},
         **{f"latex-{form}-standalone": ["--latex", "--standalone", "--form", form] for form in ("lagrange", "matrix", "solved")},
         "python": ["--python"],
+        "c": ["--to", "c"],
+        "octave": ["--to", "octave"],
     },
     "check": {"": []},
     "info": {"text": [], "latex": ["--latex"], "json": ["--json"]},
@@ -38,15 +40,21 @@ INVOCATIONS: dict[str, dict[str, list[str]]] = {
     "simulate": {"": [*SHORT, "--backend", "python", "--method", "DOP853", "--samples", "11"]},
     "accuracy": {"": ["--method", "DOP853:python", "--tolerances", "1e-4,1e-6", "--repeats", "0", "--samples", "11", *SHORT]},
     "stress": {"": ["--method", "DOP853:python", *SHORT, "--long", "2", "--energy", "2"]},
+    "animate": {"": ["-o", "-", *SHORT, "--fps", "10"]},
 }
-"""How each command is run in the matrix: variant name -> arguments after the file."""
+"""How each command is run in the matrix: variant name -> arguments after the file. (The code targets' cells
+only run `derive`; tests/test_target_c.py and tests/test_target_octave.py compile and run every feature's code
+in its toolchain and compare it with the Python module.)"""
 
 SHOWS = {
     ("check", ""): "1 file: 1 passed",  # the feature's `expect` was checked, not skipped
     ("derive", "python"): "def rhs(",
+    ("derive", "c"): "static inline int eom_rhs(double t, const double *y, const double *p, double *dydt)",
+    ("derive", "octave"): "function [dydt, h, lambda] = eom(t, y, p)",
     **{("derive", f"latex-{form}-standalone"): "\\end{document}" for form in ("lagrange", "matrix", "solved")},
     ("info", "json"): '"hamiltonian"',
     ("simulate", ""): "invariants",
+    ("animate", ""): "</html>",
 }
 """What a cell that works must print (on stdout), where a word says it did its job."""
 

@@ -23,6 +23,7 @@ from lagrange_cli import algebra, derive, spec, validate
 from lagrange_cli.errors import Diagnostic, SpecError
 
 from .conftest import ROOT
+from .limits import DEADLOCK
 
 LINE = "coordinates: [x, y]\nparameters: {m: 1.0, k: 2.0}\nparticles:\n  p: {mass: m, position: [x, y]}\n"
 ONE = "coordinates: [x]\nparameters: {m: 1.0}\nparticles:\n  p: {mass: m, position: [x]}\n"
@@ -277,7 +278,7 @@ def test_the_cli_reports_located_errors_without_a_traceback(tmp_path: object, ex
     text = LINE + extra
     path = folder / "sys.yaml"
     path.write_text(text)
-    result = subprocess.run([sys.executable, "-m", "lagrange_cli", "derive", str(path)], capture_output=True, text=True, cwd=ROOT, timeout=60)
+    result = subprocess.run([sys.executable, "-m", "lagrange_cli", "derive", str(path)], capture_output=True, text=True, cwd=ROOT, timeout=DEADLOCK)
     line, column = position(text, anchor)
     assert result.returncode == 2
     assert "Traceback" not in result.stderr and result.stdout == ""

@@ -87,3 +87,24 @@ def test_the_cache_serves_a_second_process_and_scipy_runs_load_no_numba(tmp_path
     assert any(tmp_path.glob("__pycache__/lagrange_numba_*.nbi")) and any(tmp_path.glob("__pycache__/lagrange_kernels_*.nbi"))
     python = run_script(tmp_path, "RK45", "python")
     assert not python["numba"] and python["scipy"] and python["status"] == "finished"
+
+
+def test_a_paused_symplectic_run_takes_the_steps_of_a_straight_one(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The compiled loops pause for progress at times that depend on the clock: a resumed Gauss loop
+    must carry its predictor and Newton matrix over, so that where it paused changes nothing."""
+    from lagrange_cli.numeric import integrators, simulate
+
+    model = model_from(ROOT / "systems" / "kepler.yaml")
+    straight = simulate(model, method="symplectic", t_end=5.0)
+
+    def chunked(advance: object, now: object, taken: object, problem: integrators.Problem, progress: object) -> int:
+        code = -1
+        for k in range(1, 51):  # 50 pauses, as a slow machine's progress reports would make
+            code = advance(problem.t0 + (problem.t_end - problem.t0) * k / 50)  # type: ignore[operator]
+            if code != -1:
+                return code
+        return code
+
+    monkeypatch.setattr(integrators, "_drive", chunked)
+    paused = simulate(model, method="symplectic", t_end=5.0)
+    assert paused.stats == straight.stats and np.array_equal(paused.y, straight.y), (paused.stats, straight.stats)

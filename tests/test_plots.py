@@ -288,14 +288,14 @@ def test_the_command_plots_with_the_model(tmp_path: Path, monkeypatch: pytest.Mo
 
 
 def study(title: str = "Pendulum") -> Any:
-    from lagrange_cli.numeric.accuracy import Point, Reference, Study
+    from lagrange_cli.numeric.accuracy import Candidate, Point, Ran, Reference, Study
 
-    def point(method: str, resolved: str, tolerance: float, error: float, seconds: float) -> Point:
-        return Point(method, resolved, tolerance, None, "finished", "", error, error / 2, 1e-9, None, seconds, 3, 0.5, int(100 / tolerance**0.2), 0, 10)
+    def point(candidate: Candidate, ran: Ran, tolerance: float, error: float, seconds: float) -> Point:
+        return Point(candidate.label, str(ran), tolerance, None, "finished", "", error, error / 2, 1e-9, None, seconds, 3, 0.5, int(100 / tolerance**0.2), 0, 10, candidate=candidate, ran=ran)
 
-    points = [point("DOP853", "DOP853 (compiled)", tol, tol, 1e-4 / tol**0.1) for tol in (1e-4, 1e-6, 1e-8)]
-    points += [point("DOP853:python", "DOP853 (python)", tol, tol, 1e-2 / tol**0.1) for tol in (1e-4, 1e-6, 1e-8)]
-    points += [point("RK45:python", "RK45 (python)", tol, 10 * tol, 2e-2 / tol**0.2) for tol in (1e-4, 1e-6)]
+    points = [point(Candidate("DOP853"), Ran("DOP853", "compiled"), tol, tol, 1e-4 / tol**0.1) for tol in (1e-4, 1e-6, 1e-8)]
+    points += [point(Candidate("DOP853", "python"), Ran("DOP853", "python"), tol, tol, 1e-2 / tol**0.1) for tol in (1e-4, 1e-6, 1e-8)]
+    points += [point(Candidate("RK45", "python"), Ran("RK45", "python"), tol, 10 * tol, 2e-2 / tol**0.2) for tol in (1e-4, 1e-6)]
     points.append(dataclasses.replace(points[-1], tolerance=1e-8, status="over budget", final_error=float("nan"), rms_error=float("nan")))
     reference = Reference("computed", "two runs", 1e-12, np.zeros(2), np.zeros((2, 2)), np.zeros(2), 0.1)
     return Study(title, "s.yaml", 10.0, 10.0, reference, None, tuple(points))
@@ -323,16 +323,16 @@ def test_accuracy_plot_tells_compiled_from_python_runs(tmp_path: Path) -> None:
     assert python.get_linestyle() == lines["RK45 (python)"].get_linestyle() == "--"
     assert len(lines["RK45 (python)"].get_xdata()) == 2  # the run over budget is not drawn
     assert left.get_xlabel() == "run time [s] (one-time compile excluded)" and right.get_xlabel() == "right-hand side evaluations"
-    assert left.get_ylabel() == right.get_ylabel() == "error (larger of final and RMS, scaled)"
+    assert left.get_ylabel() == right.get_ylabel() == "error (largest over the samples, scaled)"
     assert_readable(figure)
 
 
 def test_accuracy_labels_follow_what_ran() -> None:
-    from lagrange_cli.numeric.accuracy import plot_label, run_backend
+    from lagrange_cli.numeric.accuracy import Candidate, plot_label, run_backend
 
     points = study().points
     assert [run_backend(p) for p in points[::3]] == ["compiled", "python", "python"]
-    auto = dataclasses.replace(points[0], method="auto")
+    auto = dataclasses.replace(points[0], method="auto", candidate=Candidate("auto"))
     assert plot_label(auto) == "auto -> DOP853 (compiled)"
 
 

@@ -23,6 +23,7 @@ import pytest
 import yaml
 
 from .conftest import ROOT
+from .limits import DEADLOCK
 
 pytestmark = pytest.mark.slow
 
@@ -33,7 +34,7 @@ HOOK = yaml.safe_load((ROOT / ".pre-commit-hooks.yaml").read_text())[0]
 
 
 def git(cwd: Path, *args: str) -> subprocess.CompletedProcess[str]:
-    return subprocess.run(["git", *args], cwd=cwd, capture_output=True, text=True, timeout=120, env=ENV)
+    return subprocess.run(["git", *args], cwd=cwd, capture_output=True, text=True, timeout=DEADLOCK, env=ENV)
 
 
 ENV = {
@@ -84,7 +85,7 @@ def course(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[Path, dic
     git(repo, "init", "-q")
     git(repo, "add", "-A")
     assert git(repo, "commit", "-q", "-m", "start").returncode == 0
-    installed = subprocess.run([str(PRE_COMMIT), "install"], cwd=repo, capture_output=True, text=True, timeout=60, env=env)
+    installed = subprocess.run([str(PRE_COMMIT), "install"], cwd=repo, capture_output=True, text=True, timeout=DEADLOCK, env=env)
     assert installed.returncode == 0, installed.stdout + installed.stderr
     yield repo, env
 
@@ -100,7 +101,7 @@ def test_the_hook_selects_system_files_only() -> None:
 
 def test_a_correct_system_file_passes_and_other_yaml_is_left_alone(course: tuple[Path, dict[str, str]]) -> None:
     repo, env = course
-    result = subprocess.run([str(PRE_COMMIT), "run", "--all-files"], cwd=repo, capture_output=True, text=True, timeout=900, env=env)
+    result = subprocess.run([str(PRE_COMMIT), "run", "--all-files"], cwd=repo, capture_output=True, text=True, timeout=DEADLOCK, env=env)
     assert result.returncode == 0, result.stdout + result.stderr
     assert re.search(r"lagrange check\.+Passed", result.stdout), result.stdout
     assert "unknown key" not in result.stdout and "Traceback" not in result.stdout
@@ -111,12 +112,12 @@ def test_a_wrong_answer_blocks_the_commit(course: tuple[Path, dict[str, str]]) -
     before = git(repo, "rev-parse", "HEAD").stdout
     (repo / "systems" / "pendulum.yaml").write_text(WRONG)
     git(repo, "add", "systems/pendulum.yaml")
-    commit = subprocess.run(["git", "commit", "-m", "a wrong answer"], cwd=repo, capture_output=True, text=True, timeout=900, env=env)
+    commit = subprocess.run(["git", "commit", "-m", "a wrong answer"], cwd=repo, capture_output=True, text=True, timeout=DEADLOCK, env=env)
     assert commit.returncode != 0, commit.stdout + commit.stderr
     assert re.search(r"lagrange check\.+Failed", commit.stdout + commit.stderr)
     assert "FAIL" in commit.stdout + commit.stderr and "Traceback" not in commit.stdout + commit.stderr
     assert git(repo, "rev-parse", "HEAD").stdout == before
     (repo / "systems" / "pendulum.yaml").write_text(GOOD.replace("Simple pendulum", "Simple pendulum, corrected"))
     git(repo, "add", "systems/pendulum.yaml")
-    fixed = subprocess.run(["git", "commit", "-m", "the right answer"], cwd=repo, capture_output=True, text=True, timeout=900, env=env)
+    fixed = subprocess.run(["git", "commit", "-m", "the right answer"], cwd=repo, capture_output=True, text=True, timeout=DEADLOCK, env=env)
     assert fixed.returncode == 0, fixed.stdout + fixed.stderr

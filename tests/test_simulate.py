@@ -244,3 +244,22 @@ def test_cached_modules_are_not_reused_after_the_code_generator_changes(monkeypa
         monkeypatch.setattr(compile, "_generator_source", lambda source=source: source)
         keys.append(compile.fingerprint(model_from(ROOT / "systems" / "kepler.yaml"), "python", False, None))
     assert keys[0] != keys[1]
+
+
+def test_settings_only_validate_and_the_policy_decides(monkeypatch: pytest.MonkeyPatch) -> None:
+    """`settings.validate` compiles nothing and leaves `auto` as asked; `policy.decide` resolves it,
+    and Baumgarte's alpha enters the generated code's parameters in one place (`Settings.p`)."""
+    from lagrange_cli.numeric import compile, policy, settings
+
+    model = model_from(ROOT / "systems" / "pendulum_multiplier.yaml")
+
+    def no_compiling(*args: object, **kwargs: object) -> object:
+        raise AssertionError("validate compiled something")
+
+    with monkeypatch.context() as patched:
+        patched.setattr(compile, "build", no_compiling)
+        asked = settings.validate(model, t_end=2.0)
+    assert asked.method == "auto" and asked.backend == "auto" and asked.alpha is None and asked.p == asked.values
+    decided = policy.decide(model, asked)
+    assert decided.method != "auto" and decided.backend != "auto" and decided.alpha is not None and decided.alpha > 0
+    assert decided.p == (*asked.values, decided.alpha) and len(decided.values) == len(model.parameters)

@@ -22,6 +22,7 @@ from lagrange_cli.report import info_latex
 
 from .conftest import SYSTEMS
 from .helpers import model_from, model_of
+from .limits import DEADLOCK
 
 PDFLATEX = shutil.which("pdflatex")
 PDFTOTEXT = shutil.which("pdftotext")
@@ -50,7 +51,7 @@ def compile_tex(folder: Path, name: str, document: str) -> str:
     """Compile with pdflatex (no shell escape); the log. Fails on any error."""
     assert PDFLATEX
     (folder / f"{name}.tex").write_text(document, encoding="utf-8")
-    result = subprocess.run([PDFLATEX, "-interaction=nonstopmode", "-halt-on-error", "-no-shell-escape", f"{name}.tex"], cwd=folder, capture_output=True, text=True, timeout=60)
+    result = subprocess.run([PDFLATEX, "-interaction=nonstopmode", "-halt-on-error", "-no-shell-escape", f"{name}.tex"], cwd=folder, capture_output=True, text=True, timeout=DEADLOCK)
     assert result.returncode == 0, result.stdout[-3000:]
     return (folder / f"{name}.log").read_text(errors="replace")
 

@@ -53,7 +53,8 @@ def test_stiff_damped_spring_shows_the_naive_method_losing_and_radau_winning() -
     assert report.passed and outcome.recommended is not None and outcome.recommended.method == "Radau"
     assert any(f.startswith("stiff") for f in outcome.diagnosis.findings)
     assert any("explicit step count explodes" in f for f in outcome.diagnosis.findings)
-    assert outcome.naive is not None and outcome.naive.steps > 10 * outcome.recommended.steps
+    # judged by the largest error over the samples, Radau needs rtol 1e-5 here (71 steps) where RK45 needs 1e-4 (709)
+    assert outcome.naive is not None and outcome.naive.steps > 5 * outcome.recommended.steps
 
 
 @pytest.mark.parametrize(("name", "scale", "fast"), [("stiff_spring_pendulum", "g", True), ("spherical_coordinates_particle", "m", False), ("simple_pendulum", "g", False)])
@@ -151,7 +152,7 @@ def test_spectrum_does_not_count_a_saddle_pair_as_stiffness() -> None:
     ],
 )
 def test_auto_picks_explicit_unless_an_explicit_method_is_stability_limited_too_long(name: str, parameters: dict[str, float], initial: dict[str, float], picked: tuple[str, ...]) -> None:
-    from lagrange_cli.numeric.settings import resolve
+    from lagrange_cli.numeric.policy import resolve
 
     settings = resolve(model_from(ROOT / "systems" / f"{name}.yaml"), method="auto", parameters=parameters, initial=initial, t_end=10.0)
     assert settings.method in picked, settings.notes
@@ -169,3 +170,39 @@ def test_report_names_the_naive_failure_and_the_recommended_success() -> None:
     assert any(f.startswith("stiff:") for f in outcome.diagnosis.findings), outcome.diagnosis.findings
     assert outcome.recommended is not None and outcome.recommended.resolved.startswith("Radau") and outcome.auto.resolved.startswith("Radau")
     assert json.loads(stress.json_text(report))["regimes"][0]["naive"]["status"] == "over step budget"
+
+
+def command_options(name: str) -> set[str]:
+    """The long options of one command of the CLI."""
+    import typer.main
+
+    group = typer.main.get_command(app)
+    command = group.commands[name]  # type: ignore[attr-defined]
+    return {option for parameter in command.params for option in (*parameter.opts, *parameter.secondary_opts) if option.startswith("--")}
+
+
+OPTION = r"(?<![\w-])--[a-z][a-z-]*[a-z]"
+
+
+def test_every_option_the_numeric_messages_name_exists() -> None:
+    """A hint names only options the CLI has (the numeric library's messages are shown by its commands)."""
+    import re
+
+    known = command_options("simulate") | command_options("accuracy") | command_options("stress")
+    named = {option for path in (ROOT / "lagrange_cli" / "numeric").glob("*.py") for option in re.findall(OPTION, path.read_text())}
+    assert named and named <= known, named - known
+
+
+def test_stress_hints_name_only_stress_options(tmp_path: Path) -> None:
+    """A reference run over its step budget: the hint must not suggest `--tolerances` (an
+    `accuracy` option) to a user of `stress`."""
+    import re
+
+    report = tmp_path / "report.json"
+    args = ["stress", "simple_pendulum", "--method", "RK45:python", "--max-steps", "1", "--t-end", "100", "--json", str(report)]
+    result = runner.invoke(app, args)
+    assert result.exit_code == 0, result.output
+    findings = [f for regime in json.loads(report.read_text())["regimes"] for f in regime["findings"]]
+    assert any("reference run" in f for f in findings), findings
+    named = {option for f in findings for option in re.findall(OPTION, f)}
+    assert named and named <= command_options("stress"), named - command_options("stress")

@@ -124,6 +124,7 @@ def _last_resort(error: Exception) -> None:
 
 # Each module registers its commands on `app`; they import only typer at module level.
 from lagrange_cli.cli import analysis as _analysis  # noqa: E402, F401
+from lagrange_cli.cli import animate as _animate  # noqa: E402, F401
 from lagrange_cli.cli import derive as _derive  # noqa: E402, F401
 from lagrange_cli.cli import numeric as _numeric  # noqa: E402, F401
 from lagrange_cli.cli import study as _study  # noqa: E402, F401

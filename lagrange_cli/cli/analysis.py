@@ -13,7 +13,6 @@ from lagrange_cli.cli import app, check_outputs, fail_with, output
 if TYPE_CHECKING:
     import sympy as sp
 
-    from lagrange_cli import analysis
     from lagrange_cli.model import Model
 
 
@@ -53,48 +52,15 @@ def equilibria(
     as_json: Annotated[bool, typer.Option("--json", help="JSON instead of text.")] = False,
 ) -> None:
     """Equilibrium points (symbolic where possible, else numeric), each with its stability."""
-    import json
-
-    from lagrange_cli import analysis, report
+    from lagrange_cli import report
     from lagrange_cli.errors import LagrangeError
 
     try:
         model = _model(file)
-        bounds = _ranges(model, ranges)
-        points = analysis.equilibria(model, bounds)
-        steady = analysis.steady_motions(model)
-        results: list[tuple[dict[sp.Symbol, sp.Expr], analysis.Linearization | str]] = []
-        for point in points:
-            try:
-                results.append((point, analysis.linearize(model, point)))
-            except LagrangeError as error:
-                results.append((point, str(error)))
+        found = report.equilibria(model, _ranges(model, ranges))
     except LagrangeError as error:
         fail_with(error)
-    if as_json:
-        items = [
-            {
-                "point": {str(k): str(v) for k, v in p.items()},
-                "free": [str(k) for k, v in p.items() if v == sp_symbol(f"{k}_0")],
-                **({"error": lin} if isinstance(lin, str) else report.linearization_json(model, lin)),
-            }
-            for p, lin in results
-        ]
-        motions = [{"velocity": str(v), "equals": str(x)} for v, x in steady]
-        output(json.dumps({"title": model.title, "equilibria": items, "steady_motions": motions}, indent=2) + "\n", None)
-        return
-    lines = [f"{model.title}: {len(points)} equilibri{'um' if len(points) == 1 else 'a'}" + (" (none found)" if not points else "")]
-    if len(points) >= analysis.MAX_NUMERIC_POINTS and all(v.is_Float for p in points for v in p.values()):
-        lines.append(f"(the numeric search stops at {analysis.MAX_NUMERIC_POINTS} distinct points: the equilibria may form a curve or surface; narrow the search with --range)")
-    free = sorted({str(q) for p in points for q, v in p.items() if v == sp_symbol(f"{q}_0")})
-    if free:
-        lines.append(f"(a manifold of equilibria: {', '.join(f'{q}_0' for q in free)} may take any value)")
-    for point, lin in results:
-        lines.append(report.linearization_text(model, lin) if not isinstance(lin, str) else f"at {point}: {lin}\n")
-    if steady:
-        lines.append("steady motions (the other coordinates at rest, ignorable ones turning steadily):")
-        lines += [f"  {v} = {x}" for v, x in steady]
-    output("\n".join(lines) + "\n", None)
+    output(report.equilibria_json(model, found) if as_json else report.equilibria_text(model, found), None)
 
 
 @app.command()
@@ -115,12 +81,6 @@ def linearize(
     except LagrangeError as error:
         fail_with(error)
     output(json.dumps(report.linearization_json(model, lin), indent=2) + "\n" if as_json else report.linearization_text(model, lin), None)
-
-
-def sp_symbol(name: str) -> sp.Symbol:
-    import sympy
-
-    return sympy.Symbol(name)
 
 
 def _point(model: Model, about: list[str] | None) -> dict[sp.Symbol, sp.Expr]:

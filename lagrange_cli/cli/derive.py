@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import re
+from enum import Enum
 from pathlib import Path
 from typing import Annotated, Any
 
@@ -10,48 +12,147 @@ import typer
 from lagrange_cli.cli import Form, app, check_outputs, fail_with, output, write_atomically
 from lagrange_cli.cli._app import keeping_verdict
 
+TARGETS = {
+    "text": "lagrange_cli.emit.text",
+    "latex": "lagrange_cli.emit.latex",
+    "python": "lagrange_cli.emit.python",
+    "c": "lagrange_cli.emit.c",
+    "octave": "lagrange_cli.emit.octave",
+    "jax": "lagrange_cli.emit.jax",
+    "json": "lagrange_cli.emit.jsonmodel",
+}
+"""`--to TARGET` -> the module that emits it, imported only when asked for (each has `emit`)."""
+
+
+class Target(str, Enum):
+    text = "text"
+    latex = "latex"
+    python = "python"
+    c = "c"
+    octave = "octave"
+    jax = "jax"
+    json = "json"
+
 
 @app.command()
 def derive(
     file: Annotated[str, typer.Argument(help="A system file, or the name of a bundled system (e.g. double_pendulum).")],
-    text: Annotated[bool, typer.Option("--text", help="Plain-text equations (the default).")] = False,
-    latex: Annotated[bool, typer.Option("--latex", help="A LaTeX align* fragment.")] = False,
-    python: Annotated[bool, typer.Option("--python", help="A Python module for numerical work.")] = False,
+    to: Annotated[
+        Target | None,
+        typer.Option(
+            "--to",
+            metavar="TARGET",
+            help="The output: text (equations, the default), latex, python (a module for solve_ivp), c (a header-only C99 file), octave (a function file for ode45), jax or json.",
+        ),
+    ] = None,
+    text: Annotated[bool, typer.Option("--text", help="Plain-text equations (the default); same as --to text.")] = False,
+    latex: Annotated[bool, typer.Option("--latex", help="A LaTeX align* fragment; same as --to latex.")] = False,
+    python: Annotated[bool, typer.Option("--python", help="A Python module for numerical work; same as --to python.")] = False,
     form: Annotated[Form, typer.Option(help="lagrange: one equation per coordinate; matrix: M q_ddot = F; solved: q_ddot = ...")] = Form.lagrange,
     standalone: Annotated[bool, typer.Option(help="With --latex: a whole compilable document.")] = False,
     numba: Annotated[bool, typer.Option("--numba", help="With --python: compile rhs with numba (needs numba where the module runs).")] = False,
-    output_path: Annotated[Path | None, typer.Option("-o", "--output", help="Write here (atomically) instead of to stdout.")] = None,
+    prefix: Annotated[str | None, typer.Option("--prefix", metavar="NAME", help="With --to c: the prefix of the generated names (default eom: eom_rhs, EOM_NQ, ...).")] = None,
+    output_path: Annotated[Path | None, typer.Option("-o", "--output", help="Write here (atomically) instead of to stdout. With --to octave, a FILE.m defines the function FILE.")] = None,
 ) -> None:
     """Derive the equations of motion of a system."""
     check_outputs(output_path, reading=file)
-    from lagrange_cli.errors import LagrangeError, fail
+    from lagrange_cli.errors import LagrangeError
 
     try:
-        if text + latex + python > 1:
-            raise fail(None, "choose one of --text, --latex, --python", "a single output format")
-        if numba and not python:
-            raise fail(None, "--numba applies to --python output", "--python --numba")
-        if standalone and not latex:
-            raise fail(None, "--standalone applies to --latex output", "--latex --standalone")
+        target, name = _target(to, text, latex, python, numba, standalone, prefix, output_path)
         from lagrange_cli import derive as core
         from lagrange_cli import spec
 
         model = core.derive(spec.load(spec.resolve(file)))
-        if python:
-            from lagrange_cli.emit import python as emitter_py
-
-            result = emitter_py.emit(model, numba=numba)
-        elif latex:
-            from lagrange_cli.emit import latex as emitter_tex
-
-            result = emitter_tex.emit(model, form.value, standalone=standalone)
+        emitter = _emitter(target)
+        if target == "python":
+            result = emitter.emit(model, numba=numba)
+        elif target == "latex":
+            result = emitter.emit(model, form.value, standalone=standalone)
+        elif target == "text":
+            result = emitter.emit(model, form.value)
         else:
-            from lagrange_cli.emit import text as emitter_txt
-
-            result = emitter_txt.emit(model, form.value)
+            result = emitter.emit(model, name=name)
         output(result, output_path)
     except LagrangeError as error:
         fail_with(error)
+
+
+def _target(to: Target | None, text: bool, latex: bool, python: bool, numba: bool, standalone: bool, prefix: str | None, output_path: Path | None) -> tuple[str, str]:
+    """The target asked for (`--to` or one of its aliases) and the name its code defines (the C
+    prefix, the Octave function); exit 2 for options that contradict each other or a bad name."""
+    from lagrange_cli.errors import fail
+    from lagrange_cli.files import shown
+
+    chosen = {flag for flag, given in (("text", text), ("latex", latex), ("python", python)) if given}
+    if to is not None:
+        chosen.add(to.value)
+    if len(chosen) > 1:
+        raise fail(None, "choose one of --to, --text, --latex, --python", "a single output format, e.g. --to c")
+    target = chosen.pop() if chosen else "text"
+    if numba and target != "python":
+        raise fail(None, "--numba applies to --python output", "--python --numba")
+    if standalone and target != "latex":
+        raise fail(None, "--standalone applies to --latex output", "--latex --standalone")
+    if prefix is not None and target != "c":
+        raise fail(None, "--prefix applies to --to c output", "--to c --prefix NAME")
+    if target == "c":
+        name = "eom" if prefix is None else prefix
+        if not re.fullmatch(r"[A-Za-z][A-Za-z0-9_]{0,30}", name) or name in C_WORDS:
+            raise fail(None, f"--prefix {shown(name)} is not usable as the prefix of C names", "a C identifier of at most 31 characters, starting with a letter, not a C keyword (e.g. pendulum)")
+        return target, name
+    if target == "octave" and output_path is not None and output_path.suffix == ".m":
+        name = output_path.name[: -len(".m")]
+        if not re.fullmatch(r"[A-Za-z][A-Za-z0-9_]{0,62}", name) or name in MATLAB_KEYWORDS:
+            raise fail(
+                None,
+                f"the output file {shown(str(output_path))} cannot hold an Octave function: its name, {shown(name)}, is not a MATLAB identifier",
+                "a file name that is a letter followed by letters, digits or _ (at most 63), not a keyword, then .m (e.g. pendulum_eom.m)",
+            )
+        return target, name
+    return target, "eom"
+
+
+C_WORDS = frozenset(
+    {
+        *("auto", "break", "case", "char", "const", "continue", "default", "do", "double", "else", "enum", "extern", "float", "for", "goto", "if"),
+        *("inline", "int", "long", "register", "restrict", "return", "short", "signed", "sizeof", "static", "struct", "switch", "typedef", "union"),
+        *("unsigned", "void", "volatile", "while", "bool", "true", "false", "asm", "class", "new", "delete", "this", "template", "typename"),
+        *("namespace", "operator", "private", "public", "protected", "virtual", "friend", "try", "catch", "throw", "and", "or", "not", "xor"),
+    }
+)
+"""C and C++ keywords, which are no prefix."""
+
+MATLAB_KEYWORDS = frozenset(
+    {
+        *("break", "case", "catch", "classdef", "continue", "else", "elseif", "end", "for", "function", "global", "if", "otherwise", "parfor"),
+        *("persistent", "return", "spmd", "switch", "try", "while", "do", "until", "unwind_protect", "unwind_protect_cleanup", "end_try_catch"),
+        *("endfor", "endfunction", "endif", "endswitch", "endwhile", "end_unwind_protect", "methods", "properties", "events", "enumeration"),
+        *("endclassdef", "endenumeration", "endevents", "endmethods", "endparfor", "endproperties", "endspmd", "arguments", "__FILE__", "__LINE__"),
+    }
+)
+"""MATLAB's and Octave's keywords: not a function's name."""
+
+
+def _emitter(target: str) -> Any:
+    """The module of `target`, imported now; a target this installation lacks is exit 2."""
+    import importlib
+
+    from lagrange_cli.errors import fail
+
+    module = TARGETS[target]
+    try:
+        return importlib.import_module(module)
+    except ModuleNotFoundError as error:
+        if error.name != module:
+            raise
+        raise fail(None, f"the {target} target is not available in this installation ({module} is missing)", "one of the targets it has: " + ", ".join(_available())) from None
+
+
+def _available() -> list[str]:
+    import importlib.util
+
+    return [t for t, m in TARGETS.items() if importlib.util.find_spec(m) is not None]
 
 
 @app.command()

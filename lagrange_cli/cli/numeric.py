@@ -53,7 +53,7 @@ def simulate(
         if plot is not None:
             out.check_plot(plot)
         model = core.derive(spec.load(spec.resolve(file)))
-        parameters, values = _assignments(model, set_ or [], "--set"), _assignments(model, initial or [], "--initial")
+        parameters, values = assignments_of(model, set_ or [], "--set"), assignments_of(model, initial or [], "--initial")
         with _Progress(quiet) as progress:
             trajectory = run(
                 model,
@@ -78,7 +78,7 @@ def simulate(
         raise typer.Exit(1)
 
 
-def _assignments(model: Model, items: list[str], option: str) -> dict[str, float]:
+def assignments_of(model: Model, items: list[str], option: str) -> dict[str, float]:
     """`name=value` pairs (repeated or separated by commas) of `--set` (parameters) or `--initial`
     (coordinates and velocities); values are constant expressions such as pi/2."""
     from lagrange_cli.cli.boundary import assignments, check_names, constant
@@ -112,6 +112,7 @@ def _report(trajectory: Trajectory, to_stderr: bool) -> None:
 
     from lagrange_cli.cli.boundary import console as make_console
     from lagrange_cli.cli.boundary import inert, plain
+    from lagrange_cli.numeric.simulate import InvariantKind
 
     console = make_console(stderr=to_stderr)
     s, stats, timing = trajectory.settings, trajectory.stats, trajectory.timing
@@ -135,7 +136,7 @@ def _report(trajectory: Trajectory, to_stderr: bool) -> None:
             table.add_column(column)
         for inv in trajectory.invariants:
             table.add_row(inert(inv.name), "conserved" if inv.conserved else "not conserved", f"{inv.initial:.6g}", f"{inv.max_change:.2e}", f"{inv.relative:.2e}")
-        energy = next((inv for inv in trajectory.invariants if inv.name == "energy"), None)
+        energy = trajectory.invariant(InvariantKind.ENERGY)
         if energy is not None and energy.scale > abs(energy.initial):
             table.caption = f"energy: relative to the largest |sum p q_dot| = {energy.scale:.6g} (twice the kinetic energy of a natural system), which exceeds |initial|"
             table.caption_justify = "left"

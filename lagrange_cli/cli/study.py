@@ -16,7 +16,7 @@ if TYPE_CHECKING:
 
     from lagrange_cli.cli.boundary import Item
     from lagrange_cli.model import Model
-    from lagrange_cli.numeric.accuracy import Candidate, Study
+    from lagrange_cli.numeric.accuracy import Candidate, Point, Study
     from lagrange_cli.numeric.stress import Outcome, Report
 
 
@@ -121,7 +121,7 @@ def accuracy(
     from lagrange_cli.errors import LagrangeError
 
     try:
-        from lagrange_cli.cli.numeric import _assignments
+        from lagrange_cli.cli.numeric import assignments_of
         from lagrange_cli.numeric import accuracy as core
         from lagrange_cli.numeric import output as out
 
@@ -135,8 +135,8 @@ def accuracy(
                 candidates=_candidates(method),
                 tolerances=ladder if ladder is not None else core.TOLERANCES,
                 t_end=t_end,
-                parameters=_assignments(model, set_ or [], "--set"),
-                initial=_assignments(model, initial or [], "--initial"),
+                parameters=assignments_of(model, set_ or [], "--set"),
+                initial=assignments_of(model, initial or [], "--initial"),
                 samples=samples,
                 repeats=repeats,
                 max_steps=max_steps,
@@ -177,7 +177,7 @@ def _seconds(value: float) -> str:
 def _report_study(result: Study, to_stderr: bool) -> None:
     from rich.table import Table
 
-    from lagrange_cli.numeric.accuracy import HORIZON_THRESHOLD, tol_text
+    from lagrange_cli.numeric.accuracy import HORIZON_THRESHOLD, TIE_MARGIN, tol_text
 
     console = _console(to_stderr)
     window = f"t = 0 .. {result.t_end:.4g}" + (f" (of {result.full_t_end:g})" if result.t_end < result.full_t_end else "")
@@ -196,7 +196,7 @@ def _report_study(result: Study, to_stderr: bool) -> None:
     for note in result.notes:
         console.print(f"  [dim]{inert(note)}[/dim]", markup=True)
     table = Table(title="runs", title_justify="left", box=None, padding=(0, 1))
-    for column in ("method", "setting", "final err", "RMS err", "energy", "constraint", "run time", "runs", "evals (jac)", "steps", "status"):
+    for column in ("method", "setting", "final err", "RMS err", "max err", "energy", "constraint", "run time", "runs", "evals (jac)", "steps", "status"):
         table.add_column(column, justify="left" if column in ("method", "setting", "status") else "right")
     compile_costs: dict[str, float] = {}
     for p in result.points:
@@ -206,18 +206,33 @@ def _report_study(result: Study, to_stderr: bool) -> None:
         else:
             status = f"[red]{inert(p.status)}[/red]: {inert(p.reason)}"
         evals = f"{p.nfev} ({p.njev})" if p.njev else str(p.nfev)
-        name = p.resolved if p.method.split(":")[0] == p.resolved.split(" ")[0] else f"{p.method} -> {p.resolved}"
-        table.add_row(inert(name), inert(p.setting), _e(p.final_error), _e(p.rms_error), _e(p.energy_error), _e(p.constraint_drift), _seconds(p.seconds), str(p.runs), evals, str(p.steps), status)
+        name = _shown(p)
+        table.add_row(
+            inert(name),
+            inert(p.setting),
+            _e(p.final_error),
+            _e(p.rms_error),
+            _e(p.max_error),
+            _e(p.energy_error),
+            _e(p.constraint_drift),
+            _seconds(p.seconds),
+            str(p.runs),
+            evals,
+            str(p.steps),
+            status,
+        )
     console.print(table)
     costs = ", ".join(f"{name} {_seconds(value)}" for name, value in compile_costs.items() if value > 0.01)
     console.print(f"one-time costs (code generation, import, compile or load), not in the run times: {inert(costs) or 'none above 10 ms'}")
     fastest = result.fastest
     if fastest:
-        summary = Table(title="fastest method for each accuracy (error = max of final and RMS)", title_justify="left")
+        summary = Table(title="fastest method for each accuracy (error = largest over the samples)", title_justify="left")
         for column in ("error <=", "fastest", "setting", "run time", "error reached"):
             summary.add_column(column)
         for level, p in fastest:
-            summary.add_row(f"{level:.0e}", inert(p.method), inert(p.setting), _seconds(p.seconds), _e(p.error))
+            tied = result.ties(level, p)
+            name = p.method + (f" (tie within {TIE_MARGIN:.0%}: {', '.join(t.method for t in tied)})" if tied else "")
+            summary.add_row(f"{level:.0e}", inert(name), inert(p.setting), _seconds(p.seconds), _e(p.error))
         console.print(summary)
     else:
         console.print("[red]no run finished with a finite error[/red]")
@@ -276,7 +291,7 @@ def stress(
 def _report_stress(report: Report, to_stderr: bool) -> None:
     from rich.table import Table
 
-    from lagrange_cli.numeric.accuracy import tol_text
+    from lagrange_cli.numeric.accuracy import TIE_MARGIN, tol_text
 
     console = _console(to_stderr)
     console.print(f"[bold]{inert(report.title)}[/bold]: stress test, required error {tol_text(report.accuracy)}")
@@ -293,29 +308,31 @@ def _report_stress(report: Report, to_stderr: bool) -> None:
         for finding in d.findings:
             console.print(plain(f"  - {finding}"), markup=False)
         table = Table(box=None, padding=(0, 1))
-        for column in ("method", "setting", "error", "energy", "constraint", "run time", "steps", "evals (jac)", "status"):
+        for column in ("method", "setting", "error", "final/RMS", "energy", "constraint", "run time", "steps", "evals (jac)", "status"):
             table.add_column(column, justify="left" if column in ("method", "setting", "status") else "right")
         for p in (o.naive_default, *o.points) if o.naive_default is not None else o.points:
             met = p.ok and p.error <= report.accuracy
             status = ("[green]meets[/green]" if met else "[yellow]misses[/yellow]") if p.ok else f"[red]{inert(p.status)}[/red]: {inert(p.reason)}"
-            name = p.resolved if p.resolved == p.method or p.method.split(":")[0] == p.resolved.split(" ")[0] else f"{p.method} -> {p.resolved}"
+            name = _shown(p)
             evals = f"{p.nfev} ({p.njev})" if p.njev else str(p.nfev)
             setting = f"{p.setting} (default)" if p is o.naive_default else p.setting
-            table.add_row(inert(name), inert(setting), _e(p.error), _e(p.energy_error), _e(p.constraint_drift), _seconds(p.seconds), str(p.steps), evals, status)
+            table.add_row(inert(name), inert(setting), _e(p.error), _e(p.final_rms_error), _e(p.energy_error), _e(p.constraint_drift), _seconds(p.seconds), str(p.steps), evals, status)
         console.print(table)
         best = o.recommended
         if best is not None:
             console.print(f"  recommended: [bold]{inert(best.resolved)}[/bold] at {inert(best.setting)} (error {_e(best.error)} in {_seconds(best.seconds)})")
+            for other in o.ties:
+                console.print(f"  tie (within {TIE_MARGIN:.0%} of its run time): {inert(other.resolved)} at {inert(other.setting)} (error {_e(other.error)} in {_seconds(other.seconds)})")
         elif o.undecided:
             console.print(f"  [yellow]undecided: no method met error {tol_text(report.accuracy)}, but some run was stopped by the time limit (--budget)[/yellow]")
         else:
             console.print(f"  [red]no method meets error {tol_text(report.accuracy)} in this regime[/red]")
         summary.add_row(
             inert(o.regime.name),
-            inert("; ".join(f.split(": ")[0] for f in d.findings) or "benign"),
+            inert("; ".join(f.kind for f in d.findings) or "benign"),
             inert(_naive(o, report.accuracy)),
             inert(_brief(o.auto, report.accuracy)),
-            inert(_brief(best, report.accuracy)) if best else "[red]none[/red]",
+            inert(_brief(best, report.accuracy) + (f" (tie: {', '.join(t.method for t in o.ties)})" if o.ties else "")) if best else "[red]none[/red]",
         )
     console.print()
     console.print(summary)
@@ -358,4 +375,12 @@ def _brief(p: object, target: float) -> str:
     if not p.ok:
         return f"{p.status}"
     mark = "ok" if p.error <= target else "misses"
-    return f"{p.resolved.split(' ')[0]} {p.setting}: {_e(p.error)} in {_seconds(p.seconds)} ({mark})"
+    ran = p.ran.method if p.ran is not None else p.method
+    return f"{ran} {p.setting}: {_e(p.error)} in {_seconds(p.seconds)} ({mark})"
+
+
+def _shown(p: Point) -> str:
+    """What ran, preceded by what was asked when that named another method (`auto -> DOP853 (compiled)`)."""
+    if p.ran is None or p.candidate is None or p.candidate.method == p.ran.method:
+        return p.resolved
+    return f"{p.method} -> {p.resolved}"

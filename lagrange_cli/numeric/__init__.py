@@ -6,6 +6,6 @@ Only the `simulate` command and notebooks import this package; it needs numpy an
 
 from __future__ import annotations
 
-from lagrange_cli.numeric.simulate import Invariant, Timing, Trajectory, simulate
+from lagrange_cli.numeric.simulate import Invariant, InvariantKind, Timing, Trajectory, simulate
 
-__all__ = ["Invariant", "Timing", "Trajectory", "simulate"]
+__all__ = ["Invariant", "InvariantKind", "Timing", "Trajectory", "simulate"]

@@ -20,12 +20,21 @@ from typing import Any
 
 import numpy as np
 
-from lagrange_cli.numeric import diagnostics
+from lagrange_cli.numeric import diagnostics, status
 from lagrange_cli.numeric.compile import Functions
+from lagrange_cli.numeric.status import Status
+from lagrange_cli.numeric.tableaux import EXPLICIT
 
-# How a run ended (the kernels' status codes map onto these; BUDGET is the drivers' own).
-FINISHED, EVENT, SINGULAR, NONFINITE, STEP_COLLAPSE, NO_CONVERGENCE, BUDGET = "finished", "event", "singular", "nonfinite", "step", "convergence", "budget"
-_CODES = {0: FINISHED, 1: EVENT, 2: SINGULAR, 3: NONFINITE, 4: STEP_COLLAPSE, 5: NO_CONVERGENCE, 6: BUDGET}
+# How a run ended (the kernels' status codes map onto these by `Status.of_code`; BUDGET is the drivers' own).
+FINISHED, EVENT, SINGULAR, NONFINITE, STEP_COLLAPSE, NO_CONVERGENCE, BUDGET = (
+    Status.FINISHED,
+    Status.EVENT,
+    Status.SINGULAR,
+    Status.NONFINITE,
+    Status.STEP_COLLAPSE,
+    Status.NO_CONVERGENCE,
+    Status.BUDGET,
+)
 MAX_STEPS = {"python": 20_000, "compiled": 1_000_000}
 """Default step budget of one run, by backend: a scipy step costs about 0.1 ms (these many take
 seconds), a compiled one about 1 us. A run that has not reached t_end after its budget stops
@@ -56,7 +65,7 @@ class Run:
 
     t: np.ndarray
     y: np.ndarray
-    status: str
+    status: Status
     t_last: float
     y_last: np.ndarray
     stats: Stats
@@ -121,31 +130,55 @@ def cause(error: BaseException) -> str:
 
 
 def _stats(raw: np.ndarray, nlu: int = 0) -> Stats:
-    low, high = float(raw[4]), float(raw[5])
-    return Stats(int(raw[0]), int(raw[1]), nlu, int(raw[2]), int(raw[3]), low if math.isfinite(low) else None, high if high > 0 else None)
+    """The counters of a compiled loop (status.NFEV, ...) by name."""
+    low, high = float(raw[status.HMIN]), float(raw[status.HMAX])
+    return Stats(int(raw[status.NFEV]), int(raw[status.NJEV]), nlu, int(raw[status.NSTEPS]), int(raw[status.NREJECT]), low if math.isfinite(low) else None, high if high > 0 else None)
+
+
+def _new_stats(smallest: float, largest: float) -> np.ndarray:
+    """A compiled loop's counter array: no work done, the smallest and largest step so far."""
+    stats = np.zeros(status.STATS_SIZE)
+    stats[status.HMIN], stats[status.HMAX] = smallest, largest
+    return stats
+
+
+def _control(problem: Problem, size: int, rtol: float = 0.0, atol: float = 0.0, max_step: float = math.inf, step: float = 0.0, steps: int = 0) -> np.ndarray:
+    """A compiled loop's controls (status.RTOL, ...), T_STOP set by each `advance`."""
+    control = np.zeros(status.CONTROL_SIZE)
+    control[status.RTOL], control[status.ATOL], control[status.MAX_STEP] = rtol, atol, max_step
+    control[status.T_BOUND], control[status.T_STOP], control[status.USE_EVENT] = problem.t_end, problem.t_end, float(problem.use_event)
+    control[status.SIZE], control[status.STEP], control[status.STEPS], control[status.T0] = size, step, steps, problem.t0
+    return control
+
+
+def _state(t: float, h: float, event_value: float) -> np.ndarray:
+    """A compiled loop's state (status.T, H, EVENT_VALUE, NEXT_SAMPLE)."""
+    state = np.zeros(status.STATE_SIZE)
+    state[status.T], state[status.H], state[status.EVENT_VALUE] = t, h, event_value
+    return state
 
 
 def _drive(advance: Callable[[float], int], now: Callable[[], float], taken: Callable[[], int], problem: Problem, progress: Progress | None) -> int:
     """Call a compiled loop (`advance(t_stop)` -> status, -1 while running: at t_stop or after
-    kernels.PAUSE_STEPS steps) until it stops or has taken `problem.max_steps` steps (status 6,
-    BUDGET), returning to Python about every PROGRESS_PERIOD seconds to report progress."""
+    status.PAUSE_STEPS steps) until it stops or has taken `problem.max_steps` steps (status.BUDGET),
+    returning to Python about every PROGRESS_PERIOD seconds to report progress."""
     if progress is None:
-        status = advance(problem.t_end)
-        while status == -1:  # paused after kernels.PAUSE_STEPS steps
+        code = advance(problem.t_end)
+        while code == status.RUNNING:  # paused after status.PAUSE_STEPS steps
             if taken() >= problem.max_steps:
-                return 6
-            status = advance(problem.t_end)
-        return status
+                return status.BUDGET
+            code = advance(problem.t_end)
+        return code
     span = problem.t_end - problem.t0
     target = max(problem.t0 + span / 100, float(np.nextafter(problem.t0, math.inf)))
     while True:
         began, t_before = time.perf_counter(), now()
-        status = advance(min(target, problem.t_end))
+        code = advance(min(target, problem.t_end))
         progress((now() - problem.t0) / span)
-        if status != -1:
-            return status
+        if code != status.RUNNING:
+            return code
         if taken() >= problem.max_steps:
-            return 6
+            return status.BUDGET
         speed = (now() - t_before) / max(time.perf_counter() - began, 1e-6)
         target = max(now() + max(span / 100, speed * PROGRESS_PERIOD), float(np.nextafter(now(), math.inf)))  # always ahead, even when span / 100 underflows
 
@@ -164,27 +197,28 @@ def _compile(functions: Functions, kernel: str, pieces: Sequence[tuple[str, Any]
     return entry, compiled, time.perf_counter() - start
 
 
-def run_erk(functions: Functions, problem: Problem, dop: bool, rtol: float, atol: float, max_step: float, progress: Progress | None = None) -> Run:
-    """RK45 (dop False) or DOP853 compiled, with scipy's step-size control."""
+def run_erk(functions: Functions, problem: Problem, method: str, rtol: float, atol: float, max_step: float, progress: Progress | None = None) -> Run:
+    """The explicit pair `method` (RK45 or DOP853, see tableaux.EXPLICIT) compiled, with scipy's step-size control."""
     kernels = functions.kernels
     assert kernels is not None
+    pair = EXPLICIT[method].code
     start_entry, _, compile_start = _compile(functions, "erk_start", [])
     run_entry, (accel, event), compile_run = _compile(functions, "erk_run", [("_accel", kernels.ACCEL_SIG), ("_event", kernels.EVENT_SIG)])
     began = time.perf_counter()
-    size = functions.module._SIZE
     y, f = problem.y0.copy(), np.empty_like(problem.y0)
-    stats = np.array([0.0, 0.0, 0.0, 0.0, math.inf, 0.0])
+    stats = _new_stats(math.inf, 0.0)
     ys = np.full((len(problem.ts), len(y)), np.nan)
-    counters = np.zeros(1, dtype=np.int64)
-    h0 = start_entry(dop, problem.t0, y, f, problem.t_end, max_step, rtol, atol, problem.p, stats, size, accel)
-    state = np.array([problem.t0, h0, _initial_event(functions, problem)])
+    control = _control(problem, functions.module._SIZE, rtol=rtol, atol=atol, max_step=max_step)
+    h0 = start_entry(pair, problem.t0, y, f, control, problem.p, stats, accel)
+    state = _state(problem.t0, h0, _initial_event(functions, problem))
 
     def advance(t_stop: float) -> int:
-        return int(run_entry(dop, y, f, state, problem.ts, ys, counters, problem.p, rtol, atol, max_step, problem.t_end, t_stop, problem.use_event, stats, size, accel, event))
+        control[status.T_STOP] = t_stop
+        return int(run_entry(pair, y, f, state, control, problem.ts, ys, problem.p, stats, accel, event))
 
-    status = 2 if h0 < 0 else _drive(advance, lambda: float(state[0]), lambda: int(stats[2]), problem, progress)
-    m = int(counters[0])
-    return Run(problem.ts[:m], ys[:m], _CODES[status], float(state[0]), y, _stats(stats), compile_start + compile_run, time.perf_counter() - began)
+    code = status.SINGULAR if h0 < 0 else _drive(advance, lambda: float(state[status.T]), lambda: int(stats[status.NSTEPS]), problem, progress)
+    m = int(state[status.NEXT_SAMPLE])
+    return Run(problem.ts[:m], ys[:m], Status.of_code(code), float(state[status.T]), y, _stats(stats), compile_start + compile_run, time.perf_counter() - began)
 
 
 def run_gauss(functions: Functions, problem: Problem, z0: np.ndarray, stages: int, step: float, progress: Progress | None = None) -> Run:
@@ -198,21 +232,24 @@ def run_gauss(functions: Functions, problem: Problem, z0: np.ndarray, stages: in
     steps = max(1, math.ceil(ratio - 1e-9)) if ratio < 2.0**62 else 2**62  # beyond any budget: the run stops at its budget
     h = (problem.t_end - problem.t0) / steps if ratio < 2.0**62 else step
     z = z0.copy()
-    stats = np.array([0.0, 0.0, 0.0, 0.0, h, h])
+    stats = _new_stats(h, h)
     ys = np.full((len(problem.ts), len(z)), np.nan)
-    counters = np.zeros(1, dtype=np.int64)
-    state = np.array([problem.t0, 0.0, _initial_event(functions, problem)])
+    control = _control(problem, size, step=h, steps=steps)
+    state = _state(problem.t0, 0.0, _initial_event(functions, problem))
     sizes = np.abs(z)
+    unknowns = stages * len(z)
+    memory, pivots = np.zeros(unknowns + unknowns * unknowns), np.zeros(unknowns, dtype=np.int64)  # carried across pauses (see kernels.gauss_run)
 
     def advance(t_stop: float) -> int:
-        return int(entry(stages, z, state, problem.ts, ys, counters, problem.p, h, steps, problem.t0, problem.t_end, t_stop, problem.use_event, stats, sizes, size, hamilton, event))
+        control[status.T_STOP] = t_stop
+        return int(entry(stages, z, state, control, problem.ts, ys, problem.p, stats, sizes, memory, pivots, hamilton, event))
 
-    status = _drive(advance, lambda: float(state[0]), lambda: int(state[1]), problem, progress)
+    code = _drive(advance, lambda: float(state[status.T]), lambda: int(state[status.H]), problem, progress)
     out, x, a = np.empty_like(z), np.empty(size), np.empty((size, size))
-    hamilton(float(state[0]), z, problem.p, out, x, a)
+    hamilton(float(state[status.T]), z, problem.p, out, x, a)
     y_last = np.concatenate([z[: len(z) // 2], out[: len(z) // 2]])
-    m = int(counters[0])
-    return Run(problem.ts[:m], ys[:m], _CODES[status], float(state[0]), y_last, _stats(stats, nlu=int(stats[1])), compile_seconds, time.perf_counter() - began)
+    m = int(state[status.NEXT_SAMPLE])
+    return Run(problem.ts[:m], ys[:m], Status.of_code(code), float(state[status.T]), y_last, _stats(stats, nlu=int(stats[status.NJEV])), compile_seconds, time.perf_counter() - began)
 
 
 def _initial_event(functions: Functions, problem: Problem) -> float:
@@ -231,7 +268,7 @@ def _initial_event(functions: Functions, problem: Problem) -> float:
 class _Failure(Exception):
     """Raised from inside the right-hand side to stop a scipy solver with a reason."""
 
-    def __init__(self, status: str, problem: EvaluationError | None = None) -> None:
+    def __init__(self, status: Status, problem: EvaluationError | None = None) -> None:
         super().__init__(status)
         self.status, self.problem = status, problem
 
@@ -317,7 +354,7 @@ def run_scipy(functions: Functions, problem: Problem, method: str, rtol: float, 
     samples: list[np.ndarray] = []
     sizes: list[float] = []
     event = _python_event(module, p) if problem.use_event else None
-    status, t_last, y_last = FINISHED, problem.t0, problem.y0.copy()
+    outcome, t_last, y_last = FINISHED, problem.t0, problem.y0.copy()
     failure: EvaluationError | None = None
     with warnings.catch_warnings(), np.errstate(all="ignore"):
         warnings.simplefilter("ignore")
@@ -326,44 +363,44 @@ def run_scipy(functions: Functions, problem: Problem, method: str, rtol: float, 
             solver = solver_class(python_rhs(module, p, problems), problem.t0, problem.y0, problem.t_end, **options)
             while solver.status == "running":
                 if steps >= problem.max_steps:
-                    status = BUDGET
+                    outcome = BUDGET
                     break
                 t_old, y_old = solver.t, solver.y.copy()
-                message = solver.step()
-                if solver.status == "failed":
-                    status = NONFINITE if "finite" in str(message) else STEP_COLLAPSE
+                solver.step()
+                if solver.status == "failed":  # scipy's only failures: TOO_SMALL_STEP, or LSODA's "unexpected istate" (its step also gave out)
+                    outcome = STEP_COLLAPSE
                     break
                 if not np.all(np.isfinite(solver.y)):
-                    status, t_last, y_last = NONFINITE, t_old, y_old
+                    outcome, t_last, y_last = NONFINITE, t_old, y_old
                     break
                 steps += 1
                 sizes.append(solver.t - t_old)
-                t_end_here, status = _scipy_samples(solver, t_old, ts, samples, event, g_old)
-                t_last, y_last = t_end_here, solver.y.copy() if status != EVENT else solver.dense_output()(t_end_here)
+                t_end_here, outcome = _scipy_samples(solver, t_old, ts, samples, event, g_old)
+                t_last, y_last = t_end_here, solver.y.copy() if outcome != EVENT else solver.dense_output()(t_end_here)
                 if event:
                     g_old = event(solver.t, solver.y)
                 if progress is not None:
                     progress((t_last - problem.t0) / (problem.t_end - problem.t0))
-                if status == EVENT:
+                if outcome == EVENT:
                     break
         except _Failure as stop:
-            status, failure = stop.status, stop.problem
+            outcome, failure = stop.status, stop.problem
         except EvaluationError as problem_found:  # the stop condition
-            status, failure = NONFINITE, problem_found
-    if status in (NONFINITE, STEP_COLLAPSE) and failure is None and problems.last is not None and problems.last.t >= t_last:
+            outcome, failure = NONFINITE, problem_found
+    if outcome in (NONFINITE, STEP_COLLAPSE) and failure is None and problems.last is not None and problems.last.t >= t_last:
         failure = problems.last  # the solver gave up where the equations cannot be evaluated
     nfev, njev, nlu = (int(getattr(solver, k, 0)) for k in ("nfev", "njev", "nlu")) if "solver" in locals() else (0, 0, 0)
     stats = Stats(nfev, njev, nlu, steps, None, min(sizes[:-1]) if len(sizes) > 1 else (sizes[0] if sizes else None), max(sizes) if sizes else None)
     m = len(samples)
     y = np.array(samples) if samples else np.empty((0, len(problem.y0)))
-    return Run(ts[:m], y, status, float(t_last), np.asarray(y_last, dtype=float), stats, 0.0, time.perf_counter() - began, failure)
+    return Run(ts[:m], y, outcome, float(t_last), np.asarray(y_last, dtype=float), stats, 0.0, time.perf_counter() - began, failure)
 
 
-def _scipy_samples(solver: Any, t_old: float, ts: np.ndarray, samples: list[np.ndarray], event: Callable[[float, np.ndarray], float] | None, g_old: float) -> tuple[float, str]:
+def _scipy_samples(solver: Any, t_old: float, ts: np.ndarray, samples: list[np.ndarray], event: Callable[[float, np.ndarray], float] | None, g_old: float) -> tuple[float, Status]:
     """Append the samples in (t_old, t] (or up to an event found in it); returns where the step ends."""
     dense = None
     t_new = solver.t
-    status = FINISHED
+    outcome = FINISHED
     if event is not None:
         g_new = event(t_new, solver.y)
         if g_old != 0.0 and (g_old < 0.0) != (g_new < 0.0):
@@ -371,14 +408,14 @@ def _scipy_samples(solver: Any, t_old: float, ts: np.ndarray, samples: list[np.n
 
             dense = solver.dense_output()
             t_new = brentq(lambda s: event(s, dense(s)), t_old, solver.t, xtol=4e-16 * max(abs(solver.t), 1.0), rtol=1e-15)
-            status = EVENT
+            outcome = EVENT
     j = len(samples)
     while j < len(ts) and ts[j] <= t_new:
         if dense is None:
             dense = solver.dense_output()
         samples.append(np.asarray(dense(ts[j]), dtype=float))
         j += 1
-    return t_new, status
+    return t_new, outcome
 
 
 def _python_event(module: Any, p: Sequence[float]) -> Callable[[float, np.ndarray], float]:

@@ -24,16 +24,44 @@ from typing import Any
 import numpy as np
 from numba import njit, types
 
-from lagrange_cli.numeric.tableaux import DOP853_A, DOP853_B, DOP853_C, DOP853_D, DOP853_E3, DOP853_E5, DOP853_STAGES, GAUSS, RK45_A, RK45_B, RK45_C, RK45_E, RK45_P
+from lagrange_cli.numeric.status import (
+    ATOL,
+    DONE,
+    EVENT,
+    EVENT_VALUE,
+    HMAX,
+    HMIN,
+    MAX_FACTOR,
+    MAX_STEP,
+    MIN_FACTOR,
+    MIN_STEP_SPACINGS,
+    NEWTON,
+    NEXT_SAMPLE,
+    NFEV,
+    NJEV,
+    NO_CONVERGENCE,
+    NONFINITE,
+    NREJECT,
+    NSTEPS,
+    PAUSE_STEPS,
+    RTOL,
+    RUNNING,
+    SAFETY,
+    SINGULAR,
+    SIZE,
+    STEP,
+    STEP_COLLAPSE,
+    STEPS,
+    T0,
+    T_BOUND,
+    T_STOP,
+    USE_EVENT,
+    H,
+    T,
+)
+from lagrange_cli.numeric.tableaux import DOP853, DOP853_A, DOP853_B, DOP853_C, DOP853_D, DOP853_E3, DOP853_E5, GAUSS, RK45, RK45_A, RK45_B, RK45_C, RK45_E, RK45_P
 
-# Status codes shared with integrators.py.
-RUNNING, DONE, EVENT, SINGULAR, NONFINITE, STEP_COLLAPSE, NO_CONVERGENCE = -1, 0, 1, 2, 3, 4, 5
-PAUSE_STEPS = 20000
-"""A loop returns RUNNING after this many steps even before t_stop, so that the caller can report
-progress and stop a run over its time budget (a near-collision orbit may take minutes of
-1e-10 s steps to reach the first 1% of its time span)."""
-# Counters in `stats`: evaluations, Jacobians, steps, rejected steps, smallest and largest step.
-NFEV, NJEV, NSTEPS, NREJECT, HMIN, HMAX = 0, 1, 2, 3, 4, 5
+__all__ = ["PAUSE_STEPS", "SIGNATURES", "compiled", "lu_solve"]
 # The Gauss stage equations are solved until the estimated remaining error is below this,
 # relative: well below the method's own energy error at useful steps (measured in BENCHMARKS.md:
 # 1e-13 costs ~7 Newton sweeps a step, 1e-11 ~5, for the same bounded energy error).
@@ -50,7 +78,14 @@ _DOP_C = np.array(DOP853_C)
 _DOP_D = np.array(DOP853_D)
 _DOP_E3 = np.array(DOP853_E3)
 _DOP_E5 = np.array(DOP853_E5)
-_DOP_STAGES = DOP853_STAGES
+_DOP = DOP853.code
+"""The pair number of DOP853 (`pair == _DOP`: its error estimate and dense output differ in form from RK45's)."""
+_STAGES = np.array([RK45.stages, DOP853.stages])
+_ROWS = np.array([RK45.rows, DOP853.rows])
+_DENSE = np.array([RK45.dense, DOP853.dense])
+_DENSE_EVALUATIONS = np.array([RK45.dense_evaluations, DOP853.dense_evaluations])
+_ERROR_ORDER = np.array([RK45.error_order, DOP853.error_order])
+assert RK45.code == 0 and DOP853.code == 1  # the arrays above are indexed by the pair's code
 _GAUSS_C, _GAUSS_A, _GAUSS_B, _GAUSS_E = np.zeros((3, 3)), np.zeros((3, 3, 3)), np.zeros((3, 3)), np.zeros((3, 3, 3))
 
 
@@ -80,10 +115,16 @@ EVENT_SIG = _F8(_F8, _ARR, _ARR, _ARR, _MAT)
 """event(t, y, p, x, a): the stop condition."""
 _ACCEL_T, _HAMILTON_T, _EVENT_T = types.FunctionType(ACCEL_SIG), types.FunctionType(HAMILTON_SIG), types.FunctionType(EVENT_SIG)
 SIGNATURES = {
-    "erk_start": _F8(types.boolean, _F8, _ARR, _ARR, _F8, _F8, _F8, _F8, _ARR, _ARR, _I8, _ACCEL_T),
-    "erk_run": _I8(types.boolean, _ARR, _ARR, _ARR, _ARR, _MAT, types.int64[::1], _ARR, _F8, _F8, _F8, _F8, _F8, types.boolean, _ARR, _I8, _ACCEL_T, _EVENT_T),
-    "gauss_run": _I8(_I8, _ARR, _ARR, _ARR, _MAT, types.int64[::1], _ARR, _F8, _I8, _F8, _F8, _F8, types.boolean, _ARR, _ARR, _I8, _HAMILTON_T, _EVENT_T),
+    # (pair, t0, y, f, control, p, stats, accel)
+    "erk_start": _F8(_I8, _F8, _ARR, _ARR, _ARR, _ARR, _ARR, _ACCEL_T),
+    # (pair, y, f, state, control, ts, ys, p, stats, accel, event)
+    "erk_run": _I8(_I8, _ARR, _ARR, _ARR, _ARR, _ARR, _MAT, _ARR, _ARR, _ACCEL_T, _EVENT_T),
+    # (stages, z, state, control, ts, zs, p, stats, sizes, memory, pivots, hamilton, event)
+    "gauss_run": _I8(_I8, _ARR, _ARR, _ARR, _ARR, _MAT, _ARR, _ARR, _ARR, _ARR, types.int64[::1], _HAMILTON_T, _EVENT_T),
 }
+"""The entry points. The arrays are records with named indices (status.py): `state` (T, H or the
+steps done, EVENT_VALUE, NEXT_SAMPLE), `control` (RTOL, ATOL, MAX_STEP, T_BOUND, T_STOP, USE_EVENT,
+SIZE, STEP, STEPS, T0) and `stats` (NFEV, NJEV, NSTEPS, NREJECT, HMIN, HMAX)."""
 _COMPILED: dict[str, Any] = {}
 
 
@@ -203,10 +244,10 @@ def _initial_step(accel, t0, y0, f0, t_bound, max_step, order, rtol, atol, p, x,
 
 
 @njit(error_model="numpy")
-def _erk_step(accel, dop, t, y, h, K, y_new, p, x, a, stats):
+def _erk_step(accel, pair, t, y, h, K, y_new, p, x, a, stats):
     """One step of the pair from (t, y) with K[0] = f(t, y); fills K and y_new, K[stages] = f(t + h, y_new)."""
-    A, B, C = (_DOP_A, _DOP_B, _DOP_C) if dop else (_RK45_A, _RK45_B, _RK45_C)
-    stages = _DOP_STAGES if dop else 6
+    A, B, C = (_DOP_A, _DOP_B, _DOP_C) if pair == _DOP else (_RK45_A, _RK45_B, _RK45_C)
+    stages = _STAGES[pair]
     n = y.shape[0]
     status = 0
     for s in range(1, stages):
@@ -227,21 +268,21 @@ def _erk_step(accel, dop, t, y, h, K, y_new, p, x, a, stats):
 
 
 @njit(error_model="numpy")
-def _erk_error(dop, K, h, y, y_new, rtol, atol):
+def _erk_error(pair, K, h, y, y_new, rtol, atol):
     """The scaled error norm of the step (scipy's RK45 and DOP853 estimates)."""
     n = y.shape[0]
-    if not dop:
+    if pair != _DOP:
         total = 0.0
         for i in range(n):
             e = 0.0
-            for j in range(7):
+            for j in range(_ROWS[pair]):
                 e += _RK45_E[j] * K[j, i]
             total += (e * h / (atol + max(abs(y[i]), abs(y_new[i])) * rtol)) ** 2
         return (total / n) ** 0.5
     err5, err3 = 0.0, 0.0
     for i in range(n):
         e5, e3 = 0.0, 0.0
-        for j in range(_DOP_STAGES + 1):
+        for j in range(_STAGES[pair] + 1):
             e5 += _DOP_E5[j] * K[j, i]
             e3 += _DOP_E3[j] * K[j, i]
         scale = atol + max(abs(y[i]), abs(y_new[i])) * rtol
@@ -253,27 +294,27 @@ def _erk_error(dop, K, h, y, y_new, rtol, atol):
 
 
 @njit(error_model="numpy")
-def _erk_dense(accel, dop, t, y, y_new, f_new, h, K, coef, p, x, a, stats):
+def _erk_dense(accel, pair, t, y, y_new, f_new, h, K, coef, p, x, a, stats):
     """The interpolant's coefficients of the step [t, t + h] (DOP853: 3 more evaluations)."""
     n = y.shape[0]
-    if not dop:
-        for c in range(4):
+    if pair != _DOP:
+        for c in range(_DENSE[pair]):
             for i in range(n):
                 total = 0.0
-                for j in range(7):
+                for j in range(_ROWS[pair]):
                     total += K[j, i] * _RK45_P[j, c]
                 coef[c, i] = total
         return 0
     status = 0
     work = np.empty(n)
-    for s in range(_DOP_STAGES + 1, 16):
+    for s in range(_STAGES[pair] + 1, _ROWS[pair]):
         for i in range(n):
             dy = 0.0
             for j in range(s):
                 dy += _DOP_A[s, j] * K[j, i]
             work[i] = y[i] + h * dy
         status += _rhs(accel, t + _DOP_C[s] * h, work, p, K[s], x, a)
-    stats[NFEV] += 3
+    stats[NFEV] += _DENSE_EVALUATIONS[pair]
     for i in range(n):
         delta = y_new[i] - y[i]
         coef[0, i] = delta
@@ -281,39 +322,39 @@ def _erk_dense(accel, dop, t, y, y_new, f_new, h, K, coef, p, x, a, stats):
         coef[2, i] = 2 * delta - h * (f_new[i] + K[0, i])
         for r in range(4):
             total = 0.0
-            for j in range(16):
+            for j in range(_ROWS[pair]):
                 total += _DOP_D[r, j] * K[j, i]
             coef[3 + r, i] = h * total
     return status
 
 
 @njit(error_model="numpy")
-def _erk_eval(dop, t_old, h, y_old, coef, t, out):
+def _erk_eval(pair, t_old, h, y_old, coef, t, out):
     """The dense output at t in [t_old, t_old + h]."""
     xi = (t - t_old) / h
     n = y_old.shape[0]
-    if not dop:
+    if pair != _DOP:
         for i in range(n):
             total, power = 0.0, 1.0
-            for c in range(4):
+            for c in range(_DENSE[pair]):
                 power *= xi
                 total += coef[c, i] * power
             out[i] = y_old[i] + h * total
         return
     for i in range(n):
         value = 0.0
-        for r in range(6, -1, -1):
+        for r in range(_DENSE[pair] - 1, -1, -1):
             value += coef[r, i]
-            value *= xi if (6 - r) % 2 == 0 else 1.0 - xi
+            value *= xi if (_DENSE[pair] - 1 - r) % 2 == 0 else 1.0 - xi
         out[i] = value + y_old[i]
 
 
 @njit(error_model="numpy")
-def _erk_root(event, dop, t_old, h, y_old, coef, p, x, a, work, g_old):
+def _erk_root(event, pair, t_old, h, y_old, coef, p, x, a, work, g_old):
     """The time in (t_old, t_old + h] where the event changes sign: the Illinois method on the dense output."""
     lo, hi = t_old, t_old + h
     g_lo = g_old
-    _erk_eval(dop, t_old, h, y_old, coef, hi, work)
+    _erk_eval(pair, t_old, h, y_old, coef, hi, work)
     g_hi = event(hi, work, p, x, a)
     side = 0
     for _ in range(100):
@@ -322,7 +363,7 @@ def _erk_root(event, dop, t_old, h, y_old, coef, p, x, a, work, g_old):
         mid = (lo * g_hi - hi * g_lo) / (g_hi - g_lo) if g_hi != g_lo else 0.5 * (lo + hi)
         if not lo < mid < hi:
             mid = 0.5 * (lo + hi)
-        _erk_eval(dop, t_old, h, y_old, coef, mid, work)
+        _erk_eval(pair, t_old, h, y_old, coef, mid, work)
         g_mid = event(mid, work, p, x, a)
         if g_mid == 0.0:
             return mid
@@ -339,86 +380,90 @@ def _erk_root(event, dop, t_old, h, y_old, coef, p, x, a, work, g_old):
     return hi
 
 
-def erk_start(dop, t0, y, f, t_bound, max_step, rtol, atol, p, stats, size, accel):
+def erk_start(pair, t0, y, f, control, p, stats, accel):
     """f = f(t0, y) and scipy's initial step; -1 when the matrix is singular at t0."""
+    size = int(control[SIZE])
     x, a = np.empty(size), np.empty((size, size))
     if _rhs(accel, t0, y, p, f, x, a):
         return -1.0
     stats[NFEV] += 1
-    return _initial_step(accel, t0, y, f, t_bound, max_step, 7 if dop else 4, rtol, atol, p, x, a, stats)
+    return _initial_step(accel, t0, y, f, control[T_BOUND], control[MAX_STEP], _ERROR_ORDER[pair], control[RTOL], control[ATOL], p, x, a, stats)
 
 
-def erk_run(dop, y, f, state, ts, ys, counters, p, rtol, atol, max_step, t_bound, t_stop, use_event, stats, size, accel, event):
-    """Advance (t = state[0], y, f = f(t, y), |h| = state[1], event value state[2]) until t >= t_stop,
-    writing ys[j] = y(ts[j]) for the samples passed (counters[0] = next sample); returns a status."""
+def erk_run(pair, y, f, state, control, ts, ys, p, stats, accel, event):
+    """Advance (t = state[T], y, f = f(t, y), |h| = state[H], the stop condition's value state[EVENT_VALUE])
+    with the pair numbered `pair` until t >= control[T_STOP], writing ys[j] = y(ts[j]) for the samples
+    passed (state[NEXT_SAMPLE] = the next one); returns a status code."""
     n = y.shape[0]
+    rtol, atol, max_step, t_bound, t_stop, use_event = control[RTOL], control[ATOL], control[MAX_STEP], control[T_BOUND], control[T_STOP], control[USE_EVENT] != 0.0
+    size = int(control[SIZE])
     x, a = np.empty(size), np.empty((size, size))
-    stages = _DOP_STAGES if dop else 6
-    K = np.empty((16 if dop else 7, n))
-    coef = np.empty((7 if dop else 4, n))
+    stages = _STAGES[pair]
+    K = np.empty((_ROWS[pair], n))
+    coef = np.empty((_DENSE[pair], n))
     y_new, work = np.empty(n), np.empty(n)
-    exponent = -1.0 / 8.0 if dop else -1.0 / 5.0
-    t, h_abs = state[0], state[1]
+    exponent = -1.0 / (_ERROR_ORDER[pair] + 1.0)
+    t, h_abs = state[T], state[H]
     taken = 0
     while t < t_stop and t < t_bound and taken < PAUSE_STEPS:
         taken += 1
-        min_step = 10.0 * abs(np.nextafter(t, np.inf) - t)
+        min_step = MIN_STEP_SPACINGS * abs(np.nextafter(t, np.inf) - t)
         h_abs = min(max(h_abs, min_step), max_step)
         rejected, bad = False, False
         while True:
             if h_abs < min_step:
-                state[0], state[1] = t, h_abs
+                state[T], state[H] = t, h_abs
                 return NONFINITE if bad else STEP_COLLAPSE
             t_new = min(t + h_abs, t_bound)
             h = t_new - t
             for i in range(n):
                 K[0, i] = f[i]
-            if _erk_step(accel, dop, t, y, h, K, y_new, p, x, a, stats):
-                state[0], state[1] = t, h
+            if _erk_step(accel, pair, t, y, h, K, y_new, p, x, a, stats):
+                state[T], state[H] = t, h
                 return SINGULAR
-            error = _erk_error(dop, K, h, y, y_new, rtol, atol)
+            error = _erk_error(pair, K, h, y, y_new, rtol, atol)
             bad = not (np.isfinite(error) and _finite(y_new))
             if error < 1.0 and not bad:
-                factor = 10.0 if error == 0.0 else min(10.0, 0.9 * error**exponent)
+                factor = MAX_FACTOR if error == 0.0 else min(MAX_FACTOR, SAFETY * error**exponent)
                 if rejected:
                     factor = min(1.0, factor)
                 break
-            h_abs *= 0.2 if bad else max(0.2, 0.9 * error**exponent)
+            h_abs *= MIN_FACTOR if bad else max(MIN_FACTOR, SAFETY * error**exponent)
             rejected = True
             stats[NREJECT] += 1
         stats[NSTEPS] += 1
         if t_new < t_bound:
             stats[HMIN] = min(stats[HMIN], h)
         stats[HMAX] = max(stats[HMAX], h)
-        j = counters[0]
+        j = int(state[NEXT_SAMPLE])
         need = j < ts.shape[0] and ts[j] <= t_new
         t_end_here = t_new
         status = RUNNING
         if use_event:
             g_new = event(t_new, y_new, p, x, a)
-            if (state[2] < 0.0) != (g_new < 0.0) and state[2] != 0.0:
+            if (state[EVENT_VALUE] < 0.0) != (g_new < 0.0) and state[EVENT_VALUE] != 0.0:
                 need = True
                 status = EVENT
             else:
-                state[2] = g_new
+                state[EVENT_VALUE] = g_new
         if need:
-            if _erk_dense(accel, dop, t, y, y_new, K[stages], h, K, coef, p, x, a, stats):
-                state[0], state[1] = t, h
+            if _erk_dense(accel, pair, t, y, y_new, K[stages], h, K, coef, p, x, a, stats):
+                state[T], state[H] = t, h
                 return SINGULAR
             if status == EVENT:
-                t_end_here = _erk_root(event, dop, t, h, y, coef, p, x, a, work, state[2])
+                t_end_here = _erk_root(event, pair, t, h, y, coef, p, x, a, work, state[EVENT_VALUE])
             while j < ts.shape[0] and ts[j] <= t_end_here:
-                _erk_eval(dop, t, h, y, coef, ts[j], ys[j])
+                _erk_eval(pair, t, h, y, coef, ts[j], ys[j])
                 j += 1
-            counters[0] = j
+            state[NEXT_SAMPLE] = j
             if status == EVENT:
-                _erk_eval(dop, t, h, y, coef, t_end_here, y_new)
+                _erk_eval(pair, t, h, y, coef, t_end_here, y_new)
         for i in range(n):
             f[i] = K[stages, i]
             y[i] = y_new[i]
         t = t_end_here
         h_abs *= factor
-        state[0], state[1] = t, h_abs
+        state[T], state[H] = t, h_abs
         if status == EVENT:
             return EVENT
     return DONE if t >= t_bound else RUNNING
@@ -572,26 +617,38 @@ def _gauss_root(hamilton, event, t_old, h, z0, f0, z1, f1, p, x, a, g_old):
     return hi
 
 
-def gauss_run(s, z, state, ts, zs, counters, p, h, steps, t0, t_end, t_stop, use_event, stats, sizes, size, hamilton, event):
-    """Advance z = (q, p) by fixed steps h (t = state[0], state[1] steps taken of `steps`) until
-    t >= t_stop, writing zs[j] = (q, q_dot) at the samples ts[j] passed; returns a status.
+def gauss_run(s, z, state, control, ts, zs, p, stats, sizes, memory, pivots, hamilton, event):
+    """Advance z = (q, p) by fixed steps h = control[STEP] (t = state[T], state[H] steps taken of
+    control[STEPS]) until t >= control[T_STOP], writing zs[j] = (q, q_dot) at the samples ts[j]
+    passed (state[NEXT_SAMPLE] = the next one); returns a status code.
     The last step ends at t_end exactly (t0 + steps h may fall short of it by round-off).
-    `sizes` keeps the largest |z_k| so far (the scale of each component's convergence test)."""
+    `sizes` keeps the largest |z_k| so far (the scale of each component's convergence test).
+    What the iteration carries from step to step lives in the caller's arrays, so that a run
+    paused and resumed (for progress, at times that depend on the clock) takes exactly the steps
+    of one that was not: `memory` (zeros at the start, s n + (s n)^2 floats) holds the stage
+    derivatives of the last step (the next step's predictor) and the LU factors of the Newton
+    matrix, `pivots` their row exchanges, state[NEWTON] 1.0 while those factors are current."""
     n = z.shape[0]
+    h, steps, t0, t_end, t_stop, use_event = control[STEP], int(control[STEPS]), control[T0], control[T_BOUND], control[T_STOP], control[USE_EVENT] != 0.0
+    size = int(control[SIZE])
     x, a = np.empty(size), np.empty((size, size))
-    Z, FZ = np.empty((s, n)), np.zeros((s, n))
+    Z = np.empty((s, n))
+    FZ = memory[: s * n].reshape((s, n))
+    m = memory[s * n : s * n + (s * n) * (s * n)].reshape((s * n, s * n))
     z_new, f0, f1, work, fw, z_event = np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(n)
-    jac, m, pivots, g = np.empty((n, n)), np.empty((s * n, s * n)), np.empty(s * n, dtype=np.int64), np.empty(s * n)
-    done = int(state[1])
-    t = state[0]
-    fresh, refreshed = False, False
+    jac, g = np.empty((n, n)), np.empty(s * n)
+    done = int(state[H])
+    t = state[T]
+    fresh, refreshed = state[NEWTON] != 0.0, False
     taken = 0
     while done < steps and t < t_stop and taken < PAUSE_STEPS:
         taken += 1
         if not fresh:
+            state[NEWTON] = 0.0
             if _jacobian(hamilton, t, z, p, x, a, jac, f0, work, fw, sizes, stats) or _newton_matrix(s, h, jac, m, pivots):
                 return SINGULAR
             fresh, refreshed = True, True
+            state[NEWTON] = 1.0
         for i in range(s):
             for k in range(n):
                 value = z[k]
@@ -601,10 +658,12 @@ def gauss_run(s, z, state, ts, zs, counters, p, h, steps, t0, t_end, t_stop, use
         status, iterations = _gauss_stages(hamilton, s, t, z, h, Z, FZ, p, x, a, m, pivots, g, sizes, stats)
         if status == NO_CONVERGENCE and not refreshed:
             fresh = False  # a Jacobian from an earlier step: refresh it and try again
+            state[NEWTON] = 0.0
             continue
         if status != DONE:
             return status
         fresh, refreshed = iterations <= 8, False
+        state[NEWTON] = 1.0 if fresh else 0.0
         for k in range(n):
             value = 0.0
             for i in range(s):
@@ -615,7 +674,7 @@ def gauss_run(s, z, state, ts, zs, counters, p, h, steps, t0, t_end, t_stop, use
         done += 1
         t_new = t_end if done >= steps else t0 + done * h
         stats[NSTEPS] += 1
-        j = counters[0]
+        j = int(state[NEXT_SAMPLE])
         if (j < ts.shape[0] and ts[j] <= t_new) or use_event:
             if hamilton(t, z, p, f0, x, a) or hamilton(t_new, z_new, p, f1, x, a):
                 return SINGULAR
@@ -625,23 +684,23 @@ def gauss_run(s, z, state, ts, zs, counters, p, h, steps, t0, t_end, t_stop, use
         if use_event:
             _velocity_state(z_new, f1, work)
             g_new = event(t_new, work, p, x, a)
-            if (state[2] < 0.0) != (g_new < 0.0) and state[2] != 0.0:
+            if (state[EVENT_VALUE] < 0.0) != (g_new < 0.0) and state[EVENT_VALUE] != 0.0:
                 event_found = True
-                t_end_here = _gauss_root(hamilton, event, t, h, z, f0, z_new, f1, p, x, a, state[2])
+                t_end_here = _gauss_root(hamilton, event, t, h, z, f0, z_new, f1, p, x, a, state[EVENT_VALUE])
                 _hermite(t, h, z, f0, z_new, f1, t_end_here, z_event)
             else:
-                state[2] = g_new
+                state[EVENT_VALUE] = g_new
         while j < ts.shape[0] and ts[j] <= t_end_here:
             _hermite(t, h, z, f0, z_new, f1, ts[j], work)
             hamilton(ts[j], work, p, fw, x, a)
             _velocity_state(work, fw, zs[j])
             j += 1
-        counters[0] = j
+        state[NEXT_SAMPLE] = j
         for k in range(n):
             z[k] = z_event[k] if event_found else z_new[k]
             sizes[k] = max(sizes[k], abs(z[k]))
         t = t_end_here
-        state[0], state[1] = t, done
+        state[T], state[H] = t, done
         if event_found:
             return EVENT
     return DONE if done >= steps else RUNNING

@@ -26,7 +26,7 @@ import numpy as np
 from lagrange_cli.errors import LagrangeError
 from lagrange_cli.files import atomic_write
 from lagrange_cli.model import Model
-from lagrange_cli.numeric.simulate import Trajectory
+from lagrange_cli.numeric.simulate import InvariantKind, Trajectory
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -323,7 +323,7 @@ def _energy_panel(axes: Any, trajectory: Trajectory, model: Model | None) -> Non
     """Conserved energy: its relative change, which is numerical error. Otherwise h(t) itself:
     damping, applied forces or time-dependent terms change it physically."""
     energy, t = trajectory.energy, trajectory.t
-    invariant = next((i for i in trajectory.invariants if i.name == "energy"), None)
+    invariant = trajectory.invariant(InvariantKind.ENERGY)
     conserved = model.energy_conserved if model is not None else invariant is not None and invariant.conserved
     if not conserved:
         axes.plot(t, energy, color="tab:red")

@@ -1,17 +1,16 @@
 """The settings of one simulation: arguments, then the file's `simulate` and `initial` blocks, then defaults.
 
-`resolve` validates everything at once into a frozen `Settings` (or raises `LagrangeError`
-saying what to change), and resolves `method="auto"` and `backend="auto"` from the system:
-the linearisation at the initial state tells whether it is stiff enough that Radau beats a
-compiled explicit method (`diagnostics.choose`, the same rule `lagrange stress` reports with)
-or not (DOP853), and how fast it moves (whether compiling pays off, and the symplectic
-method's step).
+`validate` checks everything at once into a frozen `Settings` (or raises `LagrangeError` saying
+what to change). It only validates: it compiles nothing and chooses nothing, so that `accuracy`
+and `stress` can call it once for the parameter values and the initial state. Choosing what
+`auto` means (the method, the backend, the symplectic step, Baumgarte's alpha for kept
+constraints) is `policy.decide`'s; `policy.resolve` does both.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -22,7 +21,7 @@ from lagrange_cli.emit.common import require_defined
 from lagrange_cli.errors import LagrangeError, Span, SpecError
 from lagrange_cli.expr import Scope, parse_expression
 from lagrange_cli.model import Model
-from lagrange_cli.numeric import compile, diagnostics
+from lagrange_cli.numeric import memo
 
 METHODS = ("auto", "RK45", "DOP853", "Radau", "BDF", "LSODA", "symplectic")
 COMPILED = ("RK45", "DOP853", "symplectic")
@@ -30,13 +29,14 @@ BACKENDS = ("auto", "compiled", "python")
 DEFAULTS = {"t_end": 10.0, "rtol": 1e-8, "atol": 1e-10, "samples": 1001}
 MAX_SAMPLES = 1_000_000
 """Samples one run may keep: each costs 16 bytes per coordinate, and the monitors evaluate at each."""
-HEAVY = 3000.0  # rate x time span above which compiling pays off (about 1e4 steps)
 STAGES = 2  # Gauss-Legendre stages of the symplectic method (order 4)
 
 
 @dataclass(frozen=True)
 class Settings:
-    """Everything one run needs, validated; `method` and `backend` are resolved (never "auto")."""
+    """Everything one run needs, validated. As `validate` returns them, `method` and `backend` are
+    as asked (possibly "auto"); `policy.decide` returns them resolved (never "auto"), with the
+    symplectic step, Baumgarte's `alpha` for kept constraints and notes saying why."""
 
     t0: float
     t_end: float
@@ -49,14 +49,33 @@ class Settings:
     max_step: float
     t_eval: tuple[float, ...]
     parameters: tuple[tuple[str, float], ...]
-    p: tuple[float, ...]
+    """(name, value) of each of the model's parameters, in the model's order."""
     y0: tuple[float, ...]
     until: str | None
     event: sp.Expr | None
-    notes: tuple[str, ...]
+    alpha: float | None = None
+    """Baumgarte's stabilisation rate for kept constraints (None without them, or before `policy.decide`)."""
+    notes: tuple[str, ...] = ()
+
+    @property
+    def values(self) -> tuple[float, ...]:
+        """The model's parameter values, in its order."""
+        return tuple(value for _, value in self.parameters)
+
+    @property
+    def p(self) -> tuple[float, ...]:
+        """The generated code's parameter vector: the model's parameters, then alpha when the
+        model keeps constraints (see `code_parameters`)."""
+        return code_parameters(self.values, self.alpha)
 
 
-def resolve(
+def code_parameters(values: Sequence[float], alpha: float | None) -> tuple[float, ...]:
+    """The one place the generated code's `_p` is built: the model's parameter values, then
+    Baumgarte's `_alpha` (codegen appends it to the parameters of a model with kept constraints)."""
+    return (*values, alpha) if alpha is not None else tuple(values)
+
+
+def validate(
     model: Model,
     *,
     t_end: float | None = None,
@@ -72,7 +91,7 @@ def resolve(
     backend: str = "auto",
     max_step: float | None = None,
 ) -> Settings:
-    """Validated settings, with `auto` choices made; raises `LagrangeError` on bad input."""
+    """Validated settings, `auto` left as asked; raises `LagrangeError` on bad input."""
     check(model)
     file = dict(model.simulate)
     end = _positive("t_end", t_end if t_end is not None else file.get("t_end", DEFAULTS["t_end"]))
@@ -90,63 +109,26 @@ def resolve(
     event = parse_until(model, until) if until is not None else None
     if backend not in BACKENDS:
         raise LagrangeError(f"unknown backend '{backend}'; choose one of {', '.join(BACKENDS)}")
-    chosen_method, backend, fixed, rate, notes = _choose(model, chosen_method, backend, fixed, end, relative, p, y0)
-    vector = (*p, _stabilisation(rate, end)) if model.constraints else p
-    notes = (*notes, *constraint_notes(model, p, y0))
-    return Settings(0.0, end, chosen_method, backend, relative, absolute, fixed, STAGES, limit, times, tuple(zip(names, p, strict=True)), vector, y0, until, event, notes)
+    return Settings(0.0, end, chosen_method, backend, relative, absolute, fixed, STAGES, limit, times, tuple(zip(names, p, strict=True)), y0, until, event)
 
 
-_ROWS: dict[int, tuple[Model, Callable[..., list[list[float]]]]] = {}
+def resolve(model: Model, **arguments: object) -> Settings:
+    """`policy.resolve`: validated, then decided (kept here for callers of the old name)."""
+    from lagrange_cli.numeric import policy
 
-
-def constraint_notes(model: Model, p: Sequence[float], y0: Sequence[float]) -> list[str]:
-    """A note for each kept constraint the initial state violates, in positions (f(q, 0) != 0)
-    or velocities (a . q_dot + b != 0), beyond round-off relative to the sizes of its terms:
-    the run then starts off the constrained motion (the stabilisation pulls it back)."""
-    if not model.constraints:
-        return []
-    model = model.with_definitions()  # the rows are evaluated: defined functions written out
-    if id(model) not in _ROWS:
-        import sympy as sp
-
-        rows = [[c.expr if c.holonomic else sp.Integer(0), *c.jacobian, c.bias] for c in model.constraints]  # a velocity row's expr has q_dot
-        _ROWS[id(model)] = (model, sp.lambdify([model.t, *model.q, *(par.symbol for par in model.parameters)], rows, modules="math"))
-    n = model.n
-    q, qd = np.array(y0[:n], dtype=float), np.array(y0[n:], dtype=float)
-    try:
-        values = np.array(_ROWS[id(model)][1](0.0, *q, *p[: len(model.parameters)]), dtype=float)
-    except (ArithmeticError, ValueError, TypeError):
-        return []
-    notes = []
-    for c, row in zip(model.constraints, values, strict=True):
-        gradient, bias = row[1 : n + 1], row[n + 1]
-        velocity = float(gradient @ qd + bias)
-        off = []
-        if c.holonomic and abs(row[0]) > 1e-8 * (1.0 + float(np.linalg.norm(gradient) * np.linalg.norm(q))):
-            off.append(f"residual {row[0]:.3g} in the positions")
-        if abs(velocity) > 1e-8 * (float(np.linalg.norm(gradient) * np.linalg.norm(qd)) + abs(bias)):
-            off.append(f"{velocity:.3g} in the velocities")
-        if off:
-            notes.append(f"the initial state violates constraint '{c.name}' ({', '.join(off)}): the run starts off the constrained motion; give initial values that satisfy it")
-    return notes
-
-
-def _stabilisation(rate: float, t_end: float) -> float:
-    """Baumgarte's alpha for kept constraints: the system's own fastest rate (so that it adds
-    no stiffness), at least 10 / t_end so that drift decays within the run."""
-    return max(rate, 10.0 / t_end)
-
-
-_CHECKED: dict[int, Model] = {}
+    return policy.resolve(model, **arguments)  # type: ignore[arg-type]
 
 
 def check(model: Model) -> None:
     """Every function defined and M invertible at a generic point (once per model object);
     raises `LagrangeError` saying what is missing."""
-    if id(model) not in _CHECKED:
+
+    def checked() -> bool:
         require_defined(model, "simulation")
         check_invertible(model.with_definitions())
-        _CHECKED[id(model)] = model
+        return True
+
+    memo.once(model, "checked for simulation", checked)
 
 
 def _closest(name: str, candidates: Sequence[str]) -> str | None:
@@ -256,99 +238,3 @@ def parse_until(model: Model, text: str) -> sp.Expr:
         if not error.diagnostics:
             raise LagrangeError(f"--until: time derivatives are not allowed in a stop condition; write velocities as `<q>_dot`: {text}") from None
         raise
-
-
-def _choose(
-    model: Model, method: str, backend: str, step: float | None, t_end: float, rtol: float, p: tuple[float, ...], y0: tuple[float, ...]
-) -> tuple[str, str, float | None, float, tuple[str, ...]]:
-    """Resolve `auto` (method and backend) and the symplectic step, saying why in notes."""
-    notes: list[str] = []
-    if method == "symplectic" and any(not c.holonomic for c in model.constraints):
-        name = next(c.name for c in model.constraints if not c.holonomic)
-        raise LagrangeError(
-            f"{model.source}: the symplectic method cannot integrate velocity constraint '{name}': a nonholonomic system has no canonical (q, p) form; use another --method (DOP853, RK45, Radau)"
-        )
-    if method == "symplectic" and model.constraints:
-        raise LagrangeError(f"{model.source}: the symplectic method needs a system without kept constraints; eliminate them (`eliminate:`) or use another --method")
-    if step is not None and method not in ("auto", "symplectic"):
-        raise LagrangeError(f"--step sets the fixed step of the symplectic method; {method} adapts its step to --rtol/--atol (use --max-step to bound it)")
-    if method == "symplectic" and backend == "python":
-        raise LagrangeError("the symplectic method runs only compiled (numba); drop --backend python")
-    if backend == "compiled" and method in ("Radau", "BDF", "LSODA"):
-        raise LagrangeError(f"{method} runs through scipy; use --backend python (or auto)")
-    needs_rates = method == "auto" or backend == "auto" or (method == "symplectic" and step is None) or bool(model.constraints)
-    found = initial_spectrum(model, p, y0) if needs_rates else None
-    rate = found.rate if found is not None else 0.0
-    if method == "auto":
-        if step is not None and not model.constraints:
-            if backend == "python":
-                raise LagrangeError(
-                    f"{model.source}: a fixed step (simulate: step) selects the symplectic method, which runs only compiled (numba); drop --backend python, or the step to let the method adapt it"
-                )
-            method, why = "symplectic", "a fixed step was given"
-        else:
-            method, why = diagnostics.choose(found, t_end, compiled=backend != "python" and compile.numba_available())
-        notes.append(f"method auto -> {method}: {why}")
-    if method == "symplectic" and step is None:
-        step = _symplectic_step(rate, t_end, rtol)
-        if found is None:
-            notes.append(f"symplectic step {step:.3g} = t_end/1000: the linearisation at the initial state could not be evaluated (give --step)")
-        elif rate <= 0:
-            notes.append(f"symplectic step {step:.3g} = t_end/1000: the linearisation at the initial state has no rates (give --step)")
-        else:
-            notes.append(f"symplectic step {step:.3g} from the fastest rate at the initial state ({rate:.3g}/s) and rtol")
-    if backend == "auto":
-        backend, why = _backend(model, method, rate, t_end)
-        notes.append(f"backend auto -> {backend}: {why}")
-    if backend == "compiled" and not compile.numba_available():
-        if method == "symplectic":
-            raise LagrangeError(f"the symplectic method needs numba: {compile.NUMBA_HINT}, or use another --method")
-        backend = "python"
-        notes.append(f"backend compiled -> python: numba is not installed ({compile.NUMBA_HINT})")
-    return method, backend, step, rate, tuple(notes)
-
-
-def _backend(model: Model, method: str, rate: float, t_end: float) -> tuple[str, str]:
-    if method not in COMPILED:
-        return "python", f"{method} runs through scipy"
-    if not compile.numba_available():
-        if method == "symplectic":
-            raise LagrangeError(f"the symplectic method needs numba: {compile.NUMBA_HINT}, or use another --method")
-        return "python", "numba is not installed"
-    if method == "symplectic":
-        return "compiled", "the symplectic method runs compiled"
-    if rate * t_end > HEAVY:
-        return "compiled", f"a long run (rate {rate:.3g}/s x t_end {t_end:g}): compiling pays off"
-    if (compile.cache_dir() / f"lagrange_numba_{compile.fingerprint(model, 'numba', False, None)}.py").exists():
-        return "compiled", "this system is compiled already (cached)"
-    return "python", "a short run: compiling would cost more than it saves"
-
-
-def _symplectic_step(rate: float, t_end: float, rtol: float) -> float:
-    """A step for the order-4 Gauss method: h * rate = 2 rtol^(1/4), the local energy error then
-    being about rtol; at most t_end / 100."""
-    if rate <= 0:
-        return t_end / 1000
-    return min(t_end / 100, 2.0 * rtol**0.25 / rate)
-
-
-def initial_spectrum(model: Model, p: tuple[float, ...], y0: tuple[float, ...]) -> diagnostics.Spectrum | None:
-    """The rates of the linearisation at y0 (None where the right-hand side cannot be evaluated);
-    the same diagnosis `lagrange stress` makes along a trajectory."""
-    functions = compile.build(model, "python")
-    rhs = _safe_rhs(functions.module, (*p, 0.0) if model.constraints else p)
-    found = diagnostics.jacobian(rhs, 0.0, np.array(y0, dtype=float))
-    return diagnostics.spectrum(found) if found is not None else None
-
-
-def _safe_rhs(module: object, p: tuple[float, ...]) -> Callable[[float, np.ndarray], np.ndarray | None]:
-    accel, n = module._accel, module._N  # type: ignore[attr-defined]
-
-    def rhs(t: float, y: np.ndarray) -> np.ndarray | None:
-        try:
-            x = accel(t, y.tolist(), list(p))
-        except (ArithmeticError, ValueError, TypeError):
-            return None
-        return np.array(y.tolist()[n:] + x[:n])
-
-    return rhs

@@ -16,6 +16,7 @@ work-precision study can call `simulate` in a loop.
 from __future__ import annotations
 
 import dataclasses
+import enum
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -26,7 +27,9 @@ from lagrange_cli.errors import LagrangeError
 from lagrange_cli.model import Model
 from lagrange_cli.numeric import codegen, compile, integrators
 from lagrange_cli.numeric.integrators import Problem, Progress, Run, Stats
-from lagrange_cli.numeric.settings import Settings, check, resolve
+from lagrange_cli.numeric.policy import resolve
+from lagrange_cli.numeric.settings import Settings, check
+from lagrange_cli.numeric.status import Status
 
 FAILURES = {
     integrators.SINGULAR: "the mass matrix{} is singular (a coordinate singularity, such as Euler angles at theta = 0, or a configuration without inertia)",
@@ -35,6 +38,16 @@ FAILURES = {
     integrators.NO_CONVERGENCE: "the implicit stage equations did not converge (the step is too large for this motion: give a smaller --step)",
 }
 BUDGET_HINT = "shorten t_end (--t-end), loosen the tolerances (--rtol/--atol), give a larger --step, or raise the budget (max_steps)"
+
+
+class InvariantKind(enum.StrEnum):
+    """What a monitored quantity is."""
+
+    ENERGY = "energy"
+    MOMENTUM = "momentum"
+    """The momentum of an ignorable coordinate."""
+    CONSTRAINT = "constraint"
+    """The residual of a kept constraint."""
 
 
 @dataclass(frozen=True)
@@ -51,6 +64,8 @@ class Invariant:
     """The size the change is measured against: |initial|, or for the energy the larger of
     |initial| and the largest |sum p q_dot| (twice the kinetic energy of a natural system),
     so that an energy that starts at or near 0 still gets a meaningful relative error."""
+    kind: InvariantKind | None = None
+    """What it is (None only for an invariant made by hand)."""
 
     @property
     def relative(self) -> float:
@@ -88,6 +103,8 @@ class Trajectory:
     timing: Timing
     invariants: tuple[Invariant, ...] = ()
     notes: tuple[str, ...] = field(default=())
+    outcome: Status = Status.FINISHED
+    """How the integrator's run ended, by kind (`status` is only finished, event or failed)."""
 
     @property
     def failed(self) -> bool:
@@ -97,6 +114,10 @@ class Trajectory:
     def names(self) -> tuple[str, ...]:
         """The columns of y: the coordinates, then their velocities."""
         return (*self.coordinates, *(f"{c}_dot" for c in self.coordinates))
+
+    def invariant(self, kind: InvariantKind) -> Invariant | None:
+        """The first monitored quantity of this kind (the energy: `invariant(InvariantKind.ENERGY)`)."""
+        return next((i for i in self.invariants if i.kind == kind), None)
 
     def column(self, name: str) -> np.ndarray:
         """The samples of one coordinate or velocity (`theta`, `theta_dot`), or `t`, or `energy`."""
@@ -131,12 +152,19 @@ def simulate(
     `max_steps` is the step budget (default `integrators.MAX_STEPS` of the backend): a run that
     has not reached t_end after it stops, failed, with the trajectory so far."""
     check(model)
-    plain = compile.build(model, "python")  # here rather than in resolve's linearisation, so that its cost is reported
+    plain = compile.build(model, "python")  # here rather than in the policy's linearisation, so that its cost is reported
     settings = resolve(
         model, t_end=t_end, method=method, rtol=rtol, atol=atol, step=step, samples=samples, t_eval=t_eval, parameters=parameters, initial=initial, until=until, backend=backend, max_step=max_step
     )
+    return integrate(model, settings, progress, max_steps, Timing(plain.generate_seconds, plain.import_seconds, 0.0, 0.0))
+
+
+def integrate(model: Model, settings: Settings, progress: Progress | None = None, max_steps: int | None = None, before: Timing | None = None) -> Trajectory:
+    """Run `settings` as decided by `policy.decide` (method and backend resolved); `before` the
+    one-time costs already spent on this run."""
     python = compile.build(model, "python", jacobian=settings.method in ("Radau", "BDF", "LSODA"), event=settings.event)
-    generate, load = plain.generate_seconds + python.generate_seconds, plain.import_seconds + python.import_seconds
+    generate = python.generate_seconds + (before.generate if before else 0.0)
+    load = python.import_seconds + (before.load if before else 0.0)
     budget = integrators.MAX_STEPS[settings.backend] if max_steps is None else _budget(max_steps)
     problem = Problem(settings.t0, settings.t_end, np.array(settings.y0, dtype=float), np.array(settings.t_eval, dtype=float), np.array(settings.p, dtype=float), settings.event is not None, budget)
     if settings.backend == "compiled":
@@ -165,7 +193,7 @@ def _run_compiled(numba: compile.Functions, python: compile.Functions, problem: 
         assert settings.step is not None
         run = integrators.run_gauss(numba, problem, z0, settings.stages, settings.step, progress)
     else:
-        run = integrators.run_erk(numba, problem, settings.method == "DOP853", settings.rtol, settings.atol, settings.max_step, progress)
+        run = integrators.run_erk(numba, problem, settings.method, settings.rtol, settings.atol, settings.max_step, progress)
     return _verified_event(python, problem, run)
 
 
@@ -198,15 +226,17 @@ def _trajectory(model: Model, settings: Settings, python: compile.Functions, run
         status, message = "event", f"stopped at t = {_g(run.t_last)}, where {settings.until} crossed zero"
     elif run.status == integrators.BUDGET:
         status = "failed"
-        message = f"{model.source}: stopped after {run.stats.steps} steps (the step budget) at t = {_g(run.t_last)}, of t_end = {_g(settings.t_end)}; state: {_state(model, run.y_last)}; {BUDGET_HINT}"
+        message = (
+            f"{model.source}: stopped after {run.stats.steps} steps (the step budget) at t = {_g(run.t_last)}, of t_end = {_g(settings.t_end)}; state: {state_text(model, run.y_last)}; {BUDGET_HINT}"
+        )
     else:
         status = "failed"
         if run.problem is not None:
-            reason = f"{run.problem.what} cannot be evaluated at t = {_g(run.problem.t)} ({_state(model, run.problem.y)}): {run.problem.cause}"
+            reason = f"{run.problem.what} cannot be evaluated at t = {_g(run.problem.t)} ({state_text(model, run.problem.y)}): {run.problem.cause}"
         else:
             reason = FAILURES[run.status].format(" (with the constraint rows)" if model.constraints else "")
-        message = f"{model.source}: simulation failed at t = {_g(run.t_last)}: {reason}; state: {_state(model, run.y_last)}"
-    return Trajectory(model.title, model.coordinates, settings, run.t, run.y, energy, status, message, run.t_last, run.y_last, run.stats, timing, invariants, settings.notes)
+        message = f"{model.source}: simulation failed at t = {_g(run.t_last)}: {reason}; state: {state_text(model, run.y_last)}"
+    return Trajectory(model.title, model.coordinates, settings, run.t, run.y, energy, status, message, run.t_last, run.y_last, run.stats, timing, invariants, settings.notes, run.status)
 
 
 class _MonitorFailure(Exception):
@@ -238,22 +268,22 @@ def _invariants(model: Model, module: object, p: list[float], run: Run, energy: 
     """Energy, the momenta of ignorable coordinates, and constraint residuals along the samples."""
     if len(run.t) == 0:
         return ()
-    result = [_invariant("energy", model.energy_conserved, energy, scale=_energy_scale(module, p, run))]
+    result = [_invariant("energy", InvariantKind.ENERGY, model.energy_conserved, energy, scale=_energy_scale(module, p, run))]
     ignorable = codegen.ignorable(model)
     if ignorable:
         momenta = _values(module._momenta, run, p, "the momenta")  # type: ignore[attr-defined]
-        result += [_invariant(f"p_{model.coordinates[i]}", True, momenta[:, k]) for k, i in enumerate(ignorable)]
+        result += [_invariant(f"p_{model.coordinates[i]}", InvariantKind.MOMENTUM, True, momenta[:, k]) for k, i in enumerate(ignorable)]
     if model.constraints:
         residuals = _values(module._residuals, run, p, "the constraint residuals")  # type: ignore[attr-defined]
-        result += [_invariant(f"constraint {c.name}", True, residuals[:, k], drift=True) for k, c in enumerate(model.constraints)]
+        result += [_invariant(f"constraint {c.name}", InvariantKind.CONSTRAINT, True, residuals[:, k], drift=True) for k, c in enumerate(model.constraints)]
     return tuple(result)
 
 
-def _invariant(name: str, conserved: bool, values: np.ndarray, drift: bool = False, scale: float = 0.0) -> Invariant:
+def _invariant(name: str, kind: InvariantKind, conserved: bool, values: np.ndarray, drift: bool = False, scale: float = 0.0) -> Invariant:
     start = 0.0 if drift else float(values[0])
     change = np.abs(values - start)
     size = max(abs(start), scale) if math.isfinite(scale) else abs(start)
-    return Invariant(name, conserved, start, float(np.nanmax(change)) if len(change) else 0.0, float(change[-1]), size)
+    return Invariant(name, conserved, start, float(np.nanmax(change)) if len(change) else 0.0, float(change[-1]), size, kind)
 
 
 ENERGY_SCALE_SAMPLES = 101  # samples at which sum p q_dot is evaluated for the energy's scale
@@ -270,7 +300,8 @@ def _energy_scale(module: object, p: list[float], run: Run) -> float:
     return largest
 
 
-def _state(model: Model, y: np.ndarray) -> str:
+def state_text(model: Model, y: np.ndarray) -> str:
+    """`theta = 0.1, theta_dot = -2`: a state for messages."""
     names = (*model.coordinates, *(f"{c}_dot" for c in model.coordinates))
     return ", ".join(f"{n} = {_g(float(v))}" for n, v in zip(names, y, strict=True))
 

@@ -30,6 +30,10 @@ a decay counting only if no state of the run grows at MATCHED x its rate or more
 rates, which an implicit method does not help with, are reported apart), the
 explicit method's step count against the implicit one's, cond M (coordinate singularities),
 drift of the energy, ignorable momenta and constraints, and blow-ups.
+
+Timing: each method's final run (and scipy's default run) is timed again TIMED_RUNS times after
+the ladders, in turns (`runs.interleave`), and methods within TIE_MARGIN (10%) of the recommended
+one's run time are reported as ties (`Outcome.ties`), not as slower.
 """
 
 from __future__ import annotations
@@ -43,9 +47,11 @@ import numpy as np
 from lagrange_cli.errors import LagrangeError
 from lagrange_cli.model import Model
 from lagrange_cli.numeric import accuracy as study
-from lagrange_cli.numeric import compile, diagnostics
-from lagrange_cli.numeric.accuracy import Candidate, Point, Reference, Setup, tol_text
-from lagrange_cli.numeric.settings import resolve
+from lagrange_cli.numeric import compile, diagnostics, policy
+from lagrange_cli.numeric.reference import HORIZON_THRESHOLD, Horizon, Reference, ReferenceFailed, prepare
+from lagrange_cli.numeric.runs import TIGHTEST, Candidate, Point, PointStatus, Setup, check_steps, component_scale, measure, retime, starting, ties, tol_text
+from lagrange_cli.numeric.settings import Settings, validate
+from lagrange_cli.numeric.status import Failure
 
 NAIVE = Candidate("RK45", "python")
 """scipy's default method, what a user reaches for first."""
@@ -69,6 +75,19 @@ class Regime:
     initial: Mapping[str, float]
 
 
+class Finding(str):
+    """One thing the diagnosis found, as the sentence shown (`kind: detail`), with its `kind` (what
+    the summary shows) and `detail` kept apart, so that nothing splits the sentence back."""
+
+    kind: str
+    detail: str
+
+    def __new__(cls, kind: str, detail: str = "") -> Finding:
+        finding = super().__new__(cls, f"{kind}: {detail}" if detail else kind)
+        finding.kind, finding.detail = kind, detail
+        return finding
+
+
 @dataclass(frozen=True)
 class Diagnosis:
     decay_span: float
@@ -78,7 +97,7 @@ class Diagnosis:
     rate: float
     condition: float
     """max cond M(q) along the trajectory."""
-    findings: tuple[str, ...]
+    findings: tuple[Finding, ...]
 
 
 @dataclass(frozen=True)
@@ -96,6 +115,8 @@ class Outcome:
     auto: Point | None
     naive_default: Point | None = None
     """scipy's RK45 at its default tolerances (rtol 1e-3, atol 1e-6)."""
+    ties: tuple[Point, ...] = ()
+    """Other methods meeting the accuracy within TIE_MARGIN of the recommended one's run time: as good a choice."""
 
     @property
     def met(self) -> bool:
@@ -104,7 +125,7 @@ class Outcome:
     @property
     def undecided(self) -> bool:
         """No method met the accuracy, but some run was stopped by the time limit (it might have)."""
-        return not self.met and any(p.status == study.UNDECIDED for p in self.points)
+        return not self.met and any(p.status == PointStatus.UNDECIDED for p in self.points)
 
     @property
     def verdict(self) -> str:
@@ -152,7 +173,7 @@ def parse_scale(text: str) -> tuple[str, tuple[float, ...]]:
 
 def regimes(model: Model, scales: Sequence[tuple[str, Sequence[float]]], long_factor: float = 10.0, energy_factor: float = 3.0, t_end: float | None = None) -> tuple[Regime, ...]:
     """The regimes to run: the sweeps, or the defaults, a long horizon, high energy and near-singular start."""
-    base = resolve(model, method="DOP853", backend="python", t_end=t_end)
+    base = validate(model, method="DOP853", backend="python", t_end=t_end)
     known = [p.name for p in model.parameters]
     if scales:
         result = []
@@ -162,8 +183,8 @@ def regimes(model: Model, scales: Sequence[tuple[str, Sequence[float]]], long_fa
             result += [Regime(f"{name} = {v:g}", base.t_end, {name: v}, {}) for v in values]
         return tuple(result)
     result = [Regime("defaults", base.t_end, {}, {}), Regime(f"long horizon (t_end x {long_factor:g})", base.t_end * long_factor, {}, {})]
-    result.append(Regime(f"high energy (velocities x {energy_factor:g})", base.t_end, {}, _high_energy(model, base.p, base.y0, energy_factor)))
-    singular = _near_singular(model, base.p, base.y0)
+    result.append(Regime(f"high energy (velocities x {energy_factor:g})", base.t_end, {}, _high_energy(model, base.values, base.y0, energy_factor)))
+    singular = _near_singular(model, base.values, base.y0)
     if singular is not None:
         result.append(Regime(singular[0], base.t_end, {}, singular[1]))
     return tuple(result)
@@ -177,9 +198,7 @@ def _high_energy(model: Model, p: Sequence[float], y0: Sequence[float], factor: 
     n = model.n
     v = np.array(y0[n:], dtype=float)
     if not np.any(v):
-        from lagrange_cli.numeric.settings import initial_spectrum
-
-        found = initial_spectrum(model, tuple(p), tuple(y0))
+        found = policy.initial_spectrum(model, p, y0)
         rate = found.slowest if found is not None and found.slowest > 0 else 1.0
         v = rate * diagnostics.coordinate_sizes(y0, n)  # r = 7e6 m moves by metres per second, not by 1e-6 of itself
     v = factor * v
@@ -219,10 +238,17 @@ def _near_singular(model: Model, p: Sequence[float], y0: Sequence[float]) -> tup
     return f"near singular ({name} = {start:.3g}, cond M = {condition(0.0, y):.1e})", {name: start}
 
 
+AUTO = Candidate("auto")
+FAILURE_FINDINGS = (Failure.SINGULAR, Failure.NONFINITE, Failure.STEP_COLLAPSE)
+"""Failed runs the diagnosis reports: a blow-up, a singular matrix, a step that collapsed (at a singularity, or too stiff)."""
+
+
 def default_candidates(model: Model) -> tuple[Candidate, ...]:
-    return (NAIVE, *study.default_candidates(model), Candidate("auto"))
+    return (NAIVE, *study.default_candidates(model), AUTO)
 
 
+TIMED_RUNS = 2
+"""Timed runs of each method's final run (and scipy's default run) after the ladders, in turns."""
 MAX_STEPS = 60_000
 """The default step budget of one run (scipy steps, about 4 s of RK45 or BDF in Python on a quiet
 machine, as the old 5 s budget; compiled runs 100 x as many, reference runs 10 x)."""
@@ -235,7 +261,7 @@ global error is some 10 x its tolerance, then still meets the accuracy."""
 
 
 def reference_tolerance(target: float) -> float:
-    return max(target * REFERENCE_FACTOR, study.TIGHTEST)
+    return max(target * REFERENCE_FACTOR, TIGHTEST)
 
 
 def ladder(target: float) -> tuple[float, ...]:
@@ -264,10 +290,10 @@ def stress(
     which run a regime is on."""
     if not (0 < target < 1e-1):
         raise LagrangeError(f"--accuracy must lie between 0 and 0.1, got {target:g}")
-    if target < 1e3 * study.TIGHTEST:
-        raise LagrangeError(f"--accuracy {target:g} leaves no room for a reference 1000 times tighter; give at least {1e3 * study.TIGHTEST:.1e}")
+    if target < 1e3 * TIGHTEST:
+        raise LagrangeError(f"--accuracy {target:g} leaves no room for a reference 1000 times tighter; give at least {1e3 * TIGHTEST:.1e}")
     model = model.with_definitions()  # the mass matrix and constraint rows are evaluated here too
-    study.check_steps(max_steps)
+    check_steps(max_steps)
     if time_limit is not None and not (math.isfinite(time_limit) and time_limit > 0):
         raise LagrangeError(f"the time limit must be a positive number of seconds, got {time_limit:g}")
     chosen = tuple(candidates) if candidates else default_candidates(model)
@@ -284,29 +310,29 @@ def stress(
 def _regime(model: Model, regime: Regime, target: float, candidates: Sequence[Candidate], budget: Setup, say: Callable[[str], None] | None) -> Outcome:
     """One regime; `budget` carries the step budget and time limit."""
     times = tuple(np.linspace(0.0, regime.t_end, SAMPLES).tolist())
-    setup = Setup(regime.t_end, times, dict(regime.parameters), dict(regime.initial), budget.max_steps, time_limit=budget.time_limit)
+    setup = starting(model, Setup(regime.t_end, times, dict(regime.parameters), dict(regime.initial), budget.max_steps, time_limit=budget.time_limit))
     ref_tol = reference_tolerance(target)
     try:
-        setup, reference, horizon, _ = study.prepare(model, setup, ref_tol, say, window=WINDOW_FACTOR * target)
-    except LagrangeError as error:
-        finding = f"blow-up or failure of the reference run: {error}"
+        setup, reference, horizon, _ = prepare(model, setup, ref_tol, say, window=WINDOW_FACTOR * target, hint=", a looser --accuracy")
+    except ReferenceFailed as error:
+        finding = Finding("blow-up or failure of the reference run", str(error))
         return Outcome(regime, setup.t_end, "none", math.nan, (), Diagnosis(0.0, 1.0, 1.0, 0.0, math.nan, (finding,)), None, None, None)
-    scale = study.component_scale(reference.y)
+    scale = component_scale(reference.y)
     points: list[Point] = []
-    runs: dict[tuple[str, float], Point] = {}
+    runs: dict[tuple[Candidate, float], Point] = {}
     naive_default = None
     if NAIVE in candidates:
         if say:
             say(f"{NAIVE.label} {NAIVE_RTOL:.0e} (scipy's default)")
-        naive_default = study.measure(model, NAIVE, NAIVE_RTOL, setup, reference, scale, repeats=1)
+        naive_default = measure(model, NAIVE, NAIVE_RTOL, setup, reference, scale, repeats=0)
     for candidate in candidates:
         last: Point | None = None
         stalls = 0
         for tolerance in ladder(target):
             if say:
                 say(f"{candidate.label} {tol_text(tolerance)}")
-            previous, last = last, study.measure(model, candidate, tolerance, setup, reference, scale, repeats=1)
-            runs[(candidate.label, tolerance)] = last
+            previous, last = last, measure(model, candidate, tolerance, setup, reference, scale, repeats=0)
+            runs[(candidate, tolerance)] = last
             if not last.ok or last.error <= target:
                 break
             stalled = previous is not None and previous.ok and previous.error < SATURATED and last.error > previous.error / STALLED
@@ -315,20 +341,25 @@ def _regime(model: Model, regime: Regime, target: float, candidates: Sequence[Ca
                 break  # tighter tolerances no longer buy accuracy (round-off, or an error floor)
         if last is not None:
             points.append(last)
+    if say:
+        say("timing the runs in turns")
+    timed = retime(model, [*points, *([naive_default] if naive_default is not None else [])], setup, TIMED_RUNS)  # in turns: a changing load slows all alike
+    points, naive_default = timed[: len(points)], (timed[-1] if naive_default is not None else None)
     meeting = [p for p in points if p.ok and p.error <= target]
     recommended = min(meeting, key=lambda p: p.seconds) if meeting else None
-    naive = next((p for p in points if p.method == NAIVE.label), None)
-    auto = next((p for p in points if p.method == "auto"), None)
+    tied = ties(meeting, recommended, target) if recommended is not None else ()
+    naive = next((p for p in points if p.candidate == NAIVE), None)
+    auto = next((p for p in points if p.candidate == AUTO), None)
     diagnosis = diagnose(model, setup, reference, points, runs, target, horizon if setup.t_end < regime.t_end else None)
-    return Outcome(regime, setup.t_end, reference.description, reference.own_error, tuple(points), diagnosis, recommended, naive, auto, naive_default)
+    return Outcome(regime, setup.t_end, reference.description, reference.own_error, tuple(points), diagnosis, recommended, naive, auto, naive_default, tied)
 
 
-def diagnose(model: Model, setup: Setup, reference: Reference, points: Sequence[Point], runs: Mapping[tuple[str, float], Point], target: float, horizon: study.Horizon | None = None) -> Diagnosis:
+def diagnose(model: Model, setup: Setup, reference: Reference, points: Sequence[Point], runs: Mapping[tuple[Candidate, float], Point], target: float, horizon: Horizon | None = None) -> Diagnosis:
     """Stiffness, time scales and conditioning along the reference, and what the runs showed
     (`horizon`: the chaos that cut the window short)."""
-    s = resolve(model, method="DOP853", backend="python", t_end=setup.t_end, parameters=setup.parameters, initial=setup.initial)
+    s: Settings = starting(model, setup).start  # type: ignore[assignment]
     module = compile.build(model, "python", jacobian=True).module
-    p = list(s.p) if not model.constraints else [*s.p[: len(model.parameters)], 0.0]
+    p = list(policy.code_parameters(s.values, 0.0 if model.constraints else None))
     spectra = []
     for k in np.linspace(0, len(reference.t) - 1, min(25, len(reference.t))).astype(int):
         try:
@@ -337,8 +368,8 @@ def diagnose(model: Model, setup: Setup, reference: Reference, points: Sequence[
             found = None
         if found is not None:
             spectra.append(found)
-    base = resolve(model, method="DOP853", backend="python", t_end=setup.t_end, parameters=setup.parameters).y0  # the file's start sets the coordinates' sizes
-    condition = diagnostics.mass_condition(model, s.p[: len(model.parameters)], base)
+    base = validate(model, method="DOP853", backend="python", t_end=setup.t_end, parameters=setup.parameters).y0  # the file's start sets the coordinates' sizes
+    condition = diagnostics.mass_condition(model, s.values, base)
     worst = max((condition(float(t), y) for t, y in zip(reference.t, reference.y, strict=True)), default=math.nan)
     decay = max((x.decay for x in spectra), default=0.0)
     rate = max((x.rate for x in spectra), default=0.0)
@@ -349,11 +380,14 @@ def diagnose(model: Model, setup: Setup, reference: Reference, points: Sequence[
     slow = [x.slowest for x in spectra if x.slowest > 0]
     scales = rate / float(np.median(slow)) if slow else 1.0
     growth = max((x.growth for x in spectra), default=0.0)
-    findings = []
+    findings: list[Finding] = []
     if horizon is not None:
         findings.append(
-            f"chaotic: nearby trajectories part at about {horizon.lyapunov:.2g}/s, so an error of {tol_text(target)} can only be had up to t = {setup.t_end:.3g}"
-            f" (runs started {tol_text(horizon.delta)} apart are {study.HORIZON_THRESHOLD:.0e} apart at t = {horizon.horizon:.3g}); errors are measured up to there"
+            Finding(
+                "chaotic",
+                f"nearby trajectories part at about {horizon.lyapunov:.2g}/s, so an error of {tol_text(target)} can only be had up to t = {setup.t_end:.3g}"
+                f" (runs started {tol_text(horizon.delta)} apart are {HORIZON_THRESHOLD:.0e} apart at t = {horizon.horizon:.3g}); errors are measured up to there",
+            )
         )
     if growth >= diagnostics.MATCHED * decay:
         decay = 0.0  # matched by growth somewhere along the run (a saddle's +-pair, chaos): not stiffness
@@ -364,31 +398,34 @@ def diagnose(model: Model, setup: Setup, reference: Reference, points: Sequence[
         affordable = diagnostics.explicit_affordable(overall, setup.t_end)
         cheap = " (explicit affordable)" if affordable else ""
         findings.append(
-            f"stiff{cheap}: a mode decays at up to {decay:.3g}/s (x t_end = {decay * setup.t_end:.3g}), stiffness ratio {stiffness:.3g}, about {steps:.3g} stability-limited explicit steps"
+            Finding(
+                f"stiff{cheap}",
+                f"a mode decays at up to {decay:.3g}/s (x t_end = {decay * setup.t_end:.3g}), stiffness ratio {stiffness:.3g}, about {steps:.3g} stability-limited explicit steps",
+            )
         )
     elif scales > SCALES and rate * setup.t_end > FAST_RADIANS:
-        findings.append(f"two time scales (highly oscillatory, not dissipative): fastest rate {rate:.3g}/s, {scales:.3g} x the slowest")
+        findings.append(Finding("two time scales (highly oscillatory, not dissipative)", f"fastest rate {rate:.3g}/s, {scales:.3g} x the slowest"))
     if growth * setup.t_end > diagnostics.STIFF:
-        findings.append(f"unstable modes: growth rate up to {growth:.3g}/s (a saddle, chaos or constraint drift; not stiffness: decays matched by growth are not counted)")
-    by_method = {(label.split(":")[0], tolerance): point for (label, tolerance), point in runs.items()}
+        findings.append(Finding("unstable modes", f"growth rate up to {growth:.3g}/s (a saddle, chaos or constraint drift; not stiffness: decays matched by growth are not counted)"))
+    by_method = {(candidate.method, tolerance): point for (candidate, tolerance), point in runs.items()}
     for tolerance in ladder(target):
         implicit = by_method.get(("Radau", tolerance))
         explicit = max((by_method[(m, tolerance)] for m in ("RK45", "DOP853") if (m, tolerance) in by_method), key=lambda p: p.steps, default=None)
         if explicit and implicit and explicit.steps and implicit.steps and explicit.steps > EXPLOSION * implicit.steps:
-            findings.append(f"explicit step count explodes: {explicit.method} took {explicit.steps} steps against Radau's {implicit.steps} at rtol {tol_text(tolerance)}")
+            findings.append(Finding("explicit step count explodes", f"{explicit.method} took {explicit.steps} steps against Radau's {implicit.steps} at rtol {tol_text(tolerance)}"))
             break
     if worst > diagnostics.SINGULAR_CONDITION:
-        findings.append(f"near a coordinate singularity: cond M reaches {worst:.2g} along the trajectory")
+        findings.append(Finding("near a coordinate singularity", f"cond M reaches {worst:.2g} along the trajectory"))
     for point in points:
-        if point.status == "failed" and ("infinite or NaN" in point.reason or "singular" in point.reason):
-            findings.append(f"{point.method} ({point.setting}) failed: {point.reason.split(': ', 1)[-1]}")
-        elif point.status in (study.OVER_BUDGET, study.UNDECIDED):
-            findings.append(f"{point.method} ({point.setting}) {point.reason}")
+        if point.status == PointStatus.FAILED and point.failure in FAILURE_FINDINGS:
+            findings.append(Finding(f"{point.method} ({point.setting}) failed", point.reason.removeprefix(f"{model.source}: ")))
+        elif point.status in (PointStatus.OVER_BUDGET, PointStatus.UNDECIDED):
+            findings.append(Finding(f"{point.method} ({point.setting}) {point.reason}"))
         for name, drift in point.drifts:
-            if point.ok and drift > 10 * target and point.method == NAIVE.label:
-                findings.append(f"{point.method} ({point.setting}): {name} drifts by {drift:.1e} (relative)")
-        if point.ok and point.constraint_drift is not None and point.constraint_drift > target and point.method == NAIVE.label:
-            findings.append(f"{point.method} ({point.setting}): constraint drift {point.constraint_drift:.1e}")
+            if point.ok and drift > 10 * target and point.candidate == NAIVE:
+                findings.append(Finding(f"{point.method} ({point.setting})", f"{name} drifts by {drift:.1e} (relative)"))
+        if point.ok and point.constraint_drift is not None and point.constraint_drift > target and point.candidate == NAIVE:
+            findings.append(Finding(f"{point.method} ({point.setting})", f"constraint drift {point.constraint_drift:.1e}"))
     return Diagnosis(decay * setup.t_end, stiffness, scales, rate, worst, tuple(findings))
 
 
@@ -407,6 +444,7 @@ def json_text(report: Report) -> str:
             "setting": p.setting,
             "status": p.status,
             "error": number(p.error),
+            "final_rms_error": number(p.final_rms_error),
             "seconds": number(p.seconds),
             "steps": p.steps,
             "nfev": p.nfev,
@@ -429,8 +467,9 @@ def json_text(report: Report) -> str:
                 "decay_x_t_end": number(o.diagnosis.decay_span),
                 "time_scale_ratio": number(o.diagnosis.scale_ratio),
                 "max_mass_condition": number(o.diagnosis.condition),
-                "findings": list(o.diagnosis.findings),
+                "findings": [str(f) for f in o.diagnosis.findings],
                 "recommended": point(o.recommended),
+                "ties": [point(p) for p in o.ties],
                 "naive": point(o.naive),
                 "naive_default": point(o.naive_default),
                 "auto": point(o.auto),

@@ -4,7 +4,35 @@ Dormand-Prince 5(4) with its free 4th-order interpolant, and DOP853 (Hairer, Nor
 Wanner's 8(5,3) pair with its 7th-order dense output), exactly as scipy.integrate uses
 them (tests/test_numeric_kernels.py compares them), so that the compiled integrators take
 the same steps as scipy's. Plain tuples: importing this module imports nothing.
+
+`Tableau` records what the compiled loops need to know of each explicit pair besides its
+coefficients (its number in the kernels, stages, orders, the sizes of its dense output), so that
+no loop carries a `dop` flag or literal stage counts.
 """
+
+from typing import NamedTuple
+
+
+class Tableau(NamedTuple):
+    """An explicit Runge-Kutta pair as the kernels use it."""
+
+    name: str
+    code: int
+    """The kernels' number for the pair (an index into their per-pair constants)."""
+    order: int
+    """Order of the propagated solution."""
+    error_order: int
+    """Order of the error estimate: the step changes by error^(-1 / (error_order + 1)), and the
+    initial step is chosen for it (scipy's `error_estimator_order`)."""
+    stages: int
+    """Evaluations of a step (the last stage, f(t + h, y_new), is reused as the next step's first)."""
+    rows: int
+    """Rows of the stage array K: the stages, f(t + h, y_new), and the extra stages of the dense output."""
+    dense: int
+    """Rows of the interpolant's coefficients."""
+    dense_evaluations: int
+    """Extra evaluations the dense output of a step costs."""
+
 
 # fmt: off
 RK45_C = (0.0, 0.2, 0.3, 0.8, 0.8888888888888888, 1.0,)
@@ -78,3 +106,8 @@ GAUSS = {
     ),
 }
 # fmt: on
+
+RK45 = Tableau("RK45", 0, 5, 4, 6, 7, 4, 0)
+DOP853 = Tableau("DOP853", 1, 8, 7, DOP853_STAGES, 16, 7, 3)
+EXPLICIT = {pair.name: pair for pair in (RK45, DOP853)}
+"""The explicit pairs by method name."""

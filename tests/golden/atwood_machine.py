@@ -32,7 +32,7 @@ def energy(q, q_dot, p=PARAMETERS):
     y1, = q
     y1_dot, = q_dot
     _kk0 = m1 + m2
-    return g*(m2 - m1)*y1 + _kk0*y1_dot*y1_dot/2 - g*l*m2
+    return _kk0*y1_dot*y1_dot/2 + g*m2*(y1 - l) - g*m1*y1
 
 
 def rhs(t, y, p=PARAMETERS):

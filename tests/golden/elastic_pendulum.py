@@ -15,10 +15,9 @@ def mass_matrix(q, p=PARAMETERS):
     l = p["l"]  # noqa: E741
     x, _ = q
     _kk0 = l*m
-    _kk1 = l*l*m
-    _pk0 = m*x*x
-    _pk1 = x*_kk0
-    return [[m, 0], [0, _kk1 + 2*_pk1 + _pk0]]
+    _c0 = x*x
+    _c1 = l*l*m + m*_c0
+    return [[m, 0], [0, 2*x*_kk0 + _c1]]
 
 
 def forcing(q, q_dot, p=PARAMETERS):
@@ -33,12 +32,12 @@ def forcing(q, q_dot, p=PARAMETERS):
     _cos0 = cos(theta)
     _k0 = g*m
     _kk0 = l*m
-    _kk2 = l*_k0
-    _pk2 = m*x
-    _c0 = _k0*_cos0
-    _c1 = theta_dot*theta_dot
-    _c2 = 2*x_dot*theta_dot
-    return [_c0 + _c1*_pk2 + _c1*_kk0 - k*x, -_c2*_kk0 - x*_k0*_sin0 - _c2*_pk2 - _kk2*_sin0]
+    _c2 = _k0*_cos0
+    _c3 = theta_dot*theta_dot
+    _c4 = m*x
+    _c5 = _k0*_sin0
+    _c6 = 2*_c4
+    return [_c2 + _c3*_c4 + _c3*_kk0 - k*x, -x*_c5 - l*_c5 - x_dot*(_c6 + 2*l*m)*theta_dot]
 
 
 def energy(q, q_dot, p=PARAMETERS):
@@ -51,15 +50,13 @@ def energy(q, q_dot, p=PARAMETERS):
     x_dot, theta_dot = q_dot
     _cos0 = cos(theta)
     _k0 = g*m
-    _kk0 = l*m
-    _kk1 = l*l*m
-    _kk2 = l*_k0
-    _pk0 = m*x*x
-    _pk1 = x*_kk0
-    _c0 = _k0*_cos0
-    _c1 = theta_dot*theta_dot
-    _c3 = _c1/2
-    return m*x_dot*x_dot/2 + _c3*_kk1 + _c1*_pk1 + k*x*x/2 + _c3*_pk0 - x*_c0 - _kk2*_cos0
+    _c0 = x*x
+    _c1 = l*l*m + m*_c0
+    _c2 = _k0*_cos0
+    _c3 = theta_dot*theta_dot
+    _c4 = m*x
+    _c6 = 2*_c4
+    return _c3*(l*_c6 + _c1)/2 + (-l - x)*_c2 + m*x_dot*x_dot/2 + k*_c0/2
 
 
 def rhs(t, y, p=PARAMETERS):
@@ -73,18 +70,17 @@ def rhs(t, y, p=PARAMETERS):
     _cos0 = cos(theta)
     _k0 = g*m
     _kk0 = l*m
-    _kk1 = l*l*m
-    _kk2 = l*_k0
-    _pk0 = m*x*x
-    _pk1 = x*_kk0
-    _pk2 = m*x
-    _c0 = _k0*_cos0
-    _c1 = theta_dot*theta_dot
-    _c2 = 2*x_dot*theta_dot
+    _c0 = x*x
+    _c1 = l*l*m + m*_c0
+    _c2 = _k0*_cos0
+    _c3 = theta_dot*theta_dot
+    _c4 = m*x
+    _c5 = _k0*_sin0
+    _c6 = 2*_c4
     _m00 = m
     _m01 = 0
-    _m11 = _kk1 + 2*_pk1 + _pk0
-    _f0 = _c0 + _c1*_pk2 + _c1*_kk0 - k*x
-    _f1 = -_c2*_kk0 - x*_k0*_sin0 - _c2*_pk2 - _kk2*_sin0
+    _m11 = 2*x*_kk0 + _c1
+    _f0 = _c2 + _c3*_c4 + _c3*_kk0 - k*x
+    _f1 = -x*_c5 - l*_c5 - x_dot*(_c6 + 2*l*m)*theta_dot
     _det = _m00*_m11 - _m01*_m01
     return [x_dot, theta_dot, (_m11*_f0 - _m01*_f1)/_det, (_m00*_f1 - _m01*_f0)/_det]

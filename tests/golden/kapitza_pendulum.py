@@ -28,10 +28,10 @@ def forcing(t, q, q_dot, p=PARAMETERS):
     _sin0 = sin(theta)
     _k0 = m*omega*omega
     _k1 = g*m
-    _kk1 = l*_k1
-    _c0 = t*omega
-    _c1 = a*cos(_c0)
-    return [l*_k0*_c1*_sin0 - _kk1*_sin0]
+    _c0 = l*_sin0
+    _c1 = t*omega
+    _c2 = a*cos(_c1)
+    return [_k0*_c2*_c0 - _k1*_c0]
 
 
 def energy(t, q, q_dot, p=PARAMETERS):
@@ -47,10 +47,9 @@ def energy(t, q, q_dot, p=PARAMETERS):
     _k0 = m*omega*omega
     _k1 = g*m
     _kk0 = l*l*m
-    _kk1 = l*_k1
-    _c0 = t*omega
-    _c1 = a*cos(_c0)
-    return _k1*_c1 + _kk0*theta_dot*theta_dot/2 - a*a*_k0*sin(_c0)**2/2 - _kk1*_cos0
+    _c1 = t*omega
+    _c2 = a*cos(_c1)
+    return _kk0*theta_dot*theta_dot/2 + _k1*(_c2 - l*_cos0) - a*a*_k0*sin(_c1)**2/2
 
 
 def rhs(t, y, p=PARAMETERS):
@@ -65,7 +64,7 @@ def rhs(t, y, p=PARAMETERS):
     _k0 = m*omega*omega
     _k1 = g*m
     _kk0 = l*l*m
-    _kk1 = l*_k1
-    _c0 = t*omega
-    _c1 = a*cos(_c0)
-    return [theta_dot, (l*_k0*_c1*_sin0 - _kk1*_sin0)/(_kk0)]
+    _c0 = l*_sin0
+    _c1 = t*omega
+    _c2 = a*cos(_c1)
+    return [theta_dot, (_k0*_c2*_c0 - _k1*_c0)/(_kk0)]

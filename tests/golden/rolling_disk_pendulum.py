@@ -16,10 +16,10 @@ def mass_matrix(q, p=PARAMETERS):
     l = p["l"]  # noqa: E741
     alpha = p["alpha"]
     _, theta = q
-    _k0 = l*m
-    _kk0 = l*l*m
-    _pk0 = cos(theta + alpha)*_k0
-    return [[m + 3*M/2, _pk0], [_pk0, _kk0]]
+    _kk0 = l*m
+    _kk1 = l*l*m
+    _pk0 = cos(theta + alpha)*_kk0
+    return [[m + 3*M/2, _pk0], [_pk0, _kk1]]
 
 
 def forcing(q, q_dot, p=PARAMETERS):
@@ -32,11 +32,12 @@ def forcing(q, q_dot, p=PARAMETERS):
     _, theta = q
     _, theta_dot = q_dot
     _sin0 = sin(theta)
-    _k0 = l*m
-    _kk1 = (M + m)*g*sin(alpha)
-    _kk2 = g*_k0
+    _k0 = M + m
+    _k1 = g*sin(alpha)
+    _k2 = g*m
+    _kk0 = l*m
     _c0 = theta_dot*theta_dot
-    return [sin(alpha + theta)*_k0*_c0 + _kk1, -_kk2*_sin0]
+    return [sin(alpha + theta)*_c0*_kk0 + _k1*_k0, -l*_k2*_sin0]
 
 
 def energy(q, q_dot, p=PARAMETERS):
@@ -49,13 +50,14 @@ def energy(q, q_dot, p=PARAMETERS):
     s, theta = q
     s_dot, theta_dot = q_dot
     _cos0 = cos(theta)
-    _k0 = l*m
-    _kk0 = l*l*m
-    _kk1 = (M + m)*g*sin(alpha)
-    _kk2 = g*_k0
-    _pk0 = cos(theta + alpha)*_k0
+    _k0 = M + m
+    _k1 = g*sin(alpha)
+    _k2 = g*m
+    _kk0 = l*m
+    _kk1 = l*l*m
+    _pk0 = cos(theta + alpha)*_kk0
     _c0 = theta_dot*theta_dot
-    return _pk0*s_dot*theta_dot + (3*M/4 + m/2)*s_dot*s_dot + _c0*_kk0/2 - s*_kk1 - _kk2*_cos0
+    return _k2*(-l*_cos0 - s*sin(alpha)) + _c0*_kk1/2 + (_k0/2 + M/4)*s_dot*s_dot + _pk0*s_dot*theta_dot - M*s*_k1
 
 
 def rhs(t, y, p=PARAMETERS):
@@ -67,16 +69,17 @@ def rhs(t, y, p=PARAMETERS):
     alpha = p["alpha"]
     _, theta, s_dot, theta_dot = y.tolist() if hasattr(y, "tolist") else y
     _sin0 = sin(theta)
-    _k0 = l*m
-    _kk0 = l*l*m
-    _kk1 = (M + m)*g*sin(alpha)
-    _kk2 = g*_k0
-    _pk0 = cos(theta + alpha)*_k0
+    _k0 = M + m
+    _k1 = g*sin(alpha)
+    _k2 = g*m
+    _kk0 = l*m
+    _kk1 = l*l*m
+    _pk0 = cos(theta + alpha)*_kk0
     _c0 = theta_dot*theta_dot
     _m00 = m + 3*M/2
     _m01 = _pk0
-    _m11 = _kk0
-    _f0 = sin(alpha + theta)*_k0*_c0 + _kk1
-    _f1 = -_kk2*_sin0
+    _m11 = _kk1
+    _f0 = sin(alpha + theta)*_c0*_kk0 + _k1*_k0
+    _f1 = -l*_k2*_sin0
     _det = _m00*_m11 - _m01*_m01
     return [s_dot, theta_dot, (_m11*_f0 - _m01*_f1)/_det, (_m00*_f1 - _m01*_f0)/_det]

@@ -18,11 +18,11 @@ def mass_matrix(q, p=PARAMETERS):
     alpha = p["alpha"]
     _, _, theta = q
     _k0 = M + m
-    _k1 = l*m
-    _kk0 = M*R*R
-    _kk1 = l*l*m
-    _pk0 = cos(theta + alpha)*_k1
-    return [[_k0, 0, _pk0], [0, _kk0/2, 0], [_pk0, 0, _kk1]]
+    _kk0 = l*m
+    _kk1 = M*R*R
+    _kk2 = l*l*m
+    _pk0 = cos(theta + alpha)*_kk0
+    return [[_k0, 0, _pk0], [0, _kk1/2, 0], [_pk0, 0, _kk2]]
 
 
 def forcing(q, q_dot, p=PARAMETERS):
@@ -36,11 +36,11 @@ def forcing(q, q_dot, p=PARAMETERS):
     _, _, theta_dot = q_dot
     _sin0 = sin(theta)
     _k0 = M + m
-    _k1 = l*m
-    _kk2 = g*_k0*sin(alpha)
-    _kk3 = g*_k1
+    _k1 = g*sin(alpha)
+    _k2 = g*m
+    _kk0 = l*m
     _c0 = theta_dot*theta_dot
-    return [sin(alpha + theta)*_k1*_c0 + _kk2, 0, -_kk3*_sin0]
+    return [sin(alpha + theta)*_c0*_kk0 + _k1*_k0, 0, -l*_k2*_sin0]
 
 
 def energy(q, q_dot, p=PARAMETERS):
@@ -55,14 +55,14 @@ def energy(q, q_dot, p=PARAMETERS):
     s_dot, phi_dot, theta_dot = q_dot
     _cos0 = cos(theta)
     _k0 = M + m
-    _k1 = l*m
-    _kk0 = M*R*R
-    _kk1 = l*l*m
-    _kk2 = g*_k0*sin(alpha)
-    _kk3 = g*_k1
-    _pk0 = cos(theta + alpha)*_k1
+    _k1 = g*sin(alpha)
+    _k2 = g*m
+    _kk0 = l*m
+    _kk1 = M*R*R
+    _kk2 = l*l*m
+    _pk0 = cos(theta + alpha)*_kk0
     _c0 = theta_dot*theta_dot
-    return _pk0*s_dot*theta_dot + _c0*_kk1/2 + _kk0*phi_dot*phi_dot/4 + _k0*s_dot*s_dot/2 - s*_kk2 - _kk3*_cos0
+    return _k2*(-l*_cos0 - s*sin(alpha)) + _c0*_kk2/2 + _pk0*s_dot*theta_dot + _k0*s_dot*s_dot/2 + _kk1*phi_dot*phi_dot/4 - M*s*_k1
 
 
 def constraint_residuals(q, q_dot, p=PARAMETERS):
@@ -83,15 +83,15 @@ def accelerations(t, y, p=PARAMETERS):
     _, _, theta, s_dot, phi_dot, theta_dot = y.tolist() if hasattr(y, "tolist") else y
     _sin0 = sin(theta)
     _k0 = M + m
-    _k1 = l*m
-    _kk0 = M*R*R
-    _kk1 = l*l*m
-    _kk2 = g*_k0*sin(alpha)
-    _kk3 = g*_k1
-    _pk0 = cos(theta + alpha)*_k1
+    _k1 = g*sin(alpha)
+    _k2 = g*m
+    _kk0 = l*m
+    _kk1 = M*R*R
+    _kk2 = l*l*m
+    _pk0 = cos(theta + alpha)*_kk0
     _c0 = theta_dot*theta_dot
-    _m1_1 = _kk0/2
-    _x = _solve([[_k0, 0, _pk0, -1], [0, _m1_1, 0, R], [_pk0, 0, _kk1, 0], [1, -R, -0, 0.0]], [sin(alpha + theta)*_k1*_c0 + _kk2, 0, -_kk3*_sin0, 0])
+    _m1_1 = _kk1/2
+    _x = _solve([[_k0, 0, _pk0, -1], [0, _m1_1, 0, R], [_pk0, 0, _kk2, 0], [1, -R, -0, 0.0]], [sin(alpha + theta)*_c0*_kk0 + _k1*_k0, 0, -l*_k2*_sin0, 0])
     return _x
 
 

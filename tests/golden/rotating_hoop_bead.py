@@ -25,12 +25,12 @@ def forcing(t, q, q_dot, p=PARAMETERS):
     omega = p["omega"]
     theta, = q
     _k0 = a*a*m
+    _k1 = g*m
     _kk0 = _k0*omega*omega
-    _kk1 = a*g*m
     _c0 = t*omega
     _c1 = _c0 + theta
     _c2 = _c0 - _c1
-    return [sin(_c2)*_kk0 - cos(_c1)*_kk1]
+    return [sin(_c2)*_kk0 - a*_k1*cos(_c1)]
 
 
 def energy(t, q, q_dot, p=PARAMETERS):
@@ -42,12 +42,12 @@ def energy(t, q, q_dot, p=PARAMETERS):
     theta, = q
     theta_dot, = q_dot
     _k0 = a*a*m
+    _k1 = g*m
     _kk0 = _k0*omega*omega
-    _kk1 = a*g*m
     _c0 = t*omega
     _c1 = _c0 + theta
     _c2 = _c0 - _c1
-    return sin(_c1)*_kk1 + sin(_c0)*_kk1 + _k0*theta_dot*theta_dot/2 - cos(_c2)*_kk0 - _kk0
+    return _k0*theta_dot*theta_dot/2 + (a*sin(_c0) + a*sin(_c1))*_k1 - cos(_c2)*_kk0 - _kk0
 
 
 def rhs(t, y, p=PARAMETERS):
@@ -58,9 +58,9 @@ def rhs(t, y, p=PARAMETERS):
     omega = p["omega"]
     theta, theta_dot = y.tolist() if hasattr(y, "tolist") else y
     _k0 = a*a*m
+    _k1 = g*m
     _kk0 = _k0*omega*omega
-    _kk1 = a*g*m
     _c0 = t*omega
     _c1 = _c0 + theta
     _c2 = _c0 - _c1
-    return [theta_dot, (sin(_c2)*_kk0 - cos(_c1)*_kk1)/(_k0)]
+    return [theta_dot, (sin(_c2)*_kk0 - a*_k1*cos(_c1))/(_k0)]

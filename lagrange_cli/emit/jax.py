@@ -1,0 +1,262 @@
+"""JAX: a module of pure `jax.numpy` functions for differentiable and batched simulation.
+
+The module defines COORDINATES, PARAMETER_NAMES, PARAMETERS (defaults), NQ, NP,
+`default_parameters()`, `mass_matrix(t, q, p)`, `forcing(t, q, q_dot, p)`, `energy(t, q, q_dot, p)`
+and `rhs(t, y, p)` with y = [q..., q_dot...] (with kept constraints also `accelerations`,
+`multipliers` and `constraint_residuals`). Every function is straight-line jnp code (no Python
+control flow on values, no in-place updates), so `jax.jit`, `jax.vmap` and `jax.grad` apply;
+the accelerations come from `jnp.linalg.solve` of M (or of [[M, -A^T], [A, 0]] for kept
+constraints, as in the Python module). `p` is optional everywhere: None means the file's
+defaults, a dict gives values by name (missing ones take their defaults), and an array gives
+them all in PARAMETER_NAMES order (what `jax.grad` with respect to the parameters takes).
+
+Float64 is the user's choice, stated in the generated docstring: JAX computes in float32 unless
+`jax.config.update("jax_enable_x64", True)` runs first; the module never changes that setting.
+
+Safe with any system file, by the same means as the Python module: file text reaches the code
+only through `docstring` and `literal`, and user names go through `mangle` with a reserved set
+holding Python's keywords and builtins, `jnp`, `jax`, `lax` and every name the module defines;
+the generator's own helpers and temporaries start with `_`, which no user name does.
+"""
+
+from __future__ import annotations
+
+import builtins
+import keyword
+import math
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any, ClassVar
+
+import sympy as sp
+
+from lagrange_cli import __version__
+from lagrange_cli._symengine import to_symengine
+from lagrange_cli.algebra import check_invertible
+from lagrange_cli.emit.common import require_defined
+from lagrange_cli.emit.printer import ATOM, Code, Printer, restructure
+from lagrange_cli.emit.python import define, docstring, literal, mangle
+from lagrange_cli.model import Model
+
+GENERATED = frozenset(
+    {
+        *("jnp", "jax", "lax", "numpy", "np", "t", "y", "p", "q", "q_dot"),
+        *("COORDINATES", "PARAMETER_NAMES", "PARAMETERS", "NQ", "NP", "default_parameters"),
+        *("mass_matrix", "forcing", "energy", "rhs", "accelerations", "multipliers", "constraint_residuals"),
+    }
+)
+"""Names without a leading `_` that the generated module uses or defines."""
+RESERVED = frozenset({*keyword.kwlist, *keyword.softkwlist, *dir(builtins), *GENERATED})
+"""What no user symbol may be called in the generated module (besides any name starting with `_`)."""
+
+
+class JaxPrinter(Printer):
+    """Symengine expressions as `jax.numpy` code: `jnp.sin`, `jnp.arctan2`, `x**3` (lax.integer_pow,
+    exact derivatives at 0), `jnp.power` for real powers (NaN for a negative base, as jnp gives
+    NaN outside every function's domain: nothing can raise inside `jit`)."""
+
+    functions: ClassVar[dict[str, str]] = {
+        **{name: f"jnp.{name}" for name in ("sin", "cos", "tan", "sinh", "cosh", "tanh", "exp", "log", "sqrt", "sign")},
+        **{"asin": "jnp.arcsin", "acos": "jnp.arccos", "atan": "jnp.arctan", "atan2": "jnp.arctan2", "Abs": "jnp.abs", "pow": "jnp.power"},
+    }
+
+    def nonfinite(self, value: float) -> Code:
+        return ("jnp.nan" if math.isnan(value) else "jnp.inf"), ATOM
+
+    def _print_sign(self, expr: Any) -> Code:
+        return self.call(self.function_name("sign"), [self.doprint(a) for a in expr.args])
+
+
+def emit(model: Model, *, name: str = "eom") -> str:
+    """The module's source (`name` is not used: a module is named by its file). The file's function
+    definitions are written out (`Model.with_definitions`); undefined functions are refused."""
+    definitions = model.definitions
+    require_defined(model, "JAX code")
+    model = model.with_definitions()
+    check_invertible(model)
+    return _Writer(model, definitions).module()
+
+
+def jax_names(model: Model) -> dict[str, str]:
+    """Identifiers for the coordinates, velocities and parameters (`mangle` against `RESERVED`), and `t`."""
+    symbols = [str(s) for s in (*model.q, *model.qd, *(p.symbol for p in model.parameters))]
+    return {**mangle(symbols, RESERVED), str(model.t): "t"}
+
+
+class _Writer:
+    def __init__(self, model: Model, definitions: Any) -> None:
+        self.model = model
+        self.definitions = definitions
+        self.names = jax_names(model)
+        n = model.n
+        self.upper = [(i, j) for i in range(n) for j in range(i, n)]
+        forms = model.symengine
+        self.mass = [forms.mass[i][j] for i, j in self.upper]
+        self.forcing = list(forms.forcing)
+        rows = model.constraints
+        self.jacobian = [to_symengine(a) for c in rows for a in c.jacobian]
+        self.bias = [to_symengine(c.acceleration_bias) for c in rows]
+        self.residuals = [to_symengine(c.expr) for c in rows]
+
+    def printer(self) -> JaxPrinter:
+        return JaxPrinter(self.names)
+
+    def unpack(self, state: str) -> list[str]:
+        """Lines binding the parameters and the state (`y`, or `q` and `q_dot`) to the user's names."""
+        model = self.model
+        lines = []
+        if model.parameters:
+            targets = [self.names[p.name] for p in model.parameters]
+            lines.append(f"{', '.join(targets)}{',' * (len(targets) == 1)} = _parameters(p)")
+        groups = [("y", [*model.q, *model.qd])] if state == "y" else [(g, v) for g, v in (("q", model.q), ("q_dot", model.qd)) if g in state.split(",")]
+        for group, variables in groups:
+            lines.append(f"{group} = jnp.asarray({group})")
+            targets = [self.names[str(v)] for v in variables]
+            lines.append(f"{', '.join(targets)}{',' * (len(targets) == 1)} = " + ", ".join(f"{group}[{i}]" for i in range(len(variables))) + ("," * (len(variables) == 1)))
+        return lines
+
+    def block(self, exprs: Sequence[Any]) -> tuple[list[str], list[str]]:
+        """Straight-line code for `exprs`: the printer core's `restructure` (sin and cos of each
+        angle once, those of differences as products, sums collected by their varying part), then
+        one CSE over everything; the lines and the result of each expression."""
+        printer = self.printer()
+        definitions, rewritten = restructure(exprs, [p.name for p in self.model.parameters])
+        lines = []
+        for lhs, value in definitions:
+            lines.append(f"{lhs} = {printer.doprint(value)}")
+            printer.names[lhs] = lhs
+        temporaries, results = printer.block(rewritten, "_c", [*self.names.values(), *(lhs for lhs, _ in definitions)])
+        return lines + [f"{lhs} = {code}" for lhs, code in temporaries], results
+
+    def function(self, name: str, doc: str, exprs: Sequence[Any], state: str, shape: str) -> str:
+        lines, results = self.block(exprs)
+        body = [*self.unpack(state), *lines]
+        if shape == "matrix":
+            n = self.model.n
+            cell = dict(zip(self.upper, results, strict=True))
+            body.append("return _array([" + ", ".join("[" + ", ".join(cell[(min(i, j), max(i, j))] for j in range(n)) + "]" for i in range(n)) + "])")
+        elif shape == "vector":
+            body.append("return _array([" + ", ".join(results) + "])")
+        else:
+            body.append(f"return _array({results[0]})")
+        return define(name, f"t, {', '.join(state.split(','))}, p=None", doc, body)
+
+    def accelerations(self) -> list[str]:
+        """The body lines computing `_x`, the solution of the (augmented) linear system."""
+        n, k = self.model.n, len(self.model.constraints)
+        lines, results = self.block([*self.mass, *self.forcing, *self.jacobian, *self.bias])
+        m = dict(zip(self.upper, results[: len(self.mass)], strict=True))
+        f = results[len(self.mass) : len(self.mass) + n]
+        a = results[len(self.mass) + n : len(self.mass) + n + n * k]
+        c = results[len(self.mass) + n + n * k :]
+        matrix = [[m[(min(i, j), max(i, j))] for j in range(n)] + [_negate(a[r * n + i]) for r in range(k)] for i in range(n)]
+        matrix += [[a[r * n + j] for j in range(n)] + ["0.0"] * k for r in range(k)]
+        vector = [*f, *(_negate(x) for x in c)]
+        rows = ", ".join("[" + ", ".join(row) + "]" for row in matrix)
+        body = [*self.unpack("y"), *lines]
+        body.append(f"_a = _array([{rows}])")
+        body.append(f"_b = _array([{', '.join(vector)}])")
+        body.append("_x = jnp.linalg.solve(_a, _b)")
+        return body
+
+    def rhs(self) -> list[str]:
+        model, n = self.model, self.model.n
+        state = ", ".join(map(str, (*model.q, *model.qd)))
+        doc = f"dy/dt for y = [{state}]: an array of {2 * n} values (jit-, vmap- and grad-compatible)."
+        if not model.constraints:
+            body = [*self.accelerations(), f"return jnp.concatenate([y[{n}:], _x])"]
+            return [define("rhs", "t, y, p=None", doc, body)]
+        names = ", ".join(str(x) for x in model.multipliers)
+        accelerations = define(
+            "accelerations",
+            "t, y, p=None",
+            f"[{', '.join(map(str, model.qdd))}, {names}] from [[M, -A^T], [A, 0]] x = [F, -c] (index-1 form).",
+            [*self.accelerations(), "return _x"],
+        )
+        rhs = define("rhs", "t, y, p=None", doc, ["y = jnp.asarray(y)", f"return jnp.concatenate([y[{n}:], accelerations(t, y, p)[:{n}]])"])
+        multipliers = define("multipliers", "t, y, p=None", f"The multipliers [{names}]; A^T lambda is the generalized constraint force.", [f"return accelerations(t, y, p)[{n}:]"])
+        residuals = self.function("constraint_residuals", "Each constraint's residual: f(q, t) for holonomic ones, a . q_dot + b for velocity ones.", self.residuals, "q,q_dot", "vector")
+        return [residuals, accelerations, rhs, multipliers]
+
+    def module(self) -> str:
+        model = self.model
+        functions = [
+            self.function("mass_matrix", "The mass matrix M, an NQ x NQ array.", self.mass, "q", "matrix"),
+            self.function("forcing", "The forcing F of M q_ddot = F" + (" + A^T lambda" if model.constraints else "") + ", an array of NQ values.", self.forcing, "q,q_dot", "vector"),
+            self.function("energy", "The energy function h = sum p_i q_dot_i - L, a scalar.", [model.symengine.energy], "q,q_dot", "scalar"),
+            *self.rhs(),
+        ]
+        missing = [p.name for p in model.parameters if p.value is None]
+        defaults = ", ".join(f"{literal(p.name)}: {_number(p.value)}" for p in model.parameters if p.value is not None)
+        parameter_names = ", ".join(literal(p.name) for p in model.parameters) + ("," if len(model.parameters) == 1 else "")
+        coordinates = ", ".join(literal(c) for c in model.coordinates) + ("," if model.n == 1 else "")
+        header = [
+            f"{model.title}: equations of motion generated by lagrange {__version__} from {Path(model.source).name}, for JAX.",
+            "",
+            "M(q, t) q_ddot = F(q, q_dot, t)" + (" + A^T lambda, A q_ddot + c = 0" if model.constraints else "") + f", with y = [{', '.join(map(str, (*model.q, *model.qd)))}].",
+            "",
+            "Every function takes the time first, then the state, then p (optional): rhs(t, y, p), mass_matrix(t, q, p),",
+            "forcing(t, q, q_dot, p), energy(t, q, q_dot, p); each is pure jax.numpy, so jax.jit, jax.vmap and jax.grad apply.",
+            "p is None (the file's defaults, PARAMETERS), a dict by name (missing names take their defaults) or an array",
+            "of NP values in PARAMETER_NAMES order (default_parameters() gives the defaults so).",
+            "",
+            "Float64: JAX computes in float32 unless 64-bit mode is on. For results that agree with the other targets",
+            'to about 1e-12, run `import jax; jax.config.update("jax_enable_x64", True)` before creating any array;',
+            "this module leaves that global setting to you.",
+            "",
+            "Outside a function's domain (the square root or logarithm of a negative number, a negative base to a",
+            "real power) the result is NaN, and a singular mass matrix gives inf or NaN: code under jax.jit cannot raise.",
+        ]
+        if self.definitions:
+            written = "; ".join(f"{fname}({', '.join(map(str, f.variables))}) = {sp.sstr(f.expr)}" for fname, f in sorted(self.definitions.items()))
+            header += ["", f"Functions written out from their definitions in the file: {written}."]
+        if missing:
+            header += ["", f"Parameters without a default, to be given in p: {', '.join(missing)}."]
+        constants = [
+            f"COORDINATES = ({coordinates})",
+            f"PARAMETER_NAMES = ({parameter_names})",
+            f"PARAMETERS = {{{defaults}}}",
+            f"NQ = {model.n}",
+            f"NP = {len(model.parameters)}",
+        ]
+        helpers = [
+            define(
+                "default_parameters",
+                "",
+                "The file's defaults as an array in PARAMETER_NAMES order (ValueError for a parameter without one).",
+                [
+                    "_missing = [_name for _name in PARAMETER_NAMES if _name not in PARAMETERS]",
+                    "if _missing:",
+                    '    raise ValueError("no default for the parameters " + ", ".join(_missing))',
+                    "return jnp.asarray([PARAMETERS[_name] for _name in PARAMETER_NAMES], dtype=jnp.result_type(float))",
+                ],
+            ),
+            define(
+                "_parameters",
+                "p",
+                "The parameter values in PARAMETER_NAMES order, from None, a dict by name, or an array.",
+                [
+                    "if p is None:",
+                    "    p = PARAMETERS",
+                    "if isinstance(p, dict):",
+                    "    return tuple(p[_name] if _name in p else PARAMETERS[_name] for _name in PARAMETER_NAMES)",
+                    "p = jnp.asarray(p)",
+                    "return tuple(p[_i] for _i in range(NP))",
+                ],
+            ),
+            define("_array", "values", "A float array of `values` (nested lists of numbers and traced scalars).", ["return jnp.asarray(values, dtype=jnp.result_type(float))"]),
+        ]
+        head = docstring("\n".join([*header, ""])) + "\n\nimport jax.numpy as jnp\n\n" + "\n".join(constants)
+        return head + "\n\n\n" + "\n\n\n".join([*helpers, *functions]) + "\n"
+
+
+def _negate(code: str) -> str:
+    """The negation of a printed expression."""
+    if code.startswith("-") and code[1:].replace("_", "a").replace(".", "0").isalnum():
+        return code[1:]
+    return "-" + code if code.replace("_", "a").replace(".", "0").isalnum() else f"-({code})"
+
+
+def _number(value: float | None) -> str:
+    assert value is not None
+    return repr(float(value)) if math.isfinite(value) else f'float("{value}")'

@@ -1,0 +1,225 @@
+"""Octave/MATLAB: a function file `eom.m` defining `dydt = eom(t, y, p)`, ready for `ode45`.
+
+`lagrange derive FILE --to octave -o NAME.m` writes one function, named after the file (MATLAB's
+rule; `eom` when written to stdout):
+
+    function [dydt, h, lambda] = eom(t, y, p)
+
+with y = [q; q_dot] (a column, as ode45 passes it), p the parameters as a vector in the file's
+order (optional: without it, the file's defaults), dydt a column; on request also the energy
+h = sum p_i q_dot_i - L and, with kept constraints, the multipliers lambda (index-1 form:
+[[M, -A^T], [A, 0]] [q_ddot; lambda] = [F; -c]). The accelerations come from `\\`; a singular
+matrix (reciprocal condition number of the row-scaled matrix below eps, since `\\` would quietly
+give a least-squares answer) is the error `NAME:singular` naming t, a non-finite solution `NAME:nonfinite`. Arithmetic stays real: `realsqrt`,
+`reallog` and `realpow` raise an error where the result would be complex (acos/asin out of
+[-1, 1] are Octave's own, complex). The file is valid MATLAB: the function name matches the
+file name, every block closes with `end`, and there are no Octave-only operators.
+
+Safe with any system file: file text enters only `%` comments, as printable ASCII (others as
+U+XXXX, line breaks as spaces); user names are mangled apart from MATLAB's and Octave's
+keywords, the functions and constants the code calls, and the code's own variables.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any, ClassVar
+
+from lagrange_cli import __version__
+from lagrange_cli._symengine import se, to_symengine
+from lagrange_cli.emit.common import printable, require_defined
+from lagrange_cli.emit.printer import ATOM, Code, Printer, restructure
+from lagrange_cli.emit.python import check_solvable, mangle, needed
+from lagrange_cli.errors import DerivationError
+from lagrange_cli.model import Model
+
+KEYWORDS = frozenset(
+    {
+        *("break", "case", "catch", "classdef", "continue", "else", "elseif", "end", "for", "function", "global", "if", "otherwise", "parfor"),
+        *("persistent", "return", "spmd", "switch", "try", "while", "do", "until", "unwind_protect", "unwind_protect_cleanup", "end_try_catch"),
+        *("endfor", "endfunction", "endif", "endswitch", "endwhile", "end_unwind_protect", "methods", "properties", "events", "enumeration"),
+        *("endclassdef", "endenumeration", "endevents", "endmethods", "endparfor", "endproperties", "endspmd", "arguments", "__FILE__", "__LINE__"),
+    }
+)
+"""MATLAB's and Octave's keywords."""
+BUILTINS = frozenset(
+    {
+        *("sin", "cos", "tan", "asin", "acos", "atan", "atan2", "sinh", "cosh", "tanh", "exp", "log", "sqrt", "abs", "sign", "realsqrt"),
+        *("reallog", "realpow", "power", "mpower", "cot", "sec", "csc", "zeros", "ones", "isfinite", "all", "any", "error", "nargin", "nargout"),
+        *("rcond", "max", "min", "numel", "pi", "e", "Inf", "inf", "NaN", "nan", "NA", "eps", "i", "j", "I", "J", "true", "false", "ans", "end", "varargin", "varargout"),
+        *("disp", "size", "length", "reshape", "double", "isempty", "ode45", "exist", "mfilename", "feval", "eval", "evalin", "assignin", "clear"),
+        *("who", "whos", "load", "save", "system", "input", "keyboard", "exit", "quit", "format", "more", "warning", "lasterr", "nthargout"),
+    }
+)
+"""Functions and constants: the ones the generated code calls, and ones a reader would not expect a variable to hide."""
+LOCALS = ("t", "y", "p", "dydt", "h", "lambda", "M", "b", "x", "r")
+"""The generated function's arguments, outputs and variables."""
+IDENTIFIER = re.compile(r"[A-Za-z][A-Za-z0-9_]{0,62}")
+"""A MATLAB identifier (at most 63 characters, `namelengthmax`)."""
+
+
+class OctavePrinter(Printer):
+    """Octave/MATLAB on scalars: `^` for integer powers; realsqrt, reallog and realpow, which raise
+    an error instead of going complex; sign and abs as they are; Inf and NaN."""
+
+    functions: ClassVar[Mapping[str, str]] = {**Printer.functions, "Abs": "abs", "sqrt": "realsqrt", "log": "reallog", "pow": "realpow", "sign": "sign"}
+    power_operator: ClassVar[str | None] = "^"
+
+    def nonfinite(self, value: float) -> Code:
+        return ("NaN" if math.isnan(value) else "Inf"), ATOM
+
+    def power(self, base: Any, exponent: Any) -> Code:
+        return self.call("realpow", [self.doprint(base), self.doprint(exponent)])
+
+    def _print_sign(self, expr: Any) -> Code:
+        return self.call("sign", [self.doprint(expr.args[0])])
+
+
+def octave_names(model: Model, function: str) -> dict[str, str]:
+    """symbol name -> Octave identifier (`mangle`), and t."""
+    symbols = [str(s) for s in (*model.q, *model.qd, *(p.symbol for p in model.parameters))]
+    names = mangle(symbols, {*KEYWORDS, *BUILTINS, *LOCALS, function})
+    long = [n for n in names.values() if len(n) > 63]
+    if long:
+        shown = printable(long[0])
+        shown = shown if len(shown) <= 80 else shown[:77] + "..."
+        raise DerivationError(f"{model.source}: the name '{shown}' is longer than 63 characters, the most MATLAB allows in an identifier")
+    return {**names, str(model.t): "t"}
+
+
+def comment(text: str) -> str:
+    """`text` for a `%` comment: printable ASCII (others as U+XXXX, line breaks as spaces)."""
+    return "".join(c if " " <= c <= "~" else f"U+{ord(c):04X}" for c in printable(text))
+
+
+def emit(model: Model, *, name: str = "eom") -> str:
+    """The function file's text; `name` is the function's (and so the file's) name."""
+    if not IDENTIFIER.fullmatch(name) or name in KEYWORDS:
+        raise DerivationError(f"'{printable(name)}' is not a MATLAB function name")
+    definitions = model.definitions
+    model = model.with_definitions()
+    require_defined(model, "Octave code")
+    check_solvable(model)
+    return _Writer(model, name, definitions).file()
+
+
+class _Writer:
+    def __init__(self, model: Model, name: str, definitions: Mapping[str, Any]) -> None:
+        self.model = model
+        self.name = name
+        self.definitions = definitions
+        self.names = octave_names(model, name)
+        self.taken = {*KEYWORDS, *BUILTINS, *LOCALS, name, *self.names.values()}
+        self.constants = frozenset(p.name for p in model.parameters)
+        self.velocities = frozenset(str(v) for v in model.qd)
+        n = model.n
+        self.upper = [(i, j) for i in range(n) for j in range(i, n)]
+        self.index = {str(s): f"y({i + 1})" for i, s in enumerate((*model.q, *model.qd))}
+        self.index |= {p.name: f"p({i + 1})" for i, p in enumerate(model.parameters)}
+
+    def block(self, exprs: list[Any], prefix: str) -> tuple[list[str], list[str]]:
+        """Assignments computing `exprs` and their result codes: the printer core's restructuring
+        (sin/cos of each angle once, differences as products, collected coefficients) and CSE,
+        its temporaries renamed to `<prefix>0, <prefix>1, ...` (a MATLAB name cannot start with
+        `_`) apart from every name taken, keeping only the lines the results need."""
+        printer = OctavePrinter(self.names)
+        definitions, reduced = restructure(exprs, self.constants, self.velocities)
+        rename: dict[Any, Any] = {}
+        lines: list[tuple[str, str]] = []
+        counter = 0
+        for name, value in definitions:
+            while f"{prefix}{counter}" in self.taken:
+                counter += 1
+            fresh = f"{prefix}{counter}"
+            self.taken.add(fresh)
+            printer.names[fresh] = fresh
+            rename[se.Symbol(name)] = se.Symbol(fresh)
+            lines.append((fresh, printer.doprint(value.xreplace(rename))))
+        temporaries, results = printer.block([e.xreplace(rename) for e in reduced], prefix, self.taken)
+        self.taken |= {name for name, _ in temporaries}
+        return [f"{name} = {code};" for name, code in needed(lines + temporaries, results)], results
+
+    def body(self) -> list[str]:
+        model, n, k = self.model, self.model.n, len(self.model.constraints)
+        forms = model.symengine
+        mass = [forms.mass[i][j] for i, j in self.upper]
+        jacobian = [to_symengine(a) for c in model.constraints for a in c.jacobian]
+        bias = [to_symengine(c.acceleration_bias) for c in model.constraints]
+        exprs = [*mass, *forms.forcing, *jacobian, *bias]
+        used = {str(s) for e in [*exprs, forms.energy] for s in e.free_symbols}
+        lines = [f"{self.names[s]} = {self.index[s]};" for s in self.index if s in used]
+        temporaries, results = self.block(exprs, "c")
+        lines += temporaries
+        cell = dict(zip(self.upper, results[: len(mass)], strict=True))
+        rest = results[len(mass) :]
+        force, a, c = rest[:n], rest[n : n + n * k], rest[n + n * k :]
+        size = n + k
+        lines.append(f"M = zeros({size}, {size});")
+        for i, j in self.upper:
+            if cell[(i, j)] != "0":
+                lines.append(f"M({i + 1}, {j + 1}) = {cell[(i, j)]};")
+                if i != j:
+                    lines.append(f"M({j + 1}, {i + 1}) = M({i + 1}, {j + 1});")
+        for r in range(k):
+            for j in range(n):
+                if a[r * n + j] != "0":
+                    lines.append(f"M({n + r + 1}, {j + 1}) = {a[r * n + j]};")
+                    lines.append(f"M({j + 1}, {n + r + 1}) = -M({n + r + 1}, {j + 1});")
+        entries = [*force, *(f"-({v})" if not re.fullmatch(r"[A-Za-z0-9_.]+", v) else f"-{v}" for v in c)]
+        lines.append(f"b = [{'; '.join(entries)}];")
+        lines += [
+            "r = rcond(M ./ max(abs(M), [], 2));",
+            "if ~(r >= eps)",
+            f"  error('{self.name}:singular', 'the mass matrix is singular at t = %g (reciprocal condition number %g)', t, r);",
+            "end",
+            "x = M \\ b;",
+            "if ~all(isfinite(x))",
+            f"  error('{self.name}:nonfinite', 'the accelerations are not finite at t = %g', t);",
+            "end",
+            f"dydt = [y({n + 1}:{2 * n}); x(1:{n})];",
+            "if nargout > 1",
+        ]
+        energy_lines, energy = self.block([forms.energy], "e")
+        lines += [f"  {line}" for line in energy_lines]
+        lines += [f"  h = {energy[0]};", f"  lambda = x({n + 1}:end);", "end"]
+        return lines
+
+    def file(self) -> str:
+        model, n = self.model, self.model.n
+        t = "" if model.autonomous else ", t"
+        state = "; ".join([*model.coordinates, *(str(v) for v in model.qd)])
+        parameters = ", ".join(p.name for p in model.parameters)
+        defaults = ", ".join(_number(p.value) for p in model.parameters)
+        help_lines = [
+            f"{self.name.upper()}  {model.title}: equations of motion generated by lagrange {__version__} from {Path(model.source).name}.",
+            f"  dydt = {self.name}(t, y) with the file's parameters, or {self.name}(t, y, p) with p = [{parameters}].",
+            f"  y = [q; q_dot] = [{state}] ({2 * n} values); M(q{t}) q_ddot = F(q, q_dot{t})" + (" + A^T lambda." if model.constraints else "."),
+            f"  [dydt, h, lambda] = {self.name}(t, y, p) also gives the energy h = sum p_i q_dot_i - L and the multipliers"
+            + (f" ({', '.join(map(str, model.multipliers))})." if model.constraints else " (none here: no kept constraints)."),
+            f"  Example: [tt, yy] = ode45(@{self.name}, [0 10], y0, odeset('RelTol', 1e-8, 'AbsTol', 1e-10));",
+        ]
+        missing = [p.name for p in model.parameters if p.value is None]
+        if missing:
+            help_lines.append(f"  Parameters without a default (NaN unless given in p): {', '.join(missing)}.")
+        if self.definitions:
+            written = "; ".join(f"{k}({', '.join(map(str, f.variables))}) = {f.expr}" for k, f in sorted(self.definitions.items()))
+            help_lines.append(f"  Functions written out from their definitions in the file: {written}.")
+        renamed = {c: v for c, v in self.names.items() if c != v and c != str(model.t)}
+        if renamed:
+            help_lines.append("  Names changed to MATLAB identifiers: " + ", ".join(f"{c} -> {v}" for c, v in renamed.items()) + ".")
+        lines = [f"function [dydt, h, lambda] = {self.name}(t, y, p)", *(f"% {comment(line)}".rstrip() for line in help_lines)]
+        lines += ["  if nargin < 3", f"    p = [{defaults}];", "  end"]
+        lines += [f"  {line}" for line in self.body()]
+        lines.append("end")
+        return "\n".join(lines) + "\n"
+
+
+def _number(value: float | None) -> str:
+    if value is None or math.isnan(value):
+        return "NaN"
+    if math.isinf(value):
+        return "Inf" if value > 0 else "-Inf"
+    return repr(float(value))

@@ -1,0 +1,433 @@
+"""The runs of a study: candidates, what they share (`Setup`), one measured run (`measure` -> `Point`).
+
+A `Point` is typed: what was asked (`candidate`), what ran (`ran`: the method and backend), its
+`status` (`PointStatus`) and, when it gave no error, why (`failure`, a `status.Failure`), so that
+`stress` and the reports decide by kind and never parse a message back; `reason` is the message
+for people.
+
+Errors compare the samples at evenly spaced times with the reference's (see accuracy.py). Budgets
+count steps, never seconds (`MAX_STEPS`, `COMPILED_STEPS`, `REFERENCE_STEPS`).
+"""
+
+from __future__ import annotations
+
+import enum
+import math
+import time
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field, replace
+from typing import TYPE_CHECKING, NamedTuple
+
+import numpy as np
+
+from lagrange_cli.errors import LagrangeError
+from lagrange_cli.model import Model
+from lagrange_cli.numeric import compile, policy
+from lagrange_cli.numeric.settings import METHODS, Settings, validate
+from lagrange_cli.numeric.simulate import InvariantKind, Trajectory, integrate
+from lagrange_cli.numeric.status import Failure, Status
+
+if TYPE_CHECKING:
+    from lagrange_cli.numeric.reference import Reference
+
+STUDY_METHODS = tuple(m for m in METHODS if m != "auto")
+ATOL_RATIO = 1e-3  # atol = rtol x ATOL_RATIO
+TIGHTEST = 2.5e-14  # no run is asked for less (double precision)
+MAX_STEPS = 200_000
+"""The default step budget of one measured run of a study, in scipy steps (10-20 thousand a second
+in Python on a small system, Radau about 5 thousand: some 10-40 s per run on a quiet machine, as
+the old 20 s budget). Counted, never timed: the same run is over its budget on any machine under any load."""
+COMPILED_STEPS = 100
+"""A compiled run may take this many times the budget (a compiled step costs about 1 us)."""
+REFERENCE_STEPS = 10
+"""Reference runs (at tolerances 1000 x tighter, often over long windows) may take this many times the budget."""
+
+
+def tol_text(value: float) -> str:
+    """A tolerance or accuracy as written: 1e-06, 2.5e-12."""
+    text = f"{value:.1e}"
+    return f"{value:.0e}" if text[1:3] == ".0" else text
+
+
+@dataclass(frozen=True)
+class Candidate:
+    """A method and the backend it runs on ("auto" picks compiled for RK45/DOP853 when numba is there)."""
+
+    method: str
+    backend: str = "auto"
+
+    @property
+    def label(self) -> str:
+        return self.method if self.backend == "auto" else f"{self.method}:{self.backend}"
+
+
+def parse_candidate(text: str) -> Candidate:
+    """`DOP853`, `RK45:python`, `auto`: a method, optionally with its backend (user input, parsed once)."""
+    name, _, backend = text.strip().partition(":")
+    for known in METHODS:
+        if name.lower() == known.lower():
+            if backend and backend not in ("auto", "compiled", "python"):
+                raise LagrangeError(f"--method {text!r}: unknown backend '{backend}'; write METHOD or METHOD:compiled or METHOD:python")
+            return Candidate(known, backend or "auto")
+    raise LagrangeError(f"unknown method '{name}'; choose from {', '.join(METHODS)} (optionally METHOD:python or METHOD:compiled)")
+
+
+def default_candidates(model: Model) -> tuple[Candidate, ...]:
+    """Every method of `simulate` that applies to the system."""
+    methods = [m for m in STUDY_METHODS if not (m == "symplectic" and (model.constraints or not compile.numba_available()))]
+    return tuple(Candidate(m) for m in methods)
+
+
+def backend_for(candidate: Candidate) -> str:
+    """The backend a candidate runs on: RK45/DOP853 compiled when numba is available."""
+    if candidate.backend != "auto":
+        return candidate.backend
+    if candidate.method == "symplectic":  # compiled only (without numba: a hint naming the extra)
+        return "compiled"
+    if candidate.method in ("RK45", "DOP853"):
+        return "compiled" if compile.numba_available() else "python"
+    return "auto" if candidate.method == "auto" else "python"
+
+
+@dataclass(frozen=True)
+class Setup:
+    """What every run of a study shares: the time window, sample times, parameters and initial values."""
+
+    t_end: float
+    times: tuple[float, ...]
+    parameters: Mapping[str, float] = field(default_factory=dict)
+    initial: Mapping[str, float] = field(default_factory=dict)
+    max_steps: int = 0
+    """Steps a measured run may take (scipy steps; compiled runs COMPILED_STEPS times as many); 0: MAX_STEPS."""
+    reference_max_steps: int = 0
+    """Steps each reference run may take (same units); 0: REFERENCE_STEPS x max_steps."""
+    time_limit: float | None = None
+    """Seconds after which a measured run is stopped as undecided (a safety net; None: no limit)."""
+    start: Settings | None = field(default=None, compare=False)
+    """The validated settings of these parameters and initial values (`starting`), made once."""
+
+    @property
+    def steps(self) -> int:
+        return self.max_steps or MAX_STEPS
+
+    @property
+    def reference_steps(self) -> int:
+        return self.reference_max_steps or REFERENCE_STEPS * self.steps
+
+
+def starting(model: Model, setup: Setup) -> Setup:
+    """`setup` with its `start`: the parameter values and initial state validated once (no
+    compiling, no choice made), for everything that needs them besides the runs themselves."""
+    if setup.start is not None:
+        return setup
+    return replace(setup, start=validate(model, method="DOP853", backend="python", t_end=setup.t_end, parameters=setup.parameters, initial=setup.initial))
+
+
+def start_of(model: Model, setup: Setup) -> Settings:
+    """The validated start of `setup` (made here when the setup was built without one)."""
+    start = starting(model, setup).start
+    assert start is not None
+    return start
+
+
+class PointStatus(enum.StrEnum):
+    """How a measured run of a study ended (a `str`: shown and written as its value)."""
+
+    FINISHED = "finished"
+    FAILED = "failed"
+    OVER_BUDGET = "over step budget"
+    UNDECIDED = "undecided"
+    """Stopped by the time limit: it says nothing about the method."""
+    NOT_APPLICABLE = "not applicable"
+
+
+OVER_BUDGET = PointStatus.OVER_BUDGET
+UNDECIDED = PointStatus.UNDECIDED
+
+
+@dataclass(frozen=True)
+class Ran:
+    """What a run resolved to: the method (`auto` resolved) and the backend."""
+
+    method: str
+    backend: str
+
+    def __str__(self) -> str:
+        return f"{self.method} ({self.backend})"
+
+
+@dataclass(frozen=True)
+class Point:
+    """One run of the study."""
+
+    method: str
+    """As requested, for people (`DOP853`, `RK45:python`, `auto`): `candidate.label`."""
+    resolved: str
+    """What ran, for people (`DOP853 (compiled)`): `str(ran)`."""
+    tolerance: float
+    """rtol of an adaptive method; for the symplectic method the rtol its step was chosen for."""
+    step: float | None
+    status: str
+    """A `PointStatus`: finished, failed, over step budget, undecided (stopped by the time limit) or not applicable."""
+    reason: str
+    final_error: float
+    rms_error: float
+    energy_error: float
+    constraint_drift: float | None
+    seconds: float
+    runs: int
+    compile_seconds: float
+    nfev: int
+    njev: int
+    steps: int
+    drifts: tuple[tuple[str, float], ...] = ()
+    """Relative change of each conserved energy or momentum over the run."""
+    candidate: Candidate | None = None
+    """What was asked (None only for points made by hand)."""
+    ran: Ran | None = None
+    """What ran (None when nothing ran: not applicable, or stopped before it started)."""
+    failure: Failure | None = None
+    """Why the run gave no error (None when it finished)."""
+    max_error: float = math.nan
+    """The largest error at any sample (the samples are the dense output at evenly spaced times)."""
+    settings: Settings | None = field(default=None, compare=False, repr=False)
+    """What ran, decided (to time it again without deciding anything again)."""
+
+    @property
+    def ok(self) -> bool:
+        return self.status == PointStatus.FINISHED and math.isfinite(self.error)
+
+    @property
+    def final_rms_error(self) -> float:
+        """The larger of the final and the RMS error (the error measure before the pointwise maximum)."""
+        return max(self.final_error, self.rms_error)
+
+    @property
+    def error(self) -> float:
+        """The error a run is judged by ("meets", "fastest"): the largest error at any sample,
+        which an average or the final error can understate (about 10x near the pericentre of an
+        eccentric orbit); the larger of the final and the RMS error for a point made without it."""
+        return self.max_error if not math.isnan(self.max_error) else self.final_rms_error
+
+    @property
+    def setting(self) -> str:
+        return f"step {self.step:.3g}" if self.step is not None else f"rtol {tol_text(self.tolerance)}"
+
+
+class TimeLimit(Exception):
+    """A measured run went past the setup's time limit (`fraction` of its time span done)."""
+
+    def __init__(self, fraction: float) -> None:
+        super().__init__(fraction)
+        self.fraction = fraction
+
+
+Progress = Callable[[float], None]
+
+
+def _time_limit(seconds: float) -> Progress:
+    start = time.perf_counter()
+
+    def progress(fraction: float) -> None:
+        if time.perf_counter() - start > seconds:
+            raise TimeLimit(fraction)
+
+    return progress
+
+
+def settings_for(model: Model, candidate: Candidate, tolerance: float, setup: Setup, step: float | None = None) -> Settings:
+    """The settings of one run of `candidate` at `tolerance`, validated and decided (`auto` resolved)."""
+    asked = validate(
+        model,
+        t_end=setup.t_end,
+        method=candidate.method,
+        rtol=tolerance,
+        atol=tolerance * ATOL_RATIO,
+        step=step,
+        t_eval=setup.times,
+        parameters=setup.parameters,
+        initial=setup.initial,
+        backend=backend_for(candidate),
+    )
+    return policy.decide(model, asked)
+
+
+def run_steps(settings: Settings, budget: int) -> int:
+    """The step budget of one run: `budget` scipy steps, COMPILED_STEPS x that compiled."""
+    return budget * COMPILED_STEPS if settings.backend == "compiled" else budget
+
+
+def run(model: Model, candidate: Candidate, tolerance: float, setup: Setup, *, step: float | None = None, timed: bool = True, reference: bool = False, settings: Settings | None = None) -> Trajectory:
+    """One run of the study, within its step budget (the reference's when `reference`) and, when
+    `timed` and the setup has one, its time limit (raises TimeLimit, LagrangeError). `settings`:
+    those of an earlier run of the same point, so that a repeat decides nothing again."""
+    limit = setup.time_limit if timed and not reference else None
+    decided = settings if settings is not None else settings_for(model, candidate, tolerance, setup, step)
+    budget = run_steps(decided, setup.reference_steps if reference else setup.steps)
+    return integrate(model, decided, _time_limit(limit) if limit is not None else None, budget)
+
+
+def over_step_budget(trajectory: Trajectory) -> bool:
+    """Whether a run was stopped by its step budget."""
+    return trajectory.outcome == Status.BUDGET
+
+
+def _repeats(first: float, repeats: int) -> int:
+    """More timed runs after the warm-up: `repeats` when one run is short, fewer for slow runs
+    (at most about 2 s of repeats per point), and at least one."""
+    if first <= 0:
+        return repeats
+    return max(1, min(repeats, int(2.0 / first)))
+
+
+def measure(model: Model, candidate: Candidate, tolerance: float, setup: Setup, reference: Reference, scale: np.ndarray, repeats: int = 3) -> Point:
+    """Run one point (warm-up, then timed repeats) and compare it with the reference."""
+    step = None
+    if candidate.method == "symplectic":
+        step = policy.symplectic_step(policy.initial_rate(model, start_of(model, setup)), setup.t_end, tolerance)
+    empty = Point(candidate.label, candidate.label, tolerance, step, "", "", math.nan, math.nan, math.nan, None, math.nan, 0, 0.0, 0, 0, 0, candidate=candidate)
+    try:
+        first = run(model, candidate, tolerance, setup, step=step)
+    except TimeLimit as over:
+        reason = f"stopped by the time limit ({setup.time_limit:g} s, --budget) at {100 * over.fraction:.0f}% of the time span"
+        return replace(empty, status=PointStatus.UNDECIDED, reason=reason, failure=Failure.TIME_LIMIT)
+    except LagrangeError as error:
+        return replace(empty, status=PointStatus.NOT_APPLICABLE, reason=str(error), failure=Failure.NOT_APPLICABLE)
+    s = first.settings
+    ran = Ran(s.method, s.backend)
+    compiled = first.timing.compile + first.timing.load + first.timing.generate
+    base = replace(
+        empty,
+        resolved=str(ran),
+        ran=ran,
+        settings=s,
+        compile_seconds=compiled,
+        nfev=first.stats.nfev,
+        njev=first.stats.njev,
+        steps=first.stats.steps,
+        seconds=first.timing.run,
+        runs=1,
+        step=s.step if s.method == "symplectic" else None,
+    )
+    if over_step_budget(first):
+        times = f" x {COMPILED_STEPS} for a compiled run" if first.settings.backend == "compiled" else ""
+        done = (first.t_last - first.settings.t0) / (setup.t_end - first.settings.t0) if setup.t_end > first.settings.t0 else 0.0
+        reason = f"stopped after {first.stats.steps} steps (the step budget, --max-steps {setup.steps}{times}) at {100 * done:.0f}% of the time span"
+        return replace(base, status=PointStatus.OVER_BUDGET, reason=reason, failure=Failure.BUDGET)
+    if first.failed:
+        return replace(base, status=PointStatus.FAILED, reason=first.message, failure=Failure.of(first.outcome) or Failure.NONFINITE)
+    found = errors(first, reference, scale)
+    drifts = [inv.max_change for inv in first.invariants if inv.kind == InvariantKind.CONSTRAINT]
+    conserved = tuple((inv.name, inv.relative) for inv in first.invariants if inv.conserved and inv.kind != InvariantKind.CONSTRAINT)
+    seconds = [first.timing.run]
+    if repeats > 0:
+        for _ in range(_repeats(first.timing.run, repeats)):
+            seconds.append(run(model, candidate, tolerance, setup, step=step, timed=False, settings=s).timing.run)
+        seconds = seconds[1:]
+    return replace(
+        base,
+        status=PointStatus.FINISHED,
+        final_error=found.final,
+        rms_error=found.rms,
+        max_error=found.largest,
+        energy_error=found.energy,
+        constraint_drift=max(drifts) if drifts else None,
+        seconds=min(seconds),
+        runs=len(seconds),
+        drifts=conserved,
+    )
+
+
+# -- timing: in turns, and close times are ties ----------------------------------------------------
+
+TIE_MARGIN = 0.10
+"""Run times within this fraction of the fastest are a tie, not a win: re-timing the same pair of
+runs on a loaded machine reverses or evens out many differences of a few percent."""
+Timer = Callable[[], float]
+"""Runs something once and returns its run time in seconds."""
+
+
+def interleave(timers: Sequence[Timer], rounds: Sequence[int]) -> list[list[float]]:
+    """Time runs in turns: in round r every run k with rounds[k] > r runs once, in order. A load
+    that comes and goes then slows all of them alike, not those that happened to run during it.
+    Returns the times of each run."""
+    times: list[list[float]] = [[] for _ in timers]
+    for r in range(max(rounds, default=0)):
+        for k, timer in enumerate(timers):
+            if r < rounds[k]:
+                times[k].append(timer())
+    return times
+
+
+def retime(model: Model, points: Sequence[Point], setup: Setup, repeats: int, timer: Callable[[Point], Timer] | None = None) -> list[Point]:
+    """The finished points with their run times measured again in turns (`interleave`): up to
+    `repeats` timed runs each (fewer for slow runs), the fastest kept. `timer` makes the timer of a
+    point (default: run its settings again and take the integration time)."""
+    make = timer if timer is not None else (lambda point: _timer(model, point, setup))
+    chosen = [k for k, p in enumerate(points) if p.status == PointStatus.FINISHED and (p.settings is not None or timer is not None)]
+    times = interleave([make(points[k]) for k in chosen], [_repeats(points[k].seconds, repeats) for k in chosen])
+    result = list(points)
+    for k, found in zip(chosen, times, strict=True):
+        if found:
+            result[k] = replace(points[k], seconds=min(found), runs=len(found))
+    return result
+
+
+def _timer(model: Model, point: Point, setup: Setup) -> Timer:
+    settings = point.settings
+    assert settings is not None
+
+    def timed() -> float:
+        return integrate(model, settings, None, run_steps(settings, setup.steps)).timing.run
+
+    return timed
+
+
+def ties(points: Sequence[Point], best: Point, level: float = math.inf, margin: float = TIE_MARGIN) -> tuple[Point, ...]:
+    """The fastest run of each other candidate that also reaches `level` in at most (1 + margin) x
+    the time of `best`: ties with it, not losses."""
+    found: dict[Candidate | str, Point] = {}
+    mine = best.candidate if best.candidate is not None else best.method
+    for p in points:
+        who = p.candidate if p.candidate is not None else p.method
+        close = p.ok and p.error <= level and p.seconds <= best.seconds * (1.0 + margin)
+        if who != mine and close and (who not in found or p.seconds < found[who].seconds):
+            found[who] = p
+    return tuple(sorted(found.values(), key=lambda p: p.seconds))
+
+
+def scaled_errors(y: np.ndarray, reference: np.ndarray, scale: np.ndarray) -> np.ndarray:
+    """max_i |y_i - y_ref,i| / s_i at each sample."""
+    return np.max(np.abs(y - reference) / scale, axis=1)
+
+
+class Errors(NamedTuple):
+    """The errors of a finished run against the reference (scaled, see accuracy.py)."""
+
+    final: float
+    rms: float
+    largest: float
+    """The maximum over the samples."""
+    energy: float
+    """The largest energy error, relative."""
+
+
+def errors(trajectory: Trajectory, reference: Reference, scale: np.ndarray) -> Errors:
+    """The final, RMS and largest error over the samples, and the relative energy error, of a finished run."""
+    if len(trajectory.t) != len(reference.t) or not np.all(np.isfinite(trajectory.y)):
+        return Errors(math.nan, math.nan, math.nan, math.nan)
+    e = scaled_errors(trajectory.y, reference.y, scale)
+    kinetic = next((i.scale for i in trajectory.invariants if i.kind == InvariantKind.ENERGY), 0.0)  # the largest |sum p q_dot|
+    size = max(float(np.max(np.abs(reference.energy))), kinetic, 1e-300)
+    return Errors(float(e[-1]), float(np.sqrt(np.mean(e**2))), float(np.max(e)), float(np.max(np.abs(trajectory.energy - reference.energy)) / size))
+
+
+def component_scale(y: np.ndarray) -> np.ndarray:
+    return np.maximum(1.0, np.max(np.abs(y), axis=0))
+
+
+def check_steps(max_steps: object) -> int:
+    """A step budget: a whole number of at least 1 (LagrangeError otherwise)."""
+    if isinstance(max_steps, bool) or not isinstance(max_steps, int) or max_steps < 1:
+        raise LagrangeError(f"the step budget (--max-steps) must be a whole number of at least 1, got {max_steps!r}")
+    return max_steps

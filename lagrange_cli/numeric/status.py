@@ -1,0 +1,112 @@
+"""How a run ends and what it counted: the codes shared by the compiled loops and Python, defined once.
+
+The kernels (kernels.py, compiled by numba) return the integer codes below and fill a float64
+counter array indexed by the counter constants; the Python side turns both into `Status` and
+`integrators.Stats` by name. This module imports nothing (no numba, no numpy), so that every
+layer can use it.
+
+As in scipy's `OdeSolver` (a status and named counters, never a message parsed back), a run's
+outcome is a `Status`; a measured point of a study that did not finish says why by a `Failure`.
+"""
+
+from __future__ import annotations
+
+import enum
+
+# -- codes returned by the compiled loops (plain ints: numba reads them as compile-time constants)
+RUNNING = -1
+"""Paused: at t_stop, or after PAUSE_STEPS steps; call again."""
+DONE = 0
+EVENT = 1
+SINGULAR = 2
+NONFINITE = 3
+STEP_COLLAPSE = 4
+NO_CONVERGENCE = 5
+BUDGET = 6
+"""The driver's own: the step budget ran out (never returned by a kernel)."""
+
+PAUSE_STEPS = 20000
+"""A loop returns RUNNING after this many steps even before t_stop, so that the caller can report
+progress and stop a run over its budget (a near-collision orbit may take minutes of 1e-10 s steps
+to reach the first 1% of its time span)."""
+
+# -- the counter array `stats` of a compiled loop (float64, STATS_SIZE entries)
+NFEV, NJEV, NSTEPS, NREJECT, HMIN, HMAX = 0, 1, 2, 3, 4, 5
+"""Right-hand side evaluations, Jacobians (the Gauss method: its Newton matrices), steps taken,
+rejected steps, smallest and largest step."""
+STATS_SIZE = 6
+
+# -- the loop state `state` (float64): where a paused loop resumes
+T, H, EVENT_VALUE, NEXT_SAMPLE, NEWTON = 0, 1, 2, 3, 4
+"""The time reached; the next step size (explicit pairs) or the steps done (Gauss); the stop
+condition's value at t; the index of the next sample to write; 1.0 while the Gauss method's
+Newton matrix (kept by the caller) is current."""
+STATE_SIZE = 5
+
+# -- the controls `control` of a loop (float64; read-only to the loops)
+RTOL, ATOL, MAX_STEP, T_BOUND, T_STOP, USE_EVENT, SIZE, STEP, STEPS, T0 = range(10)
+"""Tolerances and the largest step (explicit pairs); the end of the run and where to pause; 1.0
+when a stop condition is watched; the size of the system's workspace (coordinates and
+multipliers); the fixed step, the number of steps and the start (Gauss)."""
+CONTROL_SIZE = 10
+
+# -- step-size control of the explicit pairs (scipy's values)
+SAFETY = 0.9
+"""The new step is SAFETY x the step that would make the error estimate exactly 1."""
+MIN_FACTOR = 0.2
+"""A step never shrinks by more than this factor at once."""
+MAX_FACTOR = 10.0
+"""... nor grows by more than this one."""
+MIN_STEP_SPACINGS = 10.0
+"""The step collapses below this many floating-point spacings of t."""
+
+
+class Status(enum.StrEnum):
+    """How a run ended (a `str`, so that `run.status == "finished"` reads as before)."""
+
+    FINISHED = "finished"
+    EVENT = "event"
+    SINGULAR = "singular"
+    NONFINITE = "nonfinite"
+    STEP_COLLAPSE = "step"
+    NO_CONVERGENCE = "convergence"
+    BUDGET = "budget"
+
+    @classmethod
+    def of_code(cls, code: int) -> Status:
+        """The status of a kernel's (or a driver's) return code."""
+        return _BY_CODE[code]
+
+    @property
+    def failed(self) -> bool:
+        return self not in (Status.FINISHED, Status.EVENT)
+
+
+_BY_CODE = {
+    DONE: Status.FINISHED,
+    EVENT: Status.EVENT,
+    SINGULAR: Status.SINGULAR,
+    NONFINITE: Status.NONFINITE,
+    STEP_COLLAPSE: Status.STEP_COLLAPSE,
+    NO_CONVERGENCE: Status.NO_CONVERGENCE,
+    BUDGET: Status.BUDGET,
+}
+
+
+class Failure(enum.StrEnum):
+    """Why a measured run of a study did not give an error: the run's own failure, or the study's
+    verdict on it (over its step budget, stopped by the time limit, not applicable)."""
+
+    SINGULAR = "singular"
+    NONFINITE = "nonfinite"
+    """Infinite or NaN values, or a function that cannot be evaluated along the way."""
+    STEP_COLLAPSE = "step"
+    NO_CONVERGENCE = "convergence"
+    BUDGET = "budget"
+    TIME_LIMIT = "time limit"
+    NOT_APPLICABLE = "not applicable"
+
+    @classmethod
+    def of(cls, status: Status) -> Failure | None:
+        """The failure of a run's status (None when it finished or stopped at its event)."""
+        return None if not status.failed else cls(status.value)

@@ -1,0 +1,230 @@
+"""The JAX target in JAX itself (64-bit mode): rhs, M, F and the energy agree with the Python module at
+seeded random states for every bundled system; jax.jit and jax.vmap over 1000 states give what a loop
+gives; jax.grad of a state after a few RK4 steps with respect to a parameter agrees with central finite
+differences; hostile titles, file names and names stay data."""
+
+from __future__ import annotations
+
+import ast
+import dataclasses
+import inspect
+import random
+import sys
+from collections.abc import Callable
+from pathlib import Path
+from types import ModuleType
+from typing import Any
+
+import numpy as np
+import pytest
+
+from lagrange_cli.emit import jax as jax_target
+from lagrange_cli.emit import python
+from lagrange_cli.errors import DerivationError
+from lagrange_cli.model import Model
+
+from .conftest import ROOT, SYSTEMS
+from .helpers import load_module, model_from, model_of, random_point
+from .test_codegen_safety import HOSTILE, PENDULUM, ROD
+
+jax = pytest.importorskip("jax")
+jax.config.update("jax_enable_x64", True)
+jnp = jax.numpy
+
+HOSTILE_NAMES = sorted((ROOT / "tests" / "hostile").glob("name_*.yaml"))
+
+
+def modules(model: Model, folder: Path) -> tuple[ModuleType, ModuleType]:
+    """The Python module and the JAX module of `model`."""
+    return load_module(python.emit(model), folder / "reference.py"), load_module(jax_target.emit(model), folder / "target.py")
+
+
+def call_python(function: Callable[..., Any], t: float, *args: Any) -> Any:
+    """Call a Python-module function, which takes `t` only when it depends on time."""
+    return function(t, *args) if "t" in inspect.signature(function).parameters else function(*args)
+
+
+@pytest.mark.parametrize("path", SYSTEMS, ids=lambda p: p.stem)
+def test_every_bundled_system_agrees_with_the_python_module(path: Path, tmp_path: Path) -> None:
+    model = model_from(path)
+    try:
+        python.emit(model)
+    except DerivationError:
+        with pytest.raises(DerivationError):
+            jax_target.emit(model)
+        return
+    reference, target = modules(model, tmp_path)
+    assert target.COORDINATES == reference.COORDINATES and target.PARAMETERS == reference.PARAMETERS
+    assert tuple(p.name for p in model.parameters) == target.PARAMETER_NAMES and (model.n, len(model.parameters)) == (target.NQ, target.NP)
+    n = model.n
+    for seed in range(3):
+        point = random_point(model, seed)
+        p = {parameter.name: point[parameter.symbol] for parameter in model.parameters}
+        y = [point[s] for s in (*model.q, *model.qd)]
+        t = point[model.t]
+        expected = np.asarray(reference.rhs(t, y, p), dtype=float)
+        got = target.rhs(t, jnp.asarray(y), p)
+        assert got.dtype == jnp.float64 and got.shape == (2 * n,)
+        np.testing.assert_allclose(np.asarray(got), expected, rtol=1e-10, atol=1e-12)
+        vector = target.default_parameters() if all(v.value is not None for v in model.parameters) else None
+        if vector is not None and all(p[name] == value for name, value in target.PARAMETERS.items()):
+            np.testing.assert_allclose(np.asarray(target.rhs(t, y, vector)), expected, rtol=1e-10, atol=1e-12)
+        q, qd = y[:n], y[n:]
+        np.testing.assert_allclose(np.asarray(target.mass_matrix(t, q, p)), np.asarray(call_python(reference.mass_matrix, t, q, p), dtype=float), rtol=1e-10, atol=1e-12)
+        np.testing.assert_allclose(np.asarray(target.forcing(t, q, qd, p)), np.asarray(call_python(reference.forcing, t, q, qd, p), dtype=float), rtol=1e-10, atol=1e-12)
+        assert float(target.energy(t, q, qd, p)) == pytest.approx(call_python(reference.energy, t, q, qd, p), rel=1e-10, abs=1e-12)
+        if model.constraints:
+            np.testing.assert_allclose(np.asarray(target.multipliers(t, y, p)), np.asarray(reference.multipliers(t, y, p), dtype=float), rtol=1e-9, atol=1e-12)
+            np.testing.assert_allclose(np.asarray(target.constraint_residuals(t, q, qd, p)), np.asarray(reference.constraint_residuals(q, qd, p), dtype=float), rtol=1e-10, atol=1e-12)
+
+
+def test_p_is_optional_a_dict_by_name_or_an_array(tmp_path: Path) -> None:
+    model = model_from(ROOT / "systems" / "double_pendulum.yaml")
+    reference, target = modules(model, tmp_path)
+    y = [0.3, -0.2, 0.1, 0.4]
+    expected = np.asarray(reference.rhs(0.0, y), dtype=float)
+    for p in (None, dict(target.PARAMETERS), {}, target.default_parameters(), list(target.PARAMETERS.values())):
+        np.testing.assert_allclose(np.asarray(target.rhs(0.0, y, p)), expected, rtol=1e-12)
+    changed = {**reference.PARAMETERS, "g": 3.5}
+    np.testing.assert_allclose(np.asarray(target.rhs(0.0, y, {"g": 3.5})), np.asarray(reference.rhs(0.0, y, changed), dtype=float), rtol=1e-12)
+    with pytest.raises(KeyError):
+        load_module(jax_target.emit(model_of("coordinates: [x]\nparameters: [k]\nkinetic: x_dot**2/2\npotential: k*x**2\n")), tmp_path / "nodefault.py").rhs(0.0, [1.0, 0.0])
+
+
+# -- jit, vmap, grad ------------------------------------------------------------------------------------
+
+TRANSFORMED = ["double_pendulum", "pendulum_multiplier", "rotating_hoop_bead", "chain_3"]
+
+
+@pytest.mark.parametrize("stem", TRANSFORMED)
+def test_jit_and_vmap_over_1000_states_equal_the_loop(stem: str, tmp_path: Path) -> None:
+    model = model_from(ROOT / "systems" / f"{stem}.yaml")
+    reference, target = modules(model, tmp_path)
+    rng = np.random.default_rng(7)
+    n = model.n
+    states = np.concatenate([rng.uniform(0.2, 1.3, (1000, n)), rng.uniform(-1.0, 1.0, (1000, n))], axis=1)
+    t = 0.7
+    rhs = jax.jit(target.rhs)
+    batched = np.asarray(jax.jit(jax.vmap(target.rhs, in_axes=(None, 0, None)))(t, jnp.asarray(states), None))
+    assert batched.shape == (1000, 2 * n)
+    loop = np.array([reference.rhs(t, list(state)) for state in states], dtype=float)
+    np.testing.assert_allclose(batched, loop, rtol=1e-10, atol=1e-12)
+    jitted = np.array([np.asarray(rhs(t, jnp.asarray(state))) for state in states[:50]])
+    np.testing.assert_allclose(jitted, batched[:50], rtol=1e-13, atol=1e-14)
+    # vmap over parameter vectors too (a batch of systems)
+    vector = target.default_parameters()
+    parameters = jnp.stack([vector * (1.0 + 0.1 * i) for i in range(5)])
+    over_p = np.asarray(jax.vmap(target.rhs, in_axes=(None, None, 0))(t, jnp.asarray(states[0]), parameters))
+    for i in range(5):
+        p = dict(zip(target.PARAMETER_NAMES, np.asarray(parameters[i]).tolist(), strict=True))
+        np.testing.assert_allclose(over_p[i], np.asarray(reference.rhs(t, list(states[0]), p), dtype=float), rtol=1e-10, atol=1e-12)
+
+
+def rk4(rhs: Callable[..., Any], y: Any, p: Any, steps: int, h: float) -> Any:
+    """`steps` classical RK4 steps from t = 0, as one loop that JAX compiles once (`lax.fori_loop`)."""
+
+    def step(i: Any, y: Any) -> Any:
+        t = i * h
+        k1 = rhs(t, y, p)
+        k2 = rhs(t + h / 2, y + h / 2 * k1, p)
+        k3 = rhs(t + h / 2, y + h / 2 * k2, p)
+        k4 = rhs(t + h, y + h * k3, p)
+        return y + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+
+    return jax.lax.fori_loop(0, steps, step, y)
+
+
+@pytest.mark.parametrize(("stem", "parameter", "component"), [("double_pendulum", "g", 1), ("pendulum_multiplier", "g", 0), ("rotating_hoop_bead", "omega", 0)])
+def test_grad_of_a_final_state_agrees_with_finite_differences(stem: str, parameter: str, component: int, tmp_path: Path) -> None:
+    model = model_from(ROOT / "systems" / f"{stem}.yaml")
+    target = load_module(jax_target.emit(model), tmp_path / "target.py")
+    start = jnp.asarray([0.9, 0.5, 0.2, -0.1] if model.n == 2 else [0.9, 0.3])
+    if stem == "pendulum_multiplier":  # on the circle x^2 + y^2 = l^2, moving along it
+        start = jnp.asarray([np.sin(0.9), -np.cos(0.9), 0.3 * np.cos(0.9), 0.3 * np.sin(0.9)])
+    index = target.PARAMETER_NAMES.index(parameter)
+
+    def final(value: Any) -> Any:
+        p = target.default_parameters().at[index].set(value)
+        return rk4(target.rhs, start, p, steps=20, h=0.01)[component]
+
+    def by_name(value: Any) -> Any:  # the derivative of one rhs through a dict of parameters
+        return target.rhs(0.1, start, {parameter: value})[-1]
+
+    def by_index(value: Any) -> Any:
+        return target.rhs(0.1, start, target.default_parameters().at[index].set(value))[-1]
+
+    value = float(target.PARAMETERS[parameter])
+    step = 1e-5 * value
+
+    @jax.jit  # one compilation for everything
+    def results(value: Any) -> Any:
+        return jax.grad(final)(value), final(value + step), final(value - step), jax.grad(by_name)(value), jax.grad(by_index)(value)
+
+    gradient, above, below, named, indexed = (float(x) for x in results(value))
+    assert abs(gradient) > 1e-4
+    assert gradient == pytest.approx((above - below) / (2 * step), rel=1e-6)
+    assert named == pytest.approx(indexed, rel=1e-12) and abs(named) > 1e-6
+
+
+# -- file text is data, names never meet generated names ------------------------------------------------
+
+
+def hostile(text: str, as_title: bool) -> Model:
+    model = model_of(PENDULUM)
+    return dataclasses.replace(model, title=text) if as_title else dataclasses.replace(model, source=f"/some/dir/{text}.yaml")
+
+
+@pytest.mark.parametrize("as_title", [True, False], ids=["title", "file-name"])
+@pytest.mark.parametrize("text", HOSTILE, ids=range(len(HOSTILE)))
+def test_file_text_in_the_jax_module_is_data(text: str, as_title: bool, tmp_path: Path) -> None:
+    code = jax_target.emit(hostile(text, as_title))
+    ast.parse(code)
+    assert all(c == "\n" or " " <= c <= "~" for c in code)
+    module = load_module(code, tmp_path / "module.py")
+    assert not (tmp_path / "EXECUTED").exists()
+    assert text in module.__doc__ if as_title else Path(f"/some/dir/{text}.yaml").name in module.__doc__
+    assert float(module.rhs(0.0, [0.3, 0.0])[1]) == pytest.approx(-9.81 / 2.0 * np.sin(0.3))
+
+
+def test_names_like_the_generated_ones_agree_with_plain_names(tmp_path: Path) -> None:
+    """Coordinates and parameters called jnp, jax, lax, p, y, rhs, PARAMETERS, a constraint with multiplier lambda_rhs."""
+    renamed = "coordinates: [jnp, lax]\nparameters: {p: 1.5, jax: 2.0, PARAMETERS: 9.81}\ngravity: [0, -PARAMETERS]\nparticles:\n  bob: {mass: p, position: [jnp, lax]}\n"
+    renamed += "constraints:\n  rhs: jnp**2 + lax**2 = jax**2\n"
+    plain = load_module(jax_target.emit(model_of(ROD)), tmp_path / "plain.py")
+    shadowed = load_module(jax_target.emit(model_of(renamed)), tmp_path / "shadowed.py")
+    assert shadowed.PARAMETER_NAMES == ("p", "jax", "PARAMETERS")
+    y = jnp.asarray([1.2, -1.6, 0.3, 0.225])
+    np.testing.assert_allclose(np.asarray(shadowed.accelerations(0.0, y)), np.asarray(plain.accelerations(0.0, y)), rtol=1e-14)
+    np.testing.assert_allclose(np.asarray(jax.jit(shadowed.rhs)(0.0, y)), np.asarray(plain.rhs(0.0, y)), rtol=1e-14)
+
+
+@pytest.mark.parametrize("path", HOSTILE_NAMES, ids=lambda p: p.stem)
+def test_hostile_names_from_files_agree_with_the_python_module(path: Path, tmp_path: Path) -> None:
+    try:
+        model = model_from(path)
+        python.emit(model)
+    except Exception:  # refused before there is code to write
+        return
+    reference, target = modules(model, tmp_path)
+    rng = random.Random(3)
+    y = [rng.uniform(0.2, 1.0) for _ in range(2 * model.n)]
+    np.testing.assert_allclose(np.asarray(target.rhs(0.4, y)), np.asarray(reference.rhs(0.4, y), dtype=float), rtol=1e-10, atol=1e-12)
+
+
+def test_the_signature_is_the_target_contract() -> None:
+    signature = inspect.signature(jax_target.emit)
+    assert list(signature.parameters) == ["model", "name"] and signature.parameters["name"].kind is inspect.Parameter.KEYWORD_ONLY
+
+
+def test_the_readme_example_runs(tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]) -> None:
+    """The README's JAX example, with the module it names written by this target."""
+    readme = (ROOT / "README.md").read_text()
+    example = readme.split("### JAX", 1)[1].split("```python\n", 1)[1].split("```", 1)[0]
+    (tmp_path / "eom.py").write_text(jax_target.emit(model_from(ROOT / "systems" / "double_pendulum.yaml")))
+    monkeypatch.syspath_prepend(str(tmp_path))
+    monkeypatch.delitem(sys.modules, "eom", raising=False)
+    namespace: dict[str, Any] = {}
+    exec(compile(example, "README.md", "exec"), namespace)  # the project's own README
+    assert namespace["rates"].shape == (10_000, 4)
+    assert np.isfinite(float(capsys.readouterr().out))
+    sys.modules.pop("eom", None)

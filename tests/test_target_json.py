@@ -1,0 +1,210 @@
+"""The JSON target: valid against its published schema, every expression string read back by lagrange's
+own parser into the model's expression, LaTeX strings that pdflatex compiles, and file text kept as data."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import random
+import shutil
+import subprocess
+from pathlib import Path
+from typing import Any
+
+import pytest
+import sympy as sp
+
+from lagrange_cli.emit import jsonmodel, latex
+from lagrange_cli.errors import DerivationError, Span
+from lagrange_cli.expr import SUPPORTED_FUNCTIONS, Scope, parse_expression
+from lagrange_cli.model import Model
+
+from .conftest import ROOT, SYSTEMS
+from .helpers import model_from, model_of
+from .test_codegen_safety import HOSTILE, PENDULUM
+
+jsonschema = pytest.importorskip("jsonschema")
+
+SCHEMA = json.loads((ROOT / "docs" / "model.schema.json").read_text())
+VALIDATOR = jsonschema.Draft202012Validator(SCHEMA)
+PDFLATEX = shutil.which("pdflatex")
+HOSTILE_FILES = sorted((ROOT / "tests" / "hostile").glob("title_*.yaml")) + sorted((ROOT / "tests" / "hostile").glob("name_*.yaml"))
+
+
+def document(model: Model) -> dict[str, Any]:
+    text = jsonmodel.emit(model)
+    assert text.isascii() and text.endswith("}\n")
+    data: dict[str, Any] = json.loads(text)
+    return data
+
+
+def test_the_schema_is_a_valid_draft_2020_12_schema() -> None:
+    jsonschema.Draft202012Validator.check_schema(SCHEMA)
+    assert SCHEMA["$schema"] == "https://json-schema.org/draft/2020-12/schema"
+    assert SCHEMA["properties"]["schema_version"]["const"] == jsonmodel.SCHEMA_VERSION
+
+
+# -- reading a document back ------------------------------------------------------------------------
+
+
+class Reader:
+    """Parses the expression strings of a document with lagrange's parser, in the names the document declares."""
+
+    def __init__(self, data: dict[str, Any]) -> None:
+        self.time = sp.Symbol(data["time"]["name"])
+        names = [c["name"] for c in data["coordinates"]] + [c["velocity"] for c in data["coordinates"]] + [p["name"] for p in data["parameters"]]
+        self.symbols = {name: sp.Symbol(name) for name in names}
+        self.functions = {f["name"]: sp.Function(f["name"]) for f in data["functions"]}
+        self.parameters = {p["name"]: sp.Symbol(p["name"]) for p in data["parameters"]}
+
+    def scope(self, extra: dict[str, sp.Symbol] | None = None) -> Scope:
+        def no_time_derivative(expr: sp.Expr) -> sp.Expr:
+            raise AssertionError("a document's expression takes no total time derivative")
+
+        symbols = {**self.symbols, **(extra or {})}
+        return Scope(symbols, self.functions, self.time, no_time_derivative)
+
+    def read(self, expression: dict[str, str], extra: dict[str, sp.Symbol] | None = None) -> sp.Expr:
+        return parse_expression(expression["text"], Span("model.json", 1, 1), self.scope(extra))
+
+
+def same(parsed: sp.Expr, original: sp.Expr) -> bool:
+    return parsed == original or sp.simplify(parsed - original) == 0
+
+
+@pytest.mark.parametrize("path", SYSTEMS, ids=lambda p: p.stem)
+def test_every_bundled_system_is_valid_and_reads_back_into_the_same_model(path: Path) -> None:
+    model = model_from(path)
+    data = document(model)
+    VALIDATOR.validate(data)
+    reader = Reader(data)
+    n = model.n
+    assert [c["name"] for c in data["coordinates"]] == list(model.coordinates)
+    assert [c["velocity"] for c in data["coordinates"]] == [str(v) for v in model.qd]
+    assert [(p["name"], p["default"], p["real"], p["description"]) for p in data["parameters"]] == [(p.name, p.value, p.real, p.description) for p in model.parameters]
+    pairs: list[tuple[dict[str, str], sp.Expr]] = [(data["mass_matrix"][i][j], model.mass_matrix[i, j]) for i in range(n) for j in range(n)]
+    pairs += list(zip(data["forcing"], model.forcing, strict=True))
+    pairs += list(zip(data["momenta"], model.momenta, strict=True)) + list(zip(data["generalized_forces"], model.generalized_forces, strict=True))
+    pairs += [(data[key], getattr(model, key)) for key in ("energy", "lagrangian", "kinetic", "potential", "dissipation")]
+    assert len(data["constraints"]) == len(model.constraints)
+    for row, constraint in zip(data["constraints"], model.constraints, strict=True):
+        assert (row["name"], row["multiplier"]["name"], row["holonomic"]) == (constraint.name, str(constraint.multiplier), constraint.holonomic)
+        pairs += [(row["residual"], constraint.expr), (row["b"], constraint.bias), (row["c"], constraint.acceleration_bias)]
+        pairs += list(zip(row["A"], constraint.jacobian, strict=True))
+    pairs += [(item["expression"], expr) for item, (_, expr) in zip(data["eliminated"], model.eliminated, strict=True)]
+    for expression, original in pairs:
+        assert same(reader.read(expression), original), (expression["text"], original)
+    for function in data["functions"]:
+        if function["definition"] is not None:
+            definition = model.definitions[function["name"]]
+            arguments = {a: sp.Symbol(a) for a in function["arguments"]}
+            assert same(reader.read(function["definition"], arguments), definition.expr)
+    assert data["initial"]["q"] == [model.initial.get(c, 0.0) for c in model.coordinates]
+
+
+def test_numbers_are_exact_and_derivatives_read_back() -> None:
+    """Floats by repr (all 17 digits), rationals exact, a second derivative of a declared function."""
+    x, k = sp.Symbol("x"), sp.Symbol("k")
+    U = sp.Function("U")
+    exprs = [sp.Float(0.1) * x + sp.Rational(1, 3) * k ** sp.Rational(3, 2), sp.Float(1.2345678901234567e-7) / x, sp.diff(U(x), x, 2) * sp.atan2(x, k) - sp.E ** (x * sp.pi)]
+    exprs += [sp.sqrt(x) / sp.Abs(k) + sp.sign(x) * sp.cot(x) * sp.sec(k) * sp.csc(x), -(x**-3) + sp.Float(-2.5e300) * sp.acos(x) ** 2]
+    scope = Scope({"x": x, "k": k}, {"U": U}, sp.Symbol("t"), lambda e: e)
+    for expr in exprs:
+        text = jsonmodel.text(expr)
+        assert parse_expression(text, Span("x", 1, 1), scope) == expr, text
+    assert "Derivative(Derivative(U(x), x)" not in jsonmodel.text(sp.diff(U(x), x, 2))
+
+
+def test_the_functions_are_the_parsers() -> None:
+    assert jsonmodel.FUNCTIONS == SUPPORTED_FUNCTIONS
+
+
+def test_what_the_file_syntax_cannot_say_is_refused() -> None:
+    x = sp.Symbol("x")
+    for expr in (sp.I * x, sp.Piecewise((x, x > 0), (0, True)), sp.re(x)):
+        with pytest.raises(DerivationError, match="system-file syntax"):
+            jsonmodel.text(expr)
+
+
+def test_output_is_deterministic_and_ordered() -> None:
+    text = "coordinates: [b, a]\nparameters: {z: 2.0, y: 1.0}\nfunctions: [W, V]\nkinetic: z*b_dot**2/2 + y*a_dot**2/2\npotential: W(a) + V(b)\n"
+    first, second = jsonmodel.emit(model_of(text)), jsonmodel.emit(model_of(text))
+    assert first == second
+    data = json.loads(first)
+    assert [c["name"] for c in data["coordinates"]] == ["b", "a"]  # the file's order
+    assert [p["name"] for p in data["parameters"]] == ["z", "y"]
+    assert [f["name"] for f in data["functions"]] == ["V", "W"]  # sorted
+    assert all(f["definition"] is None and f["arguments"] is None for f in data["functions"])
+
+
+# -- LaTeX ---------------------------------------------------------------------------------------------
+
+
+def latex_strings(value: Any) -> list[str]:
+    if isinstance(value, dict):
+        return [s for key, item in value.items() for s in ([item] if key.endswith("latex") and isinstance(item, str) else latex_strings(item))]
+    if isinstance(value, list):
+        return [s for item in value for s in latex_strings(item)]
+    return []
+
+
+def test_latex_strings_are_the_latex_emitters() -> None:
+    model = model_from(ROOT / "systems" / "pendulum_multiplier.yaml")
+    data = document(model)
+    symbols = latex.names(model).symbols
+    assert data["coordinates"][0]["velocity_latex"] == symbols[model.qd[0]]
+    assert data["constraints"][0]["multiplier"]["latex"] == symbols[model.multipliers[0]] == r"\lambda_{\mathrm{rod}}"
+    assert data["energy"]["latex"] == latex.names(model).printer().doprint(model.energy)
+
+
+@pytest.mark.latex
+@pytest.mark.skipif(PDFLATEX is None, reason="pdflatex not installed (make test installs it)")
+def test_every_latex_string_compiles_in_pdflatex(tmp_path: Path) -> None:
+    """All the LaTeX of every bundled system and of the hostile-name files, in one article."""
+    strings: list[str] = []
+    for path in [*SYSTEMS, *HOSTILE_FILES]:
+        try:
+            strings += latex_strings(document(model_from(path)))
+        except Exception:  # a hostile file that is refused before it has a model
+            assert path in HOSTILE_FILES
+    assert len(strings) > 500
+    body = "\n".join(f"\\noindent$\\displaystyle {s}$\\par" for s in dict.fromkeys(strings))
+    (tmp_path / "all.tex").write_text("\\documentclass{article}\n\\usepackage{amsmath}\n\\begin{document}\n" + body + "\n\\end{document}\n")
+    result = subprocess.run([PDFLATEX, "-interaction=nonstopmode", "-halt-on-error", "all.tex"], cwd=tmp_path, capture_output=True, text=True, timeout=120)
+    assert result.returncode == 0, result.stdout[-3000:]
+    log = (tmp_path / "all.log").read_text(errors="replace")
+    assert "\n! " not in log and "Undefined control sequence" not in log
+
+
+# -- file text is data ---------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("text", HOSTILE, ids=range(len(HOSTILE)))
+def test_hostile_text_stays_data_and_round_trips(text: str) -> None:
+    model = dataclasses.replace(model_of(PENDULUM), title=text, description=text + "\n" + text, source=f"/some/dir/{text}.yaml")
+    data = document(model)
+    VALIDATOR.validate(data)
+    assert data["title"] == text and data["description"] == text + "\n" + text and data["source"] == Path(f"/some/dir/{text}.yaml").name
+    assert list(data) == SCHEMA["required"]  # nothing added, nothing lost
+
+
+@pytest.mark.parametrize("path", HOSTILE_FILES, ids=lambda p: p.stem)
+def test_hostile_files_give_valid_documents(path: Path) -> None:
+    try:
+        model = model_from(path)
+    except Exception:  # refused by the reader: nothing to write
+        return
+    data = document(model)
+    VALIDATOR.validate(data)
+    assert data["title"] == model.title and data["description"] == model.description
+    reader = Reader(data)
+    rng = random.Random(1)
+    point = {s: rng.uniform(0.5, 1.5) for s in reader.symbols.values()} | {reader.time: 0.3}
+    for expression, original in zip(data["forcing"], model.forcing, strict=True):
+        assert float(reader.read(expression).xreplace(point)) == pytest.approx(float(original.xreplace(point)), rel=1e-12)
+
+
+def test_every_key_of_the_schema_is_documented() -> None:
+    documentation = (ROOT / "docs" / "json.md").read_text()
+    for key in SCHEMA["required"]:
+        assert f"`{key}`" in documentation, key
