@@ -684,3 +684,30 @@ def _schedule(segment: list[tuple[str, str]], slots: Mapping[str, int], level: d
         values = {f"w{k}": f"_w[{table}[_r, {k}]]" for k in range(width)} | {f"i{k}": f"{table}[_r, {k}]" for k in range(width)}
         code += [f"for _r in range({len(members)}):", f"    {shape_left.format(**values)} = {shape_right.format(**values)}"]
     return code
+
+
+@dataclass(frozen=True)
+class Block:
+    """Straight-line code: assignments of common subexpressions, then the results."""
+
+    lines: tuple[str, ...]
+    results: tuple[str, ...]
+
+
+class CodePrinter(PythonPrinter):
+    """`PythonPrinter` with a map keyed by sympy symbols, for small sympy expressions (animate's
+    positions): `module_imports["math"]` lists the `math` names used, as sympy's printers do."""
+
+    def __init__(self, names: Mapping[sp.Symbol, str]) -> None:
+        super().__init__({str(symbol): name for symbol, name in names.items()})
+
+    @property
+    def module_imports(self) -> dict[str, set[str]]:
+        return {"math": set(self.imports())}
+
+
+def cse_block(exprs: Sequence[sp.Expr], prefix: str, printer: Printer) -> Block:
+    """Straight-line code computing the sympy expressions `exprs` (converted to symengine), CSE once,
+    temporaries `_<prefix>0, ...`."""
+    lines, results = printer.block([to_symengine(e) for e in exprs], f"_{prefix}")
+    return Block(tuple(f"{name} = {code}" for name, code in lines), tuple(results))
