@@ -49,7 +49,7 @@ from lagrange_cli.model import Model
 # Above this many unknowns the linear solve is numpy's; below, straight-line Python is faster.
 NUMPY_SIZE = 9
 SPLIT = 1000
-"""Statements per numba function above which generated numba code is cut into parts (`split`)."""
+"""Statements of a numba function above which it is generated as loops over tables (`vectorize`)."""
 GENERATED = frozenset(
     {
         *("t", "y", "p", "q", "q_dot", "math", "numpy", "numba", "njit", "tolist", "hasattr", "float", "abs", "pow", "copysign", "inf", "nan"),
@@ -290,10 +290,9 @@ class _Writer:
         return define("rhs", "t, y, p=PARAMETERS", _rhs_doc(model), body)
 
     def compiled_rhs(self, exprs: Sequence[Any]) -> str:
-        """rhs as a thin wrapper around numba kernels taking y and the used parameters as arrays;
-        the last kernel fills [M, -A^T; A, 0] and solves with numpy. Big systems are split into
-        several kernels (`split`), each compiled on its own: numba's compile time grows faster
-        than the size of one function."""
+        """rhs as a thin wrapper around a numba kernel taking y and the used parameters as arrays,
+        which fills [M, -A^T; A, 0] and solves with numpy. A big system's kernel is written as
+        loops over tables (`vectorize`): numba's compile time grows with the statements."""
         model, n = self.model, self.model.n
         k = len(self.rows.expr)
         size = n + k
@@ -319,11 +318,12 @@ class _Writer:
             f = [*f, *c]
         fill += [f"_b[{i}] = {value}" for i, value in enumerate(f)]
         tail = ["_x = numpy.linalg.solve(_a, _b)", f"_out = numpy.empty({2 * n})", f"_out[:{n}] = y[{n}:]", f"_out[{n}:] = _x[:{n}]", "return _out"]
-        parts, body = split(inputs, [*lines, *fill], tail, "t, y, _p, _a, _b", "_rhs", prologue)
-        kernels = [
-            "@numba.njit(cache=True)\n" + define(name, "t, y, _p, _a, _b, _w", "Part of the compiled right-hand side: fills _a and _b, keeps temporaries in _w.", part_body)
-            for name, part_body in parts
-        ]
+        if len(lines) + len(fill) > SPLIT:
+            tables, code = vectorize(inputs, [*lines, *fill], tail, "_rhs")
+            body = [*prologue, *code]
+        else:
+            tables, body = [], [*inputs, *prologue, *lines, *fill, *tail]
+        kernels = ["\n".join(tables)] if tables else []
         kernels.append("@numba.njit(cache=True)\n" + define("_rhs", "t, y, _p", "The compiled right-hand side.", body))
         vector = "numpy.array([" + ", ".join(f"float(p[{literal(p.name)}])" for p in parameters) + "])" if parameters else "numpy.empty(0)"
         arguments = ", ".join(["t", "numpy.asarray(y, dtype=numpy.float64)", vector])
@@ -389,51 +389,6 @@ class _Writer:
         forms, rows = self.forms, self.rows
         exprs = [*self.mass, *forms.forcing, *(a for row in rows.jacobian for a in row), *rows.bias, *rows.acceleration_bias]
         return str(forms.t) not in free_names(exprs)
-
-
-def split(inputs: list[str], lines: list[str], tail: list[str], signature: str, name: str, prologue: Sequence[str] = (), limit: int | None = None) -> tuple[list[tuple[str, list[str]]], list[str]]:
-    """Straight-line numba code (`inputs` binding scalars from the arguments, statements `lines`,
-    then `tail` with the return) cut into parts of at most `limit` statements, because numba's
-    compile time grows faster than the size of one function. Each part `<name>_part<k>` takes
-    the function's arguments (`signature`) and a work array `_w`: it binds the inputs it uses,
-    loads from `_w` the locals of earlier parts it uses, runs its statements (array arguments
-    are written in place) and stores in `_w` its locals that later code uses. The main body
-    allocates `_w`, calls the parts in order and runs the tail. Returns ([(part name, body)],
-    main body): no parts when the code is short. `prologue` (allocations of the arrays that
-    `signature` passes to the parts) starts the main body. `limit` defaults to `SPLIT`."""
-    limit = SPLIT if limit is None else limit
-    if len(lines) <= limit:
-        return [], [*inputs, *prologue, *lines, *tail]
-    chunks = [lines[i : i + limit] for i in range(0, len(lines), limit)]
-
-    def target(line: str) -> str | None:
-        left = line.split(" = ", 1)[0]
-        return left if left.isidentifier() else None
-
-    def uses(line: str) -> set[str]:
-        left, _, right = line.partition(" = ")
-        return set(_IDENTIFIER.findall(right)) | (set() if left.isidentifier() else set(_IDENTIFIER.findall(left)))
-
-    words = [set().union(*(uses(line) for line in chunk)) for chunk in chunks]
-    tail_words = set().union(*(_IDENTIFIER.findall(line) for line in tail))
-    later = [tail_words | set().union(*words[k + 1 :]) for k in range(len(chunks))]
-    input_names = [line.split(" = ", 1)[0] for line in inputs]
-    slot: dict[str, int] = {}
-    parts: list[tuple[str, list[str]]] = []
-    for k, chunk in enumerate(chunks):
-        body = [line for line, bound in zip(inputs, input_names, strict=True) if bound in words[k]]
-        body += [f"{v} = _w[{slot[v]}]" for v in slot if v in words[k]]
-        body += chunk
-        for line in chunk:
-            v = target(line)
-            if v is not None and v in later[k] and v not in slot:
-                slot[v] = len(slot)
-                body.append(f"_w[{slot[v]}] = {v}")
-        parts.append((f"{name}_part{k}", body))
-    main = [*prologue, f"_w = numpy.empty({max(len(slot), 1)})"] + [f"{part}({signature}, _w)" for part, _ in parts]
-    main += [line for line, bound in zip(inputs, input_names, strict=True) if bound in tail_words]
-    main += [f"{v} = _w[{slot[v]}]" for v in slot if v in tail_words]
-    return parts, main + tail
 
 
 _IDENTIFIER = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
@@ -593,3 +548,166 @@ class PythonPrinter(Printer):
     def imports(self) -> list[str]:
         """The `math` names the printed code uses."""
         return sorted(self.used & MATH_NAMES)
+
+
+_TOKEN = re.compile(r"(\d+\.?\d*(?:[eE][-+]?\d+)?)|([A-Za-z_]\w*)(\[[\d, ]+\])?")
+_STATEMENT = re.compile(r"^([A-Za-z_]\w*(?:\[[\d, ]+\])?) = (.*)$")
+
+
+def vectorize(inputs: list[str], lines: list[str], tail: list[str], name: str, family: int = 4) -> tuple[list[str], list[str]]:
+    """Long straight-line numba code as loops over index tables, so that numba compiles a few
+    loops instead of thousands of statements (its compile time grows with the statements).
+
+    Every scalar (an input or a temporary) gets a slot of a work array `_w`. Statements are
+    scheduled by level (1 + the highest level of the scalars they read), and the statements of
+    one level with the same shape (the code with its scalars and constant array indices taken
+    out: `{0}*{1} + {2}*{3}`, `_a[{0}, {1}] = {2}`) form a family: a family of at least `family`
+    members becomes one loop over a table (a module-level int64 array `<name>_T<k>`) of its
+    members' slots and indices; the others are written out. Statements of one level never read
+    each other, so the order within a level is free. A statement of another form (a call such as
+    `_lu_solve(_a, _x)`, a slice) is a barrier: the code before and after it is scheduled apart.
+    Returns (the module-level tables, the body: `_w`, the code, the tail)."""
+    statements = [piece for line in [*inputs, *lines] for piece in _accumulate(line.split("  #", 1)[0])]
+    slots: dict[str, int] = {}
+    for line in statements:
+        match = _STATEMENT.match(line)
+        if match and match.group(1).isidentifier():
+            slots.setdefault(match.group(1), len(slots))
+    tables: list[str] = []
+    body = [f"_w = numpy.empty({max(len(slots), 1)})"]
+    segment: list[tuple[str, str]] = []
+    level: dict[str, int] = {}
+
+    def flush() -> None:
+        body.extend(_schedule(segment, slots, level, name, tables, family))
+        segment.clear()
+
+    for line in statements:
+        match = _STATEMENT.match(line)
+        if match and _pure(match.group(2)):
+            segment.append((match.group(1), match.group(2)))
+        else:
+            flush()
+            body.append(_substitute(line, slots))
+    flush()
+    body += [_substitute(line, slots) for line in tail]
+    return tables, body
+
+
+_CALL = re.compile(r"([A-Za-z_][\w.]*)\(")
+MATH_CALLS = frozenset({*MATH_NAMES, "abs", "float"})
+
+
+def _accumulate(line: str, longest: int = 4) -> list[str]:
+    """`x = a + b - c + ...` (a sum of more than `longest` terms) as `x = a`, `x = x + b`,
+    `x = x - c`, ...: one statement per term, which `vectorize` turns into loops across the
+    sums of the same shape (the rows of F). Other statements as they are."""
+    match = _STATEMENT.match(line)
+    if not match:
+        return [line]
+    left, right = match.groups()
+    terms: list[str] = []
+    depth, start = 0, 0
+    for i, char in enumerate(right):
+        if char in "([":
+            depth += 1
+        elif char in ")]":
+            depth -= 1
+        elif depth == 0 and i > start and right[i - 1] == " " and char in "+-" and i + 1 < len(right) and right[i + 1] == " ":
+            terms.append(right[start : i - 1])
+            start = i
+    terms.append(right[start:])
+    if len(terms) <= longest:
+        return [line]
+    return [f"{left} = {terms[0]}"] + [f"{left} = {left} {term[0]} {term[2:]}" for term in terms[1:]]
+
+
+def _pure(code: str) -> bool:
+    """True when the only calls in `code` are of math functions (no side effects, no arrays made)."""
+    return all(call in MATH_CALLS for call in _CALL.findall(code))
+
+
+def _substitute(line: str, slots: Mapping[str, int]) -> str:
+    """`line` with each slotted scalar read or written as `_w[k]`."""
+
+    def replace(match: re.Match[str]) -> str:
+        number, word, index = match.groups()
+        if number is not None:
+            return number
+        if index is None and word in slots:
+            return f"_w[{slots[word]}]"
+        return match.group(0)
+
+    return _TOKEN.sub(replace, line)
+
+
+def _schedule(segment: list[tuple[str, str]], slots: Mapping[str, int], level: dict[str, int], name: str, tables: list[str], family: int) -> list[str]:
+    """The statements of one segment (see `vectorize`) as loops over families and written-out code."""
+    groups: dict[tuple[int, str, str], list[list[int]]] = {}
+    for left, right in segment:
+        operands: list[int] = []
+        depth = 0
+
+        def take(match: re.Match[str], operands: list[int] = operands) -> str:
+            nonlocal depth
+            number, word, index = match.groups()
+            if number is not None:
+                return number
+            if index is not None:
+                depth = max(depth, level.get(word + index, 0))  # an array element written before
+                parts = []
+                for value in index[1:-1].split(","):
+                    operands.append(int(value))
+                    parts.append(f"{{i{len(operands) - 1}}}")
+                return f"{word}[{', '.join(parts)}]"
+            if word in slots:
+                operands.append(slots[word])
+                depth = max(depth, level.get(word, 0))
+                return f"{{w{len(operands) - 1}}}"
+            return word
+
+        shape_right = _TOKEN.sub(take, right)
+        shape_left = _TOKEN.sub(take, left)
+        level[left] = depth + 1
+        groups.setdefault((depth, shape_left, shape_right), []).append(operands)
+    code: list[str] = []
+    for (_, shape_left, shape_right), members in sorted(groups.items(), key=lambda item: item[0][0]):
+        if len(members) < family:
+            for operands in members:
+                values = {f"w{k}": f"_w[{v}]" for k, v in enumerate(operands)} | {f"i{k}": str(v) for k, v in enumerate(operands)}
+                code.append(f"{shape_left.format(**values)} = {shape_right.format(**values)}")
+            continue
+        table = f"{name}_T{len(tables)}"
+        width = len(members[0])
+        flat = ", ".join(str(v) for operands in members for v in operands)
+        tables.append(f"{table} = numpy.array([{flat}], dtype=numpy.int64).reshape({len(members)}, {width})")
+        values = {f"w{k}": f"_w[{table}[_r, {k}]]" for k in range(width)} | {f"i{k}": f"{table}[_r, {k}]" for k in range(width)}
+        code += [f"for _r in range({len(members)}):", f"    {shape_left.format(**values)} = {shape_right.format(**values)}"]
+    return code
+
+
+@dataclass(frozen=True)
+class Block:
+    """Straight-line code: assignments of common subexpressions, then the results."""
+
+    lines: tuple[str, ...]
+    results: tuple[str, ...]
+
+
+class CodePrinter(PythonPrinter):
+    """`PythonPrinter` with a map keyed by sympy symbols, for small sympy expressions (animate's
+    positions): `module_imports["math"]` lists the `math` names used, as sympy's printers do."""
+
+    def __init__(self, names: Mapping[sp.Symbol, str]) -> None:
+        super().__init__({str(symbol): name for symbol, name in names.items()})
+
+    @property
+    def module_imports(self) -> dict[str, set[str]]:
+        return {"math": set(self.imports())}
+
+
+def cse_block(exprs: Sequence[sp.Expr], prefix: str, printer: Printer) -> Block:
+    """Straight-line code computing the sympy expressions `exprs` (converted to symengine), CSE once,
+    temporaries `_<prefix>0, ...`."""
+    lines, results = printer.block([to_symengine(e) for e in exprs], f"_{prefix}")
+    return Block(tuple(f"{name} = {code}" for name, code in lines), tuple(results))

@@ -37,7 +37,8 @@ from typing import Any
 import sympy as sp
 
 from lagrange_cli._symengine import se, to_symengine
-from lagrange_cli.emit.python import PythonPrinter, Rows, code_lines, define, free_names, split, symbol_names
+from lagrange_cli.emit import python as emit_python
+from lagrange_cli.emit.python import PythonPrinter, Rows, code_lines, define, free_names, symbol_names, vectorize
 from lagrange_cli.model import Model
 
 ALPHA = se.Symbol("_alpha")
@@ -159,12 +160,12 @@ class Generator:
         return "[" + ", ".join("[" + ", ".join(row) + "]" for row in cells) + "]"
 
     def numba_function(self, name: str, signature: str, doc: str, inputs: list[str], lines: list[str], tail: list[str]) -> str:
-        """A numba function, cut into parts when long (`split`): the parts take the same arguments and `_w`."""
-        parts, body = split(inputs, lines, tail, signature, name)
-        functions = [define(part, f"{signature}, _w", f"Part {k} of {name}.", part_body) for k, (part, part_body) in enumerate(parts)]
-        if parts:
-            self.uses_numpy = True
-        return "\n\n\n".join([*functions, define(name, signature, doc, body)])
+        """A numba function; a long one as loops over tables (`vectorize`), the tables kept for the module's top."""
+        if len(lines) <= emit_python.SPLIT:
+            return define(name, signature, doc, [*inputs, *lines, *tail])
+        tables, body = vectorize(inputs, lines, tail, name)
+        self.tables += tables
+        return define(name, signature, doc, body)
 
     # -- functions ------------------------------------------------------------------------------
 
@@ -255,7 +256,7 @@ class Generator:
         numba: `_accel`, `_hamilton` (unconstrained systems) and `_event`, which the compiled
         loops call; Python: `_accel` (and `_jac`) for scipy, and the monitored quantities."""
         model, forms = self.model, self.forms
-        self.uses_numpy = False
+        self.tables: list[str] = []
         stop_expr = to_symengine(event) if event is not None else se.RealDouble(1.0)
         uses_accel = bool(free_names([stop_expr]) & {*(str(a) for a in forms.qdd), *(str(m) for m in model.multipliers)})
         stop = self.scalar("_event", "The stop condition, whose sign change ends the run.", stop_expr, uses_accel)
@@ -273,7 +274,8 @@ class Generator:
         parts.append(stop)
         math_names = self.printer.imports()
         header = [f"_N = {self.n}", f"_K = {self.k}", f"_SIZE = {self.size}"]
-        if self.uses_numpy:
+        if self.tables:
+            header += self.tables
             header.insert(0, "import numpy")
         if math_names:
             header.insert(0, f"from math import {', '.join(math_names)}")

@@ -159,7 +159,7 @@ def _kernels_source() -> str:
 @functools.cache
 def _generator_source() -> str:
     """The code that writes the generated modules: a fix to it must not reuse modules cached before."""
-    files = [("lagrange_cli.numeric", "codegen.py"), ("lagrange_cli.emit", "python.py"), ("lagrange_cli.emit", "common.py"), ("lagrange_cli", "algebra.py")]
+    files = [("lagrange_cli.numeric", "codegen.py"), ("lagrange_cli.emit", "python.py"), ("lagrange_cli.emit", "printer.py"), ("lagrange_cli.emit", "common.py"), ("lagrange_cli", "algebra.py")]
     return "".join(resources.files(package).joinpath(name).read_text(encoding="utf-8") for package, name in files)
 
 
