@@ -13,8 +13,12 @@ from __future__ import annotations
 import re
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import sympy as sp
+
+from lagrange_cli._symengine import se
+from lagrange_cli.emit import common
 
 # One unit is about the width of an average math-italic letter at 10 pt (calibrated against
 # pdflatex on the bundled systems' terms; see tests/test_latex_layout.py).
@@ -275,37 +279,38 @@ class Piece:
     width: float
 
 
-Printer = Callable[[sp.Basic], str]
+Printer = Callable[[Any], str]
 
 
 def piece(tex: str) -> Piece:
     return Piece(tex, width(tex))
 
 
-def pieces(expr: sp.Expr, doprint: Printer, room: float) -> list[Piece]:
+def pieces(expr: Any, doprint: Printer, room: float) -> list[Piece]:
     """`expr` as pieces that a line of `room` units can hold where possible: the terms of a
     sum, and inside a term too wide for a line, the terms of its widest parenthesized sum or of
-    its numerator (`\\frac{1}{D} \\left( N \\right)`)."""
-    if isinstance(expr, sp.Add):
+    its numerator (`\\frac{1}{D} \\left( N \\right)`). `expr` is a sympy expression printed by a
+    sympy printer, or a symengine one printed by a `common.SymenginePrinter` (big systems)."""
+    if expr.is_Add:
         return _sum(expr, doprint, room)
     measured = piece(doprint(expr))
     if measured.width <= room:
         return [measured]
-    if expr.could_extract_minus_sign():  # the sign goes in front: - \frac{1}{D} (...), not \frac{1}{D} - (...)
+    if _negative(expr):  # the sign goes in front: - \frac{1}{D} (...), not \frac{1}{D} - (...)
         inner = _term(-expr, doprint, room)
         return [Piece("- " + inner[0].tex, inner[0].width + _UNARY), *inner[1:]] if inner else [measured]
     return _term(expr, doprint, room) or [measured]
 
 
-def _sum(expr: sp.Add, doprint: Printer, room: float) -> list[Piece]:
+def _sum(expr: Any, doprint: Printer, room: float) -> list[Piece]:
     return terms(_ordered(expr, doprint), doprint, room)
 
 
-def terms(summands: Sequence[sp.Expr], doprint: Printer, room: float) -> list[Piece]:
+def terms(summands: Sequence[Any], doprint: Printer, room: float) -> list[Piece]:
     """The sum of `summands`, in their order, as pieces (see `pieces`)."""
     out: list[Piece] = []
     for term in summands:
-        negative = term.could_extract_minus_sign()
+        negative = _negative(term)
         inner = pieces(-term if negative else term, doprint, room)
         sign = "- " if negative else "+ " if out else ""
         first = inner[0]
@@ -315,44 +320,87 @@ def terms(summands: Sequence[sp.Expr], doprint: Printer, room: float) -> list[Pi
     return out
 
 
-def _ordered(expr: sp.Add, doprint: Printer) -> list[sp.Expr]:
-    """The terms of a sum in the order sympy's printer writes them."""
-    owner = getattr(doprint, "__self__", None)
+def _sympy(expr: Any) -> bool:
+    return isinstance(expr, sp.Basic)
+
+
+def _negative(expr: Any) -> bool:
+    """The term is printed with a minus in front."""
+    return bool(expr.could_extract_minus_sign()) if _sympy(expr) else common.negative(expr)
+
+
+def _ordered(expr: Any, doprint: Printer) -> list[Any]:
+    """The terms of a sum in the order the printer writes them."""
+    owner = doprint if isinstance(doprint, common.SymenginePrinter) else getattr(doprint, "__self__", None)
+    if isinstance(owner, common.SymenginePrinter):
+        return owner.order(expr.args)
+    if not _sympy(expr):
+        return sorted(expr.args, key=str)
     if owner is not None and hasattr(owner, "_as_ordered_terms"):
         return list(owner._as_ordered_terms(expr, order=None))
     return list(expr.as_ordered_terms())
 
 
-def _term(expr: sp.Expr, doprint: Printer, room: float) -> list[Piece] | None:
+def _fraction(expr: Any) -> tuple[Any, Any]:
+    """(numerator, denominator) as written, without combining anything."""
+    if _sympy(expr):
+        return sp.fraction(expr, exact=True)
+    if expr.is_Pow and expr.args[1].is_Number and expr.args[1].is_negative and expr.args[0] != se.E:
+        return se.Integer(1), se.Pow(expr.args[0], -expr.args[1])
+    if not expr.is_Mul:
+        return expr, se.Integer(1)
+    top, bottom = [], []
+    for factor in expr.args:
+        if factor.is_Rational and not factor.is_Integer:
+            top.append(se.Integer(int(factor.p)))
+            bottom.append(se.Integer(int(factor.q)))
+        elif factor.is_Pow and factor.args[1].is_Number and factor.args[1].is_negative and factor.args[0] != se.E:
+            bottom.append(se.Pow(factor.args[0], -factor.args[1]))
+        else:
+            top.append(factor)
+    return se.Mul(*top), se.Mul(*bottom)
+
+
+def _product(factors: Sequence[Any], like: Any) -> Any:
+    if _sympy(like):
+        return sp.Mul(*factors, evaluate=False) if factors else sp.Integer(1)
+    return se.Mul(*factors)
+
+
+def _power_of_sum(expr: Any) -> bool:
+    return bool(expr.is_Pow and expr.args[0].is_Add and expr.args[1].is_Rational and expr.args[1].is_positive)
+
+
+def _term(expr: Any, doprint: Printer, room: float) -> list[Piece] | None:
     """A too-wide product or quotient broken inside its widest sum, or None."""
-    numerator, denominator = sp.fraction(expr, exact=True)
+    numerator, denominator = _fraction(expr)
     if denominator != 1:
         top = pieces(numerator, doprint, room)
         # a sum is wrapped in parentheses; a product's pieces already hold their own
-        wrapped = _wrap(top, "", "") if isinstance(numerator, sp.Add) else top
+        wrapped = _wrap(top, "", "") if numerator.is_Add else top
         bottom_tex = doprint(denominator)
         if width(bottom_tex) <= room / 2:
             if len(top) == 1:
                 return None
             prefix = rf"\frac{{1}}{{{bottom_tex}}} "
-            return _wrap(top, prefix, "") if isinstance(numerator, sp.Add) else [piece(prefix + top[0].tex), *top[1:]]
+            return _wrap(top, prefix, "") if numerator.is_Add else [piece(prefix + top[0].tex), *top[1:]]
         bottom = pieces(denominator, doprint, room)
         if len(top) == 1 and len(bottom) == 1:
             return None
-        return [*wrapped, *(_wrap(bottom, "/ ", "") if isinstance(denominator, sp.Add) or len(bottom) == 1 else [piece("/ " + bottom[0].tex), *bottom[1:]])]
-    if not isinstance(expr, sp.Mul):
-        if isinstance(expr, sp.Pow) and isinstance(expr.base, sp.Add) and expr.exp.is_Rational and expr.exp > 0:
-            return _wrap(_sum(expr.base, doprint, room), "", f"^{{{doprint(expr.exp)}}}")
+        return [*wrapped, *(_wrap(bottom, "/ ", "") if denominator.is_Add or len(bottom) == 1 else [piece("/ " + bottom[0].tex), *bottom[1:]])]
+    if not expr.is_Mul:
+        if _power_of_sum(expr):
+            return _wrap(_sum(expr.args[0], doprint, room), "", f"^{{{doprint(expr.args[1])}}}")
         return None
     factors = list(expr.args)
-    widest = max(range(len(factors)), key=lambda k: len(doprint(factors[k])) if isinstance(factors[k], (sp.Add, sp.Pow)) else -1)
+    widest = max(range(len(factors)), key=lambda k: len(doprint(factors[k])) if factors[k].is_Add or factors[k].is_Pow else -1)
     target = factors[widest]
-    rest = sp.Mul(*(factors[:widest] + factors[widest + 1 :]), evaluate=False) if len(factors) > 1 else sp.Integer(1)
+    rest = _product(factors[:widest] + factors[widest + 1 :], expr)
     prefix = "" if rest == 1 else "- " if rest == -1 else doprint(rest) + " "
-    if isinstance(target, sp.Add):
+    if target.is_Add:
         return _wrap(_sum(target, doprint, room), prefix, "")
-    if isinstance(target, sp.Pow) and isinstance(target.base, sp.Add) and target.exp.is_Rational and target.exp > 0:
-        return _wrap(_sum(target.base, doprint, room), prefix, f"^{{{doprint(target.exp)}}}")
+    if _power_of_sum(target):
+        return _wrap(_sum(target.args[0], doprint, room), prefix, f"^{{{doprint(target.args[1])}}}")
     return None
 
 
