@@ -68,3 +68,35 @@ def to_symengine(expr: object) -> symengine.Basic:
     if isinstance(expr, sp.Function) and hasattr(se, type(expr).__name__):
         return getattr(se, type(expr).__name__)(*(to_symengine(a) for a in expr.args))
     raise TypeError(f"cannot convert {type(expr).__name__} to symengine: {expr}")
+
+
+def to_sympy(expr: symengine.Basic, cache: dict[symengine.Basic, object] | None = None) -> object:
+    """`sympy.sympify(expr)`, with each distinct sub-expression converted once (`cache`, which may be
+    shared by the expressions of one model): the equations of a big system repeat their mass matrix
+    entries in the kinetic energy, the momenta and the energy, and sympify converts every repetition.
+    Sums, products, powers and the named functions are rebuilt with sympy's own constructors, as
+    sympify does; anything else is converted by sympify itself."""
+    import sympy as sp
+
+    memo: dict[symengine.Basic, object] = {} if cache is None else cache
+
+    def convert(node: symengine.Basic) -> object:
+        found = memo.get(node)
+        if found is not None:
+            return found
+        kind = type(node).__name__
+        if kind == "Add":
+            value = sp.Add(*(convert(a) for a in node.args))
+        elif kind == "Mul":
+            value = sp.Mul(*(convert(a) for a in node.args))
+        elif kind == "Pow":
+            base, exponent = node.args
+            value = sp.Pow(convert(base), convert(exponent))
+        elif node.is_Function and kind != "FunctionSymbol" and isinstance(getattr(sp, kind, None), type) and issubclass(getattr(sp, kind), sp.Function):
+            value = getattr(sp, kind)(*(convert(a) for a in node.args))
+        else:
+            value = sp.sympify(node)
+        memo[node] = value
+        return value
+
+    return convert(expr)

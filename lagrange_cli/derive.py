@@ -8,8 +8,19 @@ Everything here follows the textbook derivation term by term:
     d/dt(dL/dq_dot_i) - dL/dq_i + dR/dq_dot_i = Q_i (+ sum_k lambda_k a_ki)
 
 The time derivative is taken by the chain rule with q, q_dot, q_ddot as plain symbols,
-which splits each equation into `M q_ddot - F`. Symengine does the differentiation
-(two orders of magnitude faster than sympy); results are handed back as sympy.
+which splits each equation into `M q_ddot - F`. Everything is computed in symengine (two
+orders of magnitude faster than sympy) and kept there: the model's `symengine` forms are the
+result, and its sympy fields are converted only when something reads them (`Model.from_symengine`).
+
+The point masses (a particle or a body's centre, its mass and position of q and t only) are
+done by structure rather than by differentiating their expanded kinetic energy:
+M_ij = sum_p m_p (dx_p/dq_i . dx_p/dq_j) from the Jacobian columns, each distinct pair of
+columns dotted and trig-combined once and the masses sharing it added first (the general
+chain's M_ij = l_i l_j cos(q_i - q_j) (m_max(i,j) + ... + m_N)); their velocity terms in F
+come from the Christoffel symbols of M, their weight from g . dx_p/dq_i grouped the same way.
+Everything else (extra kinetic and Lagrangian terms, rotational energy, the velocity-linear
+and constant parts of moving positions, potentials, dissipation, forces) goes through the
+general route above.
 """
 
 from __future__ import annotations
@@ -17,6 +28,7 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import sympy as sp
 
@@ -24,11 +36,12 @@ from lagrange_cli._symengine import se, to_symengine
 from lagrange_cli.algebra import combine_trig, expand_bounded, expandable
 from lagrange_cli.errors import Span, fail
 from lagrange_cli.expr import numeric_value, real_derivative
-from lagrange_cli.model import ConstraintRow, Model
+from lagrange_cli.model import ConstraintRow, Model, SymengineForms
 from lagrange_cli.spec import Body, Constraint, Particle, SystemSpec, time_derivative
-from lagrange_cli.validate import Source, first_refusal, refusal, validate
+from lagrange_cli.validate import Source, first_refusal, forms_parts, refusal, survey, validate
 
 Vector = list[se.Basic]
+ZERO = se.Integer(0)
 
 
 def derive(spec: SystemSpec) -> Model:
@@ -38,34 +51,72 @@ def derive(spec: SystemSpec) -> Model:
     try:
         spec = eliminate(spec)
         check_masses(spec)
-        model = _derive(spec)
+        try:
+            model, cleared = _derive(spec)
+        finally:
+            _CONVERTED.clear()
     except TypeError as exc:
         if "NaN" not in str(exc):
             raise
         # sympy evaluating an undefined value on the way (atan2 of a zoo after a substitution)
         raise fail(None, f"{spec.path}: an expression became undefined (not a number) while deriving the equations", "expressions with finite values wherever they are evaluated") from None
-    validate(model, sources(spec), (*spec.q, *spec.qd, spec.t))
+    validate(model, sources(spec), (*spec.q, *spec.qd, spec.t), cleared)
     return model
 
 
-def _derive(spec: SystemSpec) -> Model:
-    q, qd, t = _se(spec.q), _se(spec.qd), to_symengine(spec.t)
-    kinetic = combine_trig(kinetic_energy(spec) + to_symengine(spec.kinetic))
-    potential = potential_energy(spec)
-    lagrangian = kinetic - potential + to_symengine(spec.lagrangian)
+def _derive(spec: SystemSpec) -> tuple[Model, bool]:
+    """The model and whether `validate.survey` cleared its symengine forms."""
+    q, qd, t = _se(spec.q), _se(spec.qd), _to_se(spec.t)
+    qdd = _se(spec.qdd)
+    points = [item for item in _masses(spec) if _structured(item, qd, qdd)]
+    others = [item for item in _masses(spec) if not _structured(item, qd, qdd)]
+    quad = point_masses(points, q, qd, t, _se(spec.gravity) if spec.gravity is not None else None)
+    potential = potential_energy(spec, others) + quad.gravity_potential
+    # everything but the point masses' quadratic kinetic energy and gravity: differentiated as written
+    rest_kinetic = combine_trig(quad.linear + quad.constant + kinetic_energy(spec, others) + rotational_energy(spec) + _to_se(spec.kinetic))
+    quadratic = quad.quadratic()
+    kinetic = quadratic + rest_kinetic
+    rest = rest_kinetic - potential_energy(spec, others) + _to_se(spec.lagrangian)
+    lagrangian = kinetic - potential + _to_se(spec.lagrangian)
     dissipation = combine_trig(rayleigh(spec))
     forces = generalized_forces(spec)
-    if any(_has(lagrangian, s) for s in _se(spec.qdd)):
+    if set(qdd) & rest.free_symbols:  # the point masses' part has none (`_structured`)
         raise fail(None, f"{spec.path}: the Lagrangian depends on accelerations", "a Lagrangian of coordinates, velocities and time")
-    p = momenta(lagrangian, qd)
-    mass, force = euler_lagrange(lagrangian, dissipation, forces, q, qd, t)
-    check_size(spec, tree_size([*(m for row in mass for m in row), *force, kinetic, dissipation, *p], MAX_EQUATION_NODES), MAX_EQUATION_NODES, "the equations of motion")
+    rest_p = momenta(rest, qd)
+    rest_mass, rest_force = euler_lagrange(rest, dissipation, forces, q, qd, t)
+    n = len(q)
+    mass = [[quad.mass[i][j] + rest_mass[i][j] for j in range(n)] for i in range(n)]
+    velocity_force = quad.forces(q, qd, t)
+    force = [velocity_force[i] + quad.gravity[i] + rest_force[i] for i in range(n)]
+    p = [se.Add(*(quad.mass[i][j] * qd[j] for j in range(n) if quad.mass[i][j] != 0)) + rest_p[i] for i in range(n)]
+    energy = quadratic + quad.gravity_potential + energy_function(rest, rest_p, qd)
+    force, p, kinetic, energy = [_tidy(f) for f in force], [_tidy(x) for x in p], _tidy(kinetic), _tidy(energy)
     for i, name in enumerate(spec.coordinates):
-        if all(m == 0 for m in mass[i]) and force[i] == 0 and not any(_has(c.expr, se.Symbol(name)) or _has(c.expr, qd[i]) for c in map(_se_constraint, spec.constraints)):
+        if all(m == ZERO for m in mass[i]) and force[i] == ZERO and not any(_has(c.expr, se.Symbol(name)) or _has(c.expr, qd[i]) for c in map(_se_constraint, spec.constraints)):
             raise fail(
                 spec.spans.get(name), f"coordinate '{name}' appears nowhere in the energies or forces: its equation would be 0 = 0", "a coordinate that the positions, energies or forces depend on"
             )
-    return Model(
+    forms = SymengineForms(
+        q=tuple(q),
+        qd=tuple(qd),
+        qdd=tuple(qdd),
+        t=t,
+        mass=tuple(tuple(row) for row in mass),
+        forcing=tuple(force),
+        kinetic=kinetic,
+        potential=potential,
+        lagrangian=lagrangian,
+        dissipation=dissipation,
+        energy=energy,
+        momenta=tuple(p),
+        generalized_forces=tuple(forces),
+    )
+    size, cleared = survey(forms_parts(forms), MAX_EQUATION_NODES)
+    check_size(spec, size, MAX_EQUATION_NODES, "the equations of motion")
+    forms, given = (forms, {}) if cleared else _kinks(forms, spec)
+    model = Model.from_symengine(
+        forms,
+        given,
         title=spec.title,
         source=spec.path,
         coordinates=spec.coordinates,
@@ -74,15 +125,6 @@ def _derive(spec: SystemSpec) -> Model:
         qdd=spec.qdd,
         t=spec.t,
         parameters=spec.parameters,
-        kinetic=_sp(kinetic),
-        potential=_sp(potential),
-        lagrangian=_sp(lagrangian),
-        dissipation=_sp(dissipation),
-        generalized_forces=tuple(_sp(f) for f in forces),
-        mass_matrix=sp.ImmutableMatrix(len(q), len(q), [_sp(m) for row in mass for m in row]),
-        forcing=sp.ImmutableMatrix([_sp(f) for f in force]),
-        momenta=tuple(_sp(x) for x in p),
-        energy=_sp(energy_function(lagrangian, p, qd)),
         constraints=tuple(constraint_row(c, spec) for c in spec.constraints),
         eliminated=getattr(spec, "_eliminated", ()),
         description=spec.description,
@@ -92,13 +134,193 @@ def _derive(spec: SystemSpec) -> Model:
         spans=spec.spans,
         definitions=spec.definitions,
     )
+    return model, cleared and not given
+
+
+def _structured(item: Particle | Body, qd: Sequence[se.Basic], qdd: Sequence[se.Basic]) -> bool:
+    """Whether a mass's translational kinetic energy is a quadratic form in the velocities (its mass and
+    position depend on coordinates and time only), which `point_masses` builds from its Jacobian."""
+    rates = {*qd, *qdd}
+    return not any(rates & _to_se(e).free_symbols for e in (item.mass, *item.position))
+
+
+@dataclass
+class PointMasses:
+    """The point masses' kinetic energy `1/2 q_dot^T M q_dot + linear + constant` and their weight.
+
+    M_ij = sum_p m_p (dx_p/dq_i . dx_p/dq_j), linear = sum_p m_p (dx_p/dt . J_p q_dot), constant =
+    sum_p m_p |dx_p/dt|^2 / 2; the generalized gravity force Q_i = sum_p m_p (g . dx_p/dq_i). Each of M_ij
+    and Q_i is a sum over geometric terms, each times the sum of the masses that share it (`_grouped`):
+    the general chain's M_ij is l_i l_j cos(q_i - q_j) (m_max(i,j) + ... + m_N), not N products."""
+
+    mass: list[list[se.Basic]]
+    linear: se.Basic
+    constant: se.Basic
+    gravity: list[se.Basic]
+    gravity_potential: se.Basic
+    qd: Sequence[se.Basic]
+
+    def quadratic(self) -> se.Basic:
+        """1/2 q_dot^T M q_dot, each pair of velocities once."""
+        m, v, n = self.mass, self.qd, len(self.mass)
+        return se.Add(*(m[i][i] * v[i] ** 2 / 2 for i in range(n)), *(m[i][j] * v[i] * v[j] for i in range(n) for j in range(i + 1, n)))
+
+    def forces(self, q: Sequence[se.Basic], qd: Sequence[se.Basic], t: se.Basic) -> Vector:
+        """The velocity terms of the equations from the quadratic form, by the Christoffel symbols:
+        F_i = 1/2 sum_jk dM_jk/dq_i qd_j qd_k - sum_jk dM_ij/dq_k qd_j qd_k - sum_j dM_ij/dt qd_j,
+        differentiating each entry of M only by the coordinates it has."""
+        n = len(q)
+        terms: list[list[se.Basic]] = [[] for _ in range(n)]
+        index = {s: k for k, s in enumerate(q)}
+        coordinates = set(q)
+        half = se.Rational(1, 2)
+        for a in range(n):
+            for b in range(a, n):
+                entry = self.mass[a][b]
+                if entry == ZERO:
+                    continue
+                free = entry.free_symbols
+                for c in sorted(index[s] for s in free & coordinates):
+                    d = se.diff(entry, q[c])
+                    if d == ZERO:
+                        continue
+                    terms[a].append(-d * qd[b] * qd[c])
+                    if a != b:
+                        terms[b].append(-d * qd[a] * qd[c])
+                        terms[c].append(d * qd[a] * qd[b])
+                    else:
+                        terms[c].append(half * d * qd[a] ** 2)
+                if t in free:
+                    d = se.diff(entry, t)
+                    terms[a].append(-d * qd[b])
+                    if a != b:
+                        terms[b].append(-d * qd[a])
+        return [se.Add(*row) for row in terms]
+
+
+def point_masses(items: Sequence[Particle | Body], q: Sequence[se.Basic], qd: Sequence[se.Basic], t: se.Basic, gravity: Sequence[se.Basic] | None) -> PointMasses:
+    """`PointMasses` of `items` (each with a mass and position of coordinates and time only).
+
+    Each distinct Jacobian column dx/dq_i (the same for every link below a joint of a chain) is numbered
+    once; M_ij collects, per pair of column numbers, the masses that have it, and each dot product of
+    two distinct columns is formed and trig-combined once."""
+    n = len(q)
+    zero = se.Integer(0)
+    numbers: dict[tuple[se.Basic, ...], int] = {}
+    columns_seen: list[tuple[se.Basic, ...]] = []
+    pairs: dict[tuple[int, int], dict[tuple[int, int], list[se.Basic]]] = {}
+    weights: dict[int, dict[int, list[se.Basic]]] = {}
+    linear: list[se.Basic] = []
+    constant: list[se.Basic] = []
+    potential: list[se.Basic] = []
+
+    def number(column: tuple[se.Basic, ...]) -> int:
+        if column not in numbers:
+            numbers[column] = len(columns_seen)
+            columns_seen.append(column)
+        return numbers[column]
+
+    for item in items:
+        m = _to_se(item.mass)
+        x = _se(item.position)
+        free = set().union(*(xk.free_symbols for xk in x))
+        columns = [(i, number(col)) for i, col in jacobian(x, q) if any(c != ZERO for c in col)]
+        for k, (i, a) in enumerate(columns):
+            for j, b in columns[k:]:
+                pairs.setdefault((i, j), {}).setdefault((a, b), []).append(m)
+        rate = [se.diff(xk, t) for xk in x] if t in free else []
+        if any(r != ZERO for r in rate):
+            linear.append(m * se.Add(*(_dot(columns_seen[a], rate) * qd[i] for i, a in columns)))
+            constant.append(m * _dot(rate, rate) / 2)
+        if gravity is not None:
+            potential.append(-m * _dot(gravity, x))
+            for i, a in columns:
+                weights.setdefault(i, {}).setdefault(a, []).append(m)
+    mass = [[zero] * n for _ in range(n)]
+    dots: dict[tuple[int, int], se.Basic] = {}
+    for (i, j), members in pairs.items():
+        for key in members:
+            if key not in dots:
+                dots[key] = combine_trig(_dot(columns_seen[key[0]], columns_seen[key[1]]))
+        mass[i][j] = mass[j][i] = _grouped([(dots[key], ms) for key, ms in members.items()])
+    forces = [zero] * n
+    if gravity is not None:
+        lifts = {a: combine_trig(_dot(gravity, columns_seen[a])) for a in range(len(columns_seen))}
+        forces = [_grouped([(lifts[a], ms) for a, ms in weights.get(i, {}).items()]) for i in range(n)]
+    return PointMasses(mass, se.Add(*linear), se.Add(*constant), forces, se.Add(*potential), qd)
+
+
+def jacobian(x: Sequence[se.Basic], q: Sequence[se.Basic]) -> list[tuple[int, tuple[se.Basic, ...]]]:
+    """The columns (i, dx/dq_i) for the coordinates x has, each component differentiated term by term
+    and only in the terms that have q_i: a chain link's position has N terms, one of them with q_i."""
+    index = {s: i for i, s in enumerate(q)}
+    parts: list[dict[int, list[se.Basic]]] = []
+    for xk in x:
+        by_coordinate: dict[int, list[se.Basic]] = {}
+        for term in se.Add.make_args(xk):
+            for s in term.free_symbols:
+                if s in index:
+                    by_coordinate.setdefault(index[s], []).append(term)
+        parts.append(by_coordinate)
+    found = sorted(set().union(*parts))
+    zero = se.Integer(0)
+    return [(i, tuple(se.diff(se.Add(*terms[i]), q[i]) if i in terms else zero for terms in parts)) for i in found]
+
+
+def _dot(a: Sequence[se.Basic], b: Sequence[se.Basic]) -> se.Basic:
+    return se.Add(*(x * y for x, y in zip(a, b, strict=True)))
+
+
+MAX_TIDY_NODES = 400
+"""Largest expression (operations, `symengine.count_ops`) that `_tidy` tries to expand."""
+
+
+def _tidy(expr: se.Basic) -> se.Basic:
+    """`expr` expanded when that makes it shorter (fewer operations), else as it is: combining only
+    what pays. `2*l*m*x_dot*theta_dot + 2*m*x*x_dot*theta_dot` beats `x_dot*theta_dot*(2*l*m + 2*m*x)`,
+    but `l1*l2*cos(th1 - th2)*(m2 + m3)` stays (its expansion repeats the geometric factor per mass)."""
+    size = se.count_ops(expr)
+    if size > MAX_TIDY_NODES or not expandable(expr):
+        return expr
+    expanded = se.expand(expr)
+    return expanded if se.count_ops(expanded) < size else expr
+
+
+def _grouped(terms: Sequence[tuple[se.Basic, Sequence[se.Basic]]]) -> se.Basic:
+    """sum_k g_k (sum of the weights w_k), written as sum over the distinct terms r of the g_k of r times
+    the sum of the weights (with their numeric coefficients) that multiply r: the masses that share a
+    geometric term are added before multiplying."""
+    by_term: dict[se.Basic, list[se.Basic]] = {}
+    for g, ws in terms:
+        for term in se.Add.make_args(g):
+            coefficient, rest = _split(term)
+            by_term.setdefault(rest, []).extend(ws if coefficient == 1 else [coefficient * w for w in ws])
+    return se.Add(*(_times(rest, ws) for rest, ws in by_term.items()))
+
+
+def _times(factor: se.Basic, weights: Sequence[se.Basic]) -> se.Basic:
+    """factor * (sum of weights), with the sign outside when every weight is negative: -g*(m1 + m2)."""
+    if len(weights) > 1 and all(_split(w)[0].is_negative for w in weights):
+        return -factor * se.Add(*(-w for w in weights))
+    return factor * se.Add(*weights)
+
+
+def _split(term: se.Basic) -> tuple[se.Basic, se.Basic]:
+    """A term as (numeric coefficient, the rest)."""
+    if term.is_Number:
+        return term, se.Integer(1)
+    if isinstance(term, se.Mul):
+        args = term.args
+        if args[0].is_Number:
+            return args[0], se.Mul(*args[1:])
+    return se.Integer(1), term
 
 
 MAX_INPUT_WORK = 100_000
 """Largest sum over the file's expressions of (terms and factors) x (coordinates and velocities in it + 1)."""
 MAX_EQUATION_NODES = 250_000
-"""Largest number of terms and factors of the derived equations (about 5 s to turn into sympy here; the
-bundled systems have at most a few hundred)."""
+"""Largest number of distinct terms and factors (shared ones counted once) of the derived equations, energies
+and momenta (the general 60-link chain has about 17,000; the bundled systems at most a few hundred)."""
 
 
 def tree_size(expr: object, limit: int = 10**9) -> int:
@@ -170,7 +392,7 @@ def check_masses(spec: SystemSpec) -> None:
         for key, value in values:
             if value == 0:
                 continue
-            vanishes = to_symengine(value) == 0
+            vanishes = _to_se(value) == 0
             if not vanishes:
                 try:  # its written constants, at parameters of 1, in floating point (no sympy evaluation of huge numbers)
                     vanishes = numeric_value(value, dict.fromkeys(value.free_symbols, 1.0)) == 0.0
@@ -180,14 +402,19 @@ def check_masses(spec: SystemSpec) -> None:
                 raise fail(item.spans.get(key), f"the {key} of '{item.name}' is written non-zero ({value}) but is 0 in double precision", "a value between 1e-300 and 1e300 in size")
 
 
-def kinetic_energy(spec: SystemSpec) -> se.Basic:
-    """K = sum 1/2 m |x_dot|^2 over particles and bodies, plus 1/2 I omega^2 (planar)
-    or 1/2 sum I_k omega_k^2 (spatial, principal body axes) for bodies."""
-    q, qd, t = _se(spec.q), _se(spec.qd), to_symengine(spec.t)
+def kinetic_energy(spec: SystemSpec, items: Sequence[Particle | Body]) -> se.Basic:
+    """K = sum 1/2 m |x_dot|^2 over `items` (particles and bodies), by differentiating their positions."""
+    q, qd, t = _se(spec.q), _se(spec.qd), _to_se(spec.t)
     total = se.Integer(0)
-    for item in _masses(spec):
+    for item in items:
         v = velocity(_se(item.position), q, qd, t)
-        total += to_symengine(item.mass) * sum((vi**2 for vi in v), se.Integer(0)) / 2
+        total += _to_se(item.mass) * sum((vi**2 for vi in v), se.Integer(0)) / 2
+    return total
+
+
+def rotational_energy(spec: SystemSpec) -> se.Basic:
+    """1/2 I omega^2 (planar) or 1/2 sum I_k omega_k^2 (spatial, principal body axes) over bodies."""
+    total = se.Integer(0)
     for body in spec.bodies:
         inertia, omega = _se(body.inertia), _se(body.angular_velocity)
         total += sum((i * w**2 for i, w in zip(inertia, omega, strict=True)), se.Integer(0)) / 2
@@ -199,31 +426,31 @@ def velocity(position: Sequence[se.Basic], q: Sequence[se.Basic], qd: Sequence[s
     return [sum((se.diff(x, qi) * qdi for qi, qdi in zip(q, qd, strict=True)), se.diff(x, t)) for x in position]
 
 
-def potential_energy(spec: SystemSpec) -> se.Basic:
-    """U = U_file - sum m g . x over particles and bodies (a uniform field g)."""
-    total = to_symengine(spec.potential)
+def potential_energy(spec: SystemSpec, items: Sequence[Particle | Body] | None = None) -> se.Basic:
+    """U = U_file - sum m g . x over `items` (default: every particle and body; a uniform field g)."""
+    total = _to_se(spec.potential)
     if spec.gravity is not None:
         g = _se(spec.gravity)
-        for item in _masses(spec):
-            total -= to_symengine(item.mass) * sum((gi * xi for gi, xi in zip(g, _se(item.position), strict=True)), se.Integer(0))
+        for item in _masses(spec) if items is None else items:
+            total -= _to_se(item.mass) * sum((gi * xi for gi, xi in zip(g, _se(item.position), strict=True)), se.Integer(0))
     return total
 
 
 def rayleigh(spec: SystemSpec) -> se.Basic:
     """R = R_file + sum 1/2 k |x_dot|^2 over damped particles (Exercise 6.9)."""
-    q, qd, t = _se(spec.q), _se(spec.qd), to_symengine(spec.t)
-    total = to_symengine(spec.dissipation)
+    q, qd, t = _se(spec.q), _se(spec.qd), _to_se(spec.t)
+    total = _to_se(spec.dissipation)
     for particle in spec.particles:
         if particle.damping is not None:
             v = velocity(_se(particle.position), q, qd, t)
-            total += to_symengine(particle.damping) * sum((vi**2 for vi in v), se.Integer(0)) / 2
+            total += _to_se(particle.damping) * sum((vi**2 for vi in v), se.Integer(0)) / 2
     return total
 
 
 def generalized_forces(spec: SystemSpec) -> Vector:
     """Q_i = Q_file,i + sum_j f_j dx_j/dq_i over particles with a force (Eq. 6.6)."""
     q = _se(spec.q)
-    forces = [to_symengine(f) for f in spec.generalized_forces] or [se.Integer(0)] * len(q)
+    forces = [_to_se(f) for f in spec.generalized_forces] or [se.Integer(0)] * len(q)
     for particle in spec.particles:
         if particle.force is not None:
             f, x = _se(particle.force), _se(particle.position)
@@ -532,6 +759,40 @@ def _substitute(spec: SystemSpec, k: int, solution: sp.Expr, used: Constraint) -
     return changed
 
 
+def _kinks(forms: SymengineForms, spec: SystemSpec) -> tuple[SymengineForms, dict[str, object]]:
+    """Derivatives of Abs and sign, which symengine leaves as `Derivative(Abs(u), v)`, taken in sympy
+    (`_sp`): d|u|/dv = sign(u) du/dv, and a Dirac delta that vanishes where it sits dropped. Only a file
+    with Abs or sign has them; its fields are then computed in sympy here (and the symengine forms
+    converted back), the rest of the time nothing is converted. Called only for forms that
+    `validate.survey` did not clear (a derivative of Abs is one of the nodes it does not clear)."""
+    if not any(e.has(sp.Abs, sp.sign) for source in sources(spec) for e in source.exprs):
+        return forms, {}
+    converted: dict[str, object] = {}
+
+    def one(value: se.Basic) -> tuple[se.Basic, sp.Expr]:
+        result = _sp(value)
+        try:
+            return to_symengine(result), result
+        except TypeError:  # a Dirac delta that stays: `validate` refuses it at the entry it comes from
+            return value, result
+
+    def many(values: Sequence[se.Basic]) -> tuple[tuple[se.Basic, ...], tuple[sp.Expr, ...]]:
+        pairs = [one(v) for v in values]
+        return tuple(a for a, _ in pairs), tuple(b for _, b in pairs)
+
+    changes: dict[str, Any] = {}
+    for name in ("kinetic", "potential", "lagrangian", "dissipation", "energy"):
+        changes[name], converted[name] = one(getattr(forms, name))
+    for name in ("momenta", "generalized_forces"):
+        changes[name], converted[name] = many(getattr(forms, name))
+    changes["forcing"], forcing = many(forms.forcing)
+    converted["forcing"] = sp.ImmutableMatrix(len(forcing), 1, forcing)
+    rows = [many(row) for row in forms.mass]
+    changes["mass"] = tuple(a for a, _ in rows)
+    converted["mass_matrix"] = sp.ImmutableMatrix(len(rows), len(rows), [e for _, b in rows for e in b])
+    return dataclasses.replace(forms, **changes), converted
+
+
 def _se_constraint(constraint: Constraint) -> Constraint:
     return dataclasses.replace(constraint, expr=to_symengine(constraint.expr))
 
@@ -541,7 +802,22 @@ def _masses(spec: SystemSpec) -> tuple[Particle | Body, ...]:
 
 
 def _se(values: Iterable[sp.Expr]) -> list[se.Basic]:
-    return [to_symengine(v) for v in values]
+    return [_to_se(v) for v in values]
+
+
+_CONVERTED: dict[int, tuple[object, se.Basic]] = {}
+"""`_to_se`'s results during one `derive` (by the identity of the sympy expression, kept alive here)."""
+
+
+def _to_se(expr: object) -> se.Basic:
+    """`to_symengine`, each expression of the file converted once per derivation (a chain link's
+    position is read for its kinetic energy, its weight and its kind)."""
+    hit = _CONVERTED.get(id(expr))
+    if hit is not None and hit[0] is expr:
+        return hit[1]
+    value = to_symengine(expr)
+    _CONVERTED[id(expr)] = (expr, value)
+    return value
 
 
 def _sp(value: se.Basic) -> sp.Expr:

@@ -149,7 +149,7 @@ class _Builder:
         double precision cannot hold (`1e300*1e300` overflows, `1e-200*1e-200` underflows to 0).
         Literals are folded as the tree is built, so each product or sum of numbers passes here:
         looking at the number itself and at the numeric coefficient of a sum or product suffices."""
-        if value in UNDEFINED:
+        if value.is_Atom and value in UNDEFINED:  # the undefined values are atoms: no comparisons of a whole sum
             raise fail(self.at(node), f"this is undefined ({value})", "an expression with a finite value, e.g. no `log(0)` or `tan(pi/2)`")
         if value.is_Rational and max(abs(value.p), value.q).bit_length() > MAX_BITS:
             raise fail(self.at(node), "number is too large", "numbers below 1e300")

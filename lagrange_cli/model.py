@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -45,12 +45,32 @@ class ConstraintRow:
     acceleration_bias: sp.Expr
 
 
+class Lazy:
+    """A sympy field of a `Model` that is built on first access (`make()`), then kept.
+
+    `derive` computes in symengine and fills `Model.symengine`; the sympy fields (`mass_matrix`,
+    `forcing`, `kinetic`, ...) are converted from it only when something reads them, so that a
+    consumer printing from `Model.symengine` never pays for the conversion of a big system."""
+
+    __slots__ = ("make",)
+
+    def __init__(self, make: Callable[[], Any]) -> None:
+        self.make = make
+
+
+LAZY_FIELDS = ("kinetic", "potential", "lagrangian", "dissipation", "generalized_forces", "mass_matrix", "forcing", "momenta", "energy")
+"""The sympy fields of a `Model` that `Model.from_symengine` leaves to be converted on first access."""
+
+
 @dataclass(frozen=True)
 class Model:
     """Equations of motion `M(q, t) q_ddot = F(q, q_dot, t) + A^T lambda`, with `A q_ddot + c = 0`.
 
     F collects everything but the accelerations: dL/dq - (d/dt of dL/dq_dot without q_ddot)
     - dR/dq_dot + Q. The Lagrange form of equation i is `(M q_ddot - F - A^T lambda)_i = 0`.
+
+    A model made by `derive` (`Model.from_symengine`) holds its equations as symengine expressions
+    (`symengine`) and converts a sympy field the first time it is read (see `Lazy`).
     """
 
     title: str
@@ -81,6 +101,54 @@ class Model:
     """The file's definitions of its functions, e.g. U -> Lambda(s, -k/s). The equations keep the
     general U(r); numeric code evaluates `with_definitions()`."""
 
+    def __getattribute__(self, name: str) -> Any:
+        value = object.__getattribute__(self, name)
+        if value.__class__ is Lazy:
+            value = value.make()
+            object.__setattr__(self, name, value)
+        return value
+
+    @classmethod
+    def from_symengine(cls, forms: SymengineForms, sympy: Mapping[str, Any] | None = None, **fields: Any) -> Model:
+        """A model whose equations are `forms`; each field of `LAZY_FIELDS` is converted to sympy on first
+        access, unless `sympy` gives it already (a value computed in sympy on the way)."""
+        from lagrange_cli._symengine import to_sympy
+
+        given = dict(sympy or {})
+        n = len(forms.q)
+        cache: dict[Any, Any] = {}  # shared by the fields: an entry of M is converted once for M, K, p and h
+
+        def conv(value: Any) -> Any:
+            return to_sympy(value, cache)
+
+        def one(value: Any) -> Lazy:
+            return Lazy(lambda: conv(value))
+
+        def many(values: tuple[Any, ...]) -> Lazy:
+            return Lazy(lambda: tuple(conv(v) for v in values))
+
+        lazy: dict[str, Any] = {
+            "kinetic": one(forms.kinetic),
+            "potential": one(forms.potential),
+            "lagrangian": one(forms.lagrangian),
+            "dissipation": one(forms.dissipation),
+            "energy": one(forms.energy),
+            "generalized_forces": many(forms.generalized_forces),
+            "momenta": many(forms.momenta),
+            "mass_matrix": Lazy(lambda: sp.ImmutableMatrix(n, n, [conv(m) for row in forms.mass for m in row])),
+            "forcing": Lazy(lambda: sp.ImmutableMatrix(n, 1, [conv(f) for f in forms.forcing])),
+        }
+        lazy.update(given)
+        model = cls(**fields, **lazy)
+        object.__setattr__(model, "_symengine", forms)
+        object.__setattr__(model, "_native", True)
+        return model
+
+    def converted(self) -> frozenset[str]:
+        """The fields of `LAZY_FIELDS` that have been converted to sympy so far (all of them for a model
+        not made by `from_symengine`)."""
+        return frozenset(name for name in LAZY_FIELDS if object.__getattribute__(self, name).__class__ is not Lazy)
+
     @property
     def n(self) -> int:
         return len(self.q)
@@ -92,16 +160,19 @@ class Model:
     @property
     def autonomous(self) -> bool:
         """True when nothing depends explicitly on time."""
-        parts = [self.mass_matrix, self.forcing, *((*c.jacobian, c.bias, c.acceleration_bias) for c in self.constraints)]
-        return not any(sp.Matrix(p).has(self.t) if isinstance(p, tuple) else p.has(self.t) for p in parts)
+        forms = self.symengine
+        if any(forms.t in e.free_symbols for e in (*(m for row in forms.mass for m in row), *forms.forcing)):
+            return False
+        parts = [(*c.jacobian, c.bias, c.acceleration_bias) for c in self.constraints]
+        return not any(sp.Matrix(p).has(self.t) for p in parts)
 
     @property
     def dissipative(self) -> bool:
-        return self.dissipation != 0
+        return self.symengine.dissipation != 0
 
     @property
     def forced(self) -> bool:
-        return any(f != 0 for f in self.generalized_forces)
+        return any(f != 0 for f in self.symengine.generalized_forces)
 
     @property
     def constraint_matrix(self) -> sp.ImmutableMatrix:
@@ -128,11 +199,24 @@ class Model:
         applied, and every constraint is scleronomic."""
         return not self.lagrangian.has(self.t) and self.dissipation == 0 and not self.forced and all(c.bias == 0 and not c.expr.has(self.t) for c in self.constraints)
 
-    @functools.cached_property
+    @property
     def symengine(self) -> SymengineForms:
         """The equations as symengine expressions, for the emitters and code generators that print
         big systems: they read these and never need the sympy fields (which, for big systems, cost
-        more to build than the derivation itself). Computed once per model."""
+        more to build than the derivation itself). A model from `derive` has them from the start;
+        any other (e.g. made by `dataclasses.replace`) converts its sympy fields once."""
+        forms = self.__dict__.get("_symengine")
+        if forms is None:
+            forms = self._symengine_from_sympy()
+            object.__setattr__(self, "_symengine", forms)
+        return forms
+
+    @property
+    def native(self) -> bool:
+        """True for a model made by `derive` (its symengine forms are the computed equations, not a conversion)."""
+        return "_native" in self.__dict__
+
+    def _symengine_from_sympy(self) -> SymengineForms:
         from lagrange_cli._symengine import to_symengine
 
         def conv(values: Any) -> tuple[Any, ...]:

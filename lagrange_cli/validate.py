@@ -24,7 +24,7 @@ from sympy.core.function import AppliedUndef
 
 from lagrange_cli.errors import Span, fail
 from lagrange_cli.expr import SUPPORTED_FUNCTIONS, float_problem, real_derivative
-from lagrange_cli.model import Model, apply_definitions
+from lagrange_cli.model import Model, SymengineForms, apply_definitions
 
 MAX_CANDIDATES = 400
 """Most expressions and derivatives examined to find the entry a refused node comes from (only on the
@@ -140,6 +140,98 @@ def _check_node(node: sp.Basic, defined: frozenset[str]) -> Refusal | None:
     return Refusal(node, cause or f"the function '{name}', which is not one of the supported functions", HINTS.get(name, DEFAULT_HINT))
 
 
+def symengine_parts(model: Model) -> list[object]:
+    """The expressions of `model.symengine`: the parts of `model_parts` that `derive` computes in symengine."""
+    return forms_parts(model.symengine)
+
+
+def forms_parts(forms: SymengineForms) -> list[object]:
+    """The expressions of symengine forms, in the order of `model_parts`."""
+    return [forms.kinetic, forms.potential, forms.lagrangian, forms.dissipation, forms.energy, *forms.generalized_forces, *forms.momenta, *forms.forcing, *(m for row in forms.mass for m in row)]
+
+
+def _sympy_parts(model: Model) -> Iterator[tuple[str, sp.Basic]]:
+    """The parts of `model_parts` that are sympy from the start (constraints, eliminated coordinates, exact solutions)."""
+    for row in model.constraints:
+        for part in (row.expr, *row.jacobian, row.bias, row.acceleration_bias):
+            yield f"constraint '{row.name}'", part
+    for name, solution in model.eliminated:
+        yield f"the solution for the eliminated '{name}'", solution
+    for name, exact in model.exact.items():
+        yield f"the exact solution for '{name}'", exact
+
+
+def _symengine_functions() -> frozenset[str]:
+    """The symengine class names of the parser's functions (exp becomes a power of E in symengine)."""
+    from lagrange_cli._symengine import to_symengine
+
+    x, y = sp.symbols("x y")
+    names = set()
+    for function in SUPPORTED_FUNCTIONS:
+        converted = to_symengine(function(x, y) if function is sp.atan2 else function(x))
+        if converted.is_Function:
+            names.add(type(converted).__name__)
+    return frozenset(names)
+
+
+_SE_FUNCTIONS: frozenset[str] | None = None
+
+
+def survey(exprs: Iterable[object], limit: int = 10**9) -> tuple[int, bool]:
+    """One walk over the distinct nodes of symengine expressions: (their number, counting stops past
+    `limit`; whether every node is one that `refusal` allows once converted to sympy: symbols, pi, E,
+    numbers with no `float_problem`, + * ** (no power of 0, no exponent above `MAX_EXPONENT`), the
+    parser's functions, declared functions and their derivatives at their own plain symbols).
+
+    Anything else (a `Subs`, an infinity, a derivative of Abs, ...) is not cleared here, and the caller
+    checks the sympy form, which decides and says where it comes from."""
+    from lagrange_cli._symengine import se
+
+    global _SE_FUNCTIONS
+    if _SE_FUNCTIONS is None:
+        _SE_FUNCTIONS = _symengine_functions()
+    functions = _SE_FUNCTIONS
+    plain = (se.Add, se.Mul, se.Symbol)
+    seen: set[object] = set()
+    stack = list(exprs)
+    cleared = True
+    while stack and len(seen) <= limit:
+        node = stack.pop()
+        if node in seen:
+            continue
+        seen.add(node)
+        if isinstance(node, plain):
+            stack.extend(node.args)
+            continue
+        if cleared:
+            cleared = _cleared(node, functions)
+        stack.extend(node.args)  # type: ignore[attr-defined]
+    return len(seen), cleared
+
+
+def _cleared(node: object, functions: frozenset[str]) -> bool:
+    """Whether one symengine node (not an Add, Mul or Symbol) is allowed; see `survey`."""
+    from lagrange_cli._symengine import se
+
+    kind = type(node).__name__
+    if node.is_Number:  # type: ignore[attr-defined]
+        return kind in ("Integer", "Rational", "RealDouble", "Zero", "One", "NegativeOne", "Half") and not float_problem(sp.sympify(node))
+    if kind == "Pow":
+        base, exponent = node.args  # type: ignore[attr-defined]
+        return not (base == 0 or (exponent.is_Integer and abs(int(exponent)) > MAX_EXPONENT))
+    if node.is_Symbol or kind == "FunctionSymbol" or kind in functions or node == se.pi or node == se.E:  # type: ignore[attr-defined]
+        return True
+    if kind == "Derivative":
+        inner, *variables = node.args  # type: ignore[attr-defined]
+        return type(inner).__name__ == "FunctionSymbol" and all(v.is_Symbol and v in inner.args for v in variables)
+    return False
+
+
+def clean(exprs: Iterable[object]) -> bool:
+    """Whether every node of these symengine expressions is cleared by `survey`."""
+    return survey(exprs)[1]
+
+
 def model_parts(model: Model) -> Iterator[tuple[str, sp.Basic]]:
     """Every expression of a model, each with where it is in the model."""
     yield "the kinetic energy", model.kinetic
@@ -165,9 +257,20 @@ def model_parts(model: Model) -> Iterator[tuple[str, sp.Basic]]:
         yield f"the definition of '{name}'", definition.expr
 
 
-def validate(model: Model, sources: Sequence[Source], variables: Sequence[sp.Symbol]) -> None:
-    """Raise a `SpecError` at the entry of the file that a refused node comes from; see the module docstring."""
+def validate(model: Model, sources: Sequence[Source], variables: Sequence[sp.Symbol], cleared: bool | None = None) -> None:
+    """Raise a `SpecError` at the entry of the file that a refused node comes from; see the module docstring.
+
+    A model made by `derive` is first checked on its symengine forms (`clean`, an allow-list no wider than
+    `refusal`'s), which needs no sympy conversion; only when that finds a node it does not clear, or the
+    model has definitions, are the sympy fields checked (and the culprit located) as below. `cleared`
+    is `survey`'s verdict on `symengine_parts(model)` when the caller has it already."""
     defined = set(model.definitions)
+    if model.native and not model.definitions and (cleared if cleared is not None else clean(symengine_parts(model))):
+        for part, expr in _sympy_parts(model):
+            found = refusal(expr, defined)
+            if found is not None:
+                raise _located(model, part, found, sources, variables, defined)
+        return
     for part, expr in model_parts(model):
         found = refusal(expr, defined)
         if found is not None:

@@ -10,6 +10,7 @@ and factors by the text of their parts, so that the work grows with the size of 
 from __future__ import annotations
 
 import re
+import sys
 import unicodedata
 from collections.abc import Iterable, Sequence
 from typing import Any, ClassVar
@@ -131,6 +132,7 @@ def printable(text: str) -> str:
 # --- terms of big systems, in symengine -------------------------------------------------------------
 
 Expr = Any  # a symengine expression
+_Function = sys.modules["symengine.lib.symengine_wrapper"].Function  # the class of every applied function
 
 
 def equation_terms(model: Model, printer: SymenginePrinter) -> list[list[Expr]]:
@@ -143,7 +145,7 @@ def equation_terms(model: Model, printer: SymenginePrinter) -> list[list[Expr]]:
     state = state_symbols(model)
     rows = []
     for i in range(model.n):
-        terms = [common_factor(forms.mass[i][j]) * forms.qdd[j] for j in range(model.n) if forms.mass[i][j] != 0]
+        terms = [common_factor(flat_arguments(forms.mass[i][j])) * forms.qdd[j] for j in range(model.n) if forms.mass[i][j] != 0]
         terms += collected(-forms.forcing[i], state, printer)
         for c in model.constraints:
             if c.jacobian[i] != 0:
@@ -170,11 +172,25 @@ def collected(expr: Expr, state: frozenset[Expr], printer: SymenginePrinter) -> 
     for term in summands(expr):
         constant: list[Expr] = []
         varying: list[Expr] = []
-        for factor in se.Mul.make_args(term):
-            (varying if factor.free_symbols & state else constant).append(factor)
+        for factor in se.Mul.make_args(flat_arguments(term)):
+            if not factor.free_symbols & state:
+                constant.append(factor)
+            else:  # a sum with the state in it (`2*l*m + 2*m*x`) with its common factors out
+                varying.append(common_factor(factor) if factor.is_Add else factor)
         groups.setdefault(se.Mul(*varying), []).append(se.Mul(*constant))
     order = sorted(groups, key=lambda key: (key == 1, printer.key(key)))
     return [common_factor(se.Add(*groups[key])) * key for key in order]
+
+
+def flat_arguments(expr: Expr) -> Expr:
+    """`expr` with the arguments of its functions multiplied out where a sum holds a multiple
+    of another sum (`sin(w*t - (w*t + theta))` -> `-sin(theta)`), as a reader writes them."""
+    nested = {f: f.func(*(se.expand(a) for a in f.args)) for f in expr.atoms(_Function) if any(_nested(a) for a in f.args)}
+    return expr.xreplace(nested) if nested else expr
+
+
+def _nested(arg: Expr) -> bool:
+    return bool(arg.is_Add and any(t.is_Mul and any(a.is_Add for a in t.args) for t in arg.args))
 
 
 def summands(expr: Expr) -> list[Expr]:

@@ -19,7 +19,7 @@ def forcing(q, q_dot, p=PARAMETERS):
     m1 = p["m1"]
     m2 = p["m2"]
     g = p["g"]
-    return [g*m1 - g*m2]
+    return [g*(m1 - m2)]
 
 
 def energy(q, q_dot, p=PARAMETERS):
@@ -30,9 +30,7 @@ def energy(q, q_dot, p=PARAMETERS):
     l = p["l"]  # noqa: E741
     y1, = q
     y1_dot, = q_dot
-    _c0 = (1/2)*y1_dot*y1_dot
-    _c1 = g*y1
-    return _c0*m1 + _c0*m2 - _c1*m1 + _c1*m2 - g*l*m2
+    return -g*m1*y1 + g*m2*(-l + y1) + (1/2)*y1_dot*y1_dot*(m1 + m2)
 
 
 def rhs(t, y, p=PARAMETERS):
@@ -41,4 +39,4 @@ def rhs(t, y, p=PARAMETERS):
     m2 = p["m2"]
     g = p["g"]
     _, y1_dot = y.tolist() if hasattr(y, "tolist") else y
-    return [y1_dot, (g*m1 - g*m2)/(m1 + m2)]
+    return [y1_dot, (g*(m1 - m2))/(m1 + m2)]

@@ -38,9 +38,8 @@ def energy(q, q_dot, p=PARAMETERS):
     g = p["g"]
     _, theta = q
     x_dot, theta_dot = q_dot
-    _c0 = (1/2)*x_dot*x_dot
-    _c1 = l*m*cos(theta)
-    return M*_c0 + _c0*m + _c1*g + _c1*theta_dot*x_dot + (1/2)*l*l*m*theta_dot*theta_dot
+    _c0 = l*m*cos(theta)
+    return _c0*g + _c0*theta_dot*x_dot + (1/2)*l*l*m*theta_dot*theta_dot + (1/2)*x_dot*x_dot*(M + m)
 
 
 def rhs(t, y, p=PARAMETERS):

@@ -39,8 +39,7 @@ def energy(t, q, q_dot, p=PARAMETERS):
     theta_dot, = q_dot
     _c0 = (1/2)*m
     _c1 = omega*t
-    _c2 = g*m
-    return -_c0*a*a*omega*omega*sin(_c1)*sin(_c1) + _c0*l*l*theta_dot*theta_dot + _c2*a*cos(_c1) - _c2*l*cos(theta)
+    return -_c0*a*a*omega*omega*sin(_c1)*sin(_c1) + _c0*l*l*theta_dot*theta_dot + g*m*(a*cos(_c1) - l*cos(theta))
 
 
 def rhs(t, y, p=PARAMETERS):

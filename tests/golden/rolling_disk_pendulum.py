@@ -28,9 +28,8 @@ def forcing(q, q_dot, p=PARAMETERS):
     alpha = p["alpha"]
     _, theta = q
     _, theta_dot = q_dot
-    _c0 = g*sin(alpha)
-    _c1 = l*m
-    return [M*_c0 + _c0*m + _c1*theta_dot*theta_dot*sin(alpha + theta), -_c1*g*sin(theta)]
+    _c0 = l*m
+    return [_c0*theta_dot*theta_dot*sin(alpha + theta) + g*(M + m)*sin(alpha), -_c0*g*sin(theta)]
 
 
 def energy(q, q_dot, p=PARAMETERS):
@@ -43,10 +42,8 @@ def energy(q, q_dot, p=PARAMETERS):
     s, theta = q
     s_dot, theta_dot = q_dot
     _c0 = s_dot*s_dot
-    _c1 = (1/2)*m
-    _c2 = s*sin(alpha)
-    _c3 = g*m
-    return (3/4)*M*_c0 - M*_c2*g + _c0*_c1 + _c1*l*l*theta_dot*theta_dot - _c2*_c3 - _c3*l*cos(theta) + l*m*s_dot*theta_dot*cos(alpha + theta)
+    _c1 = s*sin(alpha)
+    return (1/4)*M*_c0 - M*_c1*g + (1/2)*_c0*(M + m) + g*m*(-_c1 - l*cos(theta)) + (1/2)*l*l*m*theta_dot*theta_dot + l*m*s_dot*theta_dot*cos(alpha + theta)
 
 
 def rhs(t, y, p=PARAMETERS):
@@ -59,11 +56,10 @@ def rhs(t, y, p=PARAMETERS):
     _, theta, s_dot, theta_dot = y.tolist() if hasattr(y, "tolist") else y
     _c0 = alpha + theta
     _c1 = l*m
-    _c2 = g*sin(alpha)
     _m00 = (3/2)*M + m
     _m01 = _c1*cos(_c0)
     _m11 = l*l*m
-    _f0 = M*_c2 + _c1*theta_dot*theta_dot*sin(_c0) + _c2*m
+    _f0 = _c1*theta_dot*theta_dot*sin(_c0) + g*(M + m)*sin(alpha)
     _f1 = -_c1*g*sin(theta)
     _det = _m00*_m11 - _m01*_m01
     return [s_dot, theta_dot, (_m11*_f0 - _m01*_f1)/_det, (_m00*_f1 - _m01*_f0)/_det]

@@ -29,9 +29,8 @@ def forcing(q, q_dot, p=PARAMETERS):
     alpha = p["alpha"]
     _, _, theta = q
     _, _, theta_dot = q_dot
-    _c0 = g*sin(alpha)
-    _c1 = l*m
-    return [M*_c0 + _c0*m + _c1*theta_dot*theta_dot*sin(alpha + theta), 0, -_c1*g*sin(theta)]
+    _c0 = l*m
+    return [_c0*theta_dot*theta_dot*sin(alpha + theta) + g*(M + m)*sin(alpha), 0, -_c0*g*sin(theta)]
 
 
 def energy(q, q_dot, p=PARAMETERS):
@@ -44,10 +43,8 @@ def energy(q, q_dot, p=PARAMETERS):
     alpha = p["alpha"]
     s, _, theta = q
     s_dot, phi_dot, theta_dot = q_dot
-    _c0 = (1/2)*s_dot*s_dot
-    _c1 = l*m
-    _c2 = g*s*sin(alpha)
-    return (1/4)*M*R*R*phi_dot*phi_dot + M*_c0 - M*_c2 + _c0*m - _c1*g*cos(theta) + _c1*s_dot*theta_dot*cos(alpha + theta) - _c2*m + (1/2)*l*l*m*theta_dot*theta_dot
+    _c0 = s*sin(alpha)
+    return (1/4)*M*R*R*phi_dot*phi_dot - M*_c0*g + g*m*(-_c0 - l*cos(theta)) + (1/2)*l*l*m*theta_dot*theta_dot + l*m*s_dot*theta_dot*cos(alpha + theta) + (1/2)*s_dot*s_dot*(M + m)
 
 
 def constraint_residuals(q, q_dot, p=PARAMETERS):
@@ -66,14 +63,13 @@ def accelerations(t, y, p=PARAMETERS):
     g = p["g"]
     alpha = p["alpha"]
     _, _, theta, s_dot, phi_dot, theta_dot = y.tolist() if hasattr(y, "tolist") else y
-    _c0 = alpha + theta
-    _c1 = l*m
-    _c2 = g*sin(alpha)
-    _m0_0 = M + m
-    _m0_2 = _c1*cos(_c0)
+    _c0 = M + m
+    _c1 = alpha + theta
+    _c2 = l*m
+    _m0_2 = _c2*cos(_c1)
     _m1_1 = (1/2)*M*R*R
     _m2_2 = l*l*m
-    _x = _solve([[_m0_0, 0, _m0_2, -1], [0, _m1_1, 0, R], [_m0_2, 0, _m2_2, 0], [1, -R, -0, 0.0]], [M*_c2 + _c1*theta_dot*theta_dot*sin(_c0) + _c2*m, 0, -_c1*g*sin(theta), 0])
+    _x = _solve([[_c0, 0, _m0_2, -1], [0, _m1_1, 0, R], [_m0_2, 0, _m2_2, 0], [1, -R, -0, 0.0]], [_c0*g*sin(alpha) + _c2*theta_dot*theta_dot*sin(_c1), 0, -_c2*g*sin(theta), 0])
     return _x
 
 

@@ -34,11 +34,10 @@ def energy(t, q, q_dot, p=PARAMETERS):
     omega = p["omega"]
     theta, = q
     theta_dot, = q_dot
-    _c0 = a*a*m
-    _c1 = _c0*omega*omega
-    _c2 = omega*t
-    _c3 = a*g*m
-    return (1/2)*_c0*theta_dot*theta_dot - _c1*cos(theta) - _c1 + _c3*sin(_c2) + _c3*sin(_c2 + theta)
+    _c0 = omega*t
+    _c1 = a*a*m
+    _c2 = _c1*omega*omega
+    return (1/2)*_c1*theta_dot*theta_dot - _c2*cos(theta) - _c2 + g*m*(a*sin(_c0) + a*sin(_c0 + theta))
 
 
 def rhs(t, y, p=PARAMETERS):

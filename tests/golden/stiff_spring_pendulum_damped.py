@@ -26,12 +26,11 @@ def forcing(q, q_dot, p=PARAMETERS):
     zeta = p["zeta"]
     x, theta = q
     x_dot, theta_dot = q_dot
-    _c0 = 2*x_dot
-    _c1 = g*m
-    _c2 = m*theta_dot*theta_dot
-    _c3 = _c1*sin(theta)
-    _c4 = _c0*m*theta_dot
-    return [-_c0*zeta*sqrt(k*m) + _c1*cos(theta) + _c2*l + _c2*x - k*x, -_c3*l - _c3*x - _c4*l - _c4*x]
+    _c0 = g*m
+    _c1 = m*theta_dot*theta_dot
+    _c2 = 2*m
+    _c3 = _c0*sin(theta)
+    return [_c0*cos(theta) + _c1*l + _c1*x - k*x - 2*x_dot*zeta*sqrt(k*m), -_c3*l - _c3*x - theta_dot*x_dot*(_c2*l + _c2*x)]
 
 
 def energy(q, q_dot, p=PARAMETERS):
@@ -42,12 +41,8 @@ def energy(q, q_dot, p=PARAMETERS):
     k = p["k"]
     x, theta = q
     x_dot, theta_dot = q_dot
-    _c0 = (1/2)*m
-    _c1 = (1/2)*x*x
-    _c2 = theta_dot*theta_dot
-    _c3 = _c2*m
-    _c4 = g*m*cos(theta)
-    return _c0*_c2*l*l + _c0*x_dot*x_dot + _c1*_c3 + _c1*k + _c3*l*x - _c4*l - _c4*x
+    _c0 = x*x
+    return (1/2)*_c0*k + g*m*(-l - x)*cos(theta) + (1/2)*m*x_dot*x_dot + (1/2)*theta_dot*theta_dot*(_c0*m + l*l*m + 2*l*m*x)
 
 
 def rhs(t, y, p=PARAMETERS):
@@ -58,16 +53,15 @@ def rhs(t, y, p=PARAMETERS):
     k = p["k"]
     zeta = p["zeta"]
     x, theta, x_dot, theta_dot = y.tolist() if hasattr(y, "tolist") else y
-    _c0 = m*x
-    _c1 = 2*x_dot
+    _c0 = 2*m
+    _c1 = _c0*l
     _c2 = g*m
     _c3 = m*theta_dot*theta_dot
     _c4 = _c2*sin(theta)
-    _c5 = _c1*theta_dot
     _m00 = m
     _m01 = 0
-    _m11 = 2*_c0*l + l*l*m + m*x*x
-    _f0 = -_c1*zeta*sqrt(k*m) + _c2*cos(theta) + _c3*l + _c3*x - k*x
-    _f1 = -_c0*_c5 - _c4*l - _c4*x - _c5*l*m
+    _m11 = _c1*x + l*l*m + m*x*x
+    _f0 = _c2*cos(theta) + _c3*l + _c3*x - k*x - 2*x_dot*zeta*sqrt(k*m)
+    _f1 = -_c4*l - _c4*x - theta_dot*x_dot*(_c0*x + _c1)
     _det = _m00*_m11 - _m01*_m01
     return [x_dot, theta_dot, (_m11*_f0 - _m01*_f1)/_det, (_m00*_f1 - _m01*_f0)/_det]
