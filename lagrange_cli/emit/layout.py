@@ -102,12 +102,27 @@ _LETTERS_PT = dict(
     )
 )
 _COMMAND = re.compile(r"\\([A-Za-z]+|.)")
+# The width of each letter and digit in units at display size (the reader's fast path).
+_PLAIN = {char: _LETTERS_PT.get(char, 5.0) * 1.04 / UNIT_PT for char in "abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789"}
 
 
 def width(tex: str) -> float:
     """The estimated width of the math `tex` in display style, in units (`UNIT_PT` points).
-    Monotone: appending anything never makes it narrower."""
-    return _Reader(tex).sequence(0)
+    Monotone: appending anything never makes it narrower. Short texts (the pieces of broken
+    sums, `+ m_{17}`, recur by the thousand in a big system) are measured once."""
+    if len(tex) > _SHORT:
+        return _Reader(tex).sequence(0)
+    found = _measured.get(tex)
+    if found is None:
+        if len(_measured) > 100_000:
+            _measured.clear()
+        found = _measured[tex] = _Reader(tex).sequence(0)
+    return found
+
+
+_SHORT = 48
+_PARENTHESIS = 1.0  # `\\left(` or `\\right)` at display size
+_measured: dict[str, float] = {}
 
 
 class _Reader:
@@ -122,8 +137,18 @@ class _Reader:
         total = 0.0
         operand = False  # the previous atom is an operand: a following + or - is binary
         tex, scale = self.tex, _SCALE[style]
-        while self.i < len(tex):
+        end = len(tex)
+        while self.i < end:
             char = tex[self.i]
+            plain = _PLAIN.get(char)
+            if plain is not None:  # a letter or digit (most of the text): the fast path
+                self.i += 1
+                total += plain * scale
+                operand = True
+                continue
+            if char == " ":
+                self.i += 1
+                continue
             if char in stop:
                 self.i += 1
                 return max(total, 0.0)
@@ -314,8 +339,8 @@ def terms(summands: Sequence[Any], doprint: Printer, room: float) -> list[Piece]
         inner = pieces(-term if negative else term, doprint, room)
         sign = "- " if negative else "+ " if out else ""
         first = inner[0]
-        if sign:  # measured alone its operator is unary; between terms it is binary, wider
-            first = Piece(sign + first.tex, width(sign + first.tex) + (_BINARY["+"] - _UNARY if out else 0.0))
+        if sign:  # measured alone its operator is unary (a sign in front of a text adds exactly that); between terms it is binary, wider
+            first = Piece(sign + first.tex, first.width + _UNARY + (_BINARY["+"] - _UNARY if out else 0.0))
         out += [first, *inner[1:]]
     return out
 
@@ -406,10 +431,13 @@ def _term(expr: Any, doprint: Printer, room: float) -> list[Piece] | None:
 
 def _wrap(inner: list[Piece], prefix: str, suffix: str) -> list[Piece]:
     """`prefix ( inner ) suffix`; when `inner` spans pieces, its parentheses may end up on
-    different lines, which `lines` balances with `\\right.` and `\\left.`."""
+    different lines, which `lines` balances with `\\right.` and `\\left.`. Widths add up (the
+    reader's state does not cross `\\left(` or `\\right)`), so `inner` is not measured again."""
+    before = width(prefix) + _PARENTHESIS
+    after = _PARENTHESIS + width(suffix)
     if len(inner) == 1:
-        return [piece(rf"{prefix}\left({inner[0].tex}\right){suffix}")]
-    return [piece(prefix + r"\left(" + inner[0].tex), *inner[1:-1], piece(inner[-1].tex + rf"\right){suffix}")]
+        return [Piece(rf"{prefix}\left({inner[0].tex}\right){suffix}", before + inner[0].width + after)]
+    return [Piece(prefix + r"\left(" + inner[0].tex, before + inner[0].width), *inner[1:-1], Piece(inner[-1].tex + rf"\right){suffix}", inner[-1].width + after)]
 
 
 def lines(parts: Sequence[Piece], first: float, rest: float) -> list[str]:
