@@ -1,11 +1,13 @@
 """Equations that fit the page: an estimate of the printed width of LaTeX math, and a line
-breaker that splits a sympy expression at its terms (and, when one term is still too wide,
+breaker that splits an expression (symengine, printed by a `common.SymenginePrinter`, for the
+equations; sympy, printed by a sympy printer, for the solved form and `info`) at its terms (and, when one term is still too wide,
 inside its parentheses and fractions) so that every line of an `align*` fits the `\\linewidth`
 of a standard `article` (345 pt at 10 pt).
 
 The estimate reads the LaTeX text once (linear in its length) and counts in units of about
-one math-italic letter; each term is printed and measured once, so laying out an equation
-costs about as much as printing it.
+one math-italic letter; each term is printed and measured once, and a term too wide for a line
+once more in its pieces (whose operators and parentheses add their widths without re-reading
+the pieces), so laying out an equation costs about as much as printing it.
 """
 
 from __future__ import annotations
@@ -318,6 +320,11 @@ def pieces(expr: Any, doprint: Printer, room: float) -> list[Piece]:
     sympy printer, or a symengine one printed by a `common.SymenginePrinter` (big systems)."""
     if expr.is_Add:
         return _sum(expr, doprint, room)
+    if _at_least(expr) > room:  # surely too wide: only its pieces are measured
+        negative = _negative(expr)
+        inner = _term(-expr if negative else expr, doprint, room)
+        if inner:
+            return [Piece("- " + inner[0].tex, inner[0].width + _UNARY), *inner[1:]] if negative else inner
     measured = piece(doprint(expr))
     if measured.width <= room:
         return [measured]
@@ -325,6 +332,14 @@ def pieces(expr: Any, doprint: Printer, room: float) -> list[Piece]:
         inner = _term(-expr, doprint, room)
         return [Piece("- " + inner[0].tex, inner[0].width + _UNARY), *inner[1:]] if inner else [measured]
     return _term(expr, doprint, room) or [measured]
+
+
+def _at_least(expr: Any) -> float:
+    """A lower bound of the printed width of a product: each sum among its factors is printed in
+    parentheses at full size, with a binary operator (`_BINARY`) between its terms."""
+    if not expr.is_Mul:
+        return 0.0
+    return sum(_BINARY["+"] * (len(factor.args) - 1) for factor in expr.args if factor.is_Add)
 
 
 def _sum(expr: Any, doprint: Printer, room: float) -> list[Piece]:
