@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import random
 import re
+import subprocess
 from pathlib import Path
 
 import pytest
@@ -18,7 +19,7 @@ from lagrange_cli.model import Model
 
 from .conftest import SYSTEMS
 from .helpers import model_from, model_of
-from .test_latex_layout import needs_pdflatex, overflows
+from .test_latex_layout import PDFLATEX, needs_pdflatex, overflows
 
 
 def chain(n: int) -> str:
@@ -212,3 +213,23 @@ def test_names_sort_naturally() -> None:
     printer = text.TextPrinter()
     assert printer.doprint(se.Add(*masses)) == "m1 + m2 + m3 + m10 + m11"
     assert latex.TexPrinter(latex.names(model_of(chain(3)))).doprint(se.Add(*masses)) == "m_{1} + m_{2} + m_{3} + m_{10} + m_{11}"
+
+
+@pytest.mark.latex
+@needs_pdflatex
+def test_an_equation_taller_than_a_page_breaks_across_pages(chains: dict[int, Model], tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """An equation of more lines than a page holds (a 30-link chain's, on an article page; here
+    a 8-link chain's on a page 4 cm high) is written `0 &= ...` in environments of at most
+    `BREAKABLE_LINES` lines, between which pages break: no `Overfull \\vbox` (the bottom-aligned
+    block it was before cannot break and ran off the page), no `Overfull \\hbox`."""
+    monkeypatch.setattr(layout, "BREAKABLE_LINES", 4)
+    tex = latex.emit(chains[8])
+    assert tex.count(r"\begin{aligned}") == 0 and tex.count("0 &= ") == 8 and tex.count(r"\begin{align*}") > 16
+    (tmp_path / "tall.tex").write_text(tex)
+    document = "\\documentclass{article}\n\\usepackage{amsmath}\n\\usepackage[textheight=4cm,paperheight=8cm]{geometry}\n\\begin{document}\n\\input{tall.tex}\n\\end{document}\n"
+    (tmp_path / "main.tex").write_text(document)
+    assert PDFLATEX
+    result = subprocess.run([PDFLATEX, "-interaction=nonstopmode", "-halt-on-error", "main.tex"], cwd=tmp_path, capture_output=True, text=True, timeout=120)
+    assert result.returncode == 0, result.stdout[-3000:]
+    log = (tmp_path / "main.log").read_text(errors="replace")
+    assert "Overfull \\vbox" not in log and not [w for w in re.findall(r"Overfull \\hbox \((\d+\.\d+)pt", log) if float(w) > 1.0]

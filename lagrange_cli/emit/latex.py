@@ -98,38 +98,53 @@ class Row:
 def align(rows: Sequence[Row]) -> str:
     """An `align*` whose rows all align on their `=`: `lhs &= ...` with continuation lines
     `&\\quad ...` under the `=`; an equation `... &= 0` too long for a line becomes a bottom-
-    aligned block of lines (`\\begin{aligned}[b]`) left of the `=`. Lines are broken so that
-    the widest left column plus any line fits `layout.LINE_WIDTH`. Between rows of a long
-    environment, a page may break."""
+    aligned block of lines (`\\begin{aligned}[b]`) left of the `=`, and one taller than
+    `layout.BREAKABLE_LINES` lines (a block cannot break across pages) is written `0 &= ...`
+    in environments of its own. Lines are broken so that the widest left column plus any line
+    fits `layout.LINE_WIDTH`. An `align*` never breaks across pages: a long one is split between
+    rows (or between the lines of a long row) into several, between which a page may break."""
     equals = _EQUALS
     left = max((layout.width(row.lhs) for row in rows if row.lhs), default=0.0)
     if any(row.zero for row in rows):
         left = max(left, layout.LINE_WIDTH - equals)
-    chunks = []
+    environments: list[str] = []
+    group: list[str] = []
+    used = 0
     for row in rows:
         if row.zero:
             lines = layout.lines(row.rhs, layout.LINE_WIDTH - equals, layout.LINE_WIDTH - equals - layout.QUAD)
+            if len(lines) > layout.BREAKABLE_LINES:
+                if group:
+                    environments.append(_environment(group))
+                    group, used = [], 0
+                environments.append(align([Row("0", row.rhs)]))
+                continue
             if len(lines) == 1:
-                chunks.append([f"{lines[0]} &= 0"])
+                chunk = [f"{lines[0]} &= 0"]
             else:
                 block = " \\\\\n".join([f"&{lines[0]}", *(rf"&\quad {line}" for line in lines[1:])])
-                chunks.append([f"\\begin{{aligned}}[b]\n{block}\n\\end{{aligned}} &= 0"])
-            continue
-        first = layout.LINE_WIDTH - left - (equals if row.lhs else 0.0)
-        lines = layout.lines(row.rhs, first, layout.LINE_WIDTH - left - layout.QUAD)
-        head = f"{row.lhs} &= " if row.lhs else "&"
-        chunks.append([head + lines[0], *(rf"&\quad {line}" for line in lines[1:])])
-    # An align* never breaks across pages: a long one is split between rows into several.
-    groups: list[list[str]] = [[]]
-    used = 0
-    for chunk in chunks:
+                chunk = [f"\\begin{{aligned}}[b]\n{block}\n\\end{{aligned}} &= 0"]
+        else:
+            first = layout.LINE_WIDTH - left - (equals if row.lhs else 0.0)
+            lines = layout.lines(row.rhs, first, layout.LINE_WIDTH - left - layout.QUAD)
+            head = f"{row.lhs} &= " if row.lhs else "&"
+            chunk = [head + lines[0], *(rf"&\quad {line}" for line in lines[1:])]
         size = len(chunk) + chunk[0].count("\\\\")
-        if groups[-1] and used + size > layout.BREAKABLE_LINES:
-            groups.append([])
-            used = 0
-        groups[-1].append(" \\\\\n".join(chunk))
-        used += size
-    return "".join("\\begin{align*}\n" + " \\\\\n".join(group) + "\n\\end{align*}\n" for group in groups)
+        parts = [chunk] if size <= layout.BREAKABLE_LINES else [chunk[k : k + layout.BREAKABLE_LINES] for k in range(0, len(chunk), layout.BREAKABLE_LINES)]
+        for part in parts:
+            size = len(part) + part[0].count("\\\\")
+            if group and used + size > layout.BREAKABLE_LINES:
+                environments.append(_environment(group))
+                group, used = [], 0
+            group.append(" \\\\\n".join(part))
+            used += size
+    if group:
+        environments.append(_environment(group))
+    return "".join(environments)
+
+
+def _environment(rows: Sequence[str]) -> str:
+    return "\\begin{align*}\n" + " \\\\\n".join(rows) + "\n\\end{align*}\n"
 
 
 def _matrix_form(model: Model, printer: TexPrinter) -> str:
