@@ -22,24 +22,6 @@ from lagrange_cli.algebra import expand_bounded
 from lagrange_cli.errors import DerivationError
 from lagrange_cli.model import Model
 
-
-def lagrange_terms(model: Model) -> list[list[sp.Expr]]:
-    """Each equation as a list of terms, accelerations first, then the rest, then multipliers."""
-    rows = []
-    for i in range(model.n):
-        terms = [sp.factor_terms(model.mass_matrix[i, j]) * model.qdd[j] for j in range(model.n) if model.mass_matrix[i, j] != 0]
-        terms += ordered_terms(-model.forcing[i])
-        terms += [-sp.factor_terms(c.jacobian[i]) * c.multiplier for c in model.constraints if c.jacobian[i] != 0]
-        rows.append(terms or [sp.Integer(0)])
-    return rows
-
-
-def ordered_terms(expr: sp.Expr) -> list[sp.Expr]:
-    """The terms of a sum in sympy's printing order (deterministic)."""
-    expr = expand_bounded(expr)
-    return [] if expr == 0 else list(expr.as_ordered_terms())
-
-
 # Tidying (factor_terms, sign flips) is skipped above this many operations: it is cheap but
 # never needed to read an expression that size.
 TIDY_OPS = 3000
