@@ -13,16 +13,19 @@ from __future__ import annotations
 
 import re
 import unicodedata
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import ClassVar
 
 import sympy as sp
 from sympy.printing.latex import LatexPrinter
 
+from lagrange_cli._symengine import se, to_symengine
 from lagrange_cli.algebra import check_invertible, solved_accelerations
 from lagrange_cli.emit import layout
-from lagrange_cli.emit.common import constraint_equations, lagrange_terms, printable, tidy
+from lagrange_cli.emit.common import Expr, SymenginePrinter, collected, common_factor, constraint_equations, equation_terms, printable, state_symbols, tidy
+from lagrange_cli.emit.text import TextPrinter
 from lagrange_cli.errors import DerivationError
 from lagrange_cli.model import Model
 
@@ -43,15 +46,17 @@ MATHIT = r"\mathit{"
 def emit(model: Model, form: str = "lagrange", standalone: bool = False) -> str:
     """The equations of `model` in `form` (`lagrange`, `matrix` or `solved`) as an `align*` whose
     every line fits a standard article (see `layout`)."""
-    doprint = names(model).printer().doprint
+    known = names(model)
+    doprint = known.printer().doprint
     if form == "lagrange":
         space = room()
-        rows = [Row("", layout.terms(terms, doprint, space), zero=True) for terms in lagrange_terms(model)]
-        rows += [Row("", layout.pieces(expr, doprint, space), zero=True) for _, expr in constraint_equations(model)]
+        printer = TexPrinter(known)
+        rows = [Row("", layout.terms(terms, printer.doprint, space), zero=True) for terms in equation_terms(model, printer.keys)]
+        rows += [Row("", layout.pieces(to_symengine(expr), printer.doprint, space), zero=True) for _, expr in constraint_equations(model)]
         body = align(rows)
     elif form == "matrix":
         check_invertible(model)
-        body = _matrix_form(model, doprint)
+        body = _matrix_form(model, TexPrinter(known))
     else:
         values = [tidy(v) for v in solved_accelerations(model)]
         lhs = [doprint(s) for s in (*model.qdd, *model.multipliers)]
@@ -93,72 +98,104 @@ class Row:
 def align(rows: Sequence[Row]) -> str:
     """An `align*` whose rows all align on their `=`: `lhs &= ...` with continuation lines
     `&\\quad ...` under the `=`; an equation `... &= 0` too long for a line becomes a bottom-
-    aligned block of lines (`\\begin{aligned}[b]`) left of the `=`. Lines are broken so that
-    the widest left column plus any line fits `layout.LINE_WIDTH`. Between rows of a long
-    environment, a page may break."""
+    aligned block of lines (`\\begin{aligned}[b]`) left of the `=`, and one taller than
+    `layout.BREAKABLE_LINES` lines (a block cannot break across pages) is written `0 &= ...`
+    in environments of its own. Lines are broken so that the widest left column plus any line
+    fits `layout.LINE_WIDTH`. An `align*` never breaks across pages: a long one is split between
+    rows (or between the lines of a long row) into several, between which a page may break."""
     equals = _EQUALS
     left = max((layout.width(row.lhs) for row in rows if row.lhs), default=0.0)
     if any(row.zero for row in rows):
         left = max(left, layout.LINE_WIDTH - equals)
-    chunks = []
+    environments: list[str] = []
+    group: list[str] = []
+    used = 0
     for row in rows:
         if row.zero:
             lines = layout.lines(row.rhs, layout.LINE_WIDTH - equals, layout.LINE_WIDTH - equals - layout.QUAD)
+            if len(lines) > layout.BREAKABLE_LINES:
+                if group:
+                    environments.append(_environment(group))
+                    group, used = [], 0
+                environments.append(align([Row("0", row.rhs)]))
+                continue
             if len(lines) == 1:
-                chunks.append([f"{lines[0]} &= 0"])
+                chunk = [f"{lines[0]} &= 0"]
             else:
                 block = " \\\\\n".join([f"&{lines[0]}", *(rf"&\quad {line}" for line in lines[1:])])
-                chunks.append([f"\\begin{{aligned}}[b]\n{block}\n\\end{{aligned}} &= 0"])
-            continue
-        first = layout.LINE_WIDTH - left - (equals if row.lhs else 0.0)
-        lines = layout.lines(row.rhs, first, layout.LINE_WIDTH - left - layout.QUAD)
-        head = f"{row.lhs} &= " if row.lhs else "&"
-        chunks.append([head + lines[0], *(rf"&\quad {line}" for line in lines[1:])])
-    # An align* never breaks across pages: a long one is split between rows into several.
-    groups: list[list[str]] = [[]]
-    used = 0
-    for chunk in chunks:
+                chunk = [f"\\begin{{aligned}}[b]\n{block}\n\\end{{aligned}} &= 0"]
+        else:
+            first = layout.LINE_WIDTH - left - (equals if row.lhs else 0.0)
+            lines = layout.lines(row.rhs, first, layout.LINE_WIDTH - left - layout.QUAD)
+            head = f"{row.lhs} &= " if row.lhs else "&"
+            chunk = [head + lines[0], *(rf"&\quad {line}" for line in lines[1:])]
         size = len(chunk) + chunk[0].count("\\\\")
-        if groups[-1] and used + size > layout.BREAKABLE_LINES:
-            groups.append([])
-            used = 0
-        groups[-1].append(" \\\\\n".join(chunk))
-        used += size
-    return "".join("\\begin{align*}\n" + " \\\\\n".join(group) + "\n\\end{align*}\n" for group in groups)
+        parts = [chunk] if size <= layout.BREAKABLE_LINES else [chunk[k : k + layout.BREAKABLE_LINES] for k in range(0, len(chunk), layout.BREAKABLE_LINES)]
+        for part in parts:
+            size = len(part) + part[0].count("\\\\")
+            if group and used + size > layout.BREAKABLE_LINES:
+                environments.append(_environment(group))
+                group, used = [], 0
+            group.append(" \\\\\n".join(part))
+            used += size
+    if group:
+        environments.append(_environment(group))
+    return "".join(environments)
 
 
-def _matrix_form(model: Model, doprint: layout.Printer) -> str:
+def _environment(rows: Sequence[str]) -> str:
+    return "\\begin{align*}\n" + " \\\\\n".join(rows) + "\n\\end{align*}\n"
+
+
+def _matrix_form(model: Model, printer: TexPrinter) -> str:
     """`M q_ddot = F (+ A^T lambda)` with whole matrices when they fit the line, else entry by
     entry: `\\mathbf{M}_{ij}` for i <= j (M is symmetric), `\\mathbf{F}_{i}`, ... Bold names
     cannot be confused with a parameter (`M`). Each entry is printed and measured once."""
     n, k = model.n, len(model.constraints)
-    factored = {(i, j): sp.factor_terms(model.mass_matrix[i, j]) for i in range(n) for j in range(i, n)}
+    doprint = printer.doprint
+    forms, state = model.symengine, state_symbols(model)
+    factored = {(i, j): common_factor(forms.mass[i][j]) for i in range(n) for j in range(i, n)}
     entries = {ij: (entry, doprint(entry)) for ij, entry in factored.items()}
+    forcing = [collected(f, state, printer.keys) for f in forms.forcing]
+    jacobians = [[to_symengine(a) for a in c.jacobian] for c in model.constraints]
+    biases = [collected(to_symengine(c.acceleration_bias), state, printer.keys) for c in model.constraints]
     columns = [max(layout.width(entries[min(i, j), max(i, j)][1]) for i in range(n)) for j in range(n)]
     if sum(columns) + 2.0 * (n + 4) + (4.0 * (n + 2) if k else 0.0) <= layout.LINE_WIDTH:
-        qdd = sp.Matrix(model.qdd)
-        lhs = doprint(sp.Matrix(model.mass_matrix)) + " " + doprint(qdd)
-        rhs = doprint(sp.Matrix(model.forcing))
+        qdd = _column([doprint(s) for s in forms.qdd])
+        mass = _matrix([[entries[min(i, j), max(i, j)][1] for j in range(n)] for i in range(n)])
+        lhs = mass + " " + qdd
+        rhs = _column([printer.add(terms) for terms in forcing])
         if k:
-            rhs += " + " + doprint(model.constraint_matrix.T) + " " + doprint(sp.Matrix(model.multipliers))
+            rhs += " + " + _matrix([[doprint(a) for a in row] for row in zip(*jacobians, strict=True)]) + " " + _column([doprint(to_symengine(s)) for s in model.multipliers])
         rows = [(lhs, rhs)]
         if k:
-            bias = sp.Matrix([row.acceleration_bias for row in model.constraints])
-            rows.append((f"{doprint(model.constraint_matrix)} {doprint(qdd)} + {doprint(bias)}", "0"))
+            rows.append((f"{_matrix([[doprint(a) for a in row] for row in jacobians])} {qdd} + {_column([printer.add(terms) for terms in biases])}", "0"))
         # an align* is as wide as its widest left side plus its widest right side
         if max(layout.width(a) for a, _ in rows) + _EQUALS + max(layout.width(b) for _, b in rows) <= layout.LINE_WIDTH:
             return "\\begin{align*}\n" + " \\\\\n".join(f"{a} &= {b}" for a, b in rows) + "\n\\end{align*}\n"
-    return _matrix_entries(model, doprint, entries)
+    return _matrix_entries(model, printer, entries, forcing, jacobians, biases)
 
 
-def _matrix_entries(model: Model, doprint: layout.Printer, entries: dict[tuple[int, int], tuple[sp.Expr, str]]) -> str:
+def _matrix(rows: Sequence[Sequence[str]]) -> str:
+    """A bracketed matrix of printed entries (as sympy's LaTeX printer writes one)."""
+    body = " \\\\ ".join(" & ".join(row) for row in rows)
+    return rf"\left[\begin{{matrix}}{body}\end{{matrix}}\right]"
+
+
+def _column(entries: Sequence[str]) -> str:
+    return _matrix([[entry] for entry in entries])
+
+
+def _matrix_entries(model: Model, printer: TexPrinter, entries: dict[tuple[int, int], tuple[Expr, str]], forcing: list[list[Expr]], jacobians: list[list[Expr]], biases: list[list[Expr]]) -> str:
     n, k = model.n, len(model.constraints)
+    doprint = printer.doprint
     bold_q = r"\ddot{\mathbf{q}}"
+    multiplier_symbols = [to_symengine(s) for s in model.multipliers]
     statement = [layout.piece(r"\mathbf{F}")]
     if k:
-        multipliers = _vector(model.multipliers, doprint) if k > 1 else [layout.piece(doprint(model.multipliers[0]))]
+        multipliers = _vector(multiplier_symbols, doprint) if k > 1 else [layout.piece(doprint(multiplier_symbols[0]))]
         statement += [layout.piece(r"+ \mathbf{A}^{T}"), *multipliers[:-1], layout.piece(multipliers[-1].tex + ","), layout.piece(rf"\quad \mathbf{{A}} {bold_q} + \mathbf{{c}} = 0")]
-    rows = [Row(rf"\mathbf{{M}} {bold_q}", statement), Row(bold_q, _vector(model.qdd, doprint))]
+    rows = [Row(rf"\mathbf{{M}} {bold_q}", statement), Row(bold_q, _vector(model.symengine.qdd, doprint))]
 
     def index(*ij: int) -> str:
         return ("," if max(n, k) > 9 else "").join(str(i + 1) for i in ij)
@@ -175,24 +212,14 @@ def _matrix_entries(model: Model, doprint: layout.Printer, entries: dict[tuple[i
             fits = layout.width(tex) <= space
             rows.append(Row(rf"\mathbf{{M}}_{{{index(i, j)}}}", [layout.piece(tex)] if fits else layout.pieces(entry, doprint, space)))
     rows.append(Row("", [layout.piece(r"\mathbf{M}_{ji} = \mathbf{M}_{ij}" + (r", \quad \mathrm{other}\ \mathbf{M}_{ij} = 0" if zero else ""))]))
-    rows += [Row(rf"\mathbf{{F}}_{{{index(i)}}}", layout.pieces(_compact(model.forcing[i]), doprint, space)) for i in range(n)]
-    for r, c in enumerate(model.constraints):
-        rows += [Row(rf"\mathbf{{A}}_{{{index(r, j)}}}", layout.pieces(sp.factor_terms(a), doprint, space)) for j, a in enumerate(c.jacobian) if a != 0]
-        rows.append(Row(rf"\mathbf{{c}}_{{{index(r)}}}", layout.pieces(_compact(c.acceleration_bias), doprint, space)))
+    rows += [Row(rf"\mathbf{{F}}_{{{index(i)}}}", layout.terms(forcing[i] or [se.Integer(0)], doprint, space)) for i in range(n)]
+    for r in range(k):
+        rows += [Row(rf"\mathbf{{A}}_{{{index(r, j)}}}", layout.pieces(common_factor(a), doprint, space)) for j, a in enumerate(jacobians[r]) if a != 0]
+        rows.append(Row(rf"\mathbf{{c}}_{{{index(r)}}}", layout.terms(biases[r] or [se.Integer(0)], doprint, space)))
     return align(rows)
 
 
-# Common factors are pulled out of matrix entries up to this many nodes (factor_terms is
-# near-linear but not free: the forcing of a 15-link chain would cost seconds).
-COMPACT_NODES = 500
-
-
-def _compact(expr: sp.Expr) -> sp.Expr:
-    small = all(k < COMPACT_NODES for k, _ in enumerate(sp.preorder_traversal(expr)))
-    return sp.factor_terms(expr) if small else expr
-
-
-def _vector(symbols: Sequence[sp.Symbol], doprint: layout.Printer) -> list[layout.Piece]:
+def _vector(symbols: Sequence[Expr], doprint: layout.Printer) -> list[layout.Piece]:
     """`(s_1, s_2, ...)^T` as pieces, broken between components."""
     parts = [layout.piece(doprint(s) + ("," if i < len(symbols) - 1 else "")) for i, s in enumerate(symbols)]
     parts[0] = layout.piece(r"\left(" + parts[0].tex)
@@ -358,12 +385,107 @@ class _Printer(LatexPrinter):
         return super()._hprint_Function(func)
 
 
+class TexPrinter(SymenginePrinter):
+    """Symengine expressions as LaTeX in the notation of sympy's LaTeX printer (`\\frac{k}{r^{2}}`,
+    `\\sin{\\left(\\theta \\right)}`, `\\sqrt{k m}`), every name from `Names`; what it has no rule
+    for is printed by `_Printer`. Terms and factors are ordered as in the text output (`keys`)."""
+
+    _UNARY = frozenset(["sin", "cos", "tan", "cot", "sec", "csc", "sinh", "cosh", "tanh", "coth", "log"])
+    functions: ClassVar[dict[str, str]] = {name: name for name in _UNARY}  # the others (asin, ...) as sympy writes them
+
+    def __init__(self, known: Names) -> None:
+        super().__init__()
+        self._names = {str(symbol): tex for symbol, tex in known.symbols.items()}
+        self._function_names = known.functions
+        self._sympy = _Printer(known)
+        self.keys = TextPrinter()
+
+    def key(self, expr: Expr) -> tuple[object, ...]:
+        return self.keys.key(expr)
+
+    def factor_order(self, factors: Iterable[Expr]) -> list[Expr]:
+        return self.keys.factor_order(factors)
+
+    def symbol(self, name: str) -> str:
+        found = self._names.get(name)
+        return found if found is not None else symbol_tex(name.lstrip("_"))
+
+    def rational(self, p: int, q: int) -> str:
+        return ("- " if p < 0 else "") + rf"\frac{{{abs(p)}}}{{{q}}}"
+
+    def pi(self) -> str:
+        return r"\pi"
+
+    def add(self, terms: Sequence[Expr]) -> str:
+        out = ""
+        for term in terms:
+            printed = self.doprint(term)
+            if not out:
+                out = printed
+            elif printed.startswith("-"):
+                out += " - " + printed[1:].lstrip()
+            else:
+                out += " + " + printed
+        return out or "0"
+
+    def mul(self, expr: Expr) -> str:
+        number, above, below = self.split(expr)
+        sign = ""
+        if number.is_negative:
+            sign, number = "- ", -number
+        top = [self._factor(f) for f in above]
+        bottom = [self._factor(f) if len(below) > 1 else self.doprint(f) for f in below]
+        if number != 1:
+            if number.is_Rational and not number.is_Integer:
+                if int(number.p) != 1:
+                    top.insert(0, str(int(number.p)))
+                bottom.insert(0, str(int(number.q)))
+            else:
+                top.insert(0, self.doprint(number))
+        text = " ".join(top) or "1"
+        if bottom:
+            text = rf"\frac{{{text}}}{{{' '.join(bottom)}}}"
+        return sign + text
+
+    def _factor(self, factor: Expr) -> str:
+        printed = self.doprint(factor)
+        return rf"\left({printed}\right)" if factor.is_Add else printed
+
+    def power(self, base: Expr, exponent: Expr) -> str:
+        if exponent.is_Number and exponent.is_negative:
+            return rf"\frac{{1}}{{{self.doprint(se.Pow(base, -exponent))}}}"
+        if exponent.is_Rational and not exponent.is_Integer and int(exponent.q) == 2 and int(exponent.p) == 1:
+            return rf"\sqrt{{{self.doprint(base)}}}"
+        power = rf"\frac{{{int(exponent.p)}}}{{{int(exponent.q)}}}" if exponent.is_Rational and not exponent.is_Integer else self.doprint(exponent)
+        kind = type(base).__name__
+        if exponent.is_Integer and (kind in self._UNARY or kind == "FunctionSymbol"):
+            return self._call(base, power)
+        atomic = base.is_Symbol or (base.is_Integer and not base.is_negative) or (not base.is_Add and not base.is_Mul and not base.is_Pow and not base.is_Number)
+        printed = self.doprint(base) if atomic else r"\left(" + self.doprint(base) + r"\right)"
+        return f"{printed}^{{{power}}}"
+
+    def exp(self, exponent: Expr) -> str:
+        return f"e^{{{self.doprint(exponent)}}}"
+
+    def function(self, name: str, args: Sequence[Expr], undefined: bool = False) -> str:
+        head = (self._function_names.get(name) or _function(name, False)) if undefined else f"\\{name}"
+        return head + r"{\left(" + ",".join(self.doprint(a) for a in args) + r" \right)}"
+
+    def _call(self, base: Expr, power: str) -> str:
+        name = base.get_name() if type(base).__name__ == "FunctionSymbol" else type(base).__name__
+        head = (self._function_names.get(name) or _function(name, False)) if type(base).__name__ == "FunctionSymbol" else f"\\{name}"
+        return head + f"^{{{power}}}" + r"{\left(" + ",".join(self.doprint(a) for a in base.args) + r" \right)}"
+
+    def fallback(self, expr: object) -> str:
+        return str(self._sympy.doprint(expr))
+
+
 def names(model: Model, momenta: Sequence[sp.Symbol] = ()) -> Names:
     """Coordinates, their velocities and accelerations (`\\dot{\\theta}_{1}`), parameters, time,
     multipliers (`\\lambda_{\\mathrm{roll},x}`), functions, and the momenta `p_{q}` of `info`
     when given. Names that would print alike (`x_1` and `x1`) are written out literally
     (`\\mathit{x\\_1}`, `\\mathit{x1}`)."""
-    functions = sorted({str(f.func) for f in _applied_functions(model)} | set(model.definitions))
+    functions = sorted(_applied_functions(model) | set(model.definitions))
     literal: set[str] = set()
     while True:
         owners: list[tuple[str, sp.Basic | str, str]] = []
@@ -447,6 +569,8 @@ def _underscores(name: str) -> str:
     return name.replace("_", r"\_")
 
 
-def _applied_functions(model: Model) -> set[sp.Expr]:
-    exprs = [*model.mass_matrix, *model.forcing, model.energy, model.lagrangian, *(c.expr for c in model.constraints)]
-    return set(sp.Matrix(exprs).atoms(sp.core.function.AppliedUndef))
+def _applied_functions(model: Model) -> set[str]:
+    """The names of the undefined functions the equations apply (read from `Model.symengine`)."""
+    forms = model.symengine
+    found = {f.get_name() for e in (*(m for row in forms.mass for m in row), *forms.forcing, forms.lagrangian, forms.dissipation, *forms.generalized_forces) for f in e.atoms(se.FunctionSymbol)}
+    return found | {str(f.func) for c in model.constraints for f in c.expr.atoms(sp.core.function.AppliedUndef)}

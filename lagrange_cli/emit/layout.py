@@ -1,11 +1,13 @@
 """Equations that fit the page: an estimate of the printed width of LaTeX math, and a line
-breaker that splits a sympy expression at its terms (and, when one term is still too wide,
+breaker that splits an expression (symengine, printed by a `common.SymenginePrinter`, for the
+equations; sympy, printed by a sympy printer, for the solved form and `info`) at its terms (and, when one term is still too wide,
 inside its parentheses and fractions) so that every line of an `align*` fits the `\\linewidth`
 of a standard `article` (345 pt at 10 pt).
 
 The estimate reads the LaTeX text once (linear in its length) and counts in units of about
-one math-italic letter; each term is printed and measured once, so laying out an equation
-costs about as much as printing it.
+one math-italic letter; each term is printed and measured once, and a term too wide for a line
+once more in its pieces (whose operators and parentheses add their widths without re-reading
+the pieces), so laying out an equation costs about as much as printing it.
 """
 
 from __future__ import annotations
@@ -13,8 +15,12 @@ from __future__ import annotations
 import re
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import sympy as sp
+
+from lagrange_cli._symengine import se
+from lagrange_cli.emit import common
 
 # One unit is about the width of an average math-italic letter at 10 pt (calibrated against
 # pdflatex on the bundled systems' terms; see tests/test_latex_layout.py).
@@ -98,12 +104,27 @@ _LETTERS_PT = dict(
     )
 )
 _COMMAND = re.compile(r"\\([A-Za-z]+|.)")
+# The width of each letter and digit in units at display size (the reader's fast path).
+_PLAIN = {char: _LETTERS_PT.get(char, 5.0) * 1.04 / UNIT_PT for char in "abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789"}
 
 
 def width(tex: str) -> float:
     """The estimated width of the math `tex` in display style, in units (`UNIT_PT` points).
-    Monotone: appending anything never makes it narrower."""
-    return _Reader(tex).sequence(0)
+    Monotone: appending anything never makes it narrower. Short texts (the pieces of broken
+    sums, `+ m_{17}`, recur by the thousand in a big system) are measured once."""
+    if len(tex) > _SHORT:
+        return _Reader(tex).sequence(0)
+    found = _measured.get(tex)
+    if found is None:
+        if len(_measured) > 100_000:
+            _measured.clear()
+        found = _measured[tex] = _Reader(tex).sequence(0)
+    return found
+
+
+_SHORT = 48
+_PARENTHESIS = 1.0  # `\\left(` or `\\right)` at display size
+_measured: dict[str, float] = {}
 
 
 class _Reader:
@@ -118,8 +139,18 @@ class _Reader:
         total = 0.0
         operand = False  # the previous atom is an operand: a following + or - is binary
         tex, scale = self.tex, _SCALE[style]
-        while self.i < len(tex):
+        end = len(tex)
+        while self.i < end:
             char = tex[self.i]
+            plain = _PLAIN.get(char)
+            if plain is not None:  # a letter or digit (most of the text): the fast path
+                self.i += 1
+                total += plain * scale
+                operand = True
+                continue
+            if char == " ":
+                self.i += 1
+                continue
             if char in stop:
                 self.i += 1
                 return max(total, 0.0)
@@ -275,93 +306,153 @@ class Piece:
     width: float
 
 
-Printer = Callable[[sp.Basic], str]
+Printer = Callable[[Any], str]
 
 
 def piece(tex: str) -> Piece:
     return Piece(tex, width(tex))
 
 
-def pieces(expr: sp.Expr, doprint: Printer, room: float) -> list[Piece]:
+def pieces(expr: Any, doprint: Printer, room: float) -> list[Piece]:
     """`expr` as pieces that a line of `room` units can hold where possible: the terms of a
     sum, and inside a term too wide for a line, the terms of its widest parenthesized sum or of
-    its numerator (`\\frac{1}{D} \\left( N \\right)`)."""
-    if isinstance(expr, sp.Add):
+    its numerator (`\\frac{1}{D} \\left( N \\right)`). `expr` is a sympy expression printed by a
+    sympy printer, or a symengine one printed by a `common.SymenginePrinter` (big systems)."""
+    if expr.is_Add:
         return _sum(expr, doprint, room)
+    if _at_least(expr) > room:  # surely too wide: only its pieces are measured
+        negative = _negative(expr)
+        inner = _term(-expr if negative else expr, doprint, room)
+        if inner:
+            return [Piece("- " + inner[0].tex, inner[0].width + _UNARY), *inner[1:]] if negative else inner
     measured = piece(doprint(expr))
     if measured.width <= room:
         return [measured]
-    if expr.could_extract_minus_sign():  # the sign goes in front: - \frac{1}{D} (...), not \frac{1}{D} - (...)
+    if _negative(expr):  # the sign goes in front: - \frac{1}{D} (...), not \frac{1}{D} - (...)
         inner = _term(-expr, doprint, room)
         return [Piece("- " + inner[0].tex, inner[0].width + _UNARY), *inner[1:]] if inner else [measured]
     return _term(expr, doprint, room) or [measured]
 
 
-def _sum(expr: sp.Add, doprint: Printer, room: float) -> list[Piece]:
+def _at_least(expr: Any) -> float:
+    """A lower bound of the printed width of a product: each sum among its factors is printed in
+    parentheses at full size, with a binary operator (`_BINARY`) between its terms."""
+    if not expr.is_Mul:
+        return 0.0
+    return sum(_BINARY["+"] * (len(factor.args) - 1) for factor in expr.args if factor.is_Add)
+
+
+def _sum(expr: Any, doprint: Printer, room: float) -> list[Piece]:
     return terms(_ordered(expr, doprint), doprint, room)
 
 
-def terms(summands: Sequence[sp.Expr], doprint: Printer, room: float) -> list[Piece]:
+def terms(summands: Sequence[Any], doprint: Printer, room: float) -> list[Piece]:
     """The sum of `summands`, in their order, as pieces (see `pieces`)."""
     out: list[Piece] = []
     for term in summands:
-        negative = term.could_extract_minus_sign()
+        negative = _negative(term)
         inner = pieces(-term if negative else term, doprint, room)
         sign = "- " if negative else "+ " if out else ""
         first = inner[0]
-        if sign:  # measured alone its operator is unary; between terms it is binary, wider
-            first = Piece(sign + first.tex, width(sign + first.tex) + (_BINARY["+"] - _UNARY if out else 0.0))
+        if sign:  # measured alone its operator is unary (a sign in front of a text adds exactly that); between terms it is binary, wider
+            first = Piece(sign + first.tex, first.width + _UNARY + (_BINARY["+"] - _UNARY if out else 0.0))
         out += [first, *inner[1:]]
     return out
 
 
-def _ordered(expr: sp.Add, doprint: Printer) -> list[sp.Expr]:
-    """The terms of a sum in the order sympy's printer writes them."""
-    owner = getattr(doprint, "__self__", None)
+def _sympy(expr: Any) -> bool:
+    return isinstance(expr, sp.Basic)
+
+
+def _negative(expr: Any) -> bool:
+    """The term is printed with a minus in front."""
+    return bool(expr.could_extract_minus_sign()) if _sympy(expr) else common.negative(expr)
+
+
+def _ordered(expr: Any, doprint: Printer) -> list[Any]:
+    """The terms of a sum in the order the printer writes them."""
+    owner = doprint if isinstance(doprint, common.SymenginePrinter) else getattr(doprint, "__self__", None)
+    if isinstance(owner, common.SymenginePrinter):
+        return owner.order(expr.args)
+    if not _sympy(expr):
+        return sorted(expr.args, key=str)
     if owner is not None and hasattr(owner, "_as_ordered_terms"):
         return list(owner._as_ordered_terms(expr, order=None))
     return list(expr.as_ordered_terms())
 
 
-def _term(expr: sp.Expr, doprint: Printer, room: float) -> list[Piece] | None:
+def _fraction(expr: Any) -> tuple[Any, Any]:
+    """(numerator, denominator) as written, without combining anything."""
+    if _sympy(expr):
+        return sp.fraction(expr, exact=True)
+    if expr.is_Pow and expr.args[1].is_Number and expr.args[1].is_negative and expr.args[0] != se.E:
+        return se.Integer(1), se.Pow(expr.args[0], -expr.args[1])
+    if not expr.is_Mul:
+        return expr, se.Integer(1)
+    top, bottom = [], []
+    for factor in expr.args:
+        if factor.is_Rational and not factor.is_Integer:
+            top.append(se.Integer(int(factor.p)))
+            bottom.append(se.Integer(int(factor.q)))
+        elif factor.is_Pow and factor.args[1].is_Number and factor.args[1].is_negative and factor.args[0] != se.E:
+            bottom.append(se.Pow(factor.args[0], -factor.args[1]))
+        else:
+            top.append(factor)
+    return se.Mul(*top), se.Mul(*bottom)
+
+
+def _product(factors: Sequence[Any], like: Any) -> Any:
+    if _sympy(like):
+        return sp.Mul(*factors, evaluate=False) if factors else sp.Integer(1)
+    return se.Mul(*factors)
+
+
+def _power_of_sum(expr: Any) -> bool:
+    return bool(expr.is_Pow and expr.args[0].is_Add and expr.args[1].is_Rational and expr.args[1].is_positive)
+
+
+def _term(expr: Any, doprint: Printer, room: float) -> list[Piece] | None:
     """A too-wide product or quotient broken inside its widest sum, or None."""
-    numerator, denominator = sp.fraction(expr, exact=True)
+    numerator, denominator = _fraction(expr)
     if denominator != 1:
         top = pieces(numerator, doprint, room)
         # a sum is wrapped in parentheses; a product's pieces already hold their own
-        wrapped = _wrap(top, "", "") if isinstance(numerator, sp.Add) else top
+        wrapped = _wrap(top, "", "") if numerator.is_Add else top
         bottom_tex = doprint(denominator)
         if width(bottom_tex) <= room / 2:
             if len(top) == 1:
                 return None
             prefix = rf"\frac{{1}}{{{bottom_tex}}} "
-            return _wrap(top, prefix, "") if isinstance(numerator, sp.Add) else [piece(prefix + top[0].tex), *top[1:]]
+            return _wrap(top, prefix, "") if numerator.is_Add else [piece(prefix + top[0].tex), *top[1:]]
         bottom = pieces(denominator, doprint, room)
         if len(top) == 1 and len(bottom) == 1:
             return None
-        return [*wrapped, *(_wrap(bottom, "/ ", "") if isinstance(denominator, sp.Add) or len(bottom) == 1 else [piece("/ " + bottom[0].tex), *bottom[1:]])]
-    if not isinstance(expr, sp.Mul):
-        if isinstance(expr, sp.Pow) and isinstance(expr.base, sp.Add) and expr.exp.is_Rational and expr.exp > 0:
-            return _wrap(_sum(expr.base, doprint, room), "", f"^{{{doprint(expr.exp)}}}")
+        return [*wrapped, *(_wrap(bottom, "/ ", "") if denominator.is_Add or len(bottom) == 1 else [piece("/ " + bottom[0].tex), *bottom[1:]])]
+    if not expr.is_Mul:
+        if _power_of_sum(expr):
+            return _wrap(_sum(expr.args[0], doprint, room), "", f"^{{{doprint(expr.args[1])}}}")
         return None
     factors = list(expr.args)
-    widest = max(range(len(factors)), key=lambda k: len(doprint(factors[k])) if isinstance(factors[k], (sp.Add, sp.Pow)) else -1)
+    widest = max(range(len(factors)), key=lambda k: len(doprint(factors[k])) if factors[k].is_Add or factors[k].is_Pow else -1)
     target = factors[widest]
-    rest = sp.Mul(*(factors[:widest] + factors[widest + 1 :]), evaluate=False) if len(factors) > 1 else sp.Integer(1)
+    rest = _product(factors[:widest] + factors[widest + 1 :], expr)
     prefix = "" if rest == 1 else "- " if rest == -1 else doprint(rest) + " "
-    if isinstance(target, sp.Add):
+    if target.is_Add:
         return _wrap(_sum(target, doprint, room), prefix, "")
-    if isinstance(target, sp.Pow) and isinstance(target.base, sp.Add) and target.exp.is_Rational and target.exp > 0:
-        return _wrap(_sum(target.base, doprint, room), prefix, f"^{{{doprint(target.exp)}}}")
+    if _power_of_sum(target):
+        return _wrap(_sum(target.args[0], doprint, room), prefix, f"^{{{doprint(target.args[1])}}}")
     return None
 
 
 def _wrap(inner: list[Piece], prefix: str, suffix: str) -> list[Piece]:
     """`prefix ( inner ) suffix`; when `inner` spans pieces, its parentheses may end up on
-    different lines, which `lines` balances with `\\right.` and `\\left.`."""
+    different lines, which `lines` balances with `\\right.` and `\\left.`. Widths add up (the
+    reader's state does not cross `\\left(` or `\\right)`), so `inner` is not measured again."""
+    before = width(prefix) + _PARENTHESIS
+    after = _PARENTHESIS + width(suffix)
     if len(inner) == 1:
-        return [piece(rf"{prefix}\left({inner[0].tex}\right){suffix}")]
-    return [piece(prefix + r"\left(" + inner[0].tex), *inner[1:-1], piece(inner[-1].tex + rf"\right){suffix}")]
+        return [Piece(rf"{prefix}\left({inner[0].tex}\right){suffix}", before + inner[0].width + after)]
+    return [Piece(prefix + r"\left(" + inner[0].tex, before + inner[0].width), *inner[1:-1], Piece(inner[-1].tex + rf"\right){suffix}", inner[-1].width + after)]
 
 
 def lines(parts: Sequence[Piece], first: float, rest: float) -> list[str]:
