@@ -61,6 +61,7 @@ LYAPUNOV_SEGMENTS = 50
 LYAPUNOV_SEPARATION = 1e-8
 MAX_CROSSINGS = 100_000
 SWEEP_SAMPLES = 201
+CONNECT_TIMEOUT = 10  # seconds to reach a Dask scheduler
 """Samples of a run when a measure needs them and `samples` is not given."""
 _CALL = re.compile(r"^\s*(max|min|mean|period)\s*\((.*)\)\s*$", re.S)
 
@@ -663,7 +664,7 @@ def sweep(
     if not isinstance(batch, int) or isinstance(batch, bool) or batch < 1:
         raise LagrangeError(f"batch must be a whole number of at least 1, got {batch!r}")
     if text is None and scheduler is not None:
-        text = Path(model.source).read_text(encoding="utf-8")
+        text = _source_text(model)
     job = Job(text or "", model.source, tuple(axes), tuple(measures), section, tuple(sorted(options.items())))
     runner = runner_for(job, model)
     grid = points(axes, sample, seed)
@@ -691,6 +692,16 @@ def sweep(
             for rows, size in _ordered(pool, runner, grid, batches, workers):
                 deliver(rows, size)
     return table
+
+
+def _source_text(model: Model) -> str:
+    """The text of the file `model` came from (Dask workers derive it again from the text)."""
+    from lagrange_cli import spec
+
+    for path in (Path(model.source), spec.bundled_systems() / Path(model.source).name):
+        if path.is_file():
+            return path.read_text(encoding="utf-8")
+    raise LagrangeError(f"{model.source}: cannot read the system file to send to the Dask workers; pass its text (text=...)")
 
 
 def _rows(runner: Runner, grid: np.ndarray, indices: list[int]) -> list[list[Any]]:
@@ -722,7 +733,7 @@ def _dask(address: str, job: Job, grid: np.ndarray, batches: list[list[int]]) ->
     except ImportError:
         raise LagrangeError("--scheduler needs dask.distributed: install it with `pip install 'dask[distributed]'`") from None
     try:
-        client = Client(address, timeout=30, set_as_default=False)
+        client = Client(address, timeout=CONNECT_TIMEOUT, set_as_default=False)
     except (OSError, TimeoutError, ValueError) as error:
         raise LagrangeError(f"--scheduler {address}: cannot connect to a Dask scheduler ({error})") from None
     try:

@@ -214,3 +214,66 @@ def test_system_sweep() -> None:
         assert list(table["max(theta)"]) == pytest.approx([0.1, 0.2])
     else:
         assert plain.column("max(theta)") == pytest.approx([0.1, 0.2])
+
+
+# -- Dask ----------------------------------------------------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def cluster():  # type: ignore[no-untyped-def]
+    """Two worker processes of one thread each (the machine's two cores)."""
+    distributed = pytest.importorskip("distributed")
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as local:
+        yield local
+
+
+DASK_AXES = [Axis("initial", "theta", -2, 2, 4), Axis("initial", "phi", -2, 2, 3)]
+
+
+def test_dask_cluster_gives_exactly_the_local_results(cluster, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
+    arguments = ["double_pendulum", "--initial", "theta=-2..2:4", "--initial", "phi=-2..2:3", "--t-end", "3", "--measure", "final", "--measure", "max(phi)", "--batch", "1", "-q"]
+    local, remote = tmp_path / "local.csv", tmp_path / "remote.csv"
+    assert run(*arguments, "-o", str(local))[0] == 0
+    code, _, err = run(*arguments, "-o", str(remote), "--scheduler", cluster.scheduler_address)
+    assert code == 0, err
+    assert remote.read_text() == local.read_text() and len(rows(remote)) == 12
+
+
+def test_a_killed_worker_loses_no_rows(cluster) -> None:  # type: ignore[no-untyped-def]
+    """After the first batch one worker process is killed (SIGKILL): Dask reruns its tasks on the
+    other (and on the worker its nanny restarts); every row arrives, equal to the local run's."""
+    import os
+    import signal
+
+    from distributed import Client
+
+    pendulum = model("double_pendulum")
+    local = library.sweep(pendulum, DASK_AXES, measures=["final"], t_end=3, batch=1)
+    killed: list[str] = []
+
+    def kill_one(batch: list, done: int, total: int) -> None:  # type: ignore[type-arg]
+        if not killed:
+            with Client(cluster.scheduler_address) as client:
+                victim = sorted(client.scheduler_info()["workers"])[0]
+                os.kill(client.run(os.getpid)[victim], signal.SIGKILL)
+                killed.append(victim)
+
+    remote = library.sweep(pendulum, DASK_AXES, measures=["final"], t_end=3, batch=1, scheduler=cluster.scheduler_address, on_batch=kill_one)
+    assert killed and remote.rows == local.rows
+    assert [row[0] for row in remote.rows] == list(range(12))
+
+
+def test_dask_is_imported_only_for_a_scheduler(tmp_path: Path) -> None:
+    import subprocess
+    import sys
+
+    code = "import sys; from typer.testing import CliRunner; from lagrange_cli.cli import app; r = CliRunner().invoke(app, ['sweep', 'simple_pendulum', '--set', 'g=1..2:2', '-q']); assert r.exit_code == 0, r.output; print('distributed' in sys.modules or 'dask' in sys.modules)"
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, cwd=tmp_path, env={**__import__("os").environ, "PYTHONPATH": str(ROOT)})
+    assert result.stdout.strip() == "False"
+
+
+def test_unreachable_scheduler_exits_2(monkeypatch: pytest.MonkeyPatch) -> None:
+    pytest.importorskip("distributed")
+    monkeypatch.setattr(library, "CONNECT_TIMEOUT", 1)
+    code, _, err = run("simple_pendulum", "--set", "g=1..2:2", "--scheduler", "tcp://127.0.0.1:9", "-q")
+    assert code == 2 and "cannot connect" in err
