@@ -308,9 +308,9 @@ def runner_for(job: Job, model: Model | None = None) -> Runner:
         return _RUNNERS[job.key]
 
 
-def run_batch(job: Job, start: int, chunk: np.ndarray) -> list[list[Any]]:
-    """Rows of the points `chunk` (numbered from `start`): what a thread or a Dask task runs."""
-    return runner_for(job).rows(start, chunk)
+def run_batch(job: Job, indices: Sequence[int], chunk: np.ndarray) -> list[list[Any]]:
+    """Rows of the points `chunk` (numbered `indices`): what a thread or a Dask task runs."""
+    return runner_for(job).batch(indices, chunk)
 
 
 class Runner:
@@ -374,6 +374,9 @@ class Runner:
             self.event.compile(kernels.EVENT_SIG.args)
             self.size = numba.module._SIZE
             self.budget = integrators.MAX_STEPS["compiled"]
+            from lagrange_cli.numeric.ensemble import erk_batch
+
+            self.batch_entry = erk_batch()
         full = model.with_definitions()
         self.vector: dict[str, Callable[..., Any]] = {}
         for m in self.measures:
@@ -412,11 +415,45 @@ class Runner:
 
         return y0, np.array(code_parameters(values_p, self.settings.alpha), dtype=float)
 
-    def rows(self, start: int, chunk: np.ndarray) -> list[list[Any]]:
-        result: list[list[Any]] = []
-        for k, values in enumerate(chunk):
-            result += self.run_point(start + k, values)
-        return result
+    def batch(self, indices: Sequence[int], chunk: np.ndarray) -> list[list[Any]]:
+        """The rows of points `chunk` (numbered `indices`): one compiled call for the whole batch
+        (numeric/ensemble.py) on the compiled explicit path without a section, else run by run."""
+        if not (self.fast and self.section is None) or len(indices) == 0:
+            result: list[list[Any]] = []
+            for k, values in zip(indices, chunk, strict=True):
+                result += self.run_point(k, values)
+            return result
+        import numpy as np
+
+        from lagrange_cli.numeric import status as st
+
+        starts = [self.point(values) for values in chunk]
+        y0s, ps = np.array([y for y, _ in starts]), np.array([p for _, p in starts])
+        ts = np.array(self.settings.t_eval, dtype=float)
+        control = self._control(self.settings.t0, self.settings.t_end)
+        codes, t_last, y_last, ys, _ = self.batch_entry(self.pair, y0s, ps, control, ts, self.budget, self.accel, self.event)
+        rows: list[list[Any]] = []
+        for b, (k, values) in enumerate(zip(indices, chunk, strict=True)):
+            code = int(codes[b])
+            m = int(np.count_nonzero(~np.isnan(ys[b, :, 0])))
+            if code in (st.DONE, st.EVENT):
+                outcome = Outcome("event" if code == st.EVENT else "finished", "", float(t_last[b]), y_last[b], ts[:m], ys[b, :m], [], float(t_last[b]) if code == st.EVENT else math.nan)
+            else:
+                outcome = Outcome.failed(self, code, float(t_last[b]), y_last[b], ts[:m], ys[b, :m], [])
+            rows += self.measured_rows([k, *values.tolist()], outcome, y0s[b], ps[b])
+        return rows
+
+    def _control(self, t0: float, t1: float) -> np.ndarray:
+        import numpy as np
+
+        from lagrange_cli.numeric import status as st
+
+        s = self.settings
+        control = np.zeros(st.CONTROL_SIZE)
+        control[st.RTOL], control[st.ATOL], control[st.MAX_STEP] = s.rtol, s.atol, s.max_step
+        control[st.T_BOUND], control[st.T_STOP], control[st.USE_EVENT] = t1, t1, float(s.event is not None)
+        control[st.SIZE], control[st.T0] = self.size, t0
+        return control
 
     def run_point(self, index: int, values: np.ndarray) -> list[list[Any]]:
         import numpy as np
@@ -428,12 +465,21 @@ class Runner:
             outcome = self.integrate(y0, p, self.settings.t0, self.settings.t_end, ts, self.section is not None)
         except LagrangeError as error:
             return [[*head, "failed", str(error), *([math.nan] * (len(self.columns) - len(head) - 2))]]
-        if self.section is not None:
-            return self._section_rows(head, outcome, p)
+        except Exception as error:  # a run never loses the sweep: its row says what happened
+            return [[*head, "failed", f"the run raised {type(error).__name__}: {error}", *([math.nan] * (len(self.columns) - len(head) - 2))]]
+        return self.measured_rows(head, outcome, y0, p)
+
+    def measured_rows(self, head: list[Any], outcome: Outcome, y0: np.ndarray, p: np.ndarray) -> list[list[Any]]:
+        """The row (or a section's rows) of a run that ended as `outcome`."""
+        import numpy as np
+
         try:
-            measured = self._measured(outcome, y0, p)
-        except (ArithmeticError, ValueError) as error:
-            return [[*head, "failed", f"a measure cannot be evaluated: {error}", *([math.nan] * (len(self.columns) - len(head) - 2))]]
+            with np.errstate(all="ignore"):  # a measure undefined somewhere is NaN there
+                if self.section is not None:
+                    return self._section_rows(head, outcome, p)
+                measured = self._measured(outcome, y0, p)
+        except Exception as error:
+            return [[*head, "failed", f"a measure cannot be evaluated: {type(error).__name__}: {error}", *([math.nan] * (len(self.columns) - len(head) - 2))]]
         return [[*head, outcome.status, outcome.reason, *measured]]
 
     def integrate(self, y0: np.ndarray, p: np.ndarray, t0: float, t1: float, ts: np.ndarray, crossings: bool = False) -> Outcome:
@@ -450,11 +496,8 @@ class Runner:
         stats = np.zeros(st.STATS_SIZE)
         stats[st.HMIN] = math.inf
         ys = np.full((len(ts), len(y)), np.nan)
-        control = np.zeros(st.CONTROL_SIZE)
+        control = self._control(t0, t1)
         s = self.settings
-        control[st.RTOL], control[st.ATOL], control[st.MAX_STEP] = s.rtol, s.atol, s.max_step
-        control[st.T_BOUND], control[st.T_STOP], control[st.USE_EVENT] = t1, t1, float(s.event is not None)
-        control[st.SIZE], control[st.T0] = self.size, t0
         x, a = np.empty(self.size), np.empty((self.size, self.size))
         state = np.zeros(st.STATE_SIZE)
         events: list[tuple[float, np.ndarray]] = []
@@ -705,10 +748,7 @@ def _source_text(model: Model) -> str:
 
 
 def _rows(runner: Runner, grid: np.ndarray, indices: list[int]) -> list[list[Any]]:
-    rows: list[list[Any]] = []
-    for k in indices:
-        rows += runner.run_point(k, grid[k])
-    return rows
+    return runner.batch(indices, grid[indices])
 
 
 def _ordered(pool: ThreadPoolExecutor, runner: Runner, grid: np.ndarray, batches: list[list[int]], workers: int) -> Iterator[tuple[list[list[Any]], int]]:
@@ -746,11 +786,7 @@ def _dask(address: str, job: Job, grid: np.ndarray, batches: list[list[int]]) ->
 
 
 def _dask_task(job: Job, indices: list[int], chunk: np.ndarray) -> list[list[Any]]:
-    runner = runner_for(job)
-    rows: list[list[Any]] = []
-    for k, values in zip(indices, chunk, strict=True):
-        rows += runner.run_point(k, values)
-    return rows
+    return runner_for(job).batch(indices, chunk)
 
 
 # -- output and resume -----------------------------------------------------------------------------
@@ -771,26 +807,34 @@ def _cell(value: Any) -> str:
     return str(value)
 
 
-def read_done(path: Path, columns: list[str]) -> tuple[set[int], int]:
-    """The point indices already in a sweep's CSV and the byte length of its complete lines;
-    a file of another sweep (other columns) is an error."""
+def identity(job: Job, sample: int | None, seed: int) -> str:
+    """What makes two sweeps the same (the file's text, the axes, measures, settings, sample and
+    seed): the first line of a journal, so that `--resume` never mixes two sweeps."""
+    return f"# lagrange sweep {hashlib.sha256(f'{job.key} {sample} {seed}'.encode()).hexdigest()[:24]}"
+
+
+def read_done(path: Path, columns: list[str], mark: str) -> tuple[set[int], int]:
+    """The point indices already in a sweep's journal and the byte length of its complete lines;
+    a journal of another sweep is an error."""
     import csv
 
     data = path.read_bytes()
     end = data.rfind(b"\n") + 1
-    lines = data[:end].decode("utf-8").splitlines()
-    if not lines:
+    lines = data[:end].decode("utf-8", errors="replace").splitlines()
+    if len(lines) < 2:
         return set(), 0
-    header = next(csv.reader([lines[0]]))
-    if header != columns:
-        raise LagrangeError(f"--resume: {path} holds another sweep (its columns are {', '.join(header)}; this sweep's are {', '.join(columns)})")
-    done = {int(row[0]) for row in csv.reader(lines[1:]) if row}
+    if lines[0] != mark or next(csv.reader([lines[1]])) != columns:
+        raise LagrangeError(f"--resume: {path} holds another sweep (other file, ranges, measures or settings); delete it, or run without --resume to start again")
+    try:
+        done = {int(row[0]) for row in csv.reader(lines[2:]) if row}
+    except ValueError:
+        raise LagrangeError(f"--resume: {path} is damaged (a row without its index); delete it, or run without --resume to start again") from None
     return done, end
 
 
-def append_rows(path: Path, rows: list[list[Any]], header: list[str] | None = None) -> None:
+def append_rows(path: Path, rows: list[list[Any]], header: list[str] | None = None, mark: str = "") -> None:
     """Append a batch's rows to `path` in one write (then fsync): a crash leaves whole batches and at most a cut last line, which `read_done` drops."""
-    text = (csv_line(header) if header else "") + "".join(csv_line(r) for r in rows)
+    text = (f"{mark}\n" if mark else "") + (csv_line(header) if header else "") + "".join(csv_line(r) for r in rows)
     fd = os.open(path, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o644)
     try:
         os.write(fd, text.encode("utf-8"))
@@ -805,6 +849,8 @@ def read_table(path: Path) -> Table:
     with path.open(encoding="utf-8", newline="") as handle:
         reader = csv.reader(handle)
         columns = next(reader)
+        if columns and columns[0].startswith("# lagrange sweep"):
+            columns = next(reader)
         rows = [[_parse(v) for v in row] for row in reader if row]
     for row in rows:
         row[0] = int(row[0])

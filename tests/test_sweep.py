@@ -140,33 +140,43 @@ def test_resume_after_an_interruption(tmp_path: Path, monkeypatch: pytest.Monkey
     assert run(*arguments, "-o", str(whole))[0] == 0
     out = tmp_path / "part.csv"
     journal = tmp_path / "part.csv.partial.csv"
-    real = library.append_rows
-    calls = []
-
-    def interrupted(path: Path, batch: list, header: list | None = None) -> None:  # type: ignore[type-arg]
-        calls.append(1)
-        if len(calls) > 4:  # the header, then 3 batches, then stop
-            raise KeyboardInterrupt
-        real(path, batch, header)
-
-    monkeypatch.setattr(library, "append_rows", interrupted)
+    interrupt_after(monkeypatch, 4)  # the header, then 3 batches, then stop
     code, _, err = run(*arguments, "-o", str(out))
     assert code == 130 and "--resume" in err
-    assert not out.exists() and len(rows(journal)) == 6
+    lines = journal.read_text().splitlines()
+    assert not out.exists() and lines[0].startswith("# lagrange sweep ") and lines[1].startswith("index,") and len(lines) == 2 + 6
     with journal.open("a") as handle:
         handle.write("6,0.0,0.")  # a line cut by the interruption
-    monkeypatch.setattr(library, "append_rows", real)
+    monkeypatch.undo()
     code, _, err = run(*arguments, "-o", str(out), "--resume")
     assert code == 0, err
     assert out.read_text() == whole.read_text() and not journal.exists()
     assert [int(r["index"]) for r in rows(out)] == list(range(15))
 
 
-def test_resume_refuses_another_sweeps_journal(tmp_path: Path) -> None:
+def interrupt_after(monkeypatch: pytest.MonkeyPatch, writes: int) -> None:
+    """The next sweep stops (as by Ctrl-C) after `writes` writes to its journal (the first is the header)."""
+    real, calls = library.append_rows, []
+
+    def interrupted(*arguments, **options) -> None:  # type: ignore[no-untyped-def]
+        calls.append(1)
+        if len(calls) > writes:
+            raise KeyboardInterrupt
+        real(*arguments, **options)
+
+    monkeypatch.setattr(library, "append_rows", interrupted)
+
+
+@pytest.mark.parametrize("other", [["--initial", "theta=0..1:5"], ["--initial", "theta=0..1:4", "--t-end", "3"], ["--initial", "theta=0..1:4", "--measure", "max(theta)"]])
+def test_resume_refuses_another_sweeps_journal(other: list[str], tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     out = tmp_path / "t.csv"
-    (tmp_path / "t.csv.partial.csv").write_text("index,g,status,reason,max(theta)\n0,1.0,finished,,0.5\n")
-    code, _, err = run("simple_pendulum", "--initial", "theta=0..1:3", "-o", str(out), "--resume", "-q")
-    assert code == 2 and "another sweep" in err
+    with monkeypatch.context() as patch:
+        interrupt_after(patch, 2)
+        assert run("simple_pendulum", "--initial", "theta=0..1:4", "--batch", "1", "-o", str(out), "-q")[0] == 130
+    code, _, err = run("simple_pendulum", *other, "--batch", "1", "-o", str(out), "--resume", "-q")
+    assert code == 2 and "another sweep" in err, err
+    assert run("simple_pendulum", "--initial", "theta=0..1:4", "--batch", "1", "-o", str(out), "--resume", "-q")[0] == 0
+    assert [int(r["index"]) for r in rows(out)] == [0, 1, 2, 3]
 
 
 # -- bad options ------------------------------------------------------------------------------------------

@@ -87,15 +87,16 @@ def sweep(
         journal = _journal(output_path) if to_file else None
         done: set[int] = set()
         if journal is not None:
+            mark = library.identity(job, sample, seed)
             if resume and journal.exists():
-                done, length = library.read_done(journal, runner.columns)
+                done, length = library.read_done(journal, runner.columns, mark)
                 with journal.open("r+b") as handle:
                     handle.truncate(length)  # a cut last line of an interrupted write
                 if length == 0:
-                    library.append_rows(journal, [], runner.columns)
+                    library.append_rows(journal, [], runner.columns, mark)
             else:
                 journal.unlink(missing_ok=True)
-                library.append_rows(journal, [], runner.columns)
+                library.append_rows(journal, [], runner.columns, mark)
         table = _run(model, job, axes, sample, seed, workers, scheduler, batch, done, journal, quiet, options)
         for note in runner.notes:
             _say(f"note: {note}")
@@ -148,11 +149,15 @@ def _run(
     from lagrange_cli.numeric.accuracy import Step
 
     with Reporter("sweep", "runs", quiet) as reporter:
+        shown = [-1]
 
         def on_batch(rows: list[list[Any]], count: int, total: int) -> None:
             if journal is not None:
                 library.append_rows(journal, rows)
-            reporter(Step(count, total, f"{count} of {total} runs"))
+            tenth = 10 * count // max(total, 1)
+            if reporter.terminal or tenth > shown[0]:  # a bar on a terminal; otherwise a line every tenth of the runs
+                shown[0] = tenth
+                reporter(Step(count, total, f"{count} of {total} runs"))
 
         try:
             return library.sweep(
