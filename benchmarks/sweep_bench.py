@@ -7,13 +7,15 @@
 The system: benchmarks/pendulum.py's 2-link chain (the double pendulum, m = l = 1, g = 9.81,
 absolute angles), started at rest at angles drawn uniformly from [-1.5, 1.5]^2 (seed 0), run to
 t = 10 at rtol 1e-6, atol 1e-9, recording the final state. Contestants:
-1. `lagrange_cli.sweep.sweep` (compiled DOP853, batches of 64) on 1 thread, 2 threads, and a
+1. `lagrange_cli.sweep.sweep` (compiled DOP853, batches of BATCH runs, one compiled call each) on 1 thread, 2 threads, and a
    2-worker `dask.distributed.LocalCluster` (processes, 1 thread each), every run;
 2. the peer: a Python loop over `scipy.integrate.solve_ivp` (DOP853, same tolerances) on the
    sympy.physics.mechanics + lambdify(cse=True) right-hand side (benchmarks/peer.py), timed on a
    sample of PEER_SAMPLE runs and extrapolated linearly to all runs (stated as such);
-3. a Python loop over lagrange's own API `simulate` (compiled DOP853, samples=2), timed on a
-   sample of API_SAMPLE runs and extrapolated.
+3. a Python loop over lagrange's own API `simulate`: tuned (compiled DOP853, samples=2: the least
+   work it can be asked for), timed on API_SAMPLE runs, and as documented (`simulate(model,
+   t_end, rtol, atol, initial)`, method and backend auto, 1001 samples) on DEFAULT_SAMPLE runs,
+   both extrapolated.
 Wall-clock times on a machine shared with other jobs: the ratios (taken in the same run) are
 what to read. The sweep's final states are checked against the peer's on the peer's sample.
 """
@@ -42,12 +44,18 @@ from lagrange_cli.numeric.simulate import simulate  # noqa: E402
 
 BEGIN, END = "<!-- sweep:begin -->", "<!-- sweep:end -->"
 RTOL, ATOL, T_END = 1e-6, 1e-9, 10.0
-PEER_SAMPLE, API_SAMPLE = 40, 300
+PEER_SAMPLE, API_SAMPLE, DEFAULT_SAMPLE = 40, 300, 60
+BATCH = 250  # runs per batch (task) for all three sweep contestants
+
+
+CPU: dict[int, float] = {}
 
 
 def timed(run: Any) -> tuple[float, Any]:
-    began = time.perf_counter()
+    """Wall-clock seconds of run() and its value; its CPU seconds (this process) go to CPU[id(value)]."""
+    began, cpu = time.perf_counter(), time.process_time()
     value = run()
+    CPU[id(value)] = time.process_time() - cpu
     return time.perf_counter() - began, value
 
 
@@ -62,10 +70,11 @@ def main() -> None:
     q1, q2 = model.coordinates
     axes = [library.Axis("initial", q1, -1.5, 1.5), library.Axis("initial", q2, -1.5, 1.5)]
     points = library.points(axes, n, seed=0)
-    options = {"text": text, "sample": n, "seed": 0, "measures": ["final"], "t_end": T_END, "rtol": RTOL, "atol": ATOL, "method": "DOP853", "backend": "compiled"}
+    options = {"text": text, "sample": n, "seed": 0, "measures": ["final"], "t_end": T_END, "rtol": RTOL, "atol": ATOL, "method": "DOP853", "backend": "compiled", "batch": BATCH}
     library.sweep(model, axes, **{**options, "sample": 8})  # compile or load once, outside the timings
     one, table = timed(lambda: library.sweep(model, axes, **options))
     two, table_two = timed(lambda: library.sweep(model, axes, workers=2, **options))
+    cpu_one, cpu_two = CPU[id(table)], CPU[id(table_two)]
     assert table.rows == table_two.rows
 
     from distributed import LocalCluster
@@ -82,15 +91,19 @@ def main() -> None:
     rhs = sympy_peer.make_rhs(*sympy_peer.plain(mass, forcing, q))
     starts = [np.array([a, b, 0.0, 0.0]) for a, b in points[:PEER_SAMPLE]]
     rhs(0.0, starts[0])
-    peer_time, finals = timed(lambda: [solve_ivp(rhs, (0.0, T_END), y0, method="DOP853", rtol=RTOL, atol=ATOL).y[:, -1] for y0 in starts])
+    peer_wall, finals = timed(lambda: [solve_ivp(rhs, (0.0, T_END), y0, method="DOP853", rtol=RTOL, atol=ATOL).y[:, -1] for y0 in starts])
     columns = [table.columns.index(f"{name}_final") for name in (q1, q2, f"{q1}_dot", f"{q2}_dot")]
     ours = np.array([[row[k] for k in columns] for row in table.rows[:PEER_SAMPLE]])
     agreement = np.abs(ours - np.array(finals)).max(axis=1)
 
     simulate(model, t_end=T_END, method="DOP853", backend="compiled", rtol=RTOL, atol=ATOL, samples=2)
-    api_time, _ = timed(lambda: [simulate(model, t_end=T_END, method="DOP853", backend="compiled", rtol=RTOL, atol=ATOL, samples=2, initial={q1: a, q2: b}) for a, b in points[:API_SAMPLE]])
+    api_wall, api_runs = timed(lambda: [simulate(model, t_end=T_END, method="DOP853", backend="compiled", rtol=RTOL, atol=ATOL, samples=2, initial={q1: a, q2: b}) for a, b in points[:API_SAMPLE]])
 
-    peer_all, api_all = peer_time / PEER_SAMPLE * n, api_time / API_SAMPLE * n
+    default_wall, default_runs = timed(lambda: [simulate(model, t_end=T_END, rtol=RTOL, atol=ATOL, initial={q1: a, q2: b}) for a, b in points[:DEFAULT_SAMPLE]])
+
+    peer_time, api_time, default_time = CPU[id(finals)], CPU[id(api_runs)], CPU[id(default_runs)]
+    default_method = f"{default_runs[0].settings.method} ({default_runs[0].settings.backend})"
+    peer_all, api_all, default_all = peer_time / PEER_SAMPLE * n, api_time / API_SAMPLE * n, default_time / DEFAULT_SAMPLE * n
     failed = sum(1 for row in table.rows if row[table.columns.index("status")] == "failed")
     lines = [
         "## Sweeps (issue 18)",
@@ -99,17 +112,26 @@ def main() -> None:
         f"uniform in [-1.5, 1.5]^2, seed 0) to t = {T_END:g}, rtol {RTOL:g}, atol {ATOL:g}, final state recorded ({failed} failed).",
         f"Measured {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())} on the 2-core machine while other jobs ran (os.getloadavg = {', '.join(f'{x:.1f}' for x in os.getloadavg())}): read the ratios.",
         "",
-        "| contestant | runs timed | seconds (all runs) | per run | sweep (1 worker) is faster by |",
-        "|---|---|---|---|---|",
-        f"| `lagrange sweep` compiled DOP853, 1 worker | {n} | {one:.2f} | {one / n * 1e3:.3f} ms | 1x |",
-        f"| `lagrange sweep --workers 2` (2 threads, GIL released in the compiled loop) | {n} | {two:.2f} | {two / n * 1e3:.3f} ms | {two / one:.2f}x the time: speed-up {one / two:.2f}x |",
-        f"| `lagrange sweep --scheduler` (2-worker LocalCluster, processes) | {n} | {dask:.2f} | {dask / n * 1e3:.3f} ms | {dask / two:.2f}x the time of --workers 2 |",
-        f"| peer: Python loop over `solve_ivp` (DOP853) on lambdify(cse=True) | {PEER_SAMPLE}, extrapolated | {peer_all:.1f} | {peer_time / PEER_SAMPLE * 1e3:.2f} ms | {peer_all / one:.0f}x |",
-        f"| Python loop over lagrange's API `simulate` (compiled DOP853) | {API_SAMPLE}, extrapolated | {api_all:.1f} | {api_time / API_SAMPLE * 1e3:.3f} ms | {api_all / one:.1f}x |",
+        "The machine was shared: wall-clock times are what the other jobs left, so the sequential contestants are compared by the",
+        "CPU time of this process (`time.process_time`), which the load does not inflate; the parallel ones by wall-clock time.",
         "",
-        f"- Against the peer: {peer_all / one:.0f}x (target >= 100x); against a loop over `simulate`: {api_all / one:.1f}x (target >= 5x).",
-        f"- Two local workers: {one / two:.2f}x one worker (target >= 1.7x; the machine was shared, so two free cores were not available).",
-        f"- 2-worker LocalCluster: {dask / two:.2f}x the time of `--workers 2` (target <= 1.3x); its rows equal the local run's exactly.",
+        "| contestant | runs timed | CPU s (all runs) | wall s (all runs) | CPU per run | the sweep (1 worker) is faster by |",
+        "|---|---|---|---|---|---|",
+        f"| `lagrange sweep` compiled DOP853, 1 worker | {n} | {cpu_one:.2f} | {one:.2f} | {cpu_one / n * 1e3:.3f} ms | 1x |",
+        f"| `lagrange sweep --workers 2` (2 threads, GIL released in the compiled loop) | {n} | {cpu_two:.2f} | {two:.2f} | | wall: speed-up {one / two:.2f}x over 1 worker |",
+        f"| `lagrange sweep --scheduler` (2-worker LocalCluster, processes) | {n} | (in the workers) | {dask:.2f} | | wall: {dask / two:.2f}x the time of --workers 2 |",
+        f"| peer: Python loop over `solve_ivp` (DOP853) on lambdify(cse=True) | {PEER_SAMPLE}, extrapolated | {peer_all:.1f} | {peer_wall / PEER_SAMPLE * n:.1f} | {peer_time / PEER_SAMPLE * 1e3:.2f} ms | {peer_all / cpu_one:.0f}x (wall {peer_wall / PEER_SAMPLE * n / one:.0f}x) |",
+        f"| Python loop over lagrange's API `simulate`, tuned (compiled DOP853, samples=2) | {API_SAMPLE}, extrapolated | {api_all:.1f} | {api_wall / API_SAMPLE * n:.1f} | {api_time / API_SAMPLE * 1e3:.3f} ms | {api_all / cpu_one:.1f}x (wall {api_wall / API_SAMPLE * n / one:.1f}x) |",
+        f"| Python loop over `simulate` as documented (auto: {default_method}, 1001 samples) | {DEFAULT_SAMPLE}, extrapolated | {default_all:.1f} | {default_wall / DEFAULT_SAMPLE * n:.1f} | {default_time / DEFAULT_SAMPLE * 1e3:.3f} ms | {default_all / cpu_one:.1f}x |",
+        "",
+        f"- Against the peer: {peer_all / cpu_one:.0f}x in CPU time (target >= 100x); against a loop over `simulate`: {api_all / cpu_one:.1f}x tuned, {default_all / cpu_one:.1f}x with its defaults (target >= 5x).",
+        f"- Two local workers: {one / two:.2f}x one worker (target >= 1.7x). The machine was shared (load above), so two free cores were not",
+        f"  available: the CPU time of the process was {cpu_one:.1f} s with one worker and {cpu_two:.1f} s with two (the work did not grow; the",
+        "  threads run the compiled loop with the GIL released), and the wall time is what the other jobs left.",
+        f"- 2-worker LocalCluster: {dask / two:.2f}x the time of `--workers 2` (target <= 1.3x; under the same load, plus Dask's scheduling and",
+        "  transfers per task); its rows equal the local run's exactly.",
+        f"- `simulate` as documented picks its own method ({default_method}) and keeps 1001 samples with their invariants: more",
+        "  than the sweep computes, so the tuned loop is the fair comparison.",
         f"- The sweep's final states agree with the peer's on its {PEER_SAMPLE} runs to a median of {np.median(agreement):.1e} (max {agreement.max():.1e}: chaotic runs amplify the 1e-6 tolerance).",
         "",
     ]
