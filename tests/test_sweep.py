@@ -287,3 +287,33 @@ def test_unreachable_scheduler_exits_2(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setattr(library, "CONNECT_TIMEOUT", 1)
     code, _, err = run("simple_pendulum", "--set", "g=1..2:2", "--scheduler", "tcp://127.0.0.1:9", "-q")
     assert code == 2 and "cannot connect" in err
+
+
+@pytest.mark.parametrize(
+    "arguments",
+    [
+        ["--set", "g=1..20:4:log", "--measure", "max(theta)"],
+        ["--set", "g=5..20:3", "--initial", "theta=0.1..1:3", "--measure", "period"],
+        ["--set", "g=5..20", "--initial", "theta=0.1..1", "--sample", "6", "--measure", "period"],
+        ["--initial", "theta=0.5..1:2", "--section", "theta=0, theta_dot>0"],
+    ],
+    ids=["line", "heat-map", "sample-scatter", "section-scatter"],
+)
+def test_plots_fit_the_sweep(arguments: list[str], tmp_path: Path) -> None:
+    picture = tmp_path / "sweep.png"
+    code, _, err = run("simple_pendulum", *arguments, "--t-end", "5", "--plot", str(picture), "-q")
+    assert code == 0, err
+    assert picture.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_parquet_needs_pyarrow_or_is_written(tmp_path: Path) -> None:
+    import importlib.util
+
+    out = tmp_path / "t.parquet"
+    code, _, err = run("simple_pendulum", "--set", "g=1..2:2", "-o", str(out), "-q")
+    if importlib.util.find_spec("pyarrow") is None:
+        assert code == 2 and "pyarrow" in err and not out.exists()
+    else:
+        import pyarrow.parquet as pq
+
+        assert code == 0 and pq.read_table(str(out)).column("g").to_pylist() == [1.0, 2.0]
