@@ -483,6 +483,63 @@ class System:
 
         return Trajectory(self, simulate(self.model, **settings))
 
+    def sweep(
+        self,
+        *,
+        parameters: Mapping[str, Any] | None = None,
+        initial: Mapping[str, Any] | None = None,
+        sample: int | None = None,
+        seed: int = 0,
+        measures: Sequence[str] = (),
+        section: str | None = None,
+        workers: int = 1,
+        scheduler: str | None = None,
+        batch: int = 64,
+        **settings: Any,
+    ) -> Any:
+        """Many runs over a grid or a sample, as `lagrange sweep` does. `parameters` and `initial`
+        map names to a value (fixed), `(lo, hi, count)` (a grid axis, linear), `(lo, hi, count, "log")`,
+        or `(lo, hi)` / `(lo, hi, None, "log")` (a range for `sample` points drawn with `seed`).
+        `measures`, `section`, `workers`, `scheduler` (a dask.distributed address) and `batch` as
+        in the command; other settings as `simulate` (t_end, method, rtol, atol, samples, until, ...).
+        Returns a pandas DataFrame when pandas is installed, else a `lagrange_cli.sweep.Table`
+        (`columns`, `rows` in index order, `column(name)`); failed runs are rows with their reason."""
+        import importlib.util
+
+        from lagrange_cli import sweep as library
+        from lagrange_cli.errors import LagrangeError
+
+        axes: list[Any] = []
+        fixed: dict[str, dict[str, float]] = {"set": {}, "initial": {}}
+        for kind, given in (("set", parameters or {}), ("initial", initial or {})):
+            for name, value in given.items():
+                if isinstance(value, (tuple, list)):
+                    if not 2 <= len(value) <= 4:
+                        raise LagrangeError(f"{name}: expected a value, (lo, hi, count), (lo, hi, count, 'log') or (lo, hi), got {value!r}")
+                    spacing = value[3] if len(value) == 4 else "linear"
+                    if spacing not in ("linear", "log"):
+                        raise LagrangeError(f"{name}: the spacing must be 'linear' or 'log', got {spacing!r}")
+                    count = value[2] if len(value) >= 3 else None
+                    axes.append(library.Axis(kind, name, float(value[0]), float(value[1]), count, spacing == "log"))
+                else:
+                    fixed[kind][name] = value
+        table = library.sweep(
+            self.model,
+            axes,
+            sample=sample,
+            seed=seed,
+            measures=measures,
+            section=section,
+            workers=workers,
+            scheduler=scheduler,
+            batch=batch,
+            parameters=fixed["set"],
+            initial=fixed["initial"],
+            **settings,
+        )
+        table = library.sorted_table(table)
+        return table.to_pandas() if importlib.util.find_spec("pandas") is not None else table
+
     def accuracy(self, **settings: Any) -> Report:
         """A work-precision study (`lagrange accuracy`): settings of `numeric.accuracy.study`
         (candidates as method names such as `"DOP853:python"`, tolerances, t_end, parameters,

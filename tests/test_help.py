@@ -21,7 +21,7 @@ from .limits import DEADLOCK
 
 runner = CliRunner()
 GROUP = typer.main.get_command(app)
-COMMANDS = ["derive", "check", "info", "equilibria", "linearize", "simulate", "animate", "accuracy", "stress"]
+COMMANDS = ["derive", "check", "info", "equilibria", "linearize", "simulate", "animate", "accuracy", "stress", "sweep"]
 
 
 def helps(command: str | None) -> tuple[str, list[str]]:

@@ -41,6 +41,7 @@ INVOCATIONS: dict[str, dict[str, list[str]]] = {
     "accuracy": {"": ["--method", "DOP853:python", "--tolerances", "1e-4,1e-6", "--repeats", "0", "--samples", "11", *SHORT]},
     "stress": {"": ["--method", "DOP853:python", *SHORT, "--long", "2", "--energy", "2"]},
     "animate": {"": ["-o", "-", *SHORT, "--fps", "10"]},
+    "sweep": {"": [*SHORT, "--backend", "python", "--method", "DOP853", "--measure", "final", "--measure", "energy_error", "--measure", "max(t)"]},
 }
 """How each command is run in the matrix: variant name -> arguments after the file. (The code targets' cells
 only run `derive`; tests/test_target_c.py and tests/test_target_octave.py compile and run every feature's code
@@ -55,6 +56,7 @@ SHOWS = {
     ("info", "json"): '"hamiltonian"',
     ("simulate", ""): "invariants",
     ("animate", ""): "</html>",
+    ("sweep", ""): "index,",
 }
 """What a cell that works must print (on stdout), where a word says it did its job."""
 
@@ -66,6 +68,13 @@ ABOUT = {
     "functions_undefined_energy": "r=1",
 }
 """Where `linearize` linearizes a feature whose equilibrium is not at 0 (default: every coordinate 0)."""
+
+
+def sweep_axis(feature: str) -> str:
+    """The first coordinate the feature's system keeps (a sweep's cells sweep its initial velocity)."""
+    from lagrange_cli import derive, spec
+
+    return derive.derive(spec.load(FEATURES[feature])).coordinates[0]
 
 
 def commands() -> list[str]:
@@ -135,6 +144,8 @@ def test_cell(feature: str, command: str, variant: str, cache: Path, tmp_path: P
     args = [command, str(FEATURES[feature]), *INVOCATIONS[command][variant]]
     if command == "linearize" and feature in ABOUT:
         args += ["--about", ABOUT[feature]]
+    if command == "sweep":
+        args += ["--initial", f"{sweep_axis(feature)}_dot=0..0.1:2"]
     result = CliRunner().invoke(app, args, env={"LAGRANGE_CACHE_DIR": str(cache), "COLUMNS": "200"})
     shown = f"$ lagrange {' '.join(args)}\nexit {result.exit_code}\nstdout:\n{result.stdout[-3000:]}\nstderr:\n{result.stderr[-3000:]}"
     if result.exception is not None and not isinstance(result.exception, SystemExit):

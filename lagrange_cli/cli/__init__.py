@@ -128,6 +128,7 @@ from lagrange_cli.cli import animate as _animate  # noqa: E402, F401
 from lagrange_cli.cli import derive as _derive  # noqa: E402, F401
 from lagrange_cli.cli import numeric as _numeric  # noqa: E402, F401
 from lagrange_cli.cli import study as _study  # noqa: E402, F401
+from lagrange_cli.cli import sweep as _sweep  # noqa: E402, F401
 from lagrange_cli.cli.boundary import install_safety_net  # noqa: E402
 
 install_safety_net(app)

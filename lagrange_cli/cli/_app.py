@@ -23,7 +23,7 @@ from typing import Any
 import typer
 from typer.core import TyperCommand, TyperGroup
 
-ORDER = ("derive", "check", "info", "equilibria", "linearize", "simulate", "animate", "accuracy", "stress")
+ORDER = ("derive", "check", "info", "equilibria", "linearize", "simulate", "animate", "accuracy", "stress", "sweep")
 """The order of the command list in `lagrange --help`: the pipeline from a file to numbers."""
 
 METAVARS: dict[Any, str] = {float: "NUMBER", int: "INTEGER", Path: "FILE", str: "TEXT"}

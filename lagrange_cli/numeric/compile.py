@@ -120,6 +120,18 @@ def kernels_module() -> ModuleType:
     return _LOADED[name]
 
 
+def cached_module(prefix: str, text: str) -> ModuleType:
+    """A module of compiled loops given as source `text` (such as ensemble.py's batch loop), written
+    to the cache under `prefix` and a hash of the text, verified and imported as the kernels are,
+    so that numba's `cache=True` keeps its machine code beside it."""
+    name = prefix + hashlib.sha256(text.encode()).hexdigest()[:20]
+    if name not in _LOADED:
+        path = cache_dir() / f"{name}.py"
+        _cached(path, text)
+        _LOADED[name] = _load(name, path, text)
+    return _LOADED[name]
+
+
 def kernels_name() -> str:
     """The module name of the kernels' copy: a hash of their source and the versions that compile it."""
     return "lagrange_kernels_" + hashlib.sha256((_kernels_source() + _numba_version("numba") + sys.version).encode()).hexdigest()[:20]

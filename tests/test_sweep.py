@@ -1,0 +1,319 @@
+"""`lagrange sweep` and `System.sweep`: grids, samples, measures, sections, failures, resume, Dask."""
+
+from __future__ import annotations
+
+import csv
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from lagrange_cli import derive, spec
+from lagrange_cli import sweep as library
+from lagrange_cli.cli import app
+from lagrange_cli.sweep import Axis, points
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def model(name: str):  # type: ignore[no-untyped-def]
+    return derive.derive(spec.load(spec.resolve(name)))
+
+
+def run(*arguments: str) -> tuple[int, str, str]:
+    result = CliRunner().invoke(app, ["sweep", *arguments])
+    return result.exit_code, result.stdout, result.stderr
+
+
+def rows(path: Path) -> list[dict[str, str]]:
+    with path.open(newline="") as handle:
+        return list(csv.DictReader(handle))
+
+
+# -- points ------------------------------------------------------------------------------------------
+
+
+def test_grid_is_every_combination_last_axis_fastest() -> None:
+    grid = points([Axis("set", "k", 1, 3, 3), Axis("initial", "x", 0, 1, 2)])
+    assert grid.tolist() == [[1, 0], [1, 1], [2, 0], [2, 1], [3, 0], [3, 1]]
+
+
+def test_log_spacing_is_geometric() -> None:
+    assert np.allclose(points([Axis("set", "g", 1, 100, 3, log=True)])[:, 0], [1, 10, 100])
+    code, out, _ = run("simple_pendulum", "--set", "g=1..100:3:log", "-q")
+    assert code == 0
+    assert [float(r["g"]) for r in csv.DictReader(out.splitlines())] == pytest.approx([1, 10, 100])
+
+
+def test_sample_is_seeded_and_inside_the_ranges() -> None:
+    axes = [Axis("set", "g", 1, 100, log=True), Axis("initial", "theta", -1, 1)]
+    first, again, other = points(axes, 50, seed=3), points(axes, 50, seed=3), points(axes, 50, seed=4)
+    assert np.array_equal(first, again) and not np.array_equal(first, other)
+    assert first[:, 0].min() >= 1 and first[:, 0].max() <= 100 and np.abs(first[:, 1]).max() <= 1
+
+
+# -- measures ----------------------------------------------------------------------------------------
+
+
+def test_measures_of_a_small_pendulum() -> None:
+    """Small swings: max(theta) is the amplitude, the period 2 pi sqrt(l/g), the energy error small."""
+    pendulum = model("simple_pendulum")
+    table = library.sweep(pendulum, [Axis("initial", "theta", 0.01, 0.02, 2)], measures=["max(theta)", "period", "energy_error", "final", "l*theta_dot"], t_end=10, rtol=1e-9, atol=1e-12)
+    values = dict(pendulum.initial)
+    g, length = (next(p.value for p in pendulum.parameters if p.name == name) for name in ("g", "l"))
+    assert table.column("max(theta)") == pytest.approx([0.01, 0.02], rel=1e-6)
+    assert table.column("period") == pytest.approx(2 * math.pi * math.sqrt(length / g), rel=1e-3)
+    assert max(table.column("energy_error")) < 1e-7
+    assert table.column("l*theta_dot") == pytest.approx(length * table.column("theta_dot_final"))
+    assert values is not None
+
+
+def test_lyapunov_separates_regular_from_chaotic_motion() -> None:
+    pendulum = model("double_pendulum")
+    table = library.sweep(pendulum, [Axis("initial", "theta", 0.05, 2.0, 2)], measures=["lyapunov"], initial={"phi": 0.0}, t_end=20, rtol=1e-9)
+    small, large = table.column("lyapunov")
+    assert small < 0.3 < large
+
+
+def test_event_time_of_the_until_condition() -> None:
+    """A pendulum released at rest from theta0 passes theta = 0 after a quarter period."""
+    pendulum = model("simple_pendulum")
+    table = library.sweep(pendulum, [Axis("initial", "theta", 0.01, 0.01, 1)], until="theta", t_end=10, rtol=1e-10, atol=1e-12)
+    g, length = (next(p.value for p in pendulum.parameters if p.name == name) for name in ("g", "l"))
+    assert table.column("t_event")[0] == pytest.approx(math.pi / 2 * math.sqrt(length / g), rel=1e-4)
+    assert table.column("status")[0] == "event"
+
+
+def test_poincare_section_lies_on_the_energy_level() -> None:
+    """Crossings of theta = 0 upwards of a pendulum released from theta0: all at
+    theta_dot = sqrt(2 g / l (1 - cos theta0)), the invariant curve of its energy."""
+    pendulum = model("simple_pendulum")
+    g, length = (next(p.value for p in pendulum.parameters if p.name == name) for name in ("g", "l"))
+    table = library.sweep(pendulum, [Axis("initial", "theta", 0.5, 2.5, 3)], section="theta=0, theta_dot>0", t_end=30, rtol=1e-10, atol=1e-12)
+    crossing = table.column("crossing")
+    assert (crossing > 0).all()
+    for start in (0.5, 1.5, 2.5):
+        mine = [row for row in table.rows if row[1] == start]
+        assert len(mine) >= 3
+        speeds = [row[table.columns.index("theta_dot")] for row in mine]
+        assert speeds == pytest.approx([math.sqrt(2 * g / length * (1 - math.cos(start)))] * len(mine), rel=1e-7)
+        assert all(abs(row[table.columns.index("theta")]) < 1e-9 for row in mine)
+        times = [row[table.columns.index("t")] for row in mine]
+        assert times == sorted(times)
+
+
+def test_section_direction_is_kept() -> None:
+    pendulum = model("simple_pendulum")
+    up = library.sweep(pendulum, [Axis("initial", "theta", 1, 1, 1)], section="theta=0, theta_dot>0", t_end=20)
+    down = library.sweep(pendulum, [Axis("initial", "theta", 1, 1, 1)], section="theta=0, theta_dot<0", t_end=20)
+    assert (up.column("theta_dot") > 0).all() and (down.column("theta_dot") < 0).all()
+
+
+def test_failed_runs_are_rows_with_their_reason(tmp_path: Path) -> None:
+    """Zero angular momentum: the Kepler orbit falls into r = 0 and that run fails; the others finish."""
+    out = tmp_path / "kepler.csv"
+    code, _, err = run("kepler", "--initial", "theta_dot=0..1.2:3", "--measure", "energy_error", "-o", str(out), "-q")
+    assert code == 0, err
+    found = rows(out)
+    assert [r["status"] for r in found] == ["failed", "finished", "finished"]
+    assert "failed at t =" in found[0]["reason"] and "r =" in found[0]["reason"]
+    assert found[0]["energy_error"] == "nan" and float(found[1]["energy_error"]) < 1e-6
+    assert "1 failed" in err
+
+
+def test_threads_give_the_results_of_one_worker() -> None:
+    pendulum = model("double_pendulum")
+    axes = [Axis("initial", "theta", -2, 2, 4), Axis("initial", "phi", -2, 2, 3)]
+    one = library.sweep(pendulum, axes, measures=["final", "max(phi)"], t_end=3, batch=2)
+    two = library.sweep(pendulum, axes, measures=["final", "max(phi)"], t_end=3, batch=2, workers=2)
+    assert one.rows == two.rows and [r[0] for r in one.rows] == list(range(12))
+
+
+# -- resume --------------------------------------------------------------------------------------------
+
+
+def test_resume_after_an_interruption(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    arguments = ["double_pendulum", "--initial", "theta=-2..2:5", "--initial", "phi=0..1:3", "--t-end", "2", "--batch", "2", "-q"]
+    whole = tmp_path / "whole.csv"
+    assert run(*arguments, "-o", str(whole))[0] == 0
+    out = tmp_path / "part.csv"
+    journal = tmp_path / "part.csv.partial.csv"
+    interrupt_after(monkeypatch, 4)  # the header, then 3 batches, then stop
+    code, _, err = run(*arguments, "-o", str(out))
+    assert code == 130 and "--resume" in err
+    lines = journal.read_text().splitlines()
+    assert not out.exists() and lines[0].startswith("# lagrange sweep ") and lines[1].startswith("index,") and len(lines) == 2 + 6
+    with journal.open("a") as handle:
+        handle.write("6,0.0,0.")  # a line cut by the interruption
+    monkeypatch.undo()
+    code, _, err = run(*arguments, "-o", str(out), "--resume")
+    assert code == 0, err
+    assert out.read_text() == whole.read_text() and not journal.exists()
+    assert [int(r["index"]) for r in rows(out)] == list(range(15))
+
+
+def interrupt_after(monkeypatch: pytest.MonkeyPatch, writes: int) -> None:
+    """The next sweep stops (as by Ctrl-C) after `writes` writes to its journal (the first is the header)."""
+    real, calls = library.append_rows, []
+
+    def interrupted(*arguments, **options) -> None:  # type: ignore[no-untyped-def]
+        calls.append(1)
+        if len(calls) > writes:
+            raise KeyboardInterrupt
+        real(*arguments, **options)
+
+    monkeypatch.setattr(library, "append_rows", interrupted)
+
+
+@pytest.mark.parametrize("other", [["--initial", "theta=0..1:5"], ["--initial", "theta=0..1:4", "--t-end", "3"], ["--initial", "theta=0..1:4", "--measure", "max(theta)"]])
+def test_resume_refuses_another_sweeps_journal(other: list[str], tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    out = tmp_path / "t.csv"
+    with monkeypatch.context() as patch:
+        interrupt_after(patch, 2)
+        assert run("simple_pendulum", "--initial", "theta=0..1:4", "--batch", "1", "-o", str(out), "-q")[0] == 130
+    code, _, err = run("simple_pendulum", *other, "--batch", "1", "-o", str(out), "--resume", "-q")
+    assert code == 2 and "another sweep" in err, err
+    assert run("simple_pendulum", "--initial", "theta=0..1:4", "--batch", "1", "-o", str(out), "--resume", "-q")[0] == 0
+    assert [int(r["index"]) for r in rows(out)] == [0, 1, 2, 3]
+
+
+# -- bad options ------------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    ("arguments", "expected"),
+    [
+        (["--set", "g=1..3"], "needs a count"),
+        (["--set", "g=0..3:4:log"], "log spacing of 'g' needs a positive range"),
+        (["--set", "g=1..3:4:cubic"], "unknown spacing"),
+        (["--set", "g=1..3:x"], "count of 'g' must be a whole number"),
+        (["--set", "gg=1..3:3"], "did you mean 'g'"),
+        (["--set", "g=1..3:3", "--measure", "max(foo)"], "unknown name 'foo'"),
+        (["--set", "g=1..3:3", "--measure", "t_event"], "needs --until"),
+        (["--set", "g=1..3:3", "--section", "theta<0"], "one equation"),
+        (["--set", "g=1..3:3", "--section", "theta=0, theta_dot"], "not a condition"),
+        (["--set", "g=1..3:3", "--section", "theta=0", "--until", "theta"], "give one of them"),
+        (["--set", "g=1..3:3", "--sample", "5"], "without a count"),
+        (["--set", "g=1..3:3", "--workers", "0"], "--workers"),
+        (["--set", "g=1..3:3", "--resume"], "give -o"),
+        (["--set", "g=1..3:3", "-o", "x.txt"], ".csv, .parquet"),
+        (["--set", "m=-1..3:3"], "'m' is positive"),
+        ([], "nothing to sweep"),
+    ],
+)
+def test_bad_options_exit_2_saying_what_was_expected(arguments: list[str], expected: str, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.chdir(tmp_path)
+    code, out, err = run("simple_pendulum", *arguments, "-q")
+    assert code == 2, (out, err)
+    assert expected in err and "Traceback" not in err
+    assert not list(tmp_path.iterdir())  # nothing written
+
+
+# -- API ------------------------------------------------------------------------------------------------------
+
+
+def test_system_sweep() -> None:
+    from lagrange_cli.api import load
+
+    system = load("simple_pendulum")
+    table = system.sweep(initial={"theta": (0.1, 0.2, 2)}, parameters={"g": 9.81}, measures=["max(theta)"], t_end=2)
+    plain = table if isinstance(table, library.Table) else None
+    if plain is None:
+        assert list(table["max(theta)"]) == pytest.approx([0.1, 0.2])
+    else:
+        assert plain.column("max(theta)") == pytest.approx([0.1, 0.2])
+
+
+# -- Dask ----------------------------------------------------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def cluster():  # type: ignore[no-untyped-def]
+    """Two worker processes of one thread each (the machine's two cores)."""
+    distributed = pytest.importorskip("distributed")
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as local:
+        yield local
+
+
+DASK_AXES = [Axis("initial", "theta", -2, 2, 4), Axis("initial", "phi", -2, 2, 3)]
+
+
+def test_dask_cluster_gives_exactly_the_local_results(cluster, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
+    arguments = ["double_pendulum", "--initial", "theta=-2..2:4", "--initial", "phi=-2..2:3", "--t-end", "3", "--measure", "final", "--measure", "max(phi)", "--batch", "1", "-q"]
+    local, remote = tmp_path / "local.csv", tmp_path / "remote.csv"
+    assert run(*arguments, "-o", str(local))[0] == 0
+    code, _, err = run(*arguments, "-o", str(remote), "--scheduler", cluster.scheduler_address)
+    assert code == 0, err
+    assert remote.read_text() == local.read_text() and len(rows(remote)) == 12
+
+
+def test_a_killed_worker_loses_no_rows(cluster) -> None:  # type: ignore[no-untyped-def]
+    """After the first batch one worker process is killed (SIGKILL): Dask reruns its tasks on the
+    other (and on the worker its nanny restarts); every row arrives, equal to the local run's."""
+    import os
+    import signal
+
+    from distributed import Client
+
+    pendulum = model("double_pendulum")
+    local = library.sweep(pendulum, DASK_AXES, measures=["final"], t_end=3, batch=1)
+    killed: list[str] = []
+
+    def kill_one(batch: list, done: int, total: int) -> None:  # type: ignore[type-arg]
+        if not killed:
+            with Client(cluster.scheduler_address) as client:
+                victim = sorted(client.scheduler_info()["workers"])[0]
+                os.kill(client.run(os.getpid)[victim], signal.SIGKILL)
+                killed.append(victim)
+
+    remote = library.sweep(pendulum, DASK_AXES, measures=["final"], t_end=3, batch=1, scheduler=cluster.scheduler_address, on_batch=kill_one)
+    assert killed and remote.rows == local.rows
+    assert [row[0] for row in remote.rows] == list(range(12))
+
+
+def test_dask_is_imported_only_for_a_scheduler(tmp_path: Path) -> None:
+    import subprocess
+    import sys
+
+    code = "import sys; from typer.testing import CliRunner; from lagrange_cli.cli import app; r = CliRunner().invoke(app, ['sweep', 'simple_pendulum', '--set', 'g=1..2:2', '-q']); assert r.exit_code == 0, r.output; print('distributed' in sys.modules or 'dask' in sys.modules)"
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, cwd=tmp_path, env={**__import__("os").environ, "PYTHONPATH": str(ROOT)})
+    assert result.stdout.strip() == "False"
+
+
+def test_unreachable_scheduler_exits_2(monkeypatch: pytest.MonkeyPatch) -> None:
+    pytest.importorskip("distributed")
+    monkeypatch.setattr(library, "CONNECT_TIMEOUT", 1)
+    code, _, err = run("simple_pendulum", "--set", "g=1..2:2", "--scheduler", "tcp://127.0.0.1:9", "-q")
+    assert code == 2 and "cannot connect" in err
+
+
+@pytest.mark.parametrize(
+    "arguments",
+    [
+        ["--set", "g=1..20:4:log", "--measure", "max(theta)"],
+        ["--set", "g=5..20:3", "--initial", "theta=0.1..1:3", "--measure", "period"],
+        ["--set", "g=5..20", "--initial", "theta=0.1..1", "--sample", "6", "--measure", "period"],
+        ["--initial", "theta=0.5..1:2", "--section", "theta=0, theta_dot>0"],
+    ],
+    ids=["line", "heat-map", "sample-scatter", "section-scatter"],
+)
+def test_plots_fit_the_sweep(arguments: list[str], tmp_path: Path) -> None:
+    picture = tmp_path / "sweep.png"
+    code, _, err = run("simple_pendulum", *arguments, "--t-end", "5", "--plot", str(picture), "-q")
+    assert code == 0, err
+    assert picture.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_parquet_needs_pyarrow_or_is_written(tmp_path: Path) -> None:
+    import importlib.util
+
+    out = tmp_path / "t.parquet"
+    code, _, err = run("simple_pendulum", "--set", "g=1..2:2", "-o", str(out), "-q")
+    if importlib.util.find_spec("pyarrow") is None:
+        assert code == 2 and "pyarrow" in err and not out.exists()
+    else:
+        import pyarrow.parquet as pq
+
+        assert code == 0 and pq.read_table(str(out)).column("g").to_pylist() == [1.0, 2.0]
