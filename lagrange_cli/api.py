@@ -398,6 +398,25 @@ class System:
         return Formula("H", "H", tidy(info.hamiltonian), self.model, self._momentum_symbols)
 
     @functools.cached_property
+    def hamilton(self) -> Any:
+        """Hamilton's equations (`lagrange_cli.hamilton.Hamilton`): H(q, p), q_dot = dH/dp and
+        p_dot = -dH/dq + Q in the state (q, p_<q>), as `derive --form hamilton` writes them.
+        Raises `LagrangeError` where they are not written (kept constraints, ...)."""
+        from lagrange_cli.hamilton import hamilton
+
+        return hamilton(self.model)
+
+    @functools.cached_property
+    def routhian(self) -> Any:
+        """Routh's reduction (`lagrange_cli.routh.Routh`): the Routhian R(q_rest, q_rest_dot; p_<c>)
+        for the ignorable coordinates c, the ignorable velocities, the effective potential and the
+        reduced system (`.reduced`, a model whose equilibria are the relative equilibria), as
+        `lagrange info --routh` gives them. Raises `LagrangeError` where the reduction does not apply."""
+        from lagrange_cli.routh import routh
+
+        return routh(self.model)
+
+    @functools.cached_property
     def info(self) -> Report:
         """Degrees of freedom, momenta, ignorable coordinates, energy and Hamiltonian: `lagrange info`."""
         from lagrange_cli import report
