@@ -96,7 +96,7 @@ def routh(model: Model) -> Routh:
 def _momentum_values(model: Model, ignorable: list[int]) -> dict[str, float]:
     """p_c at the file's initial state and parameter values (where both are complete)."""
     state = {**model.parameter_values()}
-    for i, c in enumerate(model.coordinates):
+    for c in model.coordinates:
         state[c] = model.initial.get(c, 0.0)
         state[f"{c}_dot"] = model.initial.get(f"{c}_dot", 0.0)
     state.setdefault("t", 0.0)
