@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
+from typing import Any
 
 import sympy as sp
 
@@ -142,14 +143,94 @@ def _reduced(model: Model, rest: list[int], beta: tuple[sp.Symbol, ...], values:
     return dataclasses.replace(reduced, initial=system.initial)
 
 
-def relative_equilibria(result: Routh) -> object:
+def relative_equilibria(result: Routh) -> tuple[Model, Any]:
     """The equilibria of the reduced system (relative equilibria of the full one), each with the
-    linearization that gives its stability (`report.equilibria` on `reduced`)."""
-    from lagrange_cli import report
+    linearization that gives its stability: (the model they refer to, `report.Equilibria`).
+    Symbolic where the project's solver finds them and each linearizes (Kepler's r0 = p^2/(k m));
+    otherwise a numeric search (`analysis`'s many-start root search, bounded) on the reduced system
+    with every parameter and momentum at its value, linearized there."""
+    from lagrange_cli import analysis, report
+    from lagrange_cli.errors import LagrangeError
 
     if result.reduced is None:
         raise fail(None, f"{result.model.source}: every coordinate is ignorable: the reduced system has no coordinates left", "a system with a coordinate that is not ignorable")
-    return report.equilibria(result.reduced)
+    reduced = result.reduced
+    if _solvable(reduced):
+        found = report.equilibria(reduced)
+        if found.points and all(not isinstance(lin, str) for lin in found.linearizations):
+            return reduced, found
+    numeric = numeric_reduced(result)
+    if numeric is None:
+        return reduced, report.equilibria(reduced)
+    rest = {v: 0 for v in numeric.qd}
+    forces = [f.xreplace(rest) for f in numeric.forcing]
+    points: list[dict[sp.Symbol, sp.Expr]] = []
+    for point in analysis._numeric_equilibria(numeric, forces, {}):
+        refined = _refine(numeric, forces, point)
+        if refined is not None and not any(all(abs(refined[x] - other[x]) < 1e-12 for x in numeric.q) for other in points):
+            points.append(refined)
+    linearizations: list[Any] = []
+    potential = result.effective_potential.xreplace({p.symbol: sp.Float(p.value) for p in result.reduced.parameters if p.value is not None})
+    for point in points:
+        try:
+            linearizations.append(analysis.linearize(numeric, {x: sp.Float(v, 15) for x, v in point.items()}))
+        except LagrangeError:  # its equilibrium test, in double precision, fails where many digits cancel
+            linearizations.append(stability_by_potential(potential, numeric, point))
+    return numeric, report.Equilibria(tuple({x: sp.Float(v, 15) for x, v in p.items()} for p in points), tuple(linearizations), ())
+
+
+def stability_by_potential(potential: sp.Expr, model: Model, point: dict[sp.Symbol, sp.Expr]) -> str:
+    """The stability of a relative equilibrium from the Hessian of the effective potential in
+    30-digit arithmetic (Routh): a strict minimum is stable; with one coordinate left (no gyroscopic
+    coupling) anything else is unstable; with more, a saddle may still be stabilized gyroscopically."""
+    q = list(model.q)
+    hessian = sp.Matrix(len(q), len(q), lambda i, j: sp.diff(potential, q[i], q[j]).xreplace(point).evalf(30))
+    eigenvalues = [sp.re(sp.N(e, 15)) for e in hessian.eigenvals()] if len(q) > 1 else [sp.N(hessian[0, 0], 15)]
+    shown = ", ".join(f"{float(e):.6g}" for e in eigenvalues)
+    if all(e > 0 for e in eigenvalues):
+        return f"stable (a minimum of the effective potential; Hessian eigenvalues {shown})"
+    if len(q) == 1:
+        return f"unstable (not a minimum of the effective potential; V_eff'' = {shown})"
+    return f"not a minimum of the effective potential (Hessian eigenvalues {shown}): unstable unless stabilized gyroscopically"
+
+
+def _refine(model: Model, forces: list[sp.Expr], point: dict[sp.Symbol, sp.Expr]) -> dict[sp.Symbol, sp.Expr] | None:
+    """A root of the numeric search polished by Newton's method in 30-digit arithmetic (a top near
+    its vertical cancels many digits), or None where it is not a root after all."""
+    import mpmath
+
+    q = list(model.q)
+    try:
+        with mpmath.workdps(30):
+            root = sp.nsolve(forces, q, [point[x] for x in q], prec=30, verify=True)
+    except (ValueError, ZeroDivisionError, TypeError):
+        return None
+    return {x: sp.Float(root[i], 30) for i, x in enumerate(q)}
+
+
+SOLVE_MAX_OPS = 120
+"""Largest reduced force (operations) handed to the symbolic equilibrium search; beyond, the
+numeric search decides (sympy's solve on a heavy top's effective potential does not finish soon)."""
+
+
+def _solvable(reduced: Model) -> bool:
+    rest = {v: 0 for v in reduced.qd}
+    return all(sp.count_ops(f.xreplace(rest)) <= SOLVE_MAX_OPS for f in reduced.forcing)
+
+
+def numeric_reduced(result: Routh) -> Model | None:
+    """The reduced system with every parameter and momentum at its value (the file's defaults, the
+    initial state's momenta), or None where one has no value."""
+    if result.reduced is None:
+        return None
+    values = {p.symbol: sp.Float(p.value) for p in result.reduced.parameters if p.value is not None}
+    if len(values) < len(result.reduced.parameters):
+        return None
+    model = result.model
+    rest = [i for i, c in enumerate(model.coordinates) if c not in result.ignorable]
+    solved = {model.qd[model.coordinates.index(c)]: v.xreplace(values) for c, v in zip(result.ignorable, result.ignorable_velocities, strict=True)}
+    reduced = _reduced(model, rest, result.momenta, result.values, result.routhian.xreplace(values), solved)
+    return dataclasses.replace(reduced, parameters=tuple(p for p in reduced.parameters if p.symbol not in values))
 
 
 def text(result: Routh, equilibria: bool = True) -> str:
@@ -169,5 +250,6 @@ def text(result: Routh, equilibria: bool = True) -> str:
     if result.reduced is not None:
         out += "reduced equations:\n" + plain.emit(result.reduced)
         if equilibria:
-            out += "relative equilibria (equilibria of the reduced system):\n" + report.equilibria_text(result.reduced, report.equilibria(result.reduced))
+            model, found = relative_equilibria(result)
+            out += "relative equilibria (equilibria of the reduced system):\n" + report.equilibria_text(model, found)
     return out
