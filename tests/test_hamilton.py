@@ -18,6 +18,7 @@ from lagrange_cli.spec import time_derivative
 
 from .conftest import SYSTEMS
 from .helpers import load_module, model_from, model_of, random_point
+from .test_latex_layout import PDFLATEX, overflows
 
 CHAIN_4 = """title: 4-link chain
 coordinates: [a1, a2, a3, a4]
@@ -206,3 +207,31 @@ def test_check_refuses_a_declared_momentum_name(tmp_path: Path) -> None:
     path.write_text(KEPLER.replace("{m: 1.0, k: 1.0}", "{m: 1.0, k: 1.0, p_r: 2.0}").replace("HAMILTONIAN", RIGHT["HAMILTONIAN"]).replace("RATE", RIGHT["RATE"]))
     code, _, err = _run("check", str(path))
     assert code == 2 and "'p_r' is declared in the file" in err and "clash.yaml:8:" in err
+
+
+def _latex_parts() -> dict[str, str]:
+    from lagrange_cli.emit import hamiltonian
+
+    parts = {}
+    for path in SYSTEMS:
+        model = model_from(path)
+        if not model.constraints:
+            parts[path.stem] = hamiltonian.latex(model)
+    parts["chain_4"] = hamiltonian.latex(model_of(CHAIN_4, "chain_4.yaml"))
+    return parts
+
+
+@pytest.mark.latex
+@pytest.mark.skipif(PDFLATEX is None, reason="pdflatex not installed")
+def test_latex_of_every_system_compiles_and_fits_an_article(tmp_path: Path) -> None:
+    parts = _latex_parts()
+    assert "heavy_top" in parts and "chain_4" in parts
+    assert overflows(tmp_path, "hamilton", parts) == {}
+
+
+@pytest.mark.latex
+@pytest.mark.skipif(PDFLATEX is None, reason="pdflatex not installed")
+def test_latex_standalone_document_compiles(tmp_path: Path) -> None:
+    code, out, _ = _run("derive", "heavy_top", "--form", "hamilton", "--latex", "--standalone")
+    assert code == 0 and out.rstrip().endswith("\\end{document}")
+    assert overflows(tmp_path, "doc", {"heavy_top_h": out}, standalone=True) == {}

@@ -13,7 +13,6 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
 
 import sympy as sp
 from sympy.printing.str import StrPrinter
@@ -22,7 +21,7 @@ from lagrange_cli import __version__
 from lagrange_cli._symengine import to_symengine
 from lagrange_cli.emit.common import printable, require_defined
 from lagrange_cli.errors import fail
-from lagrange_cli.hamilton import Hamilton, hamilton
+from lagrange_cli.hamilton import hamilton
 from lagrange_cli.model import Model
 
 TARGETS = ("text", "latex", "python")
@@ -62,74 +61,33 @@ def text(model: Model) -> str:
 
 
 def latex(model: Model, standalone: bool = False) -> str:
+    """An `align*` (or with `standalone` a document) of H and Hamilton's equations, laid out by
+    the LaTeX emitter's line breaker (`latex.align`, `layout.pieces`) so that every line fits an
+    article, with its symbol namer (momenta `p_{q}`, rates `\\dot{p}_{q}`)."""
     from lagrange_cli.emit import latex as tex
+    from lagrange_cli.emit import layout
 
     ham = hamilton(model)
-    printer = _latex_printer(model, ham)
-    rows = []
+    doprint = tex.names(model, ham.p).printer().doprint
+    momenta = [doprint(p) for p in ham.p]
+    rates = ["\\dot{p}" + name[1:] for name in momenta]
     if ham.symbolic:
         assert ham.hamiltonian is not None
-        rows.append(("H", printer(ham.hamiltonian)))
-        rows += [(printer(qd), printer(v)) for qd, v in zip(model.qd, ham.velocities, strict=True)]
+        items = [("H", ham.hamiltonian), *((doprint(qd), v) for qd, v in zip(model.qd, ham.velocities, strict=True))]
     else:
-        rows += [(printer(p), printer(sum((ham.mass[i, j] * model.qd[j] for j in range(model.n)), ham.bias[i]))) for i, p in enumerate(ham.p)]
-    rows += [(r"\dot{" + printer(p) + "}", printer(rate)) for p, rate in zip(ham.p, ham.rates, strict=True)]
-    body = "\\begin{align*}\n" + " \\\\\n".join(_split_row(lhs, rhs) for lhs, rhs in rows) + "\n\\end{align*}\n"
-    if not ham.symbolic:
-        body = "% q_dot = M^{-1} (p - b) is solved numerically: no symbolic inverse for this many coordinates\n" + body
+        items = [(name, sum((ham.mass[i, j] * model.qd[j] for j in range(model.n)), ham.bias[i])) for i, name in enumerate(momenta)]
+    items += list(zip(rates, ham.rates, strict=True))
+    space = tex.room([lhs for lhs, _ in items])
+    body = tex.align([tex.Row(lhs, layout.pieces(expr, doprint, space)) for lhs, expr in items])
+    route = "" if ham.symbolic else "; q_dot = M^-1 (p - b) is solved numerically (no symbolic inverse for this many coordinates)"
+    header = tex.comment(f"{model.title}: Hamilton's equations in the state (q, p){route}, from {Path(model.source).name}")
     if not standalone:
-        return body
-    title = tex.escape_text(model.title)
-    return "\\documentclass{article}\n\\usepackage{amsmath}\n\\usepackage[margin=1in]{geometry}\n\\begin{document}\n\\section*{" + title + ": Hamilton's equations}\n" + body + "\\end{document}\n"
-
-
-def _split_row(lhs: str, rhs: str) -> str:
-    """One aligned row; a long right-hand side is broken at its top-level + and - signs into
-    lines of bounded width (so that no line is wider than the page)."""
-    pieces = _top_level_terms(rhs)
-    lines, current = [], ""
-    for piece in pieces:
-        if current and len(current) + len(piece) > 60:
-            lines.append(current)
-            current = piece
-        else:
-            current += piece
-    lines.append(current)
-    out = f"{lhs} &= {lines[0]}"
-    for line in lines[1:]:
-        out += f" \\\\\n&\\quad {line}"
-    return out
-
-
-def _top_level_terms(code: str) -> list[str]:
-    """`code` cut before each + or - at brace and parenthesis depth 0 (not the first character)."""
-    pieces, depth, start = [], 0, 0
-    for i, char in enumerate(code):
-        if char in "{(":
-            depth += 1
-        elif char in "})":
-            depth -= 1
-        elif char in "+-" and depth == 0 and i > 0 and code[i - 1] == " ":
-            pieces.append(code[start:i])
-            start = i
-    pieces.append(code[start:])
-    return [p for p in pieces if p]
-
-
-def _latex_printer(model: Model, ham: Hamilton) -> Any:
-    from sympy.printing.latex import LatexPrinter
-
-    from lagrange_cli.emit import latex as tex
-
-    symbols = tex.symbol_names(model)
-    symbols.update({p: tex.symbol_tex(str(p)) for p in ham.p})
-    symbols.update({p: tex.symbol_tex(str(p)) for p in ham.pd})
-    printer = LatexPrinter({"symbol_names": symbols, "fold_short_frac": False})
-
-    def show(expr: sp.Expr) -> str:
-        return printer.doprint(expr)
-
-    return show
+        return header + body
+    return (
+        f"{header}\\documentclass{{article}}\n\\usepackage{{amsmath}}\n\\usepackage[margin=2cm]{{geometry}}\n\\allowdisplaybreaks\n\\begin{{document}}\n\\section*{{{tex.escape_text(model.title)}}}\n"
+        + body
+        + "\\end{document}\n"
+    )
 
 
 # -- Python ---------------------------------------------------------------------------------------
