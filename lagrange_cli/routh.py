@@ -250,6 +250,11 @@ def text(result: Routh, equilibria: bool = True) -> str:
     if result.reduced is not None:
         out += "reduced equations:\n" + plain.emit(result.reduced)
         if equilibria:
-            model, found = relative_equilibria(result)
-            out += "relative equilibria (equilibria of the reduced system):\n" + report.equilibria_text(model, found)
+            from lagrange_cli.errors import LagrangeError
+
+            try:
+                model, found = relative_equilibria(result)
+                out += "relative equilibria (equilibria of the reduced system):\n" + report.equilibria_text(model, found)
+            except LagrangeError as error:  # a rheonomic reduced system, an undefined function, ...
+                out += printable(f"relative equilibria: none computed: {error}") + "\n"
     return out
