@@ -32,7 +32,7 @@ def info(
         bool,
         typer.Option(
             "--routh",
-            help="Routh's reduction: the Routhian for the ignorable coordinates (their momenta p_<q> as parameters), the reduced equations, the effective potential and the relative equilibria with their stability.",
+            help="Routh's reduction: the Routhian for the ignorable coordinates (their momenta, e.g. p_theta, as parameters), the reduced equations, the effective potential and the relative equilibria with their stability.",
         ),
     ] = False,
 ) -> None:
