@@ -72,6 +72,12 @@ def clashes(coordinates: tuple[str, ...], names: list[str]) -> list[str]:
     return [name for name in names if name in taken]
 
 
+def declared(model: Model) -> list[str]:
+    """Every name the file declares: coordinates and their velocities, parameters, functions."""
+    functions = {str(f.func) for e in (model.lagrangian, *model.generalized_forces, model.dissipation) for f in e.atoms(sp.core.function.AppliedUndef)}
+    return [*model.coordinates, *(str(v) for v in model.qd), *(p.name for p in model.parameters), *sorted(functions | set(model.definitions))]
+
+
 def hamilton(model: Model) -> Hamilton:
     """Hamilton's equations of `model` (see the module's docstring); a `LagrangeError` (exit 2)
     saying why where they cannot be written: kept constraints, a declared name of the form `p_<q>`,
@@ -82,12 +88,12 @@ def hamilton(model: Model) -> Hamilton:
         raise fail(
             None, f"{where}: Hamilton's equations are not written for a system with kept constraints ({names})", "a system without kept constraints: eliminate them first (`eliminate:` in the file)"
         )
-    clash = clashes(model.coordinates, [p.name for p in model.parameters] + [str(f) for f in model.definitions])
+    clash = clashes(model.coordinates, declared(model))
     if clash:
         raise fail(
             None,
             f"{where}: '{clash[0]}' is declared in the file, but Hamilton's equations name the momentum of '{clash[0][2:].removesuffix('_dot')}' so",
-            "no parameter or function named p_<coordinate>",
+            "no coordinate, parameter or function named p_<coordinate>",
         )
     mass = sp.ImmutableMatrix(model.mass_matrix)
     if any(mass.has(v) for v in model.qd):

@@ -25,7 +25,7 @@ from typing import Any
 import sympy as sp
 
 from lagrange_cli.errors import fail
-from lagrange_cli.hamilton import MAX_SYMBOLIC, _combined, _inverse, _tidy, clashes
+from lagrange_cli.hamilton import MAX_SYMBOLIC, _combined, _inverse, _tidy, clashes, declared
 from lagrange_cli.model import Model, Parameter
 
 
@@ -60,12 +60,12 @@ def routh(model: Model) -> Routh:
             None, f"{where}: no coordinate is ignorable, so there is nothing for Routh's reduction to remove", "a system with a coordinate that L does not depend on (its momentum is then conserved)"
         )
     names = tuple(model.coordinates[i] for i in ignorable)
-    clash = clashes(model.coordinates, [p.name for p in model.parameters] + list(model.definitions))
+    clash = clashes(model.coordinates, declared(model))
     if clash:
         raise fail(
             None,
             f"{where}: '{clash[0]}' is declared in the file, but Routh's reduction names the momentum of '{clash[0][2:].removesuffix('_dot')}' so",
-            "no parameter or function named p_<coordinate>",
+            "no coordinate, parameter or function named p_<coordinate>",
         )
     mass = sp.Matrix(model.mass_matrix)
     if any(mass.has(v) for v in model.qd):

@@ -1073,12 +1073,12 @@ class _Reader:
         keys = [k for k in ("hamiltonian", "hamilton_equations") if k in fields]
         if not keys:
             return None, ()
-        clash = clashes(spec.coordinates, [p.name for p in spec.parameters] + list(spec.functions))
+        clash = clashes(spec.coordinates, [*spec.coordinates, *(str(v) for v in spec.qd), *(p.name for p in spec.parameters), *spec.functions])
         if clash:
             self.problem(
                 fields[keys[0]],
                 f"'{clash[0]}' is declared in the file, but 'expect.{keys[0]}' names the momentum of '{clash[0][2:].removesuffix('_dot')}' so",
-                "no parameter or function named p_<coordinate> in a file that uses `hamiltonian` or `hamilton_equations`",
+                "no coordinate, parameter or function named p_<coordinate> in a file that uses `hamiltonian` or `hamilton_equations`",
             )
             return None, ()
         p, pd = momentum_symbols(spec.coordinates)
