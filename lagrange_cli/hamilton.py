@@ -26,7 +26,7 @@ from dataclasses import dataclass
 
 import sympy as sp
 
-from lagrange_cli.algebra import tame_numbers
+from lagrange_cli.algebra import expandable, tame_numbers
 from lagrange_cli.errors import LagrangeError, fail
 from lagrange_cli.model import Model
 
@@ -107,7 +107,9 @@ def hamilton(model: Model) -> Hamilton:
     bias = tuple(sp.diff(model.lagrangian, v).xreplace(zero) for v in model.qd)
     rest = model.lagrangian.xreplace(zero)
     qd = model.qd
-    in_velocities = tuple(sp.diff(model.lagrangian, model.q[i]) + model.generalized_forces[i] - sp.diff(model.dissipation, qd[i]) for i in range(model.n))
+    # dL/dq + Q - dR/dq_dot = F + d/dt(p) without the accelerations: from the derived forcing, whose
+    # derivatives of sign, Abs and the file's functions the deriver has already taken
+    in_velocities = tuple(model.forcing[i] + sum((sp.diff(model.momenta[i], model.q[j]) * qd[j] for j in range(model.n)), sp.diff(model.momenta[i], model.t)) for i in range(model.n))
     n = model.n
     if n > MAX_SYMBOLIC and not mass.is_diagonal():
         return Hamilton(model, p, pd, False, None, (), in_velocities, mass, bias, rest)
@@ -140,24 +142,30 @@ def _over(numerator: sp.Expr, denominator: sp.Expr) -> sp.Expr:
     """numerator / denominator, the numerator expanded and its common factors pulled out (bounded)."""
     if denominator == 1:
         return _tidy(numerator)
-    return _tidy(numerator) / denominator if sp.count_ops(numerator) <= 400 else numerator / denominator
+    return _tidy(numerator) / denominator if _cheap(numerator, 400) else numerator / denominator
 
 
 def _tidy(expr: sp.Expr) -> sp.Expr:
     from lagrange_cli.emit.common import tidy
 
-    return tidy(sp.expand(expr) if sp.count_ops(expr) <= 400 else expr)
+    return tidy(sp.expand(expr) if _cheap(expr, 400) else expr)
+
+
+def _cheap(expr: sp.Expr, ops: int) -> bool:
+    """Whether expanding `expr` stays small: at most `ops` operations and a bounded expansion
+    (`algebra.expandable`: (1 + x)**90 is a few operations but thousands of terms)."""
+    return sp.count_ops(expr) <= ops and expandable(expr)
 
 
 def _combined(expr: sp.Expr) -> sp.Expr:
     """`expr` with its quotients over a common denominator when that is cheap (bounded), the
     other terms tidied apart; else tidied term by term."""
-    if sp.count_ops(expr) <= 300:
+    if _cheap(expr, 300):
         terms = sp.Add.make_args(sp.expand(expr))
         plain = sp.Add(*(t for t in terms if sp.fraction(t)[1] == 1))
         quotients = sp.Add(*(t for t in terms if sp.fraction(t)[1] != 1))
         numerator, denominator = sp.fraction(sp.factor_terms(sp.together(quotients)))
-        if sp.count_ops(numerator) <= 400:
+        if _cheap(numerator, 400):
             return _tidy(plain) + _over(numerator, denominator)
     return _tidy(expr)
 

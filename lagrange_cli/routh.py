@@ -81,7 +81,7 @@ def routh(model: Model) -> Routh:
     beta = tuple(sp.Symbol(f"p_{c}") for c in names)
     zero = {model.qd[i]: 0 for i in ignorable}
     # p_c = M_cc c_dot + (M_cr r_dot + b_c): the part without c_dot, then c_dot
-    others = [sp.expand(model.momenta[i]).xreplace(zero) for i in ignorable]
+    others = [model.momenta[i].xreplace(zero) for i in ignorable]
     adjugate, det = _inverse(sp.ImmutableMatrix(block), where)
     shifted = sp.Matrix([beta[k] - others[k] for k in range(len(ignorable))])
     velocities = tuple(_tidy(v) / det for v in adjugate * shifted)

@@ -235,3 +235,20 @@ def test_latex_standalone_document_compiles(tmp_path: Path) -> None:
     code, out, _ = _run("derive", "heavy_top", "--form", "hamilton", "--latex", "--standalone")
     assert code == 0 and out.rstrip().endswith("\\end{document}")
     assert overflows(tmp_path, "doc", {"heavy_top_h": out}, standalone=True) == {}
+
+
+def test_hostile_files_are_bounded_and_safe(tmp_path: Path) -> None:
+    """A potential whose expansion is huge ((1 + x + ...)**90) is tidied without expanding it; Abs
+    and sign are differentiated by the deriver (no re/im in the rates); names are mangled."""
+    from lagrange_cli.emit import hamiltonian
+
+    huge = model_from(Path("tests/hostile/huge_expand.yaml"))
+    ham = hamilton(huge)
+    assert ham.symbolic and all(sp.count_ops(r) < 5000 for r in ham.rates)
+    model = model_from(Path("tests/hostile/name_builtin_abs.yaml"))
+    ham = hamilton(model)
+    assert not any(r.has(sp.re, sp.im) for r in ham.rates)
+    module = load_module(hamiltonian.python(model), tmp_path / "ham_abs.py")
+    point = random_point(model, 1)
+    momenta, rates = _lagrange_side(model, point)
+    assert module.rhs(0.0, [point[model.q[0]], *momenta], dict(module.PARAMETERS)) == pytest.approx([point[model.qd[0]], *rates], rel=1e-9)
