@@ -436,10 +436,22 @@ class System:
     def to(self, target: str, **settings: Any) -> str:
         """The equations written for `target`: text, latex or python (and c, octave, jax, json
         where those emitters are installed); `settings` go to the emitter (`form="matrix"` for
-        text and latex, `standalone=True` for latex, `numba=True` for python)."""
+        text and latex, `form="hamilton"` for Hamilton's equations in text, latex or python,
+        `standalone=True` for latex, `numba=True` for python)."""
         module_name = EMITTERS.get(target)
         if module_name is None:
             raise LagrangeError(f"unknown target '{target}'; choose one of {', '.join(EMITTERS)}")
+        if settings.get("form") == "hamilton":  # Hamilton's equations in (q, p): `derive --form hamilton`
+            from lagrange_cli.emit import hamiltonian
+
+            rest = {k: v for k, v in settings.items() if k != "form"}
+            writers = {"text": hamiltonian.text, "latex": hamiltonian.latex, "python": hamiltonian.python}
+            if target not in writers:
+                hamiltonian.refuse(target)
+            try:
+                return str(writers[target](self.model, **rest))
+            except TypeError as error:
+                raise LagrangeError(f"the '{target}' target does not take these settings with form='hamilton': {', '.join(rest)} ({error})") from None
         try:
             module = importlib.import_module(f"lagrange_cli.emit.{module_name}")
         except ModuleNotFoundError as error:

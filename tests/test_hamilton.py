@@ -252,3 +252,14 @@ def test_hostile_files_are_bounded_and_safe(tmp_path: Path) -> None:
     point = random_point(model, 1)
     momenta, rates = _lagrange_side(model, point)
     assert module.rhs(0.0, [point[model.q[0]], *momenta], dict(module.PARAMETERS)) == pytest.approx([point[model.qd[0]], *rates], rel=1e-9)
+
+
+def test_api_to_with_the_hamilton_form() -> None:
+    from lagrange_cli import api
+
+    system = api.load("kepler")
+    assert "H = -k/r + p_r**2/(2*m) + p_theta**2/(2*m*r**2)" in system.to("text", form="hamilton")
+    assert "MOMENTA = " in system.to("python", form="hamilton")
+    assert "\\dot{p}_{r}" in system.to("latex", form="hamilton")
+    with pytest.raises(LagrangeError, match="not available for --to c"):
+        system.to("c", form="hamilton")
