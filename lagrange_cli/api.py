@@ -398,6 +398,25 @@ class System:
         return Formula("H", "H", tidy(info.hamiltonian), self.model, self._momentum_symbols)
 
     @functools.cached_property
+    def hamilton(self) -> Any:
+        """Hamilton's equations (`lagrange_cli.hamilton.Hamilton`): H(q, p), q_dot = dH/dp and
+        p_dot = -dH/dq + Q in the state (q, p_<q>), as `derive --form hamilton` writes them.
+        Raises `LagrangeError` where they are not written (kept constraints, ...)."""
+        from lagrange_cli.hamilton import hamilton
+
+        return hamilton(self.model)
+
+    @functools.cached_property
+    def routhian(self) -> Any:
+        """Routh's reduction (`lagrange_cli.routh.Routh`): the Routhian R(q_rest, q_rest_dot; p_<c>)
+        for the ignorable coordinates c, the ignorable velocities, the effective potential and the
+        reduced system (`.reduced`, a model whose equilibria are the relative equilibria), as
+        `lagrange info --routh` gives them. Raises `LagrangeError` where the reduction does not apply."""
+        from lagrange_cli.routh import routh
+
+        return routh(self.model)
+
+    @functools.cached_property
     def info(self) -> Report:
         """Degrees of freedom, momenta, ignorable coordinates, energy and Hamiltonian: `lagrange info`."""
         from lagrange_cli import report
@@ -417,10 +436,22 @@ class System:
     def to(self, target: str, **settings: Any) -> str:
         """The equations written for `target`: text, latex or python (and c, octave, jax, json
         where those emitters are installed); `settings` go to the emitter (`form="matrix"` for
-        text and latex, `standalone=True` for latex, `numba=True` for python)."""
+        text and latex, `form="hamilton"` for Hamilton's equations in text, latex or python,
+        `standalone=True` for latex, `numba=True` for python)."""
         module_name = EMITTERS.get(target)
         if module_name is None:
             raise LagrangeError(f"unknown target '{target}'; choose one of {', '.join(EMITTERS)}")
+        if settings.get("form") == "hamilton":  # Hamilton's equations in (q, p): `derive --form hamilton`
+            from lagrange_cli.emit import hamiltonian
+
+            rest = {k: v for k, v in settings.items() if k != "form"}
+            writers = {"text": hamiltonian.text, "latex": hamiltonian.latex, "python": hamiltonian.python}
+            if target not in writers:
+                hamiltonian.refuse(target)
+            try:
+                return str(writers[target](self.model, **rest))
+            except TypeError as error:
+                raise LagrangeError(f"the '{target}' target does not take these settings with form='hamilton': {', '.join(rest)} ({error})") from None
         try:
             module = importlib.import_module(f"lagrange_cli.emit.{module_name}")
         except ModuleNotFoundError as error:

@@ -61,6 +61,7 @@ def check(spec: SystemSpec, model: Model) -> list[Result]:
     (no sampled state where it and the model evaluate to finite real numbers) raises a
     `SpecError` at the entry: bad input, never a wrong-answer verdict."""
     expected = [e for e, _ in spec.expect.equations] + [e for _, e, _ in spec.expect.accelerations] + [e for _, e, _ in spec.expect.momenta]
+    expected += [e for e, _ in spec.expect.hamilton_equations] + ([spec.expect.hamiltonian[0]] if spec.expect.hamiltonian else [])
     points = Samples(model, extra=expected)
     results = [_equations(spec, model, points)] if spec.expect.equations else []
     for coordinate, expected_value, span in spec.expect.accelerations:
@@ -77,7 +78,63 @@ def check(spec: SystemSpec, model: Model) -> list[Result]:
         results.append(_compare(f"momenta.{coordinate}", expected_value, model.momenta[i], points, span))
     for name, span in spec.expect.conserved:
         results.append(_conserved(model, name, span))
+    if spec.expect.hamiltonian is not None:
+        results.append(_hamiltonian(model, *spec.expect.hamiltonian, points))
+    if spec.expect.hamilton_equations:
+        results.append(_hamilton_equations(spec, model, points))
     return results
+
+
+def _in_velocities(model: Model, expr: sp.Expr, span: Span, key: str) -> sp.Expr:
+    """`expr` (in q, p_<q>, p_<q>_dot, q_dot, t) with the momenta written as p = dL/dq_dot and their
+    rates as d/dt (dL/dq_dot) (with the accelerations as unknowns): what the check samples.
+    Kept constraints are refused (FORMAT.md: eliminate them first)."""
+    from lagrange_cli.hamilton import momentum_symbols
+    from lagrange_cli.spec import time_derivative
+
+    if model.constraints:
+        names = ", ".join(c.name for c in model.constraints)
+        raise fail(
+            span, f"'expect.{key}' cannot be checked for a system with kept constraints ({names})", "a system without kept constraints (eliminate them first), or the Lagrange form under `equations`"
+        )
+    p, pd = momentum_symbols(model.coordinates)
+    rates = [time_derivative(m, model.q, model.qd, model.qdd, model.t) for m in model.momenta]
+    return expr.xreplace({**dict(zip(p, model.momenta, strict=True)), **dict(zip(pd, rates, strict=True))})
+
+
+def _hamiltonian(model: Model, expected: sp.Expr, span: Span, points: Samples) -> Result:
+    """H(q, p) is right when H(q, p(q, q_dot)) equals the energy function h(q, q_dot) at sampled
+    states (no inverse of the mass matrix is needed)."""
+    difference = _in_velocities(model, expected, span, "hamiltonian") - model.energy
+    for _, ((residual, scale),) in points.where([difference], "'hamiltonian'", span, with_unknowns=False):
+        if abs(residual) > TOLERANCE * max(scale, 1):
+            return Result("hamiltonian", False, f"differs from the Legendre transform of the Lagrangian (expected H - derived H = {_number_text(residual)} at a random state)", span)
+    return Result("hamiltonian", True, "", span)
+
+
+def _hamilton_equations(spec: SystemSpec, model: Model, points: Samples) -> Result:
+    """The expected equations hold along the motion (with p = dL/dq_dot and p_dot = d/dt dL/dq_dot)
+    and determine the rates: their Jacobian in (q_dot, p_dot) has rank 2n at the sampled states."""
+    from lagrange_cli.hamilton import momentum_symbols
+
+    entries = spec.expect.hamilton_equations
+    span = entries[0][1]
+    n = model.n
+    if len(entries) < 2 * n:
+        return Result("hamilton_equations", False, f"expected {2 * n} equations (q_dot = dH/dp and p_dot = -dH/dq for each of {', '.join(model.coordinates)}), got {len(entries)}", span)
+    _, pd = momentum_symbols(model.coordinates)
+    rates = [*model.qd, *pd]
+    jacobian = [sp.diff(e, r) for e, _ in entries for r in rates]
+    rows = [_in_velocities(model, e, where, "hamilton_equations") for e, where in entries]
+    columns = [_in_velocities(model, j, span, "hamilton_equations") for j in jacobian]
+    for _, values in points.where([*rows, *columns], "the expected Hamilton equations", span, with_unknowns=True):
+        for k, (residual, scale) in enumerate(values[: len(rows)]):
+            if abs(residual) > TOLERANCE * max(scale, 1):
+                return Result("hamilton_equations", False, f"equation {k + 1} does not hold along the motion (residual {_number_text(residual)} at a random state)", entries[k][1])
+        concrete = sp.Matrix(len(rows), 2 * n, [v for v, _ in values[len(rows) :]])
+        if concrete.rank(iszerofunc=lambda x: abs(x) < TOLERANCE) < 2 * n:
+            return Result("hamilton_equations", False, "the expected equations do not determine q_dot and p_dot (they are dependent)", span)
+    return Result("hamilton_equations", True, "", span)
 
 
 def _conserved(model: Model, name: str, span: Span) -> Result:

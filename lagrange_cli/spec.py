@@ -36,7 +36,7 @@ PARTICLE_KEYS = ("mass", "position", "force", "damping")
 FUNCTION_KEYS = ("arguments", "definition", "description")
 BODY_KEYS = ("mass", "position", "inertia", "angular_velocity")
 DRAW_KEYS = ("segments", "trails")
-EXPECT_KEYS = ("equations", "accelerations", "momenta", "conserved")
+EXPECT_KEYS = ("equations", "accelerations", "momenta", "conserved", "hamiltonian", "hamilton_equations")
 SIMULATE_KEYS = ("t_end", "method", "rtol", "atol", "step", "samples")
 METHODS = ("auto", "RK45", "DOP853", "Radau", "BDF", "LSODA", "symplectic")  # as in numeric/settings.py
 DEFAULT_T_END = 10.0  # numeric/settings.py's default
@@ -120,9 +120,13 @@ class Expect:
     accelerations: tuple[tuple[str, sp.Expr, Span], ...] = ()
     momenta: tuple[tuple[str, sp.Expr, Span], ...] = ()
     conserved: tuple[tuple[str, Span], ...] = ()
+    hamiltonian: tuple[sp.Expr, Span] | None = None
+    """H in the coordinates and the momenta `p_<q>` (FORMAT.md version 2)."""
+    hamilton_equations: tuple[tuple[sp.Expr, Span], ...] = ()
+    """Equations in `<q>_dot`, `p_<q>` and `p_<q>_dot` (each `lhs - rhs`)."""
 
     def __bool__(self) -> bool:
-        return bool(self.equations or self.accelerations or self.momenta or self.conserved)
+        return bool(self.equations or self.accelerations or self.momenta or self.conserved or self.hamiltonian or self.hamilton_equations)
 
 
 @dataclass(frozen=True)
@@ -1057,7 +1061,62 @@ class _Reader:
                 self.problem(item, f"{repr(name) if isinstance(item, yaml.ScalarNode) else _kind(item)} is not a coordinate or 'energy'", "coordinate names and/or `energy`")
                 continue
             conserved.append((str(name), self.span(item)))
-        return Expect(tuple(equations), tuple(accelerations), tuple(momenta), tuple(conserved))
+        hamiltonian, hamilton_equations = self.hamilton_expect(fields, spec, state)
+        return Expect(tuple(equations), tuple(accelerations), tuple(momenta), tuple(conserved), hamiltonian, hamilton_equations)
+
+    def hamilton_expect(self, fields: dict[str, yaml.Node], spec: SystemSpec, state: Scope) -> tuple[tuple[sp.Expr, Span] | None, tuple[tuple[sp.Expr, Span], ...]]:
+        """`expect.hamiltonian` (an expression of q, p_<q>, the parameters and t) and
+        `expect.hamilton_equations` (a list of equations in <q>_dot, p_<q> and p_<q>_dot). A declared
+        name of the form p_<q> (which would mean two things) is an error at the key."""
+        from lagrange_cli.hamilton import clashes, momentum_symbols
+
+        keys = [k for k in ("hamiltonian", "hamilton_equations") if k in fields]
+        if not keys:
+            return None, ()
+        clash = clashes(spec.coordinates, [*spec.coordinates, *(str(v) for v in spec.qd), *(p.name for p in spec.parameters), *spec.functions])
+        if clash:
+            self.problem(
+                fields[keys[0]],
+                f"'{clash[0]}' is declared in the file, but 'expect.{keys[0]}' names the momentum of '{clash[0][2:].removesuffix('_dot')}' so",
+                "no coordinate, parameter or function named p_<coordinate> in a file that uses `hamiltonian` or `hamilton_equations`",
+            )
+            return None, ()
+        p, pd = momentum_symbols(spec.coordinates)
+        constants = {s: v for s, v in state.symbols.items() if s not in {str(x) for x in spec.qd}}
+        velocities = {str(v): "a velocity" for v in spec.qd}
+        accelerations = {str(a): "an acceleration" for a in spec.qdd}
+        hamiltonian = None
+        if "hamiltonian" in fields:
+            scope = Scope(
+                {**constants, **{str(x): x for x in p}},
+                state.functions,
+                state.time,
+                state.time_derivative,
+                "a coordinate, a momentum (`p_<q>`), a parameter, `t`",
+                {**velocities, **accelerations},
+                note="H is a function of the coordinates and momenta",
+                arities=state.arities,
+            )
+            node = fields["hamiltonian"]
+            expr = self.expression(node, "the expected Hamiltonian", scope)
+            if expr is not None:
+                hamiltonian = (expr, self.span(node))
+        equations = []
+        if "hamilton_equations" in fields:
+            scope = Scope(
+                {**state.symbols, **{str(x): x for x in (*p, *pd)}},
+                state.functions,
+                state.time,
+                state.time_derivative,
+                "a coordinate, a velocity (`<q>_dot`), a momentum (`p_<q>`), its rate (`p_<q>_dot`), a parameter, `t`",
+                accelerations,
+                arities=state.arities,
+            )
+            for item in self.sequence(fields["hamilton_equations"], "'expect.hamilton_equations'"):
+                expr = self.expression(item, "an expected Hamilton equation", scope, equation=True)
+                if expr is not None:
+                    equations.append((expr, self.text_span(item) if isinstance(item, yaml.ScalarNode) else self.span(item)))
+        return hamiltonian, tuple(equations)
 
 
 def _definition_scope(function: str, arguments: tuple[str, ...], coordinates: tuple[str, ...], parameters: tuple[Parameter, ...], functions: set[str]) -> Scope:

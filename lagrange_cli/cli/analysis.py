@@ -28,14 +28,28 @@ def info(
     latex: Annotated[bool, typer.Option("--latex", help="LaTeX instead of text.")] = False,
     as_json: Annotated[bool, typer.Option("--json", help="JSON instead of text.")] = False,
     output_path: Annotated[Path | None, typer.Option("-o", "--output", help="Write here (atomically).")] = None,
+    routh: Annotated[
+        bool,
+        typer.Option(
+            "--routh",
+            help="Routh's reduction: the Routhian for the ignorable coordinates (their momenta, e.g. p_theta, as parameters), the reduced equations, the effective potential and the relative equilibria with their stability.",
+        ),
+    ] = False,
 ) -> None:
     """Degrees of freedom, generalized momenta, ignorable coordinates, the energy function and the Hamiltonian."""
     check_outputs(output_path, reading=file)
     from lagrange_cli import analysis, report
-    from lagrange_cli.errors import LagrangeError
+    from lagrange_cli.errors import LagrangeError, fail
 
     try:
         model = _model(file)
+        if routh:
+            from lagrange_cli import routh as reduction
+
+            if latex or as_json:
+                raise fail(None, "--routh writes text only", "lagrange info FILE --routh (without --latex or --json)")
+            output(reduction.text(reduction.routh(model)), output_path)
+            return
         result = analysis.info(model)
         render = report.info_json if as_json else report.info_latex if latex else report.info_text
         output(render(model, result), output_path)

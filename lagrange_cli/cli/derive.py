@@ -9,7 +9,7 @@ from typing import Annotated, Any
 
 import typer
 
-from lagrange_cli.cli import Form, app, check_outputs, fail_with, output, write_atomically
+from lagrange_cli.cli import app, check_outputs, fail_with, output, write_atomically
 from lagrange_cli.cli._app import keeping_verdict
 
 TARGETS = {
@@ -22,6 +22,15 @@ TARGETS = {
     "json": "lagrange_cli.emit.jsonmodel",
 }
 """`--to TARGET` -> the module that emits it, imported only when asked for (each has `emit`)."""
+
+
+class Form(str, Enum):
+    """`derive --form`: the shape of the equations."""
+
+    lagrange = "lagrange"
+    matrix = "matrix"
+    solved = "solved"
+    hamilton = "hamilton"
 
 
 class Target(str, Enum):
@@ -48,7 +57,10 @@ def derive(
     text: Annotated[bool, typer.Option("--text", help="Plain-text equations (the default); same as --to text.")] = False,
     latex: Annotated[bool, typer.Option("--latex", help="A LaTeX align* fragment; same as --to latex.")] = False,
     python: Annotated[bool, typer.Option("--python", help="A Python module for numerical work; same as --to python.")] = False,
-    form: Annotated[Form, typer.Option(help="lagrange: one equation per coordinate; matrix: M q_ddot = F; solved: q_ddot = ...")] = Form.lagrange,
+    form: Annotated[
+        Form,
+        typer.Option(help="lagrange: one equation per coordinate; matrix: M q_ddot = F; solved: q_ddot = ...; hamilton: H(q, p) and Hamilton's equations in the state (q, p) (text, latex, python)."),
+    ] = Form.lagrange,
     standalone: Annotated[bool, typer.Option(help="With --latex: a whole compilable document.")] = False,
     numba: Annotated[bool, typer.Option("--numba", help="With --python: compile rhs with numba (needs numba where the module runs).")] = False,
     prefix: Annotated[str | None, typer.Option("--prefix", metavar="NAME", help="With --to c: the prefix of the generated names (default eom: eom_rhs, EOM_NQ, ...).")] = None,
@@ -64,6 +76,9 @@ def derive(
         from lagrange_cli import spec
 
         model = core.derive(spec.load(spec.resolve(file)))
+        if form is Form.hamilton:
+            output(_hamilton(model, target, numba, standalone), output_path)
+            return
         emitter = _emitter(target)
         if target == "python":
             result = emitter.emit(model, numba=numba)
@@ -76,6 +91,20 @@ def derive(
         output(result, output_path)
     except LagrangeError as error:
         fail_with(error)
+
+
+def _hamilton(model: Any, target: str, numba: bool, standalone: bool) -> str:
+    """`--form hamilton`: text, latex and python write Hamilton's equations; other targets refuse (exit 2)."""
+    from lagrange_cli.emit import hamiltonian
+
+    if target == "text":
+        return hamiltonian.text(model)
+    if target == "latex":
+        return hamiltonian.latex(model, standalone=standalone)
+    if target == "python":
+        return hamiltonian.python(model, numba=numba)
+    hamiltonian.refuse(target)
+    raise AssertionError("unreachable")
 
 
 def _target(to: Target | None, text: bool, latex: bool, python: bool, numba: bool, standalone: bool, prefix: str | None, output_path: Path | None) -> tuple[str, str]:
