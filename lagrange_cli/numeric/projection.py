@@ -9,7 +9,14 @@ errors accumulate in the positions and velocities. `Projector.project(t, y)` put
   smallest correction in kinetic-energy norm, until |f| is at round-off level;
 - velocities, for every kept constraint a(q, t) . q_dot + b(q, t) = 0 (holonomic or not), at the
   projected positions: q_dot <- q_dot - M^-1 A^T (A M^-1 A^T)^-1 (A q_dot + b), which is exact
-  (the constraint is linear in q_dot).
+  (the constraint is linear in q_dot);
+- for a system that conserves its energy h (`Model.energy_conserved`), given the level h0 of the
+  start: the velocities onto h(q, q_dot) = h0 as well, together with the velocity constraints
+  (Gauss-Newton with the rows [A; (M q_dot)^T], dh/dq_dot = M q_dot being exact for Lagrangians
+  quadratic in the velocities), skipped where q_dot is too small for the energy to be set
+  through it (a turning point) or the correction would not be small. Kept constraints then hold
+  the phase error of a long run to the integrator's own: the Cartesian pendulum's energy no
+  longer drifts, so its period does not either.
 
 The rows (f, the gradient rows `ConstraintRow.jacobian`, the bias b) and the mass matrix are the
 model's own symbolic expressions, evaluated exactly (no numerical differentiation). `simulate`
@@ -35,6 +42,16 @@ ROUND_OFF = 4.0 * float(np.finfo(float).eps)
 """A position residual below this (relative to the sizes of its terms) is at round-off: stop."""
 
 
+ENERGY_STEPS = 3
+"""Gauss-Newton steps at most for the energy level (h is quadratic in q_dot)."""
+ENERGY_CONDITION = 1e8
+"""Condition number of [A; (M q_dot)^T] M^-1 [A; (M q_dot)^T]^T above which the energy is not
+projected at this state (q_dot nearly 0 or along the constraint normals)."""
+ENERGY_CHANGE = 1e-4
+"""Largest relative change of q_dot the energy projection may make (a correction of integration
+error is far smaller; anything larger means h cannot be set through q_dot here)."""
+
+
 @dataclass(frozen=True)
 class Correction:
     """How far one projection moved a state: the residuals before, and the size of the changes."""
@@ -45,13 +62,19 @@ class Correction:
     """max |a . q_dot + b| before (after the position projection)."""
     moved: float
     """max |change| of any coordinate or velocity."""
+    energy: float = 0.0
+    """|h - h0| before the energy step (0 when the energy is not projected)."""
 
 
 class Projector:
     """Projects states of one model, at given parameter values, onto its kept constraints."""
 
-    def __init__(self, model: Model, values: Sequence[float]) -> None:
+    def __init__(self, model: Model, values: Sequence[float], energy: Callable[[float, np.ndarray], float] | None = None, level: float | None = None) -> None:
+        """`energy(t, y)` and its `level` h0: also project onto h = h0 (a conserved energy)."""
         self.n = model.n
+        both = energy is not None and level is not None
+        self.energy: Callable[[float, np.ndarray], float] | None = energy if both else None
+        self.level: float | None = level if both else None
         self.holonomic = np.array([c.holonomic for c in model.constraints], dtype=bool)
         self._rows = memo.once(model, "projection rows", lambda: _rows(model))
         self._values = [float(v) for v in values]
@@ -82,10 +105,39 @@ class Projector:
         _, a, b, m = self._evaluate(t, q)
         residual = a @ qd + b
         qd = qd - _weighted(m, a, residual)
+        off_level = self._energy_level(t, q, qd, a, b, m) if self.energy is not None else None
+        if off_level is not None:
+            qd, energy_error = off_level
+        else:
+            energy_error = 0.0
         projected = np.concatenate([q, qd])
         if not np.all(np.isfinite(projected)):
             raise ArithmeticError("the projection gave non-finite values")
-        return projected, Correction(first_position, float(np.max(np.abs(residual))), float(np.max(np.abs(projected - y))))
+        return projected, Correction(first_position, float(np.max(np.abs(residual))), float(np.max(np.abs(projected - y))), energy_error)
+
+    def _energy_level(self, t: float, q: np.ndarray, qd: np.ndarray, a: np.ndarray, b: np.ndarray, m: np.ndarray) -> tuple[np.ndarray, float] | None:
+        """q_dot moved onto h(q, q_dot) = h0 and A q_dot + b = 0 (None where that is skipped: q_dot
+        too small to carry the correction, or the correction not small)."""
+        assert self.energy is not None and self.level is not None
+        start = qd
+        first = None
+        for _ in range(ENERGY_STEPS):
+            error = self.energy(t, np.concatenate([q, qd])) - self.level
+            first = abs(error) if first is None else first
+            gradient = m @ qd  # dh/dq_dot
+            size = abs(self.level) + abs(float(qd @ gradient))
+            if abs(error) <= ROUND_OFF * size:
+                break
+            rows = np.vstack([a, gradient[None, :]])
+            w = np.linalg.solve(m, rows.T)
+            normal = rows @ w
+            if np.linalg.cond(normal) > ENERGY_CONDITION:  # q_dot (nearly) along the constraint normals or 0: a turning point
+                return None
+            qd = qd - w @ np.linalg.solve(normal, np.concatenate([a @ qd + b, [error]]))
+        scale = float(np.max(np.abs(start))) + 1e-300
+        if not np.all(np.isfinite(qd)) or float(np.max(np.abs(qd - start))) > ENERGY_CHANGE * scale:
+            return None
+        return qd, float(first or 0.0)
 
 
 def _weighted(m: np.ndarray, a: np.ndarray, r: np.ndarray) -> np.ndarray:

@@ -18,6 +18,7 @@ from __future__ import annotations
 import dataclasses
 import enum
 import math
+import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 
@@ -198,18 +199,31 @@ def integrate(model: Model, settings: Settings, progress: Progress | None = None
 
     notes: tuple[str, ...] = ()
     if settings.projection and model.constraints:
-        run, notes = _projected(model, settings, problem, runner, progress)
+        run, notes = _projected(model, settings, python, problem, runner, progress)
     else:
         run = runner(problem, progress)
     trajectory = _trajectory(model, settings, python, run, Timing(generate, load, run.compile_seconds, run.run_seconds))
     return dataclasses.replace(trajectory, notes=(*trajectory.notes, *notes)) if notes else trajectory
 
 
-def _projected(model: Model, settings: Settings, problem: Problem, runner: Callable[[Problem, Progress | None], Run], progress: Progress | None) -> tuple[Run, tuple[str, ...]]:
+def _projected(
+    model: Model, settings: Settings, python: compile.Functions, problem: Problem, runner: Callable[[Problem, Progress | None], Run], progress: Progress | None
+) -> tuple[Run, tuple[str, ...]]:
     """The run in stretches between consecutive sample times, the state projected onto the kept
     constraints (positions and velocities, `projection.Projector`) at the end of each stretch
     before the next starts from it; one `Run` of them all, and a note saying what was corrected."""
-    projector = Projector(model, settings.values)
+    level, energy = None, None
+    if model.energy_conserved:
+        module, p = python.module, list(problem.p)
+
+        def energy(t: float, y: np.ndarray) -> float:
+            return integrators.evaluate(module._energy, t, y.tolist(), p, "the energy")[0]
+
+        try:
+            level = energy(problem.t0, problem.y0)
+        except integrators.EvaluationError:
+            level = None
+    projector = Projector(model, settings.values, energy, level)
     ts = problem.ts
     bounds = sorted({*(float(t) for t in ts if problem.t0 < t < problem.t_end), problem.t_end})
     t_start, y = problem.t0, problem.y0.copy()
@@ -217,11 +231,12 @@ def _projected(model: Model, settings: Settings, problem: Problem, runner: Calla
     if len(ts) and ts[0] <= problem.t0:  # the first sample is the start itself
         pieces_t.append(ts[:1])
         pieces_y.append(y[None, :])
-    largest = Correction(0.0, 0.0, 0.0)
+    largest = Correction(0.0, 0.0, 0.0, 0.0)
     projections, failed = 0, ""
     steps_left = problem.max_steps
     span = problem.t_end - problem.t0
     over_budget = False
+    began = time.perf_counter()
     for t_stop in bounds:
         if steps_left <= 0:
             over_budget = True
@@ -240,9 +255,9 @@ def _projected(model: Model, settings: Settings, problem: Problem, runner: Calla
             y, correction = projector.project(t_stop, run.y_last)
         except (ArithmeticError, ValueError, TypeError, np.linalg.LinAlgError) as error:
             y, failed = run.y_last, f"; it could not be applied at t = {_g(t_stop)} ({error}), and the run went on without it"
-            correction = Correction(0.0, 0.0, 0.0)
+            correction = Correction(0.0, 0.0, 0.0, 0.0)
         projections += 1
-        largest = Correction(max(largest.position, correction.position), max(largest.velocity, correction.velocity), max(largest.moved, correction.moved))
+        largest = Correction(*(max(getattr(largest, k), getattr(correction, k)) for k in ("position", "velocity", "moved", "energy")))
         pieces_y.append(np.vstack([run.y[:-1], y[None, :]]) if len(run.t) and run.t[-1] == t_stop else run.y)  # the sample at the end of a stretch: projected
         t_start = t_stop
     last = runs[-1]
@@ -257,20 +272,14 @@ def _projected(model: Model, settings: Settings, problem: Problem, runner: Calla
     )
     outcome = integrators.BUDGET if over_budget else last.status
     y_last = y if outcome in (integrators.FINISHED, integrators.BUDGET) else last.y_last
-    run = Run(
-        np.concatenate(pieces_t),
-        np.vstack(pieces_y),
-        outcome,
-        t_start if over_budget else last.t_last,
-        y_last,
-        stats,
-        sum(r.compile_seconds for r in runs),
-        sum(r.run_seconds for r in runs),
-        last.problem,
-    )
+    compile_seconds = sum(r.compile_seconds for r in runs)
+    elapsed = time.perf_counter() - began - compile_seconds  # the projections count as part of the run
+    run = Run(np.concatenate(pieces_t), np.vstack(pieces_y), outcome, t_start if over_budget else last.t_last, y_last, stats, compile_seconds, elapsed, last.problem)
     note = (
-        f"projection onto the kept constraints after each of {projections} stretches between samples (M-weighted Gauss-Newton on the positions, then the velocities):"
-        f" largest residual corrected {largest.position:.2g} in the positions, {largest.velocity:.2g} in the velocities{failed}"
+        f"projection onto the kept constraints{' and the energy level' if level is not None else ''} after each of {projections} stretches between samples"
+        f" (M-weighted Gauss-Newton on the positions, then the velocities): largest residual corrected {largest.position:.2g} in the positions, {largest.velocity:.2g} in the velocities"
+        + (f", {largest.energy:.2g} in the energy" if level is not None else "")
+        + failed
     )
     return run, (note,)
 
