@@ -1,7 +1,7 @@
 """What `auto` means for one run: the method, the backend, the symplectic step and Baumgarte's alpha.
 
 `decide(model, settings)` takes validated `Settings` (settings.py) and returns them resolved,
-with notes saying why. The method comes from a short pilot run (`pilot`): at most PILOT_STEPS
+with notes saying why. The method comes from a short pilot run (`pilot`): PILOT_STEPS (at most PILOT_MAX_STEPS)
 steps of LSODA from the initial state, with the spectrum of the Jacobian sampled along it. The
 pilot measures what one linearisation at t = 0 cannot: the fastest unmatched decay anywhere
 along the start (stiffness: decay x t_end, and the steps an explicit method needs just to stay
@@ -36,7 +36,12 @@ from lagrange_cli.numeric.settings import COMPILED, Settings, code_parameters, v
 
 HEAVY = 3000.0  # rate x time span above which compiling pays off (about 1e4 steps)
 PILOT_STEPS = 200
-"""Steps of the pilot run (LSODA, Python): about 400 right-hand side evaluations, ~10-20 ms."""
+"""Steps of the pilot run (LSODA, Python): about 400 right-hand side evaluations, ~10-20 ms ..."""
+PILOT_MAX_STEPS = 800
+"""... continued, while LSODA's step is still growing (the mean of its last PILOT_TAIL steps more
+than SETTLED x that of the PILOT_TAIL before), up to this many: after a fast transient the step
+grows for a while, and extrapolating it too early overestimates the implicit steps."""
+SETTLED = 1.5
 PILOT_SPECTRA = 8
 """Jacobians (forward differences) sampled along the pilot, besides the initial state's."""
 PILOT_TAIL = 20
@@ -44,10 +49,11 @@ PILOT_TAIL = 20
 DOP853_STABILITY = 6.0
 """|h lambda| on the negative real axis up to which DOP853 stays stable (measured: the damped
 cart at decay 9e5/s over t_end = 10 takes 1.46e6 steps = decay x t_end / 6.2)."""
-IMPLICIT_COST = 15.0
-"""Cost of an LSODA step (Python right-hand side, ~1.5 evaluations, ~70 us) over a compiled
-DOP853 step (12 compiled evaluations, ~5 us), measured on the damped stiff spring at k = 1e8,
-where the two tie (DOP853 17338 steps in 0.10 s, LSODA 1252 steps in 0.10 s)."""
+IMPLICIT_COST = 20.0
+"""Cost of an LSODA step (Python right-hand side, ~1.5 evaluations) over a compiled DOP853 step
+(12 compiled evaluations), measured: 77 us against 5.7 us on the damped stiff spring at k = 1e8
+(where the two tie: DOP853 17338 steps in 0.10 s, LSODA 1252 steps in 0.10 s), and 70-100 us against
+3.8 us on the damped cart at decay 1e6/s."""
 
 
 def resolve(
@@ -270,7 +276,7 @@ class Pilot:
 
 
 def pilot(model: Model, settings: Settings) -> Pilot | None:
-    """At most PILOT_STEPS steps of LSODA (Python right-hand side, no Jacobian needed) from the
+    """PILOT_STEPS steps (more while its step grows) of LSODA (Python right-hand side, no Jacobian) from the
     initial state of `settings`, the spectrum sampled at the start and at PILOT_SPECTRA states
     along it; None where the right-hand side or a Jacobian cannot be evaluated at the start.
     Once per model, parameters, start, horizon and tolerances."""
@@ -304,11 +310,18 @@ def _pilot(model: Model, settings: Settings) -> Pilot | None:
     worst, t_worst, spectra = start, 0.0, 0
     times = [0.0]
     every = max(1, PILOT_STEPS // PILOT_SPECTRA)
+
+    def growing() -> bool:
+        if len(times) <= 2 * PILOT_TAIL:
+            return True
+        recent, before = times[-1] - times[-1 - PILOT_TAIL], times[-1 - PILOT_TAIL] - times[-1 - 2 * PILOT_TAIL]
+        return recent > SETTLED * before
+
     with warnings.catch_warnings(), np.errstate(all="ignore"):
         warnings.simplefilter("ignore")
         try:
             solver = scipy.integrate.LSODA(f, 0.0, y0, settings.t_end, rtol=settings.rtol, atol=settings.atol, max_step=settings.max_step)
-            while solver.status == "running" and len(times) <= PILOT_STEPS:
+            while solver.status == "running" and (len(times) <= PILOT_STEPS or (len(times) <= PILOT_MAX_STEPS and growing())):
                 solver.step()
                 if solver.status == "failed" or not np.all(np.isfinite(solver.y)):
                     break
