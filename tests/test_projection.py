@@ -94,3 +94,17 @@ def test_projection_must_be_a_boolean(pendulum) -> None:  # type: ignore[no-unty
 
     with pytest.raises(LagrangeError, match="projection must be true or false"):
         simulate(pendulum, t_end=1.0, projection="yes")  # type: ignore[arg-type]
+
+
+def test_many_samples_are_projected_in_at_most_max_stretches(pendulum) -> None:  # type: ignore[no-untyped-def]
+    import re
+
+    from lagrange_cli.numeric.simulate import MAX_STRETCHES
+
+    run = simulate(pendulum, t_end=2.0, method="DOP853", samples=2 * MAX_STRETCHES + 501, backend="python")
+    assert run.status == "finished" and len(run.t) == 2 * MAX_STRETCHES + 501
+    note = next(n for n in run.notes if n.startswith("projection"))
+    stretches = int(re.search(r"after each of (\d+) stretches", note).group(1))  # type: ignore[union-attr]
+    assert 100 < stretches <= MAX_STRETCHES, note
+    constraint = run.invariant(InvariantKind.CONSTRAINT)
+    assert constraint is not None and constraint.final_change < 1e-14  # projected at the end
