@@ -225,9 +225,9 @@ def _projected(
         def energy(t: float, y: np.ndarray) -> float:
             return integrators.evaluate(module._energy, t, y.tolist(), p, "the energy")[0]
 
-        try:
-            level = energy(problem.t0, problem.y0)
-        except integrators.EvaluationError:
+        try:  # the level of the constrained state nearest the start (the start itself when it satisfies the constraints)
+            level = energy(problem.t0, Projector(model, settings.values).project(problem.t0, problem.y0)[0])
+        except (integrators.EvaluationError, ArithmeticError, ValueError, TypeError, np.linalg.LinAlgError):
             level = None
     projector = Projector(model, settings.values, energy, level)
     ts = problem.ts
