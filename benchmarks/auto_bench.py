@@ -1,6 +1,6 @@
 """`--method auto` against every method on stiff, extreme and non-stiff cases; projection on long constrained runs.
 
-    PYTHONPATH=. python benchmarks/auto_bench.py [--rounds 2] [--skip-projection]
+    PYTHONPATH=. python benchmarks/auto_bench.py [--rounds 2] [--skip-projection] [--only "k=1e8"]
 
 Whole runs through the library (`simulate`), interleaved (round r runs every method once before
 round r + 1), the minimum over rounds kept. For each case: every method's integration time
@@ -46,11 +46,13 @@ def load(path: Path):  # type: ignore[no-untyped-def]
     return derive.derive(spec.load(path))
 
 
-def bench_auto(rounds: int) -> None:
+def bench_auto(rounds: int, only: str | None = None) -> None:
     print(f"## auto against every method (t_end 10, rtol 1e-8, atol 1e-10; min of {rounds} interleaved rounds; integration time)\n")
     print("| case | auto picks | auto steps | auto run s | pilot s | best method | best steps | best run s | auto/best (run) | auto+pilot/best |")
     print("|---|---|---|---|---|---|---|---|---|---|")
     for name, path, parameters in CASES:
+        if only is not None and only not in name:
+            continue
         model = load(path)
         for method in METHODS:  # warm: code generation and compilation out of the timed rounds
             simulate(model, method=method, parameters=parameters, samples=11, t_end=1e-3)
@@ -111,8 +113,9 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--rounds", type=int, default=2)
     parser.add_argument("--skip-projection", action="store_true")
+    parser.add_argument("--only", help="run only the cases whose name contains this text")
     arguments = parser.parse_args()
-    bench_auto(arguments.rounds)
+    bench_auto(arguments.rounds, arguments.only)
     if not arguments.skip_projection:
         bench_projection()
 

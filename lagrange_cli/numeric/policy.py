@@ -49,11 +49,11 @@ PILOT_TAIL = 20
 DOP853_STABILITY = 6.0
 """|h lambda| on the negative real axis up to which DOP853 stays stable (measured: the damped
 cart at decay 9e5/s over t_end = 10 takes 1.46e6 steps = decay x t_end / 6.2)."""
-IMPLICIT_COST = 20.0
+IMPLICIT_COST = 12.0
 """Cost of an LSODA step (Python right-hand side, ~1.5 evaluations) over a compiled DOP853 step
-(12 compiled evaluations), measured: 77 us against 5.7 us on the damped stiff spring at k = 1e8
-(where the two tie: DOP853 17338 steps in 0.10 s, LSODA 1252 steps in 0.10 s), and 70-100 us against
-3.8 us on the damped cart at decay 1e6/s."""
+(12 compiled evaluations), measured (benchmarks/auto_bench.py) between 8 and 20: 71-77 us
+against 5.7-9 us on the damped stiff spring at k = 1e8, where the two are within 2x of each
+other (DOP853 17338 steps, LSODA 1252), and 84-130 us against 5-13 us on the damped cart."""
 
 
 def resolve(
