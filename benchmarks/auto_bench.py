@@ -36,7 +36,8 @@ CASES = [
     ("stiff spring k=1e6 (undamped)", SYSTEMS / "stiff_spring_pendulum.yaml", {}),
     ("damped stiff spring k=1e8", SYSTEMS / "stiff_spring_pendulum_damped.yaml", {}),
     ("damped stiff spring k=1e10", SYSTEMS / "stiff_spring_pendulum_damped.yaml", {"k": 1e10}),
-    ("double pendulum (non-stiff)", SYSTEMS / "double_pendulum.yaml", {}),
+    ("damped elastic pendulum in r, k=1e10", AUDIT / "stiff_elastic_pendulum_r.yaml", {}),
+    ("double pendulum (non-stiff)", AUDIT / "double_pendulum_nonstiff.yaml", {}),
 ]
 METHODS = ["auto", "DOP853", "RK45", "Radau", "BDF", "LSODA"]
 BUDGET = 3_000_000
