@@ -287,6 +287,9 @@ def _projected(
         f"projection onto the kept constraints{' and the energy level' if level is not None else ''} after each of {projections} stretches of the run (at the samples)"
         f" (M-weighted Gauss-Newton on the positions, then the velocities): largest residual corrected {largest.position:.2g} in the positions, {largest.velocity:.2g} in the velocities"
         + (f", {largest.energy:.2g} in the energy" if level is not None else "")
+        + " (the drift of one stretch; the monitored residuals"
+        + (" and energy" if level is not None else "")
+        + " are measured after projection)"
         + failed
     )
     return run, (note,)
