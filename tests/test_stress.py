@@ -147,8 +147,8 @@ def test_spectrum_does_not_count_a_saddle_pair_as_stiffness() -> None:
         ("double_pendulum", {}, {}, ("DOP853", "RK45")),
         ("double_pendulum_chaotic", {}, {}, ("DOP853", "RK45")),
         ("stiff_spring_pendulum_damped", {"k": 1e4}, {}, ("DOP853", "RK45")),
-        ("stiff_spring_pendulum_damped", {"k": 1e8}, {}, ("DOP853", "RK45")),
-        ("stiff_spring_pendulum_damped", {"k": 1e10}, {}, ("Radau", "BDF")),
+        ("stiff_spring_pendulum_damped", {"k": 1e8}, {}, ("DOP853", "RK45", "LSODA")),  # a tie (benchmarks/auto_bench.py)
+        ("stiff_spring_pendulum_damped", {"k": 1e10}, {}, ("Radau", "BDF", "LSODA")),
     ],
 )
 def test_auto_picks_explicit_unless_an_explicit_method_is_stability_limited_too_long(name: str, parameters: dict[str, float], initial: dict[str, float], picked: tuple[str, ...]) -> None:
@@ -168,7 +168,7 @@ def test_report_names_the_naive_failure_and_the_recommended_success() -> None:
     assert outcome.naive.status == "over step budget" and outcome.naive.steps == 5000, outcome.naive
     assert any(f.startswith("RK45:python") and "stopped after" in f for f in outcome.diagnosis.findings)
     assert any(f.startswith("stiff:") for f in outcome.diagnosis.findings), outcome.diagnosis.findings
-    assert outcome.recommended is not None and outcome.recommended.resolved.startswith("Radau") and outcome.auto.resolved.startswith("Radau")
+    assert outcome.recommended is not None and outcome.recommended.resolved.startswith(("Radau", "LSODA")) and outcome.auto.resolved.startswith(("Radau", "LSODA"))
     assert json.loads(stress.json_text(report))["regimes"][0]["naive"]["status"] == "over step budget"
 
 

@@ -53,6 +53,10 @@ class Settings:
     y0: tuple[float, ...]
     until: str | None
     event: sp.Expr | None
+    projection: bool = False
+    """Project the state onto the kept constraints (positions and velocities, `projection.py`)
+    after each stretch of the run between two samples: on by default for a model that keeps
+    constraints, off without them."""
     alpha: float | None = None
     """Baumgarte's stabilisation rate for kept constraints (None without them, or before `policy.decide`)."""
     notes: tuple[str, ...] = ()
@@ -90,8 +94,10 @@ def validate(
     until: str | None = None,
     backend: str = "auto",
     max_step: float | None = None,
+    projection: bool | None = None,
 ) -> Settings:
-    """Validated settings, `auto` left as asked; raises `LagrangeError` on bad input."""
+    """Validated settings, `auto` left as asked; raises `LagrangeError` on bad input. `projection`
+    (default: on when the model keeps constraints) projects onto them along the run."""
     check(model)
     file = dict(model.simulate)
     end = _positive("t_end", t_end if t_end is not None else file.get("t_end", DEFAULTS["t_end"]))
@@ -109,7 +115,10 @@ def validate(
     event = parse_until(model, until) if until is not None else None
     if backend not in BACKENDS:
         raise LagrangeError(f"unknown backend '{backend}'; choose one of {', '.join(BACKENDS)}")
-    return Settings(0.0, end, chosen_method, backend, relative, absolute, fixed, STAGES, limit, times, tuple(zip(names, p, strict=True)), y0, until, event)
+    if projection is not None and not isinstance(projection, bool):
+        raise LagrangeError(f"projection must be true or false, got {projection!r}")
+    project = bool(model.constraints) if projection is None else projection and bool(model.constraints)
+    return Settings(0.0, end, chosen_method, backend, relative, absolute, fixed, STAGES, limit, times, tuple(zip(names, p, strict=True)), y0, until, event, project)
 
 
 def resolve(model: Model, **arguments: object) -> Settings:

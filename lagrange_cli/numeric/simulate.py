@@ -18,7 +18,8 @@ from __future__ import annotations
 import dataclasses
 import enum
 import math
-from collections.abc import Mapping, Sequence
+import time
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -28,6 +29,7 @@ from lagrange_cli.model import Model
 from lagrange_cli.numeric import codegen, compile, integrators
 from lagrange_cli.numeric.integrators import Problem, Progress, Run, Stats
 from lagrange_cli.numeric.policy import resolve
+from lagrange_cli.numeric.projection import Correction, Projector
 from lagrange_cli.numeric.settings import Settings, check
 from lagrange_cli.numeric.status import Status
 
@@ -147,14 +149,30 @@ def simulate(
     max_step: float | None = None,
     progress: Progress | None = None,
     max_steps: int | None = None,
+    projection: bool | None = None,
 ) -> Trajectory:
     """Integrate `model` from its initial state; see the module docstring for the conventions.
     `max_steps` is the step budget (default `integrators.MAX_STEPS` of the backend): a run that
-    has not reached t_end after it stops, failed, with the trajectory so far."""
+    has not reached t_end after it stops, failed, with the trajectory so far. `projection` (default:
+    on for a model with kept constraints) projects the state onto them after each stretch between
+    two samples (`projection.py`)."""
     check(model)
     plain = compile.build(model, "python")  # here rather than in the policy's linearisation, so that its cost is reported
     settings = resolve(
-        model, t_end=t_end, method=method, rtol=rtol, atol=atol, step=step, samples=samples, t_eval=t_eval, parameters=parameters, initial=initial, until=until, backend=backend, max_step=max_step
+        model,
+        t_end=t_end,
+        method=method,
+        rtol=rtol,
+        atol=atol,
+        step=step,
+        samples=samples,
+        t_eval=t_eval,
+        parameters=parameters,
+        initial=initial,
+        until=until,
+        backend=backend,
+        max_step=max_step,
+        projection=projection,
     )
     return integrate(model, settings, progress, max_steps, Timing(plain.generate_seconds, plain.import_seconds, 0.0, 0.0))
 
@@ -170,10 +188,111 @@ def integrate(model: Model, settings: Settings, progress: Progress | None = None
     if settings.backend == "compiled":
         numba = compile.build(model, "numba", event=settings.event)
         generate, load = generate + numba.generate_seconds, load + numba.import_seconds
-        run = _run_compiled(numba, python, problem, settings, progress)
+
+        def runner(part: Problem, report: Progress | None) -> Run:
+            return _run_compiled(numba, python, part, settings, report)
+
     else:
-        run = integrators.run_scipy(python, problem, settings.method, settings.rtol, settings.atol, settings.max_step, progress)
-    return _trajectory(model, settings, python, run, Timing(generate, load, run.compile_seconds, run.run_seconds))
+
+        def runner(part: Problem, report: Progress | None) -> Run:
+            return integrators.run_scipy(python, part, settings.method, settings.rtol, settings.atol, settings.max_step, report)
+
+    notes: tuple[str, ...] = ()
+    if settings.projection and model.constraints:
+        run, notes = _projected(model, settings, python, problem, runner, progress)
+    else:
+        run = runner(problem, progress)
+    trajectory = _trajectory(model, settings, python, run, Timing(generate, load, run.compile_seconds, run.run_seconds))
+    return dataclasses.replace(trajectory, notes=(*trajectory.notes, *notes)) if notes else trajectory
+
+
+MAX_STRETCHES = 1000
+"""Stretches of a projected run at most: with more samples than this, the state is projected at
+every k-th sample only (each stretch restarts the integrator, ~0.3 ms)."""
+
+
+def _projected(
+    model: Model, settings: Settings, python: compile.Functions, problem: Problem, runner: Callable[[Problem, Progress | None], Run], progress: Progress | None
+) -> tuple[Run, tuple[str, ...]]:
+    """The run in stretches between consecutive sample times (every k-th with more than
+    MAX_STRETCHES samples), the state projected onto the kept
+    constraints (positions and velocities, `projection.Projector`) at the end of each stretch
+    before the next starts from it; one `Run` of them all, and a note saying what was corrected."""
+    level, energy = None, None
+    if model.energy_conserved:
+        module, p = python.module, list(problem.p)
+
+        def energy(t: float, y: np.ndarray) -> float:
+            return integrators.evaluate(module._energy, t, y.tolist(), p, "the energy")[0]
+
+        try:  # the level of the constrained state nearest the start (the start itself when it satisfies the constraints)
+            level = energy(problem.t0, Projector(model, settings.values).project(problem.t0, problem.y0)[0])
+        except (integrators.EvaluationError, ArithmeticError, ValueError, TypeError, np.linalg.LinAlgError):
+            level = None
+    projector = Projector(model, settings.values, energy, level)
+    ts = problem.ts
+    inner = sorted({float(t) for t in ts if problem.t0 < t < problem.t_end})
+    every = max(1, math.ceil((len(inner) + 1) / MAX_STRETCHES))
+    bounds = [*inner[every - 1 :: every], problem.t_end] if every > 1 else [*inner, problem.t_end]
+    t_start, y = problem.t0, problem.y0.copy()
+    pieces_t, pieces_y, runs = [ts[:0]], [np.empty((0, len(y)))], []
+    if len(ts) and ts[0] <= problem.t0:  # the first sample is the start itself
+        pieces_t.append(ts[:1])
+        pieces_y.append(y[None, :])
+    largest = Correction(0.0, 0.0, 0.0, 0.0)
+    projections, failed = 0, ""
+    steps_left = problem.max_steps
+    span = problem.t_end - problem.t0
+    over_budget = False
+    began = time.perf_counter()
+    for t_stop in bounds:
+        if steps_left <= 0:
+            over_budget = True
+            break
+        inside = ts[(ts > t_start) & (ts <= t_stop)]
+        part = Problem(t_start, t_stop, y, inside, problem.p, problem.use_event, steps_left)
+        report = (lambda fraction, a=t_start, b=t_stop: progress((a - problem.t0 + fraction * (b - a)) / span)) if progress is not None else None
+        run = runner(part, report)
+        runs.append(run)
+        steps_left -= run.stats.steps
+        pieces_t.append(run.t)
+        if run.status != integrators.FINISHED:
+            pieces_y.append(run.y)
+            break
+        try:
+            y, correction = projector.project(t_stop, run.y_last)
+        except (ArithmeticError, ValueError, TypeError, np.linalg.LinAlgError) as error:
+            y, failed = run.y_last, f"; it could not be applied at t = {_g(t_stop)} ({error}), and the run went on without it"
+            correction = Correction(0.0, 0.0, 0.0, 0.0)
+        projections += 1
+        largest = Correction(*(max(getattr(largest, k), getattr(correction, k)) for k in ("position", "velocity", "moved", "energy")))
+        pieces_y.append(np.vstack([run.y[:-1], y[None, :]]) if len(run.t) and run.t[-1] == t_stop else run.y)  # the sample at the end of a stretch: projected
+        t_start = t_stop
+    last = runs[-1]
+    stats = Stats(
+        sum(r.stats.nfev for r in runs),
+        sum(r.stats.njev for r in runs),
+        sum(r.stats.nlu for r in runs),
+        sum(r.stats.steps for r in runs),
+        None if any(r.stats.rejected is None for r in runs) else sum(r.stats.rejected or 0 for r in runs),
+        min((r.stats.min_step for r in runs if r.stats.min_step is not None), default=None),
+        max((r.stats.max_step for r in runs if r.stats.max_step is not None), default=None),
+    )
+    outcome = integrators.BUDGET if over_budget else last.status
+    y_last = y if outcome in (integrators.FINISHED, integrators.BUDGET) else last.y_last
+    compile_seconds = sum(r.compile_seconds for r in runs)
+    elapsed = time.perf_counter() - began - compile_seconds  # the projections count as part of the run
+    run = Run(np.concatenate(pieces_t), np.vstack(pieces_y), outcome, t_start if over_budget else last.t_last, y_last, stats, compile_seconds, elapsed, last.problem)
+    note = (
+        f"projection onto the kept constraints{' and the energy level' if level is not None else ''} after each of {projections} stretches of the run (at the samples)"
+        f" (M-weighted Gauss-Newton on the positions, then the velocities): largest residual corrected {largest.position:.2g} in the positions, {largest.velocity:.2g} in the velocities"
+        + (f", {largest.energy:.2g} in the energy" if level is not None else "")
+        + " (the drift of one stretch; the monitored residuals"
+        + (" and energy" if level is not None else "")
+        + " are measured after projection)"
+        + failed
+    )
+    return run, (note,)
 
 
 def _budget(max_steps: object) -> int:
