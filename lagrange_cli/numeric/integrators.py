@@ -72,6 +72,27 @@ class Run:
     compile_seconds: float
     run_seconds: float
     problem: EvaluationError | None = None
+    gauss: GaussReport | None = None
+    """What the symplectic method's loop measured (None for the other methods)."""
+
+
+@dataclass(frozen=True)
+class GaussReport:
+    """What a run of the Gauss method measured along the way (kernels.gauss_run's diagnostics).
+
+    `deviation_max` is the largest difference between a step's converged stage increments and
+    their extrapolation from the step before (relative to each component's size): an error
+    indicator of order s + 1 in h that costs nothing. Where it jumps far above its mean (`deviation_mean`),
+    the fixed step does not resolve the motion there (a coordinate singularity, a close approach)."""
+
+    iterations_max: int
+    """The most Newton sweeps one step took."""
+    correction_max: float
+    """The largest last Newton correction of a step, relative: the round-off level the stages reached."""
+    deviation_max: float
+    deviation_t: float
+    """The time of the step where `deviation_max` occurred."""
+    deviation_mean: float
 
 
 @dataclass(frozen=True)
@@ -237,8 +258,7 @@ def run_gauss(functions: Functions, problem: Problem, z0: np.ndarray, stages: in
     control = _control(problem, size, step=h, steps=steps)
     state = _state(problem.t0, 0.0, _initial_event(functions, problem))
     sizes = np.abs(z)
-    unknowns = stages * len(z)
-    memory, pivots = np.zeros(unknowns + unknowns * unknowns), np.zeros(unknowns, dtype=np.int64)  # carried across pauses (see kernels.gauss_run)
+    memory, pivots = np.zeros(kernels.memory_size(stages, len(z))), np.zeros(stages * len(z), dtype=np.int64)  # carried across pauses (see kernels.gauss_run)
 
     def advance(t_stop: float) -> int:
         control[status.T_STOP] = t_stop
@@ -249,7 +269,17 @@ def run_gauss(functions: Functions, problem: Problem, z0: np.ndarray, stages: in
     hamilton(float(state[status.T]), z, problem.p, out, x, a)
     y_last = np.concatenate([z[: len(z) // 2], out[: len(z) // 2]])
     m = int(state[status.NEXT_SAMPLE])
-    return Run(problem.ts[:m], ys[:m], Status.of_code(code), float(state[status.T]), y_last, _stats(stats, nlu=int(stats[status.NJEV])), compile_seconds, time.perf_counter() - began)
+    report = memory[len(memory) - kernels.DIAGNOSTICS :]
+    counted = report[kernels.DEVIATION_STEPS]
+    gauss = GaussReport(
+        int(report[kernels.ITERATIONS_MAX]),
+        float(report[kernels.CORRECTION_MAX]),
+        float(report[kernels.DEVIATION_MAX]),
+        float(report[kernels.DEVIATION_T]),
+        float(report[kernels.DEVIATION_SUM] / counted) if counted else 0.0,
+    )
+    stats_record = _stats(stats, nlu=int(stats[status.NJEV]))
+    return Run(problem.ts[:m], ys[:m], Status.of_code(code), float(state[status.T]), y_last, stats_record, compile_seconds, time.perf_counter() - began, gauss=gauss)
 
 
 def _initial_event(functions: Functions, problem: Problem) -> float:
