@@ -79,7 +79,8 @@ ITERATIONS_MAX, CORRECTION_MAX, DEVIATION_MAX, DEVIATION_T, DEVIATION_STEPS, DEV
 """The most Newton sweeps of a step; the largest last correction (relative: the round-off level
 reached); the largest predictor deviation (the converged stage increments minus their extrapolation
 from the previous step, relative: an error indicator of order s + 1 in h), the time of the step where
-it occurred, and the number of steps and the sum of the deviations (their mean)."""
+it occurred, and the number of steps and the sum of the deviations (their mean). The deviation of a
+component is measured against the largest size of its block (the coordinates, or the momenta)."""
 DIAGNOSTICS = 6
 
 
@@ -708,9 +709,14 @@ def gauss_run(s, z, state, control, ts, zs, p, stats, sizes, memory, pivots, ham
         report[ITERATIONS_MAX] = max(report[ITERATIONS_MAX], iterations)
         report[CORRECTION_MAX] = max(report[CORRECTION_MAX], correction)
         deviation = 0.0
+        half = n // 2
+        q_size, p_size = 0.0, 0.0
+        for k in range(half):
+            q_size, p_size = max(q_size, sizes[k]), max(p_size, sizes[half + k])
         for i in range(s):
             for k in range(n):
-                deviation = max(deviation, abs(W[i, k] - predicted[i, k]) / (sizes[k] if sizes[k] > 0.0 else 1.0))
+                scale = q_size if k < half else p_size  # the block's size: a component that starts at 0 is not measured against its own tiny size
+                deviation = max(deviation, abs(W[i, k] - predicted[i, k]) / (scale if scale > 0.0 else 1.0))
         if done > 0:  # the first step has no predictor
             if deviation > report[DEVIATION_MAX]:
                 report[DEVIATION_MAX], report[DEVIATION_T] = deviation, t

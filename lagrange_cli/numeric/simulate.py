@@ -25,7 +25,7 @@ import numpy as np
 
 from lagrange_cli.errors import LagrangeError
 from lagrange_cli.model import Model
-from lagrange_cli.numeric import codegen, compile, integrators
+from lagrange_cli.numeric import codegen, compile, integrators, policy
 from lagrange_cli.numeric.integrators import Problem, Progress, Run, Stats
 from lagrange_cli.numeric.policy import resolve
 from lagrange_cli.numeric.settings import Settings, check
@@ -105,6 +105,8 @@ class Trajectory:
     notes: tuple[str, ...] = field(default=())
     outcome: Status = Status.FINISHED
     """How the integrator's run ended, by kind (`status` is only finished, event or failed)."""
+    warnings: tuple[integrators.Uncontrolled, ...] = ()
+    """Where the run's error was not controlled (the symplectic method's monitor; also in `notes`)."""
 
     @property
     def failed(self) -> bool:
@@ -173,6 +175,8 @@ def integrate(model: Model, settings: Settings, progress: Progress | None = None
         run = _run_compiled(numba, python, problem, settings, progress)
     else:
         run = integrators.run_scipy(python, problem, settings.method, settings.rtol, settings.atol, settings.max_step, progress)
+    if settings.method == "symplectic" and settings.step is not None:
+        run = integrators.monitor(run, settings.step, policy.chosen_pilot(model, settings))
     return _trajectory(model, settings, python, run, Timing(generate, load, run.compile_seconds, run.run_seconds))
 
 
@@ -236,7 +240,8 @@ def _trajectory(model: Model, settings: Settings, python: compile.Functions, run
         else:
             reason = FAILURES[run.status].format(" (with the constraint rows)" if model.constraints else "")
         message = f"{model.source}: simulation failed at t = {_g(run.t_last)}: {reason}; state: {state_text(model, run.y_last)}"
-    return Trajectory(model.title, model.coordinates, settings, run.t, run.y, energy, status, message, run.t_last, run.y_last, run.stats, timing, invariants, settings.notes, run.status)
+    notes = (*settings.notes, *(warning.message for warning in run.warnings))
+    return Trajectory(model.title, model.coordinates, settings, run.t, run.y, energy, status, message, run.t_last, run.y_last, run.stats, timing, invariants, notes, run.status, run.warnings)
 
 
 class _MonitorFailure(Exception):
