@@ -133,7 +133,7 @@ class GaussReport:
     iterations_max: int
     """The most Newton sweeps one step took."""
     correction_max: float
-    """The largest last Newton correction of a step, relative: the round-off level the stages reached."""
+    """The largest last Newton correction of a step (relative): the round-off level the stages reached."""
     deviation_max: float
     deviation_t: float
     """The time of the step where `deviation_max` occurred."""

@@ -65,8 +65,8 @@ __all__ = ["DIAGNOSTICS", "MAX_ITERATIONS", "PAUSE_STEPS", "SIGNATURES", "compil
 # The Gauss stage equations are solved to round-off (a looser tolerance, such as the 1e-11 used
 # before, leaves an error that is not symmetric and makes the energy drift over long runs: issue 15).
 ROUNDOFF = 2.220446049250313e-16
-"""The iteration stops when the estimated remaining error of every component is below this, relative
-to the component's size (one ulp)."""
+"""The iteration stops when the correction of every component is below this, relative to the
+component's size (one ulp)."""
 STAGNATION = 1e-12
 """Corrections that stop decreasing at or below this (relative) are round-off noise (a right-hand
 side that cancels catastrophically cannot do better): the iteration has converged. Above it, they
@@ -76,8 +76,8 @@ MAX_ITERATIONS = 50
 # The tail of `memory` (gauss_run) after the predictor and the Newton matrix: the compensation of
 # the summed state (n floats), then what the loop reports (DIAGNOSTICS floats, indices below).
 ITERATIONS_MAX, CORRECTION_MAX, DEVIATION_MAX, DEVIATION_T, DEVIATION_STEPS, DEVIATION_SUM = range(6)
-"""The most Newton sweeps of a step; the largest last correction (relative: the round-off level
-reached); the largest predictor deviation (the converged stage increments minus their extrapolation
+"""The most Newton sweeps of a step; the largest last correction of a step's stages (relative: the
+round-off level reached); the largest predictor deviation (the converged stage increments minus their extrapolation
 from the previous step, relative: an error indicator of order s + 1 in h), the time of the step where
 it occurred, and the number of steps and the sum of the deviations (their mean). The deviation of a
 component is measured against the largest size of its block (the coordinates, or the momenta)."""
@@ -566,9 +566,8 @@ def _gauss_stages(hamilton, s, t, z, h, W, FZ, p, x, a, m, pivots, g, sizes, wor
     values' round-off at the size of the increments, not of z.
     Corrections are measured component by component against that component's size (`sizes`, the
     largest |z_k| so far), so that coordinates and momenta of very different magnitudes all
-    converge, and the iteration stops when the next correction would be below an ulp of every
-    component (estimated from the contraction rate), when a correction is exactly zero, or when
-    the corrections stop decreasing at the round-off level (STAGNATION); corrections that stop
+    converge, and the iteration stops when a correction is below an ulp of every component, or
+    when the corrections stop decreasing at the round-off level (STAGNATION); corrections that stop
     decreasing above it, or MAX_ITERATIONS sweeps, are NO_CONVERGENCE (the caller refreshes
     the Jacobian once, then fails with that status)."""
     n = z.shape[0]
@@ -596,14 +595,10 @@ def _gauss_stages(hamilton, s, t, z, h, W, FZ, p, x, a, m, pivots, g, sizes, wor
                     change = max(change, correction / (sizes[k] if sizes[k] > 0.0 else 1.0))
         if not np.isfinite(change):
             return NONFINITE, iteration, change
-        if change == 0.0:
+        if change <= ROUNDOFF:  # FZ was evaluated at stage values within an ulp of the solution
             return DONE, iteration, change
-        if iteration > 1:
-            rate = change / previous
-            if rate >= 1.0:  # the corrections stopped decreasing: round-off, or no convergence
-                return (DONE if change <= STAGNATION else NO_CONVERGENCE), iteration, change
-            if rate * change <= (1.0 - rate) * ROUNDOFF:  # the remaining error (rate / (1 - rate) x change) is below an ulp
-                return DONE, iteration, change
+        if iteration > 1 and change >= previous:  # the corrections stopped decreasing: round-off, or no convergence
+            return (DONE if change <= STAGNATION else NO_CONVERGENCE), iteration, change
         previous = change
     return NO_CONVERGENCE, MAX_ITERATIONS, previous
 
