@@ -71,6 +71,9 @@ STAGNATION = 1e-12
 """Corrections that stop decreasing at or below this (relative) are round-off noise (a right-hand
 side that cancels catastrophically cannot do better): the iteration has converged. Above it, they
 mean no convergence."""
+SLOW = 0.02
+"""A step whose Newton corrections shrank by less than this factor a sweep (the Newton matrix is
+stale: its Jacobian is from an earlier part of the motion) refreshes the matrix for the next step."""
 MAX_ITERATIONS = 50
 """Newton sweeps of one step at most (a converging step takes about 6 to 12)."""
 # The tail of `memory` (gauss_run) after the predictor and the Newton matrix: the compensation of
@@ -562,7 +565,8 @@ def _gauss_stages(hamilton, s, t, z, h, W, FZ, p, x, a, m, pivots, g, sizes, wor
     """Solve W_i = h sum_j a_ij F(z + W_j) for the stage increments W_i = Z_i - z by simplified
     Newton iteration (matrix m from `_newton_matrix`) until the corrections reach round-off; FZ
     holds F at the stage values of the last iteration. Returns (status, iterations, the last
-    correction). Working with increments (Hairer, Lubich and Wanner, VIII.6) keeps the stage
+    correction, the slowest contraction of the corrections before the last: how stale the Newton
+    matrix is). Working with increments (Hairer, Lubich and Wanner, VIII.6) keeps the stage
     values' round-off at the size of the increments, not of z.
     Corrections are measured component by component against that component's size (`sizes`, the
     largest |z_k| so far), so that coordinates and momenta of very different magnitudes all
@@ -571,13 +575,13 @@ def _gauss_stages(hamilton, s, t, z, h, W, FZ, p, x, a, m, pivots, g, sizes, wor
     decreasing above it, or MAX_ITERATIONS sweeps, are NO_CONVERGENCE (the caller refreshes
     the Jacobian once, then fails with that status)."""
     n = z.shape[0]
-    previous = np.inf
+    previous, slowest = np.inf, 0.0
     for iteration in range(1, MAX_ITERATIONS + 1):
         for i in range(s):
             for k in range(n):
                 work[k] = z[k] + W[i, k]
             if hamilton(t + _GAUSS_C[s - 1, i] * h, work, p, FZ[i], x, a):
-                return SINGULAR, iteration, np.inf
+                return SINGULAR, iteration, np.inf, slowest
         stats[NFEV] += s
         for i in range(s):
             for k in range(n):
@@ -594,13 +598,15 @@ def _gauss_stages(hamilton, s, t, z, h, W, FZ, p, x, a, m, pivots, g, sizes, wor
                 if correction > 0.0:
                     change = max(change, correction / (sizes[k] if sizes[k] > 0.0 else 1.0))
         if not np.isfinite(change):
-            return NONFINITE, iteration, change
+            return NONFINITE, iteration, change, slowest
         if change <= ROUNDOFF:  # FZ was evaluated at stage values within an ulp of the solution
-            return DONE, iteration, change
+            return DONE, iteration, change, slowest
         if iteration > 1 and change >= previous:  # the corrections stopped decreasing: round-off, or no convergence
-            return (DONE if change <= STAGNATION else NO_CONVERGENCE), iteration, change
+            return (DONE if change <= STAGNATION else NO_CONVERGENCE), iteration, change, slowest
+        if iteration > 1:
+            slowest = max(slowest, change / previous)
         previous = change
-    return NO_CONVERGENCE, MAX_ITERATIONS, previous
+    return NO_CONVERGENCE, MAX_ITERATIONS, previous, slowest
 
 
 @njit(error_model="numpy")
@@ -692,14 +698,14 @@ def gauss_run(s, z, state, control, ts, zs, p, stats, sizes, memory, pivots, ham
                     value += _GAUSS_E[s - 1, i, j] * FZ[j, k]
                 W[i, k] = h * value
                 predicted[i, k] = W[i, k]
-        status, iterations, correction = _gauss_stages(hamilton, s, t, z, h, W, FZ, p, x, a, m, pivots, g, sizes, work, stats)
+        status, iterations, correction, slowest = _gauss_stages(hamilton, s, t, z, h, W, FZ, p, x, a, m, pivots, g, sizes, work, stats)
         if status == NO_CONVERGENCE and not refreshed:
             fresh = False  # a Jacobian from an earlier step: refresh it and try again
             state[NEWTON] = 0.0
             continue
         if status != DONE:
             return status
-        fresh, refreshed = iterations <= 10, False
+        fresh, refreshed = slowest <= SLOW, False
         state[NEWTON] = 1.0 if fresh else 0.0
         report[ITERATIONS_MAX] = max(report[ITERATIONS_MAX], iterations)
         report[CORRECTION_MAX] = max(report[CORRECTION_MAX], correction)
