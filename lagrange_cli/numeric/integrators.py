@@ -117,7 +117,8 @@ class GaussPilot:
     steps: int
     """Steps the pilot runs took in all."""
     controlled: bool
-    """False when the rounds ran out (or every trial failed) before the estimate met the tolerance."""
+    """False when the rounds ran out (or every trial failed, or the next trial would exceed the step
+    budget) before the estimate met the tolerance."""
     stages: int = 2
 
 
@@ -359,6 +360,8 @@ def pilot_gauss(functions: Functions, problem: Problem, z0: np.ndarray, stages: 
     h, taken, yardstick, estimate = h0, 0, 0.0, math.inf
     for _ in range(PILOT_ROUNDS):
         steps = max(2, math.ceil(span / h - 1e-9))
+        if 3 * steps > problem.max_steps:  # the pilot alone would exceed the run's budget
+            break
         coarse = run_gauss(functions, pilot, z0, stages, span / steps)
         fine = run_gauss(functions, pilot, z0, stages, span / (2 * steps))
         taken += coarse.stats.steps + fine.stats.steps
