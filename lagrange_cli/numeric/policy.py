@@ -171,16 +171,16 @@ def _symplectic_choice(model: Model, found: diagnostics.Spectrum | None, rate: f
     """The symplectic step from a pilot (`symplectic_pilot`) started at `symplectic_step`'s guess, and notes saying how."""
     guess = symplectic_step(rate, t_end, rtol)
     if found is None:
-        start = f"from t_end/1000 ({guess:.3g}: the linearisation at the initial state could not be evaluated)"
+        origin = "t_end/1000: the linearisation at the initial state could not be evaluated"
     elif rate <= 0:
-        start = f"from t_end/1000 ({guess:.3g}: the linearisation at the initial state has no rates)"
+        origin = "t_end/1000: the linearisation at the initial state has no rates"
     else:
-        start = f"from {guess:.3g} (the fastest rate at the initial state, {rate:.3g}/s, and rtol)"
+        origin = f"the fastest rate at the initial state, {rate:.3g}/s, and rtol"
     pilot = symplectic_pilot(model, guess, t_end, rtol, p, y0)
     if pilot is None:
-        return guess, [f"symplectic step {guess:.3g} {start[5:]}: no pilot run (the momenta at the initial state cannot be evaluated)"]
+        return guess, [f"symplectic step {guess:.3g} ({origin}): no pilot run (the momenta at the initial state cannot be evaluated; give --step)"]
     notes = [
-        f"symplectic step {pilot.step:.3g} from a pilot run {start}: runs at h and h/2 over t = {pilot.span:.3g} estimate the error at t_end at "
+        f"symplectic step {pilot.step:.3g} from a pilot run started at {guess:.3g} ({origin}): runs at h and h/2 over t = {pilot.span:.3g} estimate the error at t_end at "
         f"{pilot.estimate:.2g} x rtol ({pilot.steps} pilot steps); the step stays fixed (that is what makes the method symplectic)"
     ]
     if not pilot.controlled:
