@@ -11,6 +11,7 @@ Each returns a `Run`: the samples reached, how it ended, and its counts and timi
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 import warnings
@@ -72,6 +73,72 @@ class Run:
     compile_seconds: float
     run_seconds: float
     problem: EvaluationError | None = None
+    gauss: GaussReport | None = None
+    """What the symplectic method's loop measured (None for the other methods)."""
+    warnings: tuple[Uncontrolled, ...] = ()
+    """Where the run's error was not controlled (see `monitor`)."""
+
+
+@dataclass(frozen=True)
+class Uncontrolled:
+    """A warning: the symplectic method's fixed step did not resolve the motion near time `t`
+    (its error indicator, the predictor deviation, reached `ratio` times what the step was chosen
+    for, or `ratio` x UNRESOLVED when the step was given), so the run's error is not controlled."""
+
+    t: float
+    ratio: float
+    step: float
+    chosen: bool
+    """Whether the step came from the pilot (else it was given)."""
+
+    @property
+    def message(self) -> str:
+        seen = f"{self.ratio:.3g}x the error indicator the step was chosen for" if self.chosen else f"an error indicator {self.ratio:.3g}x the level of an unresolved step"
+        return (
+            f"warning: the symplectic method's error is not controlled near t = {self.t:.6g} ({seen}): it keeps its fixed step {self.step:.3g} "
+            "(that is what makes it symplectic) and cannot shorten it where the motion is fast (a coordinate singularity, a close approach); "
+            "give a smaller --step, use an adaptive --method (DOP853, Radau), or change coordinates"
+        )
+
+
+@dataclass(frozen=True)
+class GaussPilot:
+    """The symplectic step chosen from short runs at h and h/2 (`pilot_gauss`)."""
+
+    step: float
+    estimate: float
+    """The estimated error at t_end of a run at `step`, in units of the tolerance (<= 1: met),
+    from Richardson's estimate over the pilot's span, grown linearly to t_end."""
+    span: float
+    """The time the pilot runs covered."""
+    yardstick: float
+    """The largest predictor deviation of the pilot runs divided by h^(s + 1): a run at step h
+    expects deviations up to yardstick x h^(s + 1) (see `monitor`)."""
+    steps: int
+    """Steps the pilot runs took in all."""
+    controlled: bool
+    """False when the rounds ran out (or every trial failed, or the next trial would exceed the step
+    budget) before the estimate met the tolerance."""
+    stages: int = 2
+
+
+@dataclass(frozen=True)
+class GaussReport:
+    """What a run of the Gauss method measured along the way (kernels.gauss_run's diagnostics).
+
+    `deviation_max` is the largest difference between a step's converged stage increments and
+    their extrapolation from the step before (relative to each component's size): an error
+    indicator of order s + 1 in h that costs nothing. Where it jumps far above its mean (`deviation_mean`),
+    the fixed step does not resolve the motion there (a coordinate singularity, a close approach)."""
+
+    iterations_max: int
+    """The most Newton sweeps one step took."""
+    correction_max: float
+    """The largest last Newton correction of a step (relative): the round-off level the stages reached."""
+    deviation_max: float
+    deviation_t: float
+    """The time of the step where `deviation_max` occurred."""
+    deviation_mean: float
 
 
 @dataclass(frozen=True)
@@ -237,8 +304,7 @@ def run_gauss(functions: Functions, problem: Problem, z0: np.ndarray, stages: in
     control = _control(problem, size, step=h, steps=steps)
     state = _state(problem.t0, 0.0, _initial_event(functions, problem))
     sizes = np.abs(z)
-    unknowns = stages * len(z)
-    memory, pivots = np.zeros(unknowns + unknowns * unknowns), np.zeros(unknowns, dtype=np.int64)  # carried across pauses (see kernels.gauss_run)
+    memory, pivots = np.zeros(kernels.memory_size(stages, len(z))), np.zeros(stages * len(z), dtype=np.int64)  # carried across pauses (see kernels.gauss_run)
 
     def advance(t_stop: float) -> int:
         control[status.T_STOP] = t_stop
@@ -249,7 +315,91 @@ def run_gauss(functions: Functions, problem: Problem, z0: np.ndarray, stages: in
     hamilton(float(state[status.T]), z, problem.p, out, x, a)
     y_last = np.concatenate([z[: len(z) // 2], out[: len(z) // 2]])
     m = int(state[status.NEXT_SAMPLE])
-    return Run(problem.ts[:m], ys[:m], Status.of_code(code), float(state[status.T]), y_last, _stats(stats, nlu=int(stats[status.NJEV])), compile_seconds, time.perf_counter() - began)
+    report = memory[len(memory) - kernels.DIAGNOSTICS :]
+    counted = report[kernels.DEVIATION_STEPS]
+    gauss = GaussReport(
+        int(report[kernels.ITERATIONS_MAX]),
+        float(report[kernels.CORRECTION_MAX]),
+        float(report[kernels.DEVIATION_MAX]),
+        float(report[kernels.DEVIATION_T]),
+        float(report[kernels.DEVIATION_SUM] / counted) if counted else 0.0,
+    )
+    stats_record = _stats(stats, nlu=int(stats[status.NJEV]))
+    return Run(problem.ts[:m], ys[:m], Status.of_code(code), float(state[status.T]), y_last, stats_record, compile_seconds, time.perf_counter() - began, gauss=gauss)
+
+
+PILOT_STEPS = 1000
+"""A pilot spans at most this many steps of the first trial step (about 3 oscillations of the
+fastest rate at the step `policy.symplectic_step` proposes), and at most the whole run."""
+PILOT_ROUNDS = 4
+"""Trial steps at most before the pilot settles for the last one."""
+PILOT_SAMPLES = 50
+"""Points where the runs at h and h/2 are compared."""
+AIM = 0.5
+"""The pilot aims the estimated error at t_end at this fraction of the tolerance."""
+MONITOR_FACTOR = 30.0
+"""A run warns where its predictor deviation exceeds this many times what the pilot saw at that step."""
+UNRESOLVED = 1e-2
+"""With a given step (no pilot), a predictor deviation of this much of a component's size means the
+step does not resolve the motion there."""
+
+
+def pilot_gauss(functions: Functions, problem: Problem, z0: np.ndarray, stages: int, h0: float, rtol: float, atol: float) -> GaussPilot:
+    """Choose the symplectic method's fixed step from an error estimate: run it at h and h/2 over
+    a short span (`PILOT_STEPS` steps of h0, at most the run), estimate the error of the run at h
+    by Richardson's extrapolation (|y_h - y_h/2| 2^p / (2^p - 1), p = 2s, scaled by atol + rtol
+    x the size of each component), let it grow linearly to t_end (the phase error of a symplectic
+    method on a regular orbit) and take the step whose estimate is AIM x the tolerance; repeat
+    from that step while it is much smaller (the first trial step was outside the asymptotic range)."""
+    order = 2 * stages
+    total = problem.t_end - problem.t0
+    span = min(total, PILOT_STEPS * h0)
+    ts = problem.t0 + span * np.arange(1, PILOT_SAMPLES + 1) / PILOT_SAMPLES
+    ts[-1] = problem.t0 + span
+    pilot = Problem(problem.t0, problem.t0 + span, problem.y0, ts, problem.p, False, problem.max_steps)
+    h, taken, yardstick, estimate = h0, 0, 0.0, math.inf
+    for _ in range(PILOT_ROUNDS):
+        steps = max(2, math.ceil(span / h - 1e-9))
+        if 3 * steps > problem.max_steps:  # the pilot alone would exceed the run's budget
+            break
+        coarse = run_gauss(functions, pilot, z0, stages, span / steps)
+        fine = run_gauss(functions, pilot, z0, stages, span / (2 * steps))
+        taken += coarse.stats.steps + fine.stats.steps
+        h = span / steps
+        if coarse.status.failed or fine.status.failed or len(coarse.t) < len(ts) or len(fine.t) < len(ts):
+            h /= 4.0  # the trial step does not even converge over the span
+            continue
+        assert coarse.gauss is not None and fine.gauss is not None
+        yardstick = max(coarse.gauss.deviation_max / h ** (stages + 1), fine.gauss.deviation_max / (h / 2) ** (stages + 1))
+        scale = atol + rtol * np.max(np.abs(fine.y), axis=0)
+        difference = float(np.max(np.abs(coarse.y - fine.y) / scale)) * 2.0**order / (2.0**order - 1.0)
+        estimate = difference * total / span
+        if estimate == 0.0:
+            return GaussPilot(min(4.0 * h, span), 0.0, span, yardstick, taken, True, stages)
+        proposed = h * min(4.0, max(0.1, (AIM / estimate) ** (1.0 / order)))
+        if proposed >= 0.5 * h:  # the estimate at h is trustworthy enough to move from it
+            return GaussPilot(proposed, estimate * (proposed / h) ** order, span, yardstick, taken, True, stages)
+        h = proposed
+    return GaussPilot(h, estimate, span, yardstick, taken, False, stages)
+
+
+def monitor(run: Run, step: float, pilot: GaussPilot | None) -> Run:
+    """`run` with a warning when its error indicator (the largest predictor deviation) went far
+    beyond what the step was chosen for (MONITOR_FACTOR x the pilot's yardstick x h^(s + 1)), or,
+    for a given step, beyond UNRESOLVED: the fixed step did not resolve the motion somewhere."""
+    report = run.gauss
+    if report is None:
+        return run
+    if pilot is not None and pilot.yardstick > 0.0:
+        expected = pilot.yardstick * step ** (pilot.stages + 1)
+        ratio = report.deviation_max / expected
+        uncontrolled = ratio > MONITOR_FACTOR
+    else:
+        ratio = report.deviation_max / UNRESOLVED
+        uncontrolled = ratio > 1.0
+    if not uncontrolled:
+        return run
+    return dataclasses.replace(run, warnings=(*run.warnings, Uncontrolled(report.deviation_t, ratio, step, pilot is not None)))
 
 
 def _initial_event(functions: Functions, problem: Problem) -> float:

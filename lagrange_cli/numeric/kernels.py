@@ -61,11 +61,37 @@ from lagrange_cli.numeric.status import (
 )
 from lagrange_cli.numeric.tableaux import DOP853, DOP853_A, DOP853_B, DOP853_C, DOP853_D, DOP853_E3, DOP853_E5, GAUSS, RK45, RK45_A, RK45_B, RK45_C, RK45_E, RK45_P
 
-__all__ = ["PAUSE_STEPS", "SIGNATURES", "compiled", "lu_solve"]
-# The Gauss stage equations are solved until the estimated remaining error is below this,
-# relative: well below the method's own energy error at useful steps (measured in BENCHMARKS.md:
-# 1e-13 costs ~7 Newton sweeps a step, 1e-11 ~5, for the same bounded energy error).
-TOLERANCE = 1e-11
+__all__ = ["DIAGNOSTICS", "MAX_ITERATIONS", "PAUSE_STEPS", "SIGNATURES", "compiled", "lu_solve", "memory_size"]
+# The Gauss stage equations are solved to round-off (a looser tolerance, such as the 1e-11 used
+# before, leaves an error that is not symmetric and makes the energy drift over long runs: issue 15).
+ROUNDOFF = 2.220446049250313e-16
+"""The iteration stops when the correction of every component is below this, relative to the
+component's size (one ulp)."""
+STAGNATION = 1e-12
+"""Corrections that stop decreasing at or below this (relative) are round-off noise (a right-hand
+side that cancels catastrophically cannot do better): the iteration has converged. Above it, they
+mean no convergence."""
+SLOW = 0.02
+"""A step whose Newton corrections shrank by less than this factor a sweep (the Newton matrix is
+stale: its Jacobian is from an earlier part of the motion) refreshes the matrix for the next step."""
+MAX_ITERATIONS = 50
+"""Newton sweeps of one step at most (a converging step takes about 6 to 12)."""
+# The tail of `memory` (gauss_run) after the predictor and the Newton matrix: the compensation of
+# the summed state (n floats), then what the loop reports (DIAGNOSTICS floats, indices below).
+ITERATIONS_MAX, CORRECTION_MAX, DEVIATION_MAX, DEVIATION_T, DEVIATION_STEPS, DEVIATION_SUM = range(6)
+"""The most Newton sweeps of a step; the largest last correction of a step's stages (relative: the
+round-off level reached); the largest predictor deviation (the converged stage increments minus their extrapolation
+from the previous step, relative: an error indicator of order s + 1 in h), the time of the step where
+it occurred, and the number of steps and the sum of the deviations (their mean). The deviation of a
+component is measured against the largest size of its block (the coordinates, or the momenta)."""
+DIAGNOSTICS = 6
+
+
+def memory_size(stages: int, n: int) -> int:
+    """The length of gauss_run's `memory` for s stages and n = 2 x coordinates."""
+    unknowns = stages * n
+    return unknowns + unknowns * unknowns + n + DIAGNOSTICS
+
 
 _RK45_A = np.array(RK45_A)
 _RK45_B = np.array(RK45_B)
@@ -535,23 +561,31 @@ def _lu_apply(m, pivots, b):
 
 
 @njit(error_model="numpy")
-def _gauss_stages(hamilton, s, t, z, h, Z, FZ, p, x, a, m, pivots, g, sizes, stats):
-    """Solve Z_i = z + h sum_j a_ij F(Z_j) by simplified Newton iteration (matrix m from
-    `_newton_matrix`) until the corrections stop shrinking (round-off); FZ holds F at the stage
-    values of the last iteration. Returns (status, iterations). Corrections are measured
-    component by component against that component's size (the larger of |Z_ik| and `sizes`,
-    the largest |z_k| so far), so that coordinates and momenta of very different magnitudes
-    (r = 7e6 m and p_r = 1e4 kg m/s, or x = 1e-8 m and p = 1e-13) all converge."""
+def _gauss_stages(hamilton, s, t, z, h, W, FZ, p, x, a, m, pivots, g, sizes, work, stats):
+    """Solve W_i = h sum_j a_ij F(z + W_j) for the stage increments W_i = Z_i - z by simplified
+    Newton iteration (matrix m from `_newton_matrix`) until the corrections reach round-off; FZ
+    holds F at the stage values of the last iteration. Returns (status, iterations, the last
+    correction, the slowest contraction of the corrections before the last: how stale the Newton
+    matrix is). Working with increments (Hairer, Lubich and Wanner, VIII.6) keeps the stage
+    values' round-off at the size of the increments, not of z.
+    Corrections are measured component by component against that component's size (`sizes`, the
+    largest |z_k| so far), so that coordinates and momenta of very different magnitudes all
+    converge, and the iteration stops when a correction is below an ulp of every component, or
+    when the corrections stop decreasing at the round-off level (STAGNATION); corrections that stop
+    decreasing above it, or MAX_ITERATIONS sweeps, are NO_CONVERGENCE (the caller refreshes
+    the Jacobian once, then fails with that status)."""
     n = z.shape[0]
-    previous = np.inf
-    for iteration in range(1, 41):
+    previous, slowest = np.inf, 0.0
+    for iteration in range(1, MAX_ITERATIONS + 1):
         for i in range(s):
-            if hamilton(t + _GAUSS_C[s - 1, i] * h, Z[i], p, FZ[i], x, a):
-                return SINGULAR, iteration
+            for k in range(n):
+                work[k] = z[k] + W[i, k]
+            if hamilton(t + _GAUSS_C[s - 1, i] * h, work, p, FZ[i], x, a):
+                return SINGULAR, iteration, np.inf, slowest
         stats[NFEV] += s
         for i in range(s):
             for k in range(n):
-                value = z[k] - Z[i, k]
+                value = -W[i, k]
                 for j in range(s):
                     value += h * _GAUSS_A[s - 1, i, j] * FZ[j, k]
                 g[i * n + k] = value
@@ -559,19 +593,20 @@ def _gauss_stages(hamilton, s, t, z, h, Z, FZ, p, x, a, m, pivots, g, sizes, sta
         change = 0.0
         for i in range(s):
             for k in range(n):
-                Z[i, k] += g[i * n + k]
+                W[i, k] += g[i * n + k]
                 correction = abs(g[i * n + k])
                 if correction > 0.0:
-                    change = max(change, correction / max(abs(Z[i, k]), sizes[k]))
+                    change = max(change, correction / (sizes[k] if sizes[k] > 0.0 else 1.0))
         if not np.isfinite(change):
-            return NONFINITE, iteration
-        rate = change / previous if iteration > 1 else 1.0
-        if change <= TOLERANCE or (rate < 1.0 and rate * change <= (1.0 - rate) * TOLERANCE):
-            return DONE, iteration
-        if iteration > 1 and rate >= 1.0 and change <= 1e-10:
-            return DONE, iteration  # round-off: the corrections stopped shrinking
+            return NONFINITE, iteration, change, slowest
+        if change <= ROUNDOFF:  # FZ was evaluated at stage values within an ulp of the solution
+            return DONE, iteration, change, slowest
+        if iteration > 1 and change >= previous:  # the corrections stopped decreasing: round-off, or no convergence
+            return (DONE if change <= STAGNATION else NO_CONVERGENCE), iteration, change, slowest
+        if iteration > 1:
+            slowest = max(slowest, change / previous)
         previous = change
-    return NO_CONVERGENCE, 40
+    return NO_CONVERGENCE, MAX_ITERATIONS, previous, slowest
 
 
 @njit(error_model="numpy")
@@ -621,21 +656,28 @@ def gauss_run(s, z, state, control, ts, zs, p, stats, sizes, memory, pivots, ham
     """Advance z = (q, p) by fixed steps h = control[STEP] (t = state[T], state[H] steps taken of
     control[STEPS]) until t >= control[T_STOP], writing zs[j] = (q, q_dot) at the samples ts[j]
     passed (state[NEXT_SAMPLE] = the next one); returns a status code.
-    The last step ends at t_end exactly (t0 + steps h may fall short of it by round-off).
+    Time is t0 + k h, computed afresh at each step (one rounding, no accumulated error); the last
+    step ends at t_end exactly. The state is summed with compensation (Kahan): z + delta rounds,
+    and what the rounding lost is carried into the next step's delta, so that a million steps add
+    no more round-off than one.
     `sizes` keeps the largest |z_k| so far (the scale of each component's convergence test).
     What the iteration carries from step to step lives in the caller's arrays, so that a run
     paused and resumed (for progress, at times that depend on the clock) takes exactly the steps
-    of one that was not: `memory` (zeros at the start, s n + (s n)^2 floats) holds the stage
-    derivatives of the last step (the next step's predictor) and the LU factors of the Newton
-    matrix, `pivots` their row exchanges, state[NEWTON] 1.0 while those factors are current."""
+    of one that was not: `memory` (zeros at the start, `memory_size(s, n)` floats) holds the stage
+    derivatives of the last step (the next step's predictor), the LU factors of the Newton matrix,
+    the compensation of the sum and the loop's diagnostics (ITERATIONS_MAX, ...), `pivots` the
+    factors' row exchanges, state[NEWTON] 1.0 while those factors are current."""
     n = z.shape[0]
     h, steps, t0, t_end, t_stop, use_event = control[STEP], int(control[STEPS]), control[T0], control[T_BOUND], control[T_STOP], control[USE_EVENT] != 0.0
     size = int(control[SIZE])
     x, a = np.empty(size), np.empty((size, size))
-    Z = np.empty((s, n))
+    W, predicted = np.empty((s, n)), np.empty((s, n))
     FZ = memory[: s * n].reshape((s, n))
-    m = memory[s * n : s * n + (s * n) * (s * n)].reshape((s * n, s * n))
-    z_new, f0, f1, work, fw, z_event = np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(n)
+    base = s * n + (s * n) * (s * n)
+    m = memory[s * n : base].reshape((s * n, s * n))
+    compensation = memory[base : base + n]
+    report = memory[base + n : base + n + DIAGNOSTICS]
+    z_new, f0, f1, work, fw, z_event, lost = np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(n)
     jac, g = np.empty((n, n)), np.empty(s * n)
     done = int(state[H])
     t = state[T]
@@ -651,24 +693,43 @@ def gauss_run(s, z, state, control, ts, zs, p, stats, sizes, memory, pivots, ham
             state[NEWTON] = 1.0
         for i in range(s):
             for k in range(n):
-                value = z[k]
+                value = 0.0
                 for j in range(s):
-                    value += h * _GAUSS_E[s - 1, i, j] * FZ[j, k]
-                Z[i, k] = value
-        status, iterations = _gauss_stages(hamilton, s, t, z, h, Z, FZ, p, x, a, m, pivots, g, sizes, stats)
+                    value += _GAUSS_E[s - 1, i, j] * FZ[j, k]
+                W[i, k] = h * value
+                predicted[i, k] = W[i, k]
+        status, iterations, correction, slowest = _gauss_stages(hamilton, s, t, z, h, W, FZ, p, x, a, m, pivots, g, sizes, work, stats)
         if status == NO_CONVERGENCE and not refreshed:
             fresh = False  # a Jacobian from an earlier step: refresh it and try again
             state[NEWTON] = 0.0
             continue
         if status != DONE:
             return status
-        fresh, refreshed = iterations <= 8, False
+        fresh, refreshed = slowest <= SLOW, False
         state[NEWTON] = 1.0 if fresh else 0.0
+        report[ITERATIONS_MAX] = max(report[ITERATIONS_MAX], iterations)
+        report[CORRECTION_MAX] = max(report[CORRECTION_MAX], correction)
+        deviation = 0.0
+        half = n // 2
+        q_size, p_size = 0.0, 0.0
+        for k in range(half):
+            q_size, p_size = max(q_size, sizes[k]), max(p_size, sizes[half + k])
+        for i in range(s):
+            for k in range(n):
+                scale = q_size if k < half else p_size  # the block's size: a component that starts at 0 is not measured against its own tiny size
+                deviation = max(deviation, abs(W[i, k] - predicted[i, k]) / (scale if scale > 0.0 else 1.0))
+        if done > 0:  # the first step has no predictor
+            if deviation > report[DEVIATION_MAX]:
+                report[DEVIATION_MAX], report[DEVIATION_T] = deviation, t
+            report[DEVIATION_STEPS] += 1.0
+            report[DEVIATION_SUM] += deviation
         for k in range(n):
             value = 0.0
             for i in range(s):
                 value += _GAUSS_B[s - 1, i] * FZ[i, k]
-            z_new[k] = z[k] + h * value
+            delta = h * value + compensation[k]
+            z_new[k] = z[k] + delta
+            lost[k] = (z[k] - z_new[k]) + delta  # what the rounding of z + delta lost
         if not _finite(z_new):
             return NONFINITE
         done += 1
@@ -697,7 +758,10 @@ def gauss_run(s, z, state, control, ts, zs, p, stats, sizes, memory, pivots, ham
             j += 1
         state[NEXT_SAMPLE] = j
         for k in range(n):
-            z[k] = z_event[k] if event_found else z_new[k]
+            if event_found:
+                z[k], compensation[k] = z_event[k], 0.0
+            else:
+                z[k], compensation[k] = z_new[k], lost[k]
             sizes[k] = max(sizes[k], abs(z[k]))
         t = t_end_here
         state[T], state[H] = t, done

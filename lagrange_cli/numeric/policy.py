@@ -31,8 +31,8 @@ import sympy as sp
 
 from lagrange_cli.errors import LagrangeError
 from lagrange_cli.model import Model
-from lagrange_cli.numeric import compile, diagnostics, memo
-from lagrange_cli.numeric.settings import COMPILED, Settings, code_parameters, validate
+from lagrange_cli.numeric import compile, diagnostics, integrators, memo
+from lagrange_cli.numeric.settings import COMPILED, STAGES, Settings, code_parameters, validate
 
 HEAVY = 3000.0  # rate x time span above which compiling pays off (about 1e4 steps)
 PILOT_STEPS = 200
@@ -54,6 +54,8 @@ IMPLICIT_COST = 12.0
 (12 compiled evaluations), measured (benchmarks/auto_bench.py) between 8 and 20: 71-77 us
 against 5.7-9 us on the damped stiff spring at k = 1e8, where the two are within 2x of each
 other (DOP853 17338 steps, LSODA 1252), and 84-130 us against 5-13 us on the damped cart."""
+PILOT_ATOL = 1e-2
+"""The symplectic pilot's absolute tolerance, relative to rtol (a component near zero is measured against this)."""
 
 
 def resolve(
@@ -184,13 +186,8 @@ def _choose(model: Model, settings: Settings) -> tuple[str, str, float | None, f
             method, why = choose(model, settings, found, compiled=backend != "python" and compile.numba_available())
         notes.append(f"method auto -> {method}: {why}")
     if method == "symplectic" and step is None:
-        step = symplectic_step(rate, t_end, rtol)
-        if found is None:
-            notes.append(f"symplectic step {step:.3g} = t_end/1000: the linearisation at the initial state could not be evaluated (give --step)")
-        elif rate <= 0:
-            notes.append(f"symplectic step {step:.3g} = t_end/1000: the linearisation at the initial state has no rates (give --step)")
-        else:
-            notes.append(f"symplectic step {step:.3g} from the fastest rate at the initial state ({rate:.3g}/s) and rtol")
+        step, chosen = _symplectic_choice(model, found, rate, t_end, rtol, p, y0)
+        notes.extend(chosen)
     if backend == "auto":
         backend, why = _backend(model, method, rate, t_end)
         notes.append(f"backend auto -> {backend}: {why}")
@@ -216,6 +213,60 @@ def _backend(model: Model, method: str, rate: float, t_end: float) -> tuple[str,
     if (compile.cache_dir() / f"lagrange_numba_{compile.fingerprint(model, 'numba', False, None)}.py").exists():
         return "compiled", "this system is compiled already (cached)"
     return "python", "a short run: compiling would cost more than it saves"
+
+
+def _symplectic_choice(model: Model, found: diagnostics.Spectrum | None, rate: float, t_end: float, rtol: float, p: Sequence[float], y0: Sequence[float]) -> tuple[float, list[str]]:
+    """The symplectic step from a pilot (`symplectic_pilot`) started at `symplectic_step`'s guess, and notes saying how."""
+    guess = symplectic_step(rate, t_end, rtol)
+    if found is None:
+        origin = "t_end/1000: the linearisation at the initial state could not be evaluated"
+    elif rate <= 0:
+        origin = "t_end/1000: the linearisation at the initial state has no rates"
+    else:
+        origin = f"the fastest rate at the initial state, {rate:.3g}/s, and rtol"
+    pilot = symplectic_pilot(model, guess, t_end, rtol, p, y0)
+    if pilot is None:
+        return guess, [f"symplectic step {guess:.3g} ({origin}): no pilot run (the momenta at the initial state cannot be evaluated; give --step)"]
+    notes = [
+        f"symplectic step {pilot.step:.3g} from a pilot run started at {guess:.3g} ({origin}): runs at h and h/2 over t = {pilot.span:.3g} estimate the error at t_end at "
+        f"{pilot.estimate:.2g} x rtol ({pilot.steps} pilot steps); the step stays fixed (that is what makes the method symplectic)"
+    ]
+    if not pilot.controlled:
+        notes.append(
+            f"warning: the symplectic method's pilot could not find a step that meets rtol {rtol:g} (estimate {pilot.estimate:.2g} x rtol at step {pilot.step:.3g}): "
+            "its error is not controlled; give a smaller --step, use an adaptive --method (DOP853, Radau), or change coordinates"
+        )
+    return pilot.step, notes
+
+
+def symplectic_pilot(model: Model, guess: float, t_end: float, rtol: float, p: Sequence[float], y0: Sequence[float]) -> integrators.GaussPilot | None:
+    """The pilot runs of the symplectic method from the step `guess` (integrators.pilot_gauss),
+    once per model and start; None where the momenta cannot be evaluated at the initial state.
+    `simulate` asks again (the same answer) for the yardstick of its run's monitor."""
+
+    def compute() -> integrators.GaussPilot | None:
+        python, numba = compile.build(model, "python"), compile.build(model, "numba")
+        values = code_parameters(p, None)
+        state = np.array(y0, dtype=float)
+        try:
+            momenta = integrators.evaluate(python.module._canonical, 0.0, state.tolist(), list(values), "the momenta at the initial state")
+        except integrators.EvaluationError:
+            return None
+        z0 = np.concatenate([state[: len(state) // 2], np.array(momenta, dtype=float)])
+        problem = integrators.Problem(0.0, t_end, state, np.empty(0), np.array(values, dtype=float), False, integrators.MAX_STEPS["compiled"])
+        return integrators.pilot_gauss(numba, problem, z0, STAGES, guess, rtol, PILOT_ATOL * rtol)
+
+    return memo.once(model, ("symplectic pilot", guess, t_end, rtol, tuple(p), tuple(y0)), compute)
+
+
+def chosen_pilot(model: Model, settings: Settings) -> integrators.GaussPilot | None:
+    """The pilot that chose the step of `settings` (None when the step was given, or for another method)."""
+    if settings.method != "symplectic" or settings.step is None:
+        return None
+    guess = symplectic_step(initial_rate(model, settings), settings.t_end, settings.rtol)
+    store = model.__dict__.get(memo.SLOT, {})
+    pilot = store.get(("symplectic pilot", guess, settings.t_end, settings.rtol, tuple(settings.values), tuple(settings.y0)))
+    return pilot if pilot is not None and pilot.step == settings.step else None
 
 
 def symplectic_step(rate: float, t_end: float, rtol: float) -> float:

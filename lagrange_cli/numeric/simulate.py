@@ -26,7 +26,7 @@ import numpy as np
 
 from lagrange_cli.errors import LagrangeError
 from lagrange_cli.model import Model
-from lagrange_cli.numeric import codegen, compile, integrators
+from lagrange_cli.numeric import codegen, compile, integrators, policy
 from lagrange_cli.numeric.integrators import Problem, Progress, Run, Stats
 from lagrange_cli.numeric.policy import resolve
 from lagrange_cli.numeric.projection import Correction, Projector
@@ -107,6 +107,8 @@ class Trajectory:
     notes: tuple[str, ...] = field(default=())
     outcome: Status = Status.FINISHED
     """How the integrator's run ended, by kind (`status` is only finished, event or failed)."""
+    warnings: tuple[integrators.Uncontrolled, ...] = ()
+    """Where the run's error was not controlled (the symplectic method's monitor; also in `notes`)."""
 
     @property
     def failed(self) -> bool:
@@ -202,6 +204,8 @@ def integrate(model: Model, settings: Settings, progress: Progress | None = None
         run, notes = _projected(model, settings, python, problem, runner, progress)
     else:
         run = runner(problem, progress)
+    if settings.method == "symplectic" and settings.step is not None:
+        run = integrators.monitor(run, settings.step, policy.chosen_pilot(model, settings))
     trajectory = _trajectory(model, settings, python, run, Timing(generate, load, run.compile_seconds, run.run_seconds))
     return dataclasses.replace(trajectory, notes=(*trajectory.notes, *notes)) if notes else trajectory
 
@@ -355,7 +359,8 @@ def _trajectory(model: Model, settings: Settings, python: compile.Functions, run
         else:
             reason = FAILURES[run.status].format(" (with the constraint rows)" if model.constraints else "")
         message = f"{model.source}: simulation failed at t = {_g(run.t_last)}: {reason}; state: {state_text(model, run.y_last)}"
-    return Trajectory(model.title, model.coordinates, settings, run.t, run.y, energy, status, message, run.t_last, run.y_last, run.stats, timing, invariants, settings.notes, run.status)
+    notes = (*settings.notes, *(warning.message for warning in run.warnings))
+    return Trajectory(model.title, model.coordinates, settings, run.t, run.y, energy, status, message, run.t_last, run.y_last, run.stats, timing, invariants, notes, run.status, run.warnings)
 
 
 class _MonitorFailure(Exception):

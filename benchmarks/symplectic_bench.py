@@ -1,0 +1,103 @@
+"""Symplectic benchmark (issue 15): long-run energy error of the Gauss method, and its cost against
+compiled DOP853 at the same energy error.
+
+    .venv/bin/python benchmarks/symplectic_bench.py                      # t = 1e5 (a few minutes)
+    .venv/bin/python benchmarks/symplectic_bench.py --horizon 1e6        # the issue's horizon (long)
+    .venv/bin/python benchmarks/symplectic_bench.py --horizon 1e4 --systems kepler
+    .venv/bin/python benchmarks/symplectic_bench.py --horizon 1e6 --systems kepler --steps 0.1 --tolerances 1e-11,1e-12
+
+Whole runs through the library (`lagrange_cli.numeric.simulate.simulate`), compiled, on
+- Kepler's problem with eccentricity 0.5 (systems/kepler.yaml from r = 1 at pericentre,
+  theta_dot = sqrt(1.5)), and
+- the double pendulum (systems/double_pendulum.yaml, its default state: regular, not chaotic).
+
+For each: the symplectic method at the given steps, and DOP853 at a ladder of rtol (atol = rtol /
+100). Each run reports steps, right-hand side evaluations (counted), run time (wall clock, noisy on
+a loaded machine: read the counts first), and the relative energy error: its maximum over the first
+10% of the run, over the whole run, and their ratio (the issue asks for at most 2 up to t = 1e6).
+Then, for each symplectic run, the cheapest DOP853 run whose maximum energy error is at most the
+symplectic one's, and the cost ratios (symplectic / DOP853) in evaluations and time.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+
+from lagrange_cli import derive, spec  # noqa: E402
+from lagrange_cli.numeric.simulate import simulate  # noqa: E402
+
+SYSTEMS = {
+    "kepler": ("kepler.yaml", {"theta_dot": math.sqrt(1.5)}, (0.05, 0.1), (1e-9, 1e-10, 1e-11, 1e-12)),
+    "double_pendulum": ("double_pendulum.yaml", {}, (0.02, 0.05), (1e-9, 1e-10, 1e-11, 1e-12)),
+}
+
+
+def measure(model: object, horizon: float, initial: dict[str, float], samples: int, **options: object) -> dict[str, float]:
+    began = time.perf_counter()
+    trajectory = simulate(model, t_end=horizon, samples=samples, initial=initial, max_steps=10**9, **options)  # type: ignore[arg-type]
+    wall = time.perf_counter() - began
+    energy = trajectory.energy
+    error = np.abs(energy - energy[0]) / max(abs(energy[0]), 1e-300)
+    first = float(error[: max(2, len(error) // 10)].max())
+    whole = float(error.max())
+    return {
+        "status": trajectory.status,
+        "steps": trajectory.stats.steps,
+        "nfev": trajectory.stats.nfev,
+        "run": trajectory.timing.run,
+        "wall": wall,
+        "first": first,
+        "max": whole,
+        "ratio": whole / first if first > 0 else math.inf,
+        "last": float(error[-max(2, len(error) // 10) :].max()),
+    }
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--horizon", type=float, default=1e5, help="t_end of every run (default 1e5; the issue asks for 1e6)")
+    parser.add_argument("--systems", default=",".join(SYSTEMS), help="comma-separated: " + ", ".join(SYSTEMS))
+    parser.add_argument("--samples", type=int, default=20001, help="samples of each run (the energy is measured there)")
+    parser.add_argument("--steps", help="comma-separated symplectic steps (default: each system's own)")
+    parser.add_argument("--tolerances", help="comma-separated DOP853 rtols (default: each system's own)")
+    args = parser.parse_args()
+    print(f"horizon t_end = {args.horizon:g}, {args.samples} samples")
+    for name in args.systems.split(","):
+        file, initial, steps, tolerances = SYSTEMS[name]
+        steps = tuple(float(v) for v in args.steps.split(",")) if args.steps else steps
+        tolerances = tuple(float(v) for v in args.tolerances.split(",")) if args.tolerances else tolerances
+        model = derive.derive(spec.load(ROOT / "systems" / file))
+        simulate(model, method="symplectic", step=0.1, t_end=1.0, backend="compiled")  # compile (or load) outside the timing
+        simulate(model, method="DOP853", t_end=1.0, backend="compiled")
+        print(f"\n## {name} ({file}{', ' + str(initial) if initial else ''})")
+        print(f"{'run':<22} {'status':<9} {'steps':>10} {'evals':>11} {'run s':>8} {'E err first10%':>15} {'E err max':>10} {'max/first':>9} {'last10%':>10}")
+        results = {}
+        for step in steps:
+            results[("symplectic", step)] = measure(model, args.horizon, initial, args.samples, method="symplectic", step=step, backend="compiled")
+        for rtol in tolerances:
+            results[("DOP853", rtol)] = measure(model, args.horizon, initial, args.samples, method="DOP853", rtol=rtol, atol=rtol / 100, backend="compiled")
+        for (method, knob), r in results.items():
+            label = f"{method} {'h' if method == 'symplectic' else 'rtol'}={knob:g}"
+            print(f"{label:<22} {r['status']:<9} {r['steps']:>10} {r['nfev']:>11} {r['run']:>8.2f} {r['first']:>15.3g} {r['max']:>10.3g} {r['ratio']:>9.2f} {r['last']:>10.3g}")
+        print("\nsymplectic vs the cheapest DOP853 with an energy error at most as large:")
+        for step in steps:
+            s = results[("symplectic", step)]
+            matching = [(k, r) for k, r in results.items() if k[0] == "DOP853" and r["status"] == "finished" and r["max"] <= s["max"]]
+            if not matching:
+                print(f"  h={step:g}: no DOP853 run of the ladder reaches its energy error {s['max']:.3g}")
+                continue
+            key, d = min(matching, key=lambda item: item[1]["nfev"])
+            print(f"  h={step:g} (E err {s['max']:.3g}) vs DOP853 rtol={key[1]:g} (E err {d['max']:.3g}): evaluations x{s['nfev'] / d['nfev']:.2f}, run time x{s['run'] / d['run']:.2f}")
+
+
+if __name__ == "__main__":
+    main()
