@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING, Annotated, Any
 import typer
 
 from lagrange_cli.cli import app, check_outputs, fail_with, write_atomically
-from lagrange_cli.cli.boundary import check_fraction, check_positive, check_samples
+from lagrange_cli.cli.boundary import check_batch, check_fraction, check_positive, check_runs, check_samples, check_seed, check_workers
 
 if TYPE_CHECKING:
     from lagrange_cli.model import Model
@@ -24,8 +24,8 @@ def sweep(
     file: Annotated[str, typer.Argument(help="A system file, or the name of a bundled system (e.g. double_pendulum).")],
     set_: Annotated[list[str] | None, typer.Option("--set", help="Parameters: name=value, or a range name=LO..HI:COUNT (linear), name=LO..HI:COUNT:log, or name=LO..HI (with --sample).")] = None,
     initial: Annotated[list[str] | None, typer.Option("--initial", help="Initial values, like --set: theta=0..3.14:200; several ranges make a grid.")] = None,
-    sample: Annotated[int | None, typer.Option("--sample", help="Monte Carlo: N points drawn uniformly (log-uniformly for :log) from the ranges.")] = None,
-    seed: Annotated[int, typer.Option("--seed", help="Seed of --sample.")] = 0,
+    sample: Annotated[int | None, typer.Option("--sample", help="Monte Carlo: N points drawn uniformly (log-uniformly for :log) from the ranges.", callback=check_runs)] = None,
+    seed: Annotated[int, typer.Option("--seed", help="Seed of --sample.", callback=check_seed)] = 0,
     measure: Annotated[
         list[str] | None, typer.Option("--measure", help="What to record, repeated: final, an expression, max(EXPR), min(EXPR), mean(EXPR), t_event, energy_error, lyapunov, period.")
     ] = None,
@@ -39,9 +39,9 @@ def sweep(
     step: Annotated[float | None, typer.Option(help="Fixed step of the symplectic method.", callback=check_positive)] = None,
     max_step: Annotated[float | None, typer.Option("--max-step", help="Largest step of adaptive methods.", callback=check_positive)] = None,
     samples: Annotated[int | None, typer.Option(help="Samples per run for max/min/mean/energy_error/period (default 201).", callback=check_samples)] = None,
-    workers: Annotated[int, typer.Option("--workers", help="Local threads running the compiled loops in parallel (default 1).")] = 1,
+    workers: Annotated[int, typer.Option("--workers", help="Local threads running the compiled loops in parallel (default 1).", callback=check_workers)] = 1,
     scheduler: Annotated[str | None, typer.Option("--scheduler", help="A dask.distributed scheduler address (tcp://host:8786): batches run on its workers.")] = None,
-    batch: Annotated[int, typer.Option("--batch", help="Runs per batch (the unit of work, writing and resuming).")] = 64,
+    batch: Annotated[int, typer.Option("--batch", help="Runs per batch (the unit of work, writing and resuming).", callback=check_batch)] = 64,
     output_path: Annotated[Path | None, typer.Option("-o", "--output", help="The table: .csv, or .parquet (pyarrow); - or none for CSV on stdout.")] = None,
     resume: Annotated[bool, typer.Option("--resume", help="Continue an interrupted sweep into -o (from its OUTPUT.partial.csv).")] = False,
     plot: Annotated[Path | None, typer.Option(help="A picture: a line (one axis), a heat map (two), a scatter (a section): .png, .svg or .pdf.")] = None,
