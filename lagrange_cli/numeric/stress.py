@@ -31,6 +31,22 @@ rates, which an implicit method does not help with, are reported apart), the
 explicit method's step count against the implicit one's, cond M (coordinate singularities),
 drift of the energy, ignorable momenta and constraints, and blow-ups.
 
+Where the explicit reference cannot go (stiff at the start, or it fails or runs out of its
+budget), the reference is Radau confirmed by LSODA (else BDF), at the tightest of 1e-4 x .. 0.1 x
+the accuracy at which Radau finishes (scipy's implicit methods are round-off-limited well above
+double precision on stiff systems); the two agree to within the reference's own error, and a run
+meets the accuracy only when its error plus that own error is within it. A regime is undecided
+(exit 0), never failed, when no reference can be made (unless both reference methods blow up at
+the same time: the system's own blow-up), or when the reference's own error leaves it open; its
+diagnosis is then made along what the reference run reached, and a measurement that could not be
+made is reported as not measured, with why. cond M is sampled along the reference's dense
+output (`diagnostics.condition_peak`), and a coordinate singularity names the coordinate and the
+change of coordinates to make.
+
+Budget: compiled candidates (auto first) run before scipy's; once a method meets the accuracy,
+the others' runs are capped at LOSING (scipy's RK45: NAIVE_LOSING) times its work, counted in
+right-hand side evaluations (`work`), and only runs that could tie are timed again.
+
 Timing: each method's final run (and scipy's default run) is timed again TIMED_RUNS times after
 the ladders, in turns (`runs.interleave`), and methods within TIE_MARGIN (10%) of the recommended
 one's run time are reported as ties (`Outcome.ties`), not as slower.
