@@ -361,10 +361,12 @@ def work(point: Point) -> float:
     return (point.nfev + 2 * point.njev) / (COMPILED_STEPS if compiled else 1)
 
 
-def _order(candidates: Sequence[Candidate]) -> list[Candidate]:
-    """Compiled candidates (auto first) before scipy's, so that a cheap method meeting the
-    accuracy is found first and caps what the others may spend."""
-    return sorted(candidates, key=lambda c: (c != AUTO, backend_for(c) != "compiled"))
+def _order(model: Model, setup: Setup, candidates: Sequence[Candidate]) -> list[Candidate]:
+    """auto first, then the method auto picks at the start (Radau when stiff), then compiled
+    candidates before scipy's: so that a cheap method meeting the accuracy is found first and caps
+    what the others may spend (a stiff system's explicit runs are then capped, not run to their budget)."""
+    picked = policy.decide(model, replace(start_of(model, setup), method="auto", backend="auto")).method
+    return sorted(candidates, key=lambda c: (c != AUTO, c.method != picked, backend_for(c) != "compiled"))
 
 
 def _regime(model: Model, regime: Regime, target: float, candidates: Sequence[Candidate], budget: Setup, say: Callable[[str], None] | None) -> Outcome:
@@ -383,7 +385,7 @@ def _regime(model: Model, regime: Regime, target: float, candidates: Sequence[Ca
     best: Point | None = None
     floor = 10 * reference.settings.rtol if reference.settings is not None and reference.settings.method in IMPLICIT else 0.0
     rungs = tuple(t for t in ladder(target) if t >= floor * (1 - 1e-9)) or (ladder(target)[0],)  # a run as tight as an implicit reference would measure the reference against itself
-    for candidate in _order(candidates):
+    for candidate in _order(model, setup, candidates):
         last: Point | None = None
         stalls = 0
         for tolerance in rungs:
