@@ -302,3 +302,15 @@ def test_cond_m_is_sampled_along_the_dense_output_near_a_pole_and_a_change_of_co
     finding = stress._singularity(model, setup.start.values, condition, peak)  # type: ignore[union-attr]
     assert finding.kind == "near a coordinate singularity"
     assert "coordinates singular at theta = 0" in finding.detail and "phi_dot" in finding.detail and "start away from theta = 0" in finding.detail, finding
+
+
+def test_a_top_whose_axis_passes_the_vertical_gets_the_change_of_coordinates_suggested() -> None:
+    """Euler angles through theta ~ 1e-4 (cond M ~ 1e8, found along the dense output): the finding
+    names theta = 0, the lost direction phi_dot - psi_dot and what to do, and a method truly meets 1e-6."""
+    model = model_from(AUDIT / "top_through_pole.yaml")
+    report = stress.stress(model, scales=[("g", [9.81])], target=1e-6, candidates=[Candidate("DOP853")], t_end=0.1)
+    (outcome,) = report.outcomes
+    assert outcome.diagnosis.condition is not None and outcome.diagnosis.condition > 1e7
+    advice = next(f for f in outcome.diagnosis.findings if f.kind == "near a coordinate singularity")
+    assert "coordinates singular at theta = 0" in advice.detail and "phi_dot" in advice.detail and "psi_dot" in advice.detail and "start away from theta = 0" in advice.detail
+    assert report.passed and outcome.recommended is not None and outcome.recommended.error + outcome.reference_error <= 1e-6
