@@ -48,10 +48,16 @@ def test_stress_runs_on(name: str) -> None:
     result = runner.invoke(app, ["stress", name, "--method", "RK45:python,DOP853", "--t-end", "0.5", "--long", "2", "--accuracy", "1e-6", "--max-steps", "20000", "--json", "-"])
     assert result.exit_code == 0, result.output
     document = json.loads(result.stdout)
-    assert document["passed"] is True and document["verdict"] == "passed"
     regimes = document["regimes"]
     assert [r["regime"].split(" ")[0] for r in regimes[:3]] == ["defaults", "long", "high"]
     for regime in regimes:
         assert regime["naive_default"] is not None and regime["naive_default"]["setting"] == "rtol 1e-03"
-        assert regime["recommended"]["error"] <= 1e-6, regime
         assert math.isfinite(regime["max_mass_condition"]), regime
+        if regime["verdict"] == "undecided":
+            # only where the reference itself cannot vouch for 1e-6: two methods at 2.5e-14 disagree by more
+            # (Kepler started at r = 0.01 falls to r ~ 1e-8: round-off, not any method, limits the error)
+            assert regime["regime"].startswith("near singular") and regime["reference_error"] > 1e-7, regime
+            assert "reference's own error" in regime["open_reason"], regime
+            continue
+        assert regime["verdict"] == "met" and regime["recommended"]["error"] + regime["reference_error"] <= 1e-6, regime
+    assert document["verdict"] == ("passed" if all(r["verdict"] == "met" for r in regimes) else "undecided")

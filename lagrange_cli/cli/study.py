@@ -17,7 +17,7 @@ if TYPE_CHECKING:
     from lagrange_cli.cli.boundary import Item
     from lagrange_cli.model import Model
     from lagrange_cli.numeric.accuracy import Candidate, Point, Study
-    from lagrange_cli.numeric.stress import Outcome, Report
+    from lagrange_cli.numeric.stress import Diagnosis, Outcome, Report
 
 
 def _model(file: str) -> Model:
@@ -304,14 +304,14 @@ def _report_stress(report: Report, to_stderr: bool) -> None:
         console.print(f"[bold]{inert(o.regime.name)}[/bold]: t_end = {o.regime.t_end:g}{window}")
         console.print(plain(f"  reference: {o.reference} (own error {_e(o.reference_error)})"), markup=False)
         d = o.diagnosis
-        console.print(f"  decay x t_end {d.decay_span:.3g}, stiffness ratio {d.stiffness_ratio:.3g}, time scales {d.scale_ratio:.3g}, fastest rate {d.rate:.3g}/s, max cond M {d.condition:.2g}")
+        console.print(plain(f"  {_measurements(d)}"), markup=False)
         for finding in d.findings:
             console.print(plain(f"  - {finding}"), markup=False)
         table = Table(box=None, padding=(0, 1))
         for column in ("method", "setting", "error", "final/RMS", "energy", "constraint", "run time", "steps", "evals (jac)", "status"):
             table.add_column(column, justify="left" if column in ("method", "setting", "status") else "right")
         for p in (o.naive_default, *o.points) if o.naive_default is not None else o.points:
-            met = p.ok and p.error <= report.accuracy
+            met = o.meets(p, report.accuracy)
             status = ("[green]meets[/green]" if met else "[yellow]misses[/yellow]") if p.ok else f"[red]{inert(p.status)}[/red]: {inert(p.reason)}"
             name = _shown(p)
             evals = f"{p.nfev} ({p.njev})" if p.njev else str(p.nfev)
@@ -323,6 +323,8 @@ def _report_stress(report: Report, to_stderr: bool) -> None:
             console.print(f"  recommended: [bold]{inert(best.resolved)}[/bold] at {inert(best.setting)} (error {_e(best.error)} in {_seconds(best.seconds)})")
             for other in o.ties:
                 console.print(f"  tie (within {TIE_MARGIN:.0%} of its run time): {inert(other.resolved)} at {inert(other.setting)} (error {_e(other.error)} in {_seconds(other.seconds)})")
+        elif o.undecided and o.open_reason:
+            console.print(plain(f"  undecided: no method was shown to meet error {tol_text(report.accuracy)}: {o.open_reason}"), markup=False)
         elif o.undecided:
             console.print(f"  [yellow]undecided: no method met error {tol_text(report.accuracy)}, but some run was stopped by the time limit (--budget)[/yellow]")
         else:
@@ -332,7 +334,7 @@ def _report_stress(report: Report, to_stderr: bool) -> None:
             inert("; ".join(f.kind for f in d.findings) or "benign"),
             inert(_naive(o, report.accuracy)),
             inert(_brief(o.auto, report.accuracy)),
-            inert(_brief(best, report.accuracy) + (f" (tie: {', '.join(t.method for t in o.ties)})" if o.ties else "")) if best else "[red]none[/red]",
+            inert(_brief(best, report.accuracy) + (f" (tie: {', '.join(t.method for t in o.ties)})" if o.ties else "")) if best else "undecided" if o.undecided else "[red]none[/red]",
         )
     console.print()
     console.print(summary)
@@ -341,8 +343,24 @@ def _report_stress(report: Report, to_stderr: bool) -> None:
     elif report.failed:
         verdict = "[red]some regime has no method that meets it[/red]"
     else:
-        verdict = "[yellow]undecided: in some regime no method met it before the time limit (--budget) stopped its runs; no regime failed[/yellow]"
+        verdict = "[yellow]undecided: in some regime it is open whether a method meets it (no reference could be made, the reference's own error leaves it open, or the time limit (--budget) stopped its runs); no regime failed[/yellow]"
     console.print(f"required error {tol_text(report.accuracy)}: {verdict}")
+
+
+def _measurements(d: Diagnosis) -> str:
+    """The diagnosis's measurements and where they were made; one that could not be made is
+    said to be not measured, with why (never a placeholder number)."""
+    if d.rate is None:
+        spectrum = f"stiffness and time scales not measured ({d.unmeasured or 'no state was reached'})"
+    else:
+        spectrum = f"decay x t_end {d.decay_span:.3g}, stiffness ratio {d.stiffness_ratio:.3g}, time scales {d.scale_ratio:.3g}, fastest rate {d.rate:.3g}/s"
+    if d.condition is None:
+        conditioning = "cond M not measured (M could not be evaluated at any state reached)"
+    elif not math.isfinite(d.condition):
+        conditioning = "M singular" + (f" at t = {d.condition_at:.4g}" if d.condition_at is not None else "")
+    else:
+        conditioning = f"max cond M {d.condition:.2g}" + (f" (at t = {d.condition_at:.4g})" if d.condition_at is not None else "")
+    return f"{spectrum}, {conditioning}, {d.where}"
 
 
 def _naive(outcome: Outcome, target: float) -> str:

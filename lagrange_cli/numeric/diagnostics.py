@@ -13,6 +13,13 @@
   their own sizes at y0 (q_i / max(1, |q0_i|)), which grows without bound near a coordinate
   singularity (Euler angles at theta = 0, the pole of spherical coordinates) but not with the
   units (diag(m, m r^2) at r = 7e6 m is well conditioned).
+- `condition_peak(condition, t, y, rerun)`: the largest cond M along a trajectory, sampled
+  densely: every sample, then around the highest local maxima the trajectory run again with
+  PEAK_SAMPLES samples between the neighbouring samples, PEAK_LEVELS times over (a pole passage
+  lasting 1e-4 of the sample spacing is found, and its cond M, not that of the nearest sample).
+- `singular_coordinate(model, condition, y)`: at such a peak, which coordinate is at its
+  singularity and along which velocities M loses its inertia (for the suggestion to change
+  coordinates).
 - `jacobian(rhs, t, y)`: a forward-difference Jacobian of any right-hand side.
 """
 
@@ -49,6 +56,11 @@ grows faster than Radau's Python overhead; it puts the switch between k = 1e8 (D
 Radau 106 ms) and k = 1e9 (59 ms against 57-72 ms)."""
 SINGULAR_CONDITION = 1e6
 """condition number of M above which the coordinates count as near-singular."""
+PEAKS = 6
+"""Local maxima of cond M along the samples that `condition_peak` looks at more closely."""
+PEAK_SAMPLES = 101
+PEAK_LEVELS = 3
+"""Each peak is resampled PEAK_LEVELS times, PEAK_SAMPLES samples between the neighbours of the highest one."""
 
 
 @dataclass(frozen=True)
@@ -167,10 +179,8 @@ def coordinate_sizes(y0: Sequence[float], n: int) -> np.ndarray:
     return np.maximum(1.0, np.abs(np.array(y0[:n], dtype=float)))
 
 
-def mass_condition(model: Model, p: Sequence[float], y0: Sequence[float] | None = None) -> Callable[[float, np.ndarray], float]:
-    """cond(L M(q, t) L) at (t, y) with y = [q..., q_dot...], L = diag(max(1, |q0_i|)) from the
-    state y0 (the identity without it): M for the coordinates q_i / L_i, so that a coordinate
-    of size 7e6 counts like one of size 1; inf where M is singular or undefined."""
+def mass_at(model: Model, p: Sequence[float]) -> Callable[[float, Sequence[float] | np.ndarray], np.ndarray | None]:
+    """M(q, t) at (t, y) for the parameter values `p` (None where it is undefined or not finite)."""
     import sympy as sp
 
     values = {parameter.symbol: value for parameter, value in zip(model.parameters, p, strict=False)}
@@ -185,6 +195,15 @@ def mass_condition(model: Model, p: Sequence[float], y0: Sequence[float] | None 
             return None
         return m if np.all(np.isfinite(m)) else None
 
+    return mass
+
+
+def mass_condition(model: Model, p: Sequence[float], y0: Sequence[float] | None = None) -> Callable[[float, np.ndarray], float]:
+    """cond(L M(q, t) L) at (t, y) with y = [q..., q_dot...], L = diag(max(1, |q0_i|)) from the
+    state y0 (the identity without it): M for the coordinates q_i / L_i, so that a coordinate
+    of size 7e6 counts like one of size 1; inf where M is singular or undefined."""
+    mass = mass_at(model, p)
+    n = model.n
     scale = np.ones(n) if y0 is None else coordinate_sizes(y0, n)
 
     def condition(t: float, y: np.ndarray) -> float:
@@ -196,3 +215,100 @@ def mass_condition(model: Model, p: Sequence[float], y0: Sequence[float] | None 
         return value if math.isfinite(value) else math.inf
 
     return condition
+
+
+Rerun = Callable[[float, np.ndarray, float, int], "tuple[np.ndarray, np.ndarray] | None"]
+"""(t0, y0, t1, samples) -> the trajectory from y0 at t0 to t1 at `samples` even times, or None."""
+
+
+@dataclass(frozen=True)
+class Peak:
+    """The largest cond M found along a trajectory, where and when."""
+
+    condition: float
+    t: float
+    y: np.ndarray
+    evaluations: int
+    """States at which cond M was evaluated."""
+    reruns: int
+    """Short runs made to sample between the samples."""
+
+
+def condition_peak(condition: Callable[[float, np.ndarray], float], t: np.ndarray, y: np.ndarray, rerun: Rerun | None = None, peaks: int = PEAKS, levels: int = PEAK_LEVELS) -> Peak | None:
+    """The largest cond M at the samples (t, y) and, with `rerun`, between them: around each of the
+    `peaks` highest local maxima the trajectory is run again between the neighbouring samples, and
+    again around the highest of those, `levels` times (None without samples)."""
+    if len(t) == 0:
+        return None
+    values = np.array([condition(float(ti), yi) for ti, yi in zip(t, y, strict=True)])
+    evaluations, reruns = len(values), 0
+    k = int(np.argmax(values))
+    best = (float(values[k]), float(t[k]), np.array(y[k]))
+    if rerun is None or len(t) < 2:
+        return Peak(*best, evaluations, reruns)
+    finite = np.where(np.isfinite(values), values, np.inf)
+    left, right = np.r_[-np.inf, finite[:-1]], np.r_[finite[1:], -np.inf]
+    maxima = [int(i) for i in np.argsort(-finite, kind="stable") if finite[i] >= left[i] and finite[i] >= right[i]][:peaks]
+    for i in maxima:
+        times, states, m = t, y, i
+        for _ in range(levels):
+            if not math.isfinite(best[0]):
+                break
+            a, b = max(m - 1, 0), min(m + 1, len(times) - 1)
+            found = rerun(float(times[a]), np.array(states[a]), float(times[b]), PEAK_SAMPLES)
+            reruns += 1
+            if found is None:
+                break
+            times, states = found
+            local = np.array([condition(float(ti), yi) for ti, yi in zip(times, states, strict=True)])
+            evaluations += len(local)
+            m = int(np.argmax(local))
+            if local[m] > best[0]:
+                best = (float(local[m]), float(times[m]), np.array(states[m]))
+    return Peak(*best, evaluations, reruns)
+
+
+SPECIAL = (0.0, math.pi / 2, -math.pi / 2, math.pi, -math.pi)
+"""Values at which angles are typically singular (the pole, the gimbal lock)."""
+
+
+@dataclass(frozen=True)
+class Singularity:
+    """Which coordinate makes M singular at a state, and how."""
+
+    coordinate: str
+    value: float
+    """Its value at the peak."""
+    near: float | None
+    """The special value (0, +-pi/2, pi) it is near, if any: where the coordinates are singular."""
+    direction: tuple[tuple[str, float], ...]
+    """The velocities along which M loses its inertia there (the eigenvector of the smallest eigenvalue), largest first."""
+
+
+def singular_coordinate(names: Sequence[str], condition: Callable[[float, np.ndarray], float], t: float, y: np.ndarray, mass: np.ndarray | None = None) -> Singularity | None:
+    """The coordinate whose moving (by 0.05 of its size either way) lowers cond M the most at (t,
+    y): the one at its singularity; None when moving none of them helps."""
+    n = len(names)
+    base = condition(t, y)
+    best: tuple[float, int] | None = None
+    for i in range(n):
+        lowest = base
+        for sign in (1.0, -1.0):
+            moved = np.array(y, dtype=float)
+            moved[i] += sign * 0.05 * max(1.0, abs(float(y[i])))
+            lowest = min(lowest, condition(t, moved))
+        gain = math.log10(base / lowest) if math.isfinite(base) and lowest > 0 else (math.inf if lowest < math.inf else 0.0)
+        if gain > 0.5 and (best is None or gain > best[0]):
+            best = (gain, i)
+    if best is None:
+        return None
+    i = best[1]
+    value = float(y[i])
+    near = min(SPECIAL, key=lambda v: abs(value - v))
+    direction: tuple[tuple[str, float], ...] = ()
+    if mass is not None and np.all(np.isfinite(mass)):
+        w, v = np.linalg.eigh(0.5 * (mass + mass.T))
+        vector = v[:, int(np.argmin(np.abs(w)))]
+        vector = vector * (1.0 if vector[int(np.argmax(np.abs(vector)))] > 0 else -1.0)
+        direction = tuple((names[j], float(vector[j])) for j in np.argsort(-np.abs(vector)) if abs(vector[j]) > 0.2)
+    return Singularity(names[i], value, near if abs(value - near) < 0.2 else None, direction)

@@ -19,9 +19,11 @@ import numpy as np
 
 from lagrange_cli.errors import LagrangeError
 from lagrange_cli.model import Model
-from lagrange_cli.numeric import compile, integrators, policy
+from lagrange_cli.numeric import compile, diagnostics, integrators, policy
 from lagrange_cli.numeric.runs import ATOL_RATIO, REFERENCE_STEPS, Candidate, Setup, component_scale, over_step_budget, run, scaled_errors, start_of, tol_text
-from lagrange_cli.numeric.simulate import state_text
+from lagrange_cli.numeric.settings import Settings
+from lagrange_cli.numeric.simulate import Trajectory, integrate, state_text
+from lagrange_cli.numeric.status import Status
 
 HORIZON_THRESHOLD = 1e-3  # separation (scaled) at which nearby trajectories have parted
 CHAOS_GROWTH = 100.0  # growth over the second half of the time to part, above which it is exponential
@@ -29,9 +31,18 @@ CHAOS_GROWTH = 100.0  # growth over the second half of the time to part, above w
 
 class ReferenceFailed(LagrangeError):
     """The reference run failed or ran out of its step budget: a failed numerical run (exit 1),
-    the message naming the time, the state and the cause."""
+    the message naming the time, the state and the cause. `blowup`: every reference method that
+    was tried failed by a blow-up or a singular matrix (not by its step budget), near the same time,
+    so that the failure is the system's, not the methods'; `trajectory`: the samples the primary
+    run reached (for a diagnosis along them)."""
 
     exit_code = 1
+
+    def __init__(self, message: str, *, blowup: bool = False, trajectory: Trajectory | None = None, attempts: tuple[str, ...] = ()) -> None:
+        super().__init__(message)
+        self.blowup = blowup
+        self.trajectory = trajectory
+        self.attempts = attempts
 
 
 @dataclass(frozen=True)
@@ -47,6 +58,8 @@ class Reference:
     y: np.ndarray
     energy: np.ndarray
     seconds: float
+    settings: Settings | None = field(default=None, compare=False, repr=False)
+    """What the primary reference run ran (to run parts of it again, densely: `dense`)."""
 
 
 @dataclass(frozen=True)
@@ -96,47 +109,153 @@ def exact_reference(model: Model, setup: Setup) -> Reference | None:
     return Reference("exact", "the file's exact solution", 0.0, times, y, energy, 0.0)
 
 
+IMPLICIT = ("Radau", "BDF", "LSODA")
+
+
 def reference_candidates(model: Model, setup: Setup, tolerance: float) -> tuple[Candidate, Candidate]:
     """The primary reference method and a different second one: compiled DOP853 confirmed by
-    compiled RK45 when numba is there (fast even when stiff: stability only costs steps);
-    otherwise what `auto` picks (Radau when stiff, else DOP853) confirmed by LSODA, whose
-    high-order Adams and BDF formulas stay affordable at tight tolerances where scipy's Radau
-    and RK45, stepping in Python, do not."""
-    if compile.numba_available():
-        return Candidate("DOP853", "compiled"), Candidate("RK45", "compiled")
+    compiled RK45 when numba is there (fast even when mildly stiff: stability only costs steps),
+    unless the linearisation at the start is stiff enough that `auto` picks Radau (an explicit
+    run would spend its whole step budget on stability): then Radau confirmed by BDF; without
+    numba, what `auto` picks (Radau when stiff, else DOP853) confirmed by LSODA, whose high-order
+    Adams and BDF formulas stay affordable at tight tolerances where scipy's Radau and RK45,
+    stepping in Python, do not."""
     s = policy.decide(model, replace(start_of(model, setup), method="auto", backend="auto", rtol=tolerance))
+    if compile.numba_available():
+        return (Candidate("Radau"), Candidate("BDF")) if s.method == "Radau" else (Candidate("DOP853", "compiled"), Candidate("RK45", "compiled"))
     return Candidate(s.method), Candidate("LSODA")
 
 
-def computed_reference(model: Model, setup: Setup, tolerance: float, hint: str = ", looser --tolerances") -> Reference:
-    """The primary reference run confirmed by the second; raises ReferenceFailed if the primary
-    fails (`hint`: the option that loosens the reference, as the calling command names it)."""
-    primary, second = reference_candidates(model, setup, tolerance)
-    began = time.perf_counter()
-    main = run(model, primary, tolerance, setup, reference=True)
-    if over_step_budget(main):
-        raise ReferenceFailed(
-            f"{model.source}: the reference run ({primary.method}, rtol {tol_text(tolerance)}) did not reach t = {setup.t_end:g} within {main.stats.steps} steps"
-            f" (the step budget of reference runs, {REFERENCE_STEPS} x --max-steps): it stopped at t = {main.t_last:.6g}; state: {state_text(model, main.y_last)};"
-            f" give a shorter --t-end{hint} or a larger --max-steps"
+IMPLICIT_TIGHTEST = 1e-12
+"""The tightest rtol of an implicit reference run (scipy's Radau and BDF step in Python: tighter
+costs many times the steps for little gain)."""
+BLOWUP = (Status.NONFINITE, Status.SINGULAR, Status.STEP_COLLAPSE)
+"""How a run ends when the solution itself may blow up (not a budget or a convergence failure)."""
+
+
+def implicit_tolerance(tolerance: float) -> float:
+    """The rtol of an implicit reference run standing in for an explicit one at `tolerance`."""
+    return max(tolerance, IMPLICIT_TIGHTEST)
+
+
+def _stopped(model: Model, candidate: Candidate, tolerance: float, setup: Setup, trajectory: Trajectory) -> str:
+    """Why a reference run gave no reference, with the time, the state and the cause."""
+    what = f"{trajectory.settings.method} ({trajectory.settings.backend}), rtol {tol_text(tolerance)}"
+    if over_step_budget(trajectory):
+        return (
+            f"the reference run ({what}) did not reach t = {setup.t_end:g} within {trajectory.stats.steps} steps"
+            f" (the step budget of reference runs, {REFERENCE_STEPS} x --max-steps): it stopped at t = {trajectory.t_last:.6g}; state: {state_text(model, trajectory.y_last)}"
         )
-    if main.failed:
-        raise ReferenceFailed(f"{model.source}: the reference run ({primary.method}, rtol {tol_text(tolerance)}) failed: {main.message}")
-    seconds = time.perf_counter() - began
+    return f"the reference run ({what}) failed: {trajectory.message.removeprefix(f'{model.source}: ')}"
+
+
+def implicit_tolerances(tolerance: float, loosest: float) -> tuple[float, ...]:
+    """The rtols an implicit reference tries, tightest first: from `implicit_tolerance(tolerance)`
+    by decades up to `loosest`. Scipy's implicit methods are round-off-limited well above
+    double precision on stiff systems (a spring of k = 1e10 written in its length: Radau cannot
+    pass 1e-8), and the second method's agreement, not the tolerance, says how good the reference is."""
+    first = implicit_tolerance(tolerance)
+    rungs = [first]
+    while rungs[-1] * 10 <= loosest * (1 + 1e-9):
+        rungs.append(rungs[-1] * 10)
+    return tuple(rungs)
+
+
+IMPLICIT_STEPS = 3000
+"""The least step budget of one implicit reference attempt (scipy steps; more when the slow motion
+needs it: IMPLICIT_MARGIN x `diagnostics.implicit_steps`); a round-off-limited attempt is given up at
+it and the next, looser tolerance tried."""
+IMPLICIT_MARGIN = 30.0
+
+
+def _implicit_budget(model: Model, setup: Setup) -> int:
+    s = start_of(model, setup)
+    found = policy.initial_spectrum(model, s.values, s.y0)
+    expected = diagnostics.implicit_steps(found.slowest if found is not None else 0.0, setup.t_end)
+    return min(setup.reference_steps, max(IMPLICIT_STEPS, math.ceil(IMPLICIT_MARGIN * expected)))
+
+
+def computed_reference(model: Model, setup: Setup, tolerance: float, hint: str = ", looser --tolerances", implicit: tuple[float, ...] | None = None) -> Reference:
+    """The primary reference run confirmed by the second; where the primary (explicit) run cannot
+    go - it fails, or runs out of its step budget, as on a stiff system - or where the system is
+    stiff at the start (`reference_candidates`), Radau confirmed by LSODA (else BDF), their largest
+    disagreement the reference's own error, at the first of the rtols `implicit` (default
+    `implicit_tolerances(tolerance, 1e3 x tolerance)`, tightest first) at which Radau finishes
+    within its budget; where the explicit pair's second run cannot go, Radau confirms the first.
+    Raises ReferenceFailed when no reference can be made (`hint`: the option that loosens the
+    reference, as the calling command names it)."""
+    primary, second = reference_candidates(model, setup, tolerance)
+    rtols = implicit if implicit else implicit_tolerances(tolerance, 1e3 * tolerance)
+    began = time.perf_counter()
+    reasons: list[str] = []
+    main: Trajectory | None = None
+    if primary.method not in IMPLICIT:
+        main = run(model, primary, tolerance, setup, reference=True)
+        if not main.failed:
+            confirmations = [(second, tolerance), (Candidate("Radau"), rtols[0])]
+            return _confirmed(model, setup, main, tolerance, confirmations, time.perf_counter() - began)
+        reasons.append(_stopped(model, primary, tolerance, setup, main))
+    attempt = replace(setup, reference_max_steps=_implicit_budget(model, setup))
+    why = reasons[0] if reasons else "stiff at the start, where an explicit reference would be stability-limited"
+    radau: Trajectory | None = None
+    for rtol in rtols:
+        radau = run(model, Candidate("Radau"), rtol, attempt, reference=True)
+        if not radau.failed:
+            found = _confirmed(model, attempt, radau, rtol, [(Candidate("LSODA"), rtol), (Candidate("BDF"), rtol)], time.perf_counter() - began)
+            return replace(found, description=f"{found.description} (implicit: {why})")
+        if radau.outcome != Status.BUDGET:
+            break  # a failure, not round-off: a looser tolerance will not pass it
+    assert radau is not None
+    reasons.append(_stopped(model, Candidate("Radau"), rtol, attempt, radau) + (f" (also at rtol {', '.join(tol_text(r) for r in rtols[:-1])})" if len(rtols) > 1 and rtol == rtols[-1] else ""))
+    main = main if main is not None else radau
+    blowup = main.outcome in BLOWUP and radau.outcome in BLOWUP and abs(radau.t_last - main.t_last) <= 0.01 * max(setup.t_end, 1e-300)
+    message = f"{model.source}: " + "; and ".join(reasons)
+    if blowup:
+        message += f"; {'both stop' if main is not radau else 'it stops'} near t = {main.t_last:.6g}: the solution itself blows up or reaches a singular configuration there"
+    raise ReferenceFailed(f"{message}; give a shorter --t-end{hint} or a larger --max-steps", blowup=blowup, trajectory=main, attempts=tuple(reasons))
+
+
+def _confirmed(model: Model, setup: Setup, main: Trajectory, tolerance: float, confirmations: list[tuple[Candidate, float]], seconds: float) -> Reference:
+    """`main` as the reference, confirmed by the first of `confirmations` that finishes (own error:
+    their largest scaled disagreement), unconfirmed (own error nan) when none does."""
     scale = component_scale(main.y)
-    own, confirm = math.nan, f"unconfirmed: {second.method} at the same tolerance did not finish"
-    other = run(model, second, tolerance, setup, reference=True)
-    if not other.failed and len(other.t) == len(main.t):
-        own = float(np.max(scaled_errors(other.y, main.y, scale)))
-        confirm = f"confirmed by {other.settings.method} ({other.settings.backend})"
+    own, confirm = math.nan, f"unconfirmed: {', '.join(c.method for c, _ in confirmations)} did not finish"
+    for candidate, rtol in confirmations:
+        other = run(model, candidate, rtol, setup, reference=True)
+        if not other.failed and len(other.t) == len(main.t):
+            own = float(np.max(scaled_errors(other.y, main.y, scale)))
+            at = "at the same tolerance" if rtol == tolerance else f"at rtol {tol_text(rtol)}"
+            confirm = f"confirmed by {other.settings.method} ({other.settings.backend}) {at}"
+            break
     description = f"{main.settings.method} ({main.settings.backend}) at rtol {tol_text(tolerance)}, atol {tol_text(tolerance * ATOL_RATIO)}, {confirm}"
-    return Reference("computed", description, own, main.t, main.y, main.energy, seconds)
+    return Reference("computed", description, own, main.t, main.y, main.energy, seconds, main.settings)
+
+
+def dense(model: Model, reference: Reference) -> Callable[[float, np.ndarray, float, int], tuple[np.ndarray, np.ndarray] | None] | None:
+    """A function running the primary reference run again from the state y0 at t0 to t1 with
+    `samples` evenly spaced times (its method and tolerance: the reference's dense output there),
+    returning (t, y), or None where that run fails; None for a reference that cannot be rerun (exact)."""
+    s = reference.settings
+    if s is None:
+        return None
+    settings = s
+
+    def between(t0: float, y0: np.ndarray, t1: float, samples: int) -> tuple[np.ndarray, np.ndarray] | None:
+        if not t1 > t0:
+            return None
+        again = replace(settings, t0=t0, t_end=t1, y0=tuple(float(v) for v in y0), t_eval=tuple(np.linspace(t0, t1, samples).tolist()), until=None, event=None)
+        found = integrate(model, again, None, 10 * integrators.MAX_STEPS[again.backend])
+        return None if found.failed or len(found.t) != samples else (found.t, found.y)
+
+    return between
 
 
 def horizon(model: Model, setup: Setup, tolerance: float) -> Horizon | None:
     """Two primary reference runs started delta = tolerance apart (every component moved by
     delta times its size): whether they part exponentially, and when."""
     primary, _ = reference_candidates(model, setup, tolerance)
+    if primary.method in IMPLICIT:
+        return None  # stiff (dissipative) at the start: two more tight implicit runs would cost more than the whole study
     base = run(model, primary, tolerance, setup, reference=True)
     if base.failed:
         return None
@@ -159,7 +278,13 @@ def horizon(model: Model, setup: Setup, tolerance: float) -> Horizon | None:
 
 
 def prepare(
-    model: Model, setup: Setup, ref_tol: float, progress: Callable[[str], None] | None = None, window: float = HORIZON_THRESHOLD, hint: str = ", looser --tolerances"
+    model: Model,
+    setup: Setup,
+    ref_tol: float,
+    progress: Callable[[str], None] | None = None,
+    window: float = HORIZON_THRESHOLD,
+    hint: str = ", looser --tolerances",
+    implicit: tuple[float, ...] | None = None,
 ) -> tuple[Setup, Reference, Horizon | None, tuple[str, ...]]:
     """The reference (exact, or computed at `ref_tol` and confirmed), and the window: when nearby
     trajectories part exponentially, cut to where runs started `ref_tol` apart are `window` apart
@@ -180,5 +305,5 @@ def prepare(
             notes.append(
                 f"chaotic: nearby trajectories part at about {found.lyapunov:.2g}/s; errors are measured up to t = {end:.3g}, where runs started {tol_text(ref_tol)} apart are {window:.0e} apart"
             )
-        reference = computed_reference(model, setup, ref_tol, hint)
+        reference = computed_reference(model, setup, ref_tol, hint, implicit)
     return setup, reference, found, tuple(notes)

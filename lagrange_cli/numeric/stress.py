@@ -31,6 +31,22 @@ rates, which an implicit method does not help with, are reported apart), the
 explicit method's step count against the implicit one's, cond M (coordinate singularities),
 drift of the energy, ignorable momenta and constraints, and blow-ups.
 
+Where the explicit reference cannot go (stiff at the start, or it fails or runs out of its
+budget), the reference is Radau confirmed by LSODA (else BDF), at the tightest of 1e-4 x .. 0.1 x
+the accuracy at which Radau finishes (scipy's implicit methods are round-off-limited well above
+double precision on stiff systems); the two agree to within the reference's own error, and a run
+meets the accuracy only when its error plus that own error is within it. A regime is undecided
+(exit 0), never failed, when no reference can be made (unless both reference methods blow up at
+the same time: the system's own blow-up), or when the reference's own error leaves it open; its
+diagnosis is then made along what the reference run reached, and a measurement that could not be
+made is reported as not measured, with why. cond M is sampled along the reference's dense
+output (`diagnostics.condition_peak`), and a coordinate singularity names the coordinate and the
+change of coordinates to make.
+
+Budget: compiled candidates (auto first) run before scipy's; once a method meets the accuracy,
+the others' runs are capped at LOSING (scipy's RK45: NAIVE_LOSING) times its work, counted in
+right-hand side evaluations (`work`), and only runs that could tie are timed again.
+
 Timing: each method's final run (and scipy's default run) is timed again TIMED_RUNS times after
 the ladders, in turns (`runs.interleave`), and methods within TIE_MARGIN (10%) of the recommended
 one's run time are reported as ties (`Outcome.ties`), not as slower.
@@ -40,7 +56,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -48,8 +64,8 @@ from lagrange_cli.errors import LagrangeError
 from lagrange_cli.model import Model
 from lagrange_cli.numeric import accuracy as study
 from lagrange_cli.numeric import compile, diagnostics, policy
-from lagrange_cli.numeric.reference import HORIZON_THRESHOLD, Horizon, Reference, ReferenceFailed, prepare
-from lagrange_cli.numeric.runs import TIGHTEST, Candidate, Point, PointStatus, Setup, check_steps, component_scale, measure, retime, starting, ties, tol_text
+from lagrange_cli.numeric.reference import HORIZON_THRESHOLD, IMPLICIT, IMPLICIT_TIGHTEST, Horizon, Reference, ReferenceFailed, dense, implicit_tolerances, prepare
+from lagrange_cli.numeric.runs import COMPILED_STEPS, TIGHTEST, Candidate, Point, PointStatus, Setup, backend_for, check_steps, component_scale, measure, retime, start_of, starting, ties, tol_text
 from lagrange_cli.numeric.settings import Settings, validate
 from lagrange_cli.numeric.status import Failure
 
@@ -90,14 +106,23 @@ class Finding(str):
 
 @dataclass(frozen=True)
 class Diagnosis:
-    decay_span: float
+    """What was measured along the reference trajectory (or, when no reference could be made,
+    along what its run reached, `where` says so); a measurement that could not be made is None,
+    `unmeasured` saying why - never a placeholder number."""
+
+    decay_span: float | None
     """max over the trajectory of the fastest unmatched decay rate x t_end (stiff above diagnostics.STIFF)."""
-    stiffness_ratio: float
-    scale_ratio: float
-    rate: float
-    condition: float
-    """max cond M(q) along the trajectory."""
+    stiffness_ratio: float | None
+    scale_ratio: float | None
+    rate: float | None
+    condition: float | None
+    """max cond M(q) along the trajectory, sampled densely (`diagnostics.condition_peak`)."""
     findings: tuple[Finding, ...]
+    where: str = "along the reference trajectory"
+    unmeasured: str = ""
+    """Why the measurements that are None could not be made."""
+    condition_at: float | None = None
+    """When cond M peaked."""
 
 
 @dataclass(frozen=True)
@@ -117,6 +142,9 @@ class Outcome:
     """scipy's RK45 at its default tolerances (rtol 1e-3, atol 1e-6)."""
     ties: tuple[Point, ...] = ()
     """Other methods meeting the accuracy within TIE_MARGIN of the recommended one's run time: as good a choice."""
+    open_reason: str = ""
+    """Why no verdict can be given although no method was shown to meet the accuracy: no reference
+    could be made (short of a confirmed blow-up), or the reference's own error leaves it open."""
 
     @property
     def met(self) -> bool:
@@ -124,8 +152,15 @@ class Outcome:
 
     @property
     def undecided(self) -> bool:
-        """No method met the accuracy, but some run was stopped by the time limit (it might have)."""
-        return not self.met and any(p.status == PointStatus.UNDECIDED for p in self.points)
+        """No method was shown to meet the accuracy, but it is open: some run was stopped by the
+        time limit (it might have met it), or `open_reason`."""
+        return not self.met and (bool(self.open_reason) or any(p.status == PointStatus.UNDECIDED for p in self.points))
+
+    def meets(self, point: Point, target: float) -> bool:
+        """Whether `point` is shown to meet `target`: its error against the reference plus the
+        reference's own error (a conservative bound on the true error) is within it."""
+        own = self.reference_error if math.isfinite(self.reference_error) else math.inf
+        return point.ok and point.error + own <= target
 
     @property
     def verdict(self) -> str:
@@ -307,79 +342,162 @@ def stress(
     return Report(model.title, target, tuple(outcomes))
 
 
+LOSING = 30.0
+"""Once a method meets the accuracy, another method's runs are stopped at this many times its work
+(right-hand side evaluations; a compiled one counting 1/COMPILED_STEPS): it cannot be the
+recommendation, so the budget is spent where the verdict is still open."""
+NAIVE_LOSING = 100.0
+"""... scipy's RK45, whose cost against the recommendation the report shows, at this many times."""
+RETIME_WITHIN = 3.0
+"""Only runs within this factor of the fastest meeting run's first time are timed again (the
+others cannot tie with it)."""
+EVALUATIONS_PER_STEP = {"RK45": 6, "DOP853": 12, "Radau": 6, "BDF": 2, "LSODA": 2, "symplectic": 8, "auto": 12}
+"""Rough right-hand side evaluations per step of each method (Radau and BDF also factorise), to turn a work cap into steps."""
+
+
+def work(point: Point) -> float:
+    """A run's work in scipy right-hand side evaluations (a compiled evaluation costs about 1/COMPILED_STEPS as much)."""
+    compiled = point.ran is not None and point.ran.backend == "compiled"
+    return (point.nfev + 2 * point.njev) / (COMPILED_STEPS if compiled else 1)
+
+
+def _order(model: Model, setup: Setup, candidates: Sequence[Candidate]) -> list[Candidate]:
+    """auto first, then the method auto picks at the start (Radau when stiff), then compiled
+    candidates before scipy's: so that a cheap method meeting the accuracy is found first and caps
+    what the others may spend (a stiff system's explicit runs are then capped, not run to their budget)."""
+    picked = policy.decide(model, replace(start_of(model, setup), method="auto", backend="auto")).method
+    return sorted(candidates, key=lambda c: (c != AUTO, c.method != picked, backend_for(c) != "compiled"))
+
+
 def _regime(model: Model, regime: Regime, target: float, candidates: Sequence[Candidate], budget: Setup, say: Callable[[str], None] | None) -> Outcome:
     """One regime; `budget` carries the step budget and time limit."""
     times = tuple(np.linspace(0.0, regime.t_end, SAMPLES).tolist())
     setup = starting(model, Setup(regime.t_end, times, dict(regime.parameters), dict(regime.initial), budget.max_steps, time_limit=budget.time_limit))
     ref_tol = reference_tolerance(target)
     try:
-        setup, reference, horizon, _ = prepare(model, setup, ref_tol, say, window=WINDOW_FACTOR * target, hint=", a looser --accuracy")
+        setup, reference, horizon, _ = prepare(model, setup, ref_tol, say, window=WINDOW_FACTOR * target, hint=", a looser --accuracy", implicit=implicit_reference_tolerances(target))
     except ReferenceFailed as error:
-        finding = Finding("blow-up or failure of the reference run", str(error))
-        return Outcome(regime, setup.t_end, "none", math.nan, (), Diagnosis(0.0, 1.0, 1.0, 0.0, math.nan, (finding,)), None, None, None)
+        return _without_reference(model, regime, setup, error)
     scale = component_scale(reference.y)
-    points: list[Point] = []
+    own = reference.own_error if math.isfinite(reference.own_error) else math.inf
+    points: dict[Candidate, Point] = {}
     runs: dict[tuple[Candidate, float], Point] = {}
-    naive_default = None
-    if NAIVE in candidates:
-        if say:
-            say(f"{NAIVE.label} {NAIVE_RTOL:.0e} (scipy's default)")
-        naive_default = measure(model, NAIVE, NAIVE_RTOL, setup, reference, scale, repeats=0)
-    for candidate in candidates:
+    best: Point | None = None
+    floor = 10 * reference.settings.rtol if reference.settings is not None and reference.settings.method in IMPLICIT else 0.0
+    rungs = tuple(t for t in ladder(target) if t >= floor * (1 - 1e-9)) or (ladder(target)[0],)  # a run as tight as an implicit reference would measure the reference against itself
+    for candidate in _order(model, setup, candidates):
         last: Point | None = None
         stalls = 0
-        for tolerance in ladder(target):
+        for tolerance in rungs:
             if say:
                 say(f"{candidate.label} {tol_text(tolerance)}")
-            previous, last = last, measure(model, candidate, tolerance, setup, reference, scale, repeats=0)
+            previous, last = last, _capped(model, candidate, tolerance, setup, reference, scale, best, last)
             runs[(candidate, tolerance)] = last
-            if not last.ok or last.error <= target:
+            if not last.ok or last.error + own <= target:
                 break
+            if best is not None and work(last) > _losing(candidate) * work(best):
+                break  # tighter tolerances cost more still: it cannot be the recommendation
             stalled = previous is not None and previous.ok and previous.error < SATURATED and last.error > previous.error / STALLED
             stalls = stalls + 1 if stalled else 0
             if stalls == 2:
                 break  # tighter tolerances no longer buy accuracy (round-off, or an error floor)
         if last is not None:
-            points.append(last)
+            points[candidate] = last
+            if last.ok and last.error + own <= target and (best is None or work(last) < work(best)):
+                best = last
+    ordered = [points[c] for c in candidates if c in points]
+    naive_default = None
+    if NAIVE in candidates:  # after the ladders, so that a recommendation caps its budget
+        if say:
+            say(f"{NAIVE.label} {NAIVE_RTOL:.0e} (scipy's default)")
+        naive_default = _capped(model, NAIVE, NAIVE_RTOL, setup, reference, scale, best, None)
     if say:
         say("timing the runs in turns")
-    timed = retime(model, [*points, *([naive_default] if naive_default is not None else [])], setup, TIMED_RUNS)  # in turns: a changing load slows all alike
-    points, naive_default = timed[: len(points)], (timed[-1] if naive_default is not None else None)
-    meeting = [p for p in points if p.ok and p.error <= target]
+    ordered, naive_default = _retimed(model, ordered, naive_default, setup, target, own)
+    meeting = [p for p in ordered if p.ok and p.error + own <= target]
     recommended = min(meeting, key=lambda p: p.seconds) if meeting else None
-    tied = ties(meeting, recommended, target) if recommended is not None else ()
-    naive = next((p for p in points if p.candidate == NAIVE), None)
-    auto = next((p for p in points if p.candidate == AUTO), None)
-    diagnosis = diagnose(model, setup, reference, points, runs, target, horizon if setup.t_end < regime.t_end else None)
-    return Outcome(regime, setup.t_end, reference.description, reference.own_error, tuple(points), diagnosis, recommended, naive, auto, naive_default, tied)
+    tied = ties(meeting, recommended, target - own) if recommended is not None else ()
+    naive = next((p for p in ordered if p.candidate == NAIVE), None)
+    auto = next((p for p in ordered if p.candidate == AUTO), None)
+    diagnosis = diagnose(model, setup, reference, ordered, runs, target, horizon if setup.t_end < regime.t_end else None)
+    open_reason = ""
+    if recommended is None and not math.isfinite(reference.own_error):
+        open_reason = "the reference is unconfirmed (its second method did not finish), so no run can be shown to meet the accuracy"
+    elif recommended is None and any(p.ok and p.error <= target for p in ordered):
+        open_reason = (
+            f"runs come within {tol_text(target)} of the reference, but the reference's own error ({reference.own_error:.1e}) leaves open whether they meet it"
+            " (round-off limits how well two methods agree here)"
+        )
+    elif recommended is None and own > target:
+        open_reason = f"the reference's own error ({reference.own_error:.1e}) is above the accuracy asked: no run can be shown to meet it (round-off limits how well two methods agree here)"
+    return Outcome(regime, setup.t_end, reference.description, reference.own_error, tuple(ordered), diagnosis, recommended, naive, auto, naive_default, tied, open_reason)
+
+
+def _capped(model: Model, candidate: Candidate, tolerance: float, setup: Setup, reference: Reference, scale: np.ndarray, best: Point | None, last: Point | None) -> Point:
+    """`measure`, within the step budget `_cap` leaves it once `best` meets the accuracy."""
+    cap = _cap(candidate, best, last, setup)
+    point = measure(model, candidate, tolerance, replace(setup, max_steps=cap) if cap < setup.steps else setup, reference, scale, repeats=0)
+    if cap < setup.steps and point.failure == Failure.BUDGET and best is not None:
+        done = point.reason.rpartition(" at ")[2]
+        reason = f"stopped after {point.steps} steps at {done}: it already took {work(point) / max(work(best), 1e-300):.0f} x the work of {best.method} ({best.setting}), which meets the accuracy"
+        point = replace(point, reason=reason)
+    return point
+
+
+def _losing(candidate: Candidate) -> float:
+    return NAIVE_LOSING if candidate == NAIVE else LOSING
+
+
+def _cap(candidate: Candidate, best: Point | None, last: Point | None, setup: Setup) -> int:
+    """The step budget of a candidate's next run: the setup's, or, once `best` meets the accuracy,
+    what `_losing` x its work buys this candidate (in scipy steps, as budgets count them)."""
+    if best is None:
+        return setup.steps
+    per_step = last.nfev / last.steps if last is not None and last.steps else EVALUATIONS_PER_STEP.get(candidate.method, 6)
+    steps = _losing(candidate) * work(best) / max(per_step, 1.0)  # compiled runs get COMPILED_STEPS x this, at 1/COMPILED_STEPS the cost each
+    return max(1, min(setup.steps, math.ceil(steps)))
+
+
+def _retimed(model: Model, points: list[Point], naive_default: Point | None, setup: Setup, target: float, own: float) -> tuple[list[Point], Point | None]:
+    """The runs that may decide the recommendation or a tie (within RETIME_WITHIN of the fastest
+    meeting run), and scipy's default run, timed again in turns (`runs.interleave`)."""
+    meeting = [p.seconds for p in points if p.ok and p.error + own <= target]
+    limit = RETIME_WITHIN * min(meeting) if meeting else math.inf
+    chosen = [k for k, p in enumerate(points) if p.seconds <= limit]
+    extra = [naive_default] if naive_default is not None and naive_default.seconds <= limit else []
+    timed = retime(model, [points[k] for k in chosen] + extra, setup, TIMED_RUNS)  # in turns: a changing load slows all alike
+    result = list(points)
+    for k, point in zip(chosen, timed, strict=False):
+        result[k] = point
+    return result, (timed[-1] if extra else naive_default)
+
+
+def implicit_reference_tolerances(target: float) -> tuple[float, ...]:
+    """The rtols an implicit reference (Radau confirmed by LSODA) tries for accuracy `target`,
+    tightest first: from 1e-4 x it (at least IMPLICIT_TIGHTEST) to 0.1 x it, the loosest whose
+    confirmed error can still vouch for the target (the confirmation decides whether it does)."""
+    return implicit_tolerances(max(target * 1e-4, IMPLICIT_TIGHTEST), 0.1 * target)
+
+
+def _without_reference(model: Model, regime: Regime, setup: Setup, error: ReferenceFailed) -> Outcome:
+    """A regime where no reference could be made: the diagnosis along what the reference run
+    reached, no method tried (nothing to measure them against), and the verdict open - unless
+    both reference methods blew up at the same time (a blow-up of the system itself: failed)."""
+    reached = error.trajectory
+    t, y = (reached.t, reached.y) if reached is not None and len(reached.t) else (np.array([0.0]), np.array([start_of(model, setup).y0], dtype=float))
+    where = f"along the reference run up to t = {float(t[-1]):.3g}, where it stopped" if len(t) > 1 else "at the initial state only (the reference run stopped before its first sample)"
+    measured = _measure(model, setup, t, y, None, setup.t_end)
+    kind = "blow-up (both reference methods stop there)" if error.blowup else "no reference"
+    findings = (Finding(kind, str(error).removeprefix(f"{model.source}: ")), *measured.findings)
+    diagnosis = replace(measured, findings=findings, where=where)
+    open_reason = "" if error.blowup else "no reference could be made (see the diagnosis), so no method could be measured"
+    return Outcome(regime, setup.t_end, "none", math.nan, (), diagnosis, None, None, None, open_reason=open_reason)
 
 
 def diagnose(model: Model, setup: Setup, reference: Reference, points: Sequence[Point], runs: Mapping[tuple[Candidate, float], Point], target: float, horizon: Horizon | None = None) -> Diagnosis:
     """Stiffness, time scales and conditioning along the reference, and what the runs showed
     (`horizon`: the chaos that cut the window short)."""
-    s: Settings = starting(model, setup).start  # type: ignore[assignment]
-    module = compile.build(model, "python", jacobian=True).module
-    p = list(policy.code_parameters(s.values, 0.0 if model.constraints else None))
-    spectra = []
-    for k in np.linspace(0, len(reference.t) - 1, min(25, len(reference.t))).astype(int):
-        try:
-            found = diagnostics.spectrum(np.asarray(module._jac(float(reference.t[k]), reference.y[k].tolist(), p), dtype=float))
-        except (ArithmeticError, ValueError, TypeError, np.linalg.LinAlgError):  # also complex values
-            found = None
-        if found is not None:
-            spectra.append(found)
-    base = validate(model, method="DOP853", backend="python", t_end=setup.t_end, parameters=setup.parameters).y0  # the file's start sets the coordinates' sizes
-    condition = diagnostics.mass_condition(model, s.values, base)
-    worst = max((condition(float(t), y) for t, y in zip(reference.t, reference.y, strict=True)), default=math.nan)
-    decay = max((x.decay for x in spectra), default=0.0)
-    rate = max((x.rate for x in spectra), default=0.0)
-    stiffness = max((x.stiffness_ratio for x in spectra), default=1.0)
-    # the slow scale is the typical slowest rate along the run: at a turning point or an
-    # inflection (g cos(theta) = 0) one state's slowest rate passes through 0, which says nothing
-    # about time scales
-    slow = [x.slowest for x in spectra if x.slowest > 0]
-    scales = rate / float(np.median(slow)) if slow else 1.0
-    growth = max((x.growth for x in spectra), default=0.0)
+    base = _measure(model, setup, reference.t, reference.y, dense(model, reference), setup.t_end)
     findings: list[Finding] = []
     if horizon is not None:
         findings.append(
@@ -389,24 +507,7 @@ def diagnose(model: Model, setup: Setup, reference: Reference, points: Sequence[
                 f" (runs started {tol_text(horizon.delta)} apart are {HORIZON_THRESHOLD:.0e} apart at t = {horizon.horizon:.3g}); errors are measured up to there",
             )
         )
-    if growth >= diagnostics.MATCHED * decay:
-        decay = 0.0  # matched by growth somewhere along the run (a saddle's +-pair, chaos): not stiffness
-    # the slowest rate that makes the largest per-state stiffness ratio, so that `stiff` judges by that ratio
-    overall = diagnostics.Spectrum(decay, rate, decay / stiffness if 0 < stiffness < math.inf else 0.0, growth)
-    if diagnostics.stiff(overall, setup.t_end):
-        steps = diagnostics.explicit_steps(decay, setup.t_end)
-        affordable = diagnostics.explicit_affordable(overall, setup.t_end)
-        cheap = " (explicit affordable)" if affordable else ""
-        findings.append(
-            Finding(
-                f"stiff{cheap}",
-                f"a mode decays at up to {decay:.3g}/s (x t_end = {decay * setup.t_end:.3g}), stiffness ratio {stiffness:.3g}, about {steps:.3g} stability-limited explicit steps",
-            )
-        )
-    elif scales > SCALES and rate * setup.t_end > FAST_RADIANS:
-        findings.append(Finding("two time scales (highly oscillatory, not dissipative)", f"fastest rate {rate:.3g}/s, {scales:.3g} x the slowest"))
-    if growth * setup.t_end > diagnostics.STIFF:
-        findings.append(Finding("unstable modes", f"growth rate up to {growth:.3g}/s (a saddle, chaos or constraint drift; not stiffness: decays matched by growth are not counted)"))
+    findings += base.findings
     by_method = {(candidate.method, tolerance): point for (candidate, tolerance), point in runs.items()}
     for tolerance in ladder(target):
         implicit = by_method.get(("Radau", tolerance))
@@ -414,8 +515,6 @@ def diagnose(model: Model, setup: Setup, reference: Reference, points: Sequence[
         if explicit and implicit and explicit.steps and implicit.steps and explicit.steps > EXPLOSION * implicit.steps:
             findings.append(Finding("explicit step count explodes", f"{explicit.method} took {explicit.steps} steps against Radau's {implicit.steps} at rtol {tol_text(tolerance)}"))
             break
-    if worst > diagnostics.SINGULAR_CONDITION:
-        findings.append(Finding("near a coordinate singularity", f"cond M reaches {worst:.2g} along the trajectory"))
     for point in points:
         if point.status == PointStatus.FAILED and point.failure in FAILURE_FINDINGS:
             findings.append(Finding(f"{point.method} ({point.setting}) failed", point.reason.removeprefix(f"{model.source}: ")))
@@ -426,7 +525,87 @@ def diagnose(model: Model, setup: Setup, reference: Reference, points: Sequence[
                 findings.append(Finding(f"{point.method} ({point.setting})", f"{name} drifts by {drift:.1e} (relative)"))
         if point.ok and point.constraint_drift is not None and point.constraint_drift > target and point.candidate == NAIVE:
             findings.append(Finding(f"{point.method} ({point.setting})", f"constraint drift {point.constraint_drift:.1e}"))
-    return Diagnosis(decay * setup.t_end, stiffness, scales, rate, worst, tuple(findings))
+    return replace(base, findings=tuple(findings))
+
+
+def _measure(model: Model, setup: Setup, t: np.ndarray, y: np.ndarray, rerun: diagnostics.Rerun | None, t_end: float) -> Diagnosis:
+    """The spectrum (stiffness, time scales, growth) and cond M along the states (t, y), with the
+    findings they make: stiff, two time scales, unstable modes, near a coordinate singularity
+    (with the coordinate to change)."""
+    s: Settings = starting(model, setup).start  # type: ignore[assignment]
+    module = compile.build(model, "python", jacobian=True).module
+    p = list(policy.code_parameters(s.values, 0.0 if model.constraints else None))
+    spectra = []
+    for k in np.linspace(0, len(t) - 1, min(25, len(t))).astype(int):
+        try:
+            found = diagnostics.spectrum(np.asarray(module._jac(float(t[k]), y[k].tolist(), p), dtype=float))
+        except (ArithmeticError, ValueError, TypeError, np.linalg.LinAlgError):  # also complex values
+            found = None
+        if found is not None:
+            spectra.append(found)
+    base = validate(model, method="DOP853", backend="python", t_end=setup.t_end, parameters=setup.parameters).y0  # the file's start sets the coordinates' sizes
+    condition = diagnostics.mass_condition(model, s.values, base)
+    peak = diagnostics.condition_peak(condition, t, y, rerun)
+    findings: list[Finding] = []
+    unmeasured = []
+    if not spectra:
+        unmeasured.append("the Jacobian could not be evaluated at any state reached")
+    if peak is None:
+        unmeasured.append("no state was reached to evaluate M at")
+    decay = max((x.decay for x in spectra), default=0.0)
+    rate = max((x.rate for x in spectra), default=0.0)
+    stiffness = max((x.stiffness_ratio for x in spectra), default=1.0)
+    # the slow scale is the typical slowest rate along the run: at a turning point or an
+    # inflection (g cos(theta) = 0) one state's slowest rate passes through 0, which says nothing
+    # about time scales
+    slow = [x.slowest for x in spectra if x.slowest > 0]
+    scales = rate / float(np.median(slow)) if slow else 1.0
+    growth = max((x.growth for x in spectra), default=0.0)
+    if growth >= diagnostics.MATCHED * decay:
+        decay = 0.0  # matched by growth somewhere along the run (a saddle's +-pair, chaos): not stiffness
+    # the slowest rate that makes the largest per-state stiffness ratio, so that `stiff` judges by that ratio
+    overall = diagnostics.Spectrum(decay, rate, decay / stiffness if 0 < stiffness < math.inf else 0.0, growth)
+    if spectra and diagnostics.stiff(overall, t_end):
+        steps = diagnostics.explicit_steps(decay, t_end)
+        affordable = diagnostics.explicit_affordable(overall, t_end)
+        cheap = " (explicit affordable)" if affordable else ""
+        findings.append(
+            Finding(
+                f"stiff{cheap}",
+                f"a mode decays at up to {decay:.3g}/s (x t_end = {decay * t_end:.3g}), stiffness ratio {stiffness:.3g}, about {steps:.3g} stability-limited explicit steps",
+            )
+        )
+    elif scales > SCALES and rate * t_end > FAST_RADIANS:
+        findings.append(Finding("two time scales (highly oscillatory, not dissipative)", f"fastest rate {rate:.3g}/s, {scales:.3g} x the slowest"))
+    if growth * t_end > diagnostics.STIFF:
+        findings.append(Finding("unstable modes", f"growth rate up to {growth:.3g}/s (a saddle, chaos or constraint drift; not stiffness: decays matched by growth are not counted)"))
+    if peak is not None and peak.condition > diagnostics.SINGULAR_CONDITION:
+        findings.append(_singularity(model, s.values, condition, peak))
+    if not spectra:
+        return Diagnosis(None, None, None, None, peak.condition if peak else None, tuple(findings), unmeasured="; ".join(unmeasured), condition_at=peak.t if peak else None)
+    return Diagnosis(decay * t_end, stiffness, scales, rate, peak.condition if peak else None, tuple(findings), unmeasured="; ".join(unmeasured), condition_at=peak.t if peak else None)
+
+
+def _singularity(model: Model, values: Sequence[float], condition: Callable[[float, np.ndarray], float], peak: diagnostics.Peak) -> Finding:
+    """`near a coordinate singularity`, naming the coordinate, where, and the change to make."""
+    mass = diagnostics.mass_at(model, values)(peak.t, peak.y)
+    found = diagnostics.singular_coordinate(model.coordinates, condition, peak.t, peak.y, mass)
+    detail = f"cond M reaches {peak.condition:.2g} at t = {peak.t:.4g}"
+    if found is None:
+        return Finding("near a coordinate singularity", f"{detail} along the trajectory")
+    at = f"{found.coordinate} = {_angle(found.near)}" if found.near is not None else f"{found.coordinate} near {found.value:.3g}"
+    lost = " + ".join(f"{w:.2g} {name}_dot" for name, w in found.direction).replace("+ -", "- ")
+    where = f" ({found.coordinate} = {found.value:.3g} there; M loses its inertia along {lost})" if lost else f" ({found.coordinate} = {found.value:.3g} there)"
+    advice = (
+        f"coordinates singular at {at}: {detail}{where}. The coordinates, not the motion, are singular there: describe the system with coordinates"
+        f" regular there (for an orientation a unit vector or a quaternion, or Euler angles whose singular axis points away from the motion;"
+        f" for a direction, Cartesian components instead of polar and azimuthal angles), or start away from {at} (--initial {found.coordinate}=...)"
+    )
+    return Finding("near a coordinate singularity", advice)
+
+
+def _angle(value: float) -> str:
+    return {0.0: "0", math.pi / 2: "pi/2", -math.pi / 2: "-pi/2", math.pi: "pi", -math.pi: "-pi"}.get(value, f"{value:.3g}")
 
 
 def json_text(report: Report) -> str:
@@ -463,6 +642,10 @@ def json_text(report: Report) -> str:
                 "t_end": o.t_end,
                 "reference": o.reference,
                 "reference_error": number(o.reference_error),
+                "open_reason": o.open_reason or None,
+                "measured": o.diagnosis.where,
+                "not_measured": o.diagnosis.unmeasured or None,
+                "max_mass_condition_at": number(o.diagnosis.condition_at),
                 "stiffness_ratio": number(o.diagnosis.stiffness_ratio),
                 "decay_x_t_end": number(o.diagnosis.decay_span),
                 "time_scale_ratio": number(o.diagnosis.scale_ratio),
