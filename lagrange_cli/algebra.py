@@ -285,6 +285,12 @@ def pivot_ratio(matrix: sp.Matrix, model: Model, seed: int = 1) -> float:
         return pivot_ratio(matrix, model, seed + 1) if seed < 3 else 1.0
     if not all(math.isfinite(x) for row in rows for x in row):
         return pivot_ratio(matrix, model, seed + 1) if seed < 3 else 1.0
+    return row_pivot_ratio(rows)
+
+
+def row_pivot_ratio(rows: list[list[float]]) -> float:
+    """Smallest over largest pivot of Gaussian elimination with partial pivoting on the
+    row-normalised matrix `rows` (changed in place): 0 for a zero row or pivot."""
     pivots = []
     for row in rows:
         norm = sum(x * x for x in row) ** 0.5
@@ -300,8 +306,9 @@ def pivot_ratio(matrix: sp.Matrix, model: Model, seed: int = 1) -> float:
         pivots.append(abs(rows[k][k]))
         for i in range(k + 1, n):
             factor = rows[i][k] / rows[k][k]
-            for j in range(k, n):
-                rows[i][j] -= factor * rows[k][j]
+            if factor:
+                for j in range(k, n):
+                    rows[i][j] -= factor * rows[k][j]
     return min(pivots) / max(pivots)
 
 

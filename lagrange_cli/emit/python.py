@@ -40,7 +40,7 @@ import sympy as sp
 
 from lagrange_cli import __version__
 from lagrange_cli._symengine import se, to_symengine
-from lagrange_cli.algebra import check_invertible
+from lagrange_cli.algebra import check_invertible, row_pivot_ratio
 from lagrange_cli.emit.common import require_defined
 from lagrange_cli.emit.printer import ATOM, Code, Printer, restructure
 from lagrange_cli.errors import DerivationError
@@ -129,31 +129,8 @@ def check_solvable(model: Model) -> None:
     except (RuntimeError, TypeError, ValueError, OverflowError, ZeroDivisionError):
         check_invertible(model)
         return
-    if not all(math.isfinite(x) for row in rows for x in row) or _pivot_ratio(rows) < 1e-12:
+    if not all(math.isfinite(x) for row in rows for x in row) or row_pivot_ratio(rows) < 1e-12:
         check_invertible(model)
-
-
-def _pivot_ratio(rows: list[list[float]]) -> float:
-    """Smallest over largest pivot of the row-normalised matrix (as algebra.pivot_ratio)."""
-    pivots = []
-    for row in rows:
-        norm = sum(x * x for x in row) ** 0.5
-        if norm == 0.0:
-            return 0.0
-        row[:] = [x / norm for x in row]
-    n = len(rows)
-    for k in range(n):
-        pivot = max(range(k, n), key=lambda i: abs(rows[i][k]))
-        if rows[pivot][k] == 0.0:
-            return 0.0
-        rows[k], rows[pivot] = rows[pivot], rows[k]
-        pivots.append(abs(rows[k][k]))
-        for i in range(k + 1, n):
-            factor = rows[i][k] / rows[k][k]
-            if factor:
-                for j in range(k, n):
-                    rows[i][j] -= factor * rows[k][j]
-    return min(pivots) / max(pivots)
 
 
 def emit(model: Model, numba: bool = False) -> str:
