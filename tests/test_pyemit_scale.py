@@ -190,3 +190,38 @@ def test_loops_keep_constraints_and_time_dependence(name: str, monkeypatch: pyte
     monkeypatch.setitem(sys.modules, "numba", fake_numba())
     (x1, r1), (x2, r2) = run(1000), run(2)
     assert np.array_equal(x1, x2) and np.array_equal(r1, r2)
+
+
+def test_numba_kernel_has_one_loop_body_per_shape_whatever_the_size(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The vectorized `--numba` kernel writes each statement shape once (one loop over its table) and
+    walks the runs of the levels through a dispatch table (`_rhs_R`): its size does not grow with N,
+    so numba's compile time does not either (one loop per level and shape grew with N: 52 loops at
+    N = 12, 105 at N = 20)."""
+    monkeypatch.setattr(python, "SPLIT", 5)
+    kernels = {}
+    for n in (6, 12, 20):
+        source = python.emit(model_of(chain_yaml(n), f"chain_{n}.yaml"), numba=True)
+        kernels[n] = source[source.index("def _rhs(") :]
+        loops = re.findall(r"for _r in range\(_rhs_R\[_k, 1\], _rhs_R\[_k, 2\]\):\n\s+(.*)", kernels[n])
+        tables = [re.findall(r"_rhs_T\d+", line) for line in loops]
+        assert all(len(set(names)) == 1 for names in tables) and len({names[0] for names in tables}) == len(loops)
+    assert kernels[20].count("\n") == kernels[12].count("\n") and kernels[20].count("for _r in range(") <= 20
+
+
+def test_numba_lu_solve_agrees_with_numpy_and_refuses_a_singular_matrix() -> None:
+    """`derive --numba`'s `_lu_solve` (in place of numpy.linalg.solve, whose LAPACK binding takes
+    numba seconds to compile) pivots, agrees with numpy, and raises ZeroDivisionError on a singular
+    matrix as the plain module's `_solve` does."""
+    namespace: dict[str, object] = {"numba": fake_numba()}
+    exec(compile(python.LU_SOLVE, "<lu>", "exec"), namespace)
+    solve = namespace["_lu_solve"]
+    rng = np.random.default_rng(5)
+    for n in (2, 5, 12):
+        a, b = rng.normal(size=(n, n)), rng.normal(size=n)
+        a[0, 0] = 0.0  # needs a row exchange
+        expected = np.linalg.solve(a, b)
+        assert np.allclose(solve(a.copy(), b.copy()), expected, rtol=1e-10, atol=1e-12)  # type: ignore[operator]
+    saddle = np.array([[2.0, 0.0, -1.0], [0.0, 3.0, -1.0], [1.0, 1.0, 0.0]])  # [M, -A^T; A, 0] of a kept constraint
+    assert np.allclose(solve(saddle.copy(), np.array([1.0, 2.0, 0.5])), np.linalg.solve(saddle, [1.0, 2.0, 0.5]))  # type: ignore[operator]
+    with pytest.raises(ZeroDivisionError, match="singular"):
+        solve(np.array([[1.0, 2.0], [2.0, 4.0]]), np.array([1.0, 1.0]))  # type: ignore[operator]

@@ -32,7 +32,7 @@ import keyword
 import math
 import re
 from collections.abc import Collection, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, ClassVar
 
@@ -294,13 +294,14 @@ class _Writer:
                         fill += [f"_a[{j}, {n + r}] = {a[r * n + j]}", f"_a[{n + r}, {j}] = -_a[{j}, {n + r}]"]
             f = [*f, *c]
         fill += [f"_b[{i}] = {value}" for i, value in enumerate(f)]
-        tail = ["_x = numpy.linalg.solve(_a, _b)", f"_out = numpy.empty({2 * n})", f"_out[:{n}] = y[{n}:]", f"_out[{n}:] = _x[:{n}]", "return _out"]
+        tail = ["_x = _lu_solve(_a, _b)", f"_out = numpy.empty({2 * n})", f"_out[:{n}] = y[{n}:]", f"_out[{n}:] = _x[:{n}]", "return _out"]
         if len(lines) + len(fill) > SPLIT:
             tables, code = vectorize(inputs, [*lines, *fill], tail, "_rhs")
             body = [*prologue, *code]
         else:
             tables, body = [], [*inputs, *prologue, *lines, *fill, *tail]
         kernels = ["\n".join(tables)] if tables else []
+        kernels.append(LU_SOLVE)
         kernels.append("@numba.njit(cache=True)\n" + define("_rhs", "t, y, _p", "The compiled right-hand side.", body))
         vector = "numpy.array([" + ", ".join(f"float(p[{literal(p.name)}])" for p in parameters) + "])" if parameters else "numpy.empty(0)"
         arguments = ", ".join(["t", "numpy.asarray(y, dtype=numpy.float64)", vector])
@@ -412,6 +413,40 @@ SOLVE = '''def _solve(a, b):
         row = a[i]
         x[i] = (b[i] - sum(row[j] * x[j] for j in range(i + 1, n))) / row[i]
     return x'''
+
+
+LU_SOLVE = '''@numba.njit(cache=True)
+def _lu_solve(a, b):
+    """Solve a x = b by Gaussian elimination with partial pivoting (a and b are overwritten; b
+    becomes x); ZeroDivisionError when a pivot is exactly 0, as the plain module's _solve. A few
+    loops that numba compiles in a fraction of the time numpy.linalg.solve's LAPACK binding takes."""
+    n = b.shape[0]
+    for k in range(n):
+        pivot = k
+        largest = abs(a[k, k])
+        for i in range(k + 1, n):
+            if abs(a[i, k]) > largest:
+                largest = abs(a[i, k])
+                pivot = i
+        if not largest > 0.0:
+            raise ZeroDivisionError("singular matrix")
+        if pivot != k:
+            for j in range(k, n):
+                a[k, j], a[pivot, j] = a[pivot, j], a[k, j]
+            b[k], b[pivot] = b[pivot], b[k]
+        inverse = 1.0 / a[k, k]
+        for i in range(k + 1, n):
+            factor = a[i, k] * inverse
+            if factor != 0.0:
+                for j in range(k + 1, n):
+                    a[i, j] -= factor * a[k, j]
+                b[i] -= factor * b[k]
+    for i in range(n - 1, -1, -1):
+        total = b[i]
+        for j in range(i + 1, n):
+            total -= a[i, j] * b[j]
+        b[i] = total / a[i, i]
+    return b'''
 
 
 def mangle(names: Sequence[str], reserved: Collection[str] = RESERVED) -> dict[str, str]:
@@ -532,31 +567,35 @@ _STATEMENT = re.compile(r"^([A-Za-z_]\w*(?:\[[\d, ]+\])?) = (.*)$")
 
 
 def vectorize(inputs: list[str], lines: list[str], tail: list[str], name: str, family: int = 4) -> tuple[list[str], list[str]]:
-    """Long straight-line numba code as loops over index tables, so that numba compiles a few
-    loops instead of thousands of statements (its compile time grows with the statements).
+    """Long straight-line numba code as a few loops over index tables, so that numba compiles a
+    handful of loop bodies instead of thousands of statements or hundreds of loops (its type
+    inference and LLVM's optimizer grow with the statements and with the loops of a function).
 
     Every scalar (an input or a temporary) gets a slot of a work array `_w`. Statements are
     scheduled by level (1 + the highest level of the scalars they read), and the statements of
     one level with the same shape (the code with its scalars and constant array indices taken
-    out: `{0}*{1} + {2}*{3}`, `_a[{0}, {1}] = {2}`) form a family: a family of at least `family`
-    members becomes one loop over a table (a module-level int64 array `<name>_T<k>`) of its
-    members' slots and indices; the others are written out. Statements of one level never read
-    each other, so the order within a level is free. A statement of another form (a call such as
-    `_lu_solve(_a, _x)`, a slice) is a barrier: the code before and after it is scheduled apart.
-    Returns (the module-level tables, the body: `_w`, the code, the tail)."""
+    out: `{0}*{1} + {2}*{3}`, `_a[{0}, {1}] = {2}`) form a run: statements of one level never read
+    each other, so the order within a level is free. Each shape is written once, as a loop over
+    its table (a module-level int64 array `<name>_T<k>` of its members' slots and indices, the
+    runs of the shape one after another), and a dispatch loop walks the runs in order (a table
+    `<name>_R` of shape, first row, end row): the function has one loop body per shape however
+    many levels there are. A statement of another form (a call such as `_lu_solve(_a, _x)`, a
+    slice) is a barrier: the code before and after it is scheduled apart. `family` is kept for
+    the callers' signature; every run is a loop. Returns (the module-level tables, the body:
+    `_w`, the code, the tail)."""
     statements = [piece for line in [*inputs, *lines] for piece in _accumulate(line.split("  #", 1)[0])]
     slots: dict[str, int] = {}
     for line in statements:
         match = _STATEMENT.match(line)
         if match and match.group(1).isidentifier():
             slots.setdefault(match.group(1), len(slots))
-    tables: list[str] = []
+    program = _Program(name)
     body = [f"_w = numpy.empty({max(len(slots), 1)})"]
     segment: list[tuple[str, str]] = []
     level: dict[str, int] = {}
 
     def flush() -> None:
-        body.extend(_schedule(segment, slots, level, name, tables, family))
+        body.extend(_schedule(segment, slots, level, program))
         segment.clear()
 
     for line in statements:
@@ -568,7 +607,38 @@ def vectorize(inputs: list[str], lines: list[str], tail: list[str], name: str, f
             body.append(_substitute(line, slots))
     flush()
     body += [_substitute(line, slots) for line in tail]
-    return tables, body
+    return program.tables(), body
+
+
+@dataclass
+class _Program:
+    """The tables of a vectorized function: per shape (left, right) its rows of operands, and the
+    runs (shape, first row, end row) in the order they execute."""
+
+    name: str
+    shapes: dict[tuple[str, str], int] = field(default_factory=dict)
+    rows: list[list[list[int]]] = field(default_factory=list)
+    runs: list[tuple[int, int, int]] = field(default_factory=list)
+
+    def run(self, shape: tuple[str, str], members: list[list[int]]) -> int:
+        """Append a run of `shape` with these members' operands; the shape's number."""
+        k = self.shapes.setdefault(shape, len(self.shapes))
+        if k == len(self.rows):
+            self.rows.append([])
+        first = len(self.rows[k])
+        self.rows[k].extend(members)
+        self.runs.append((k, first, len(self.rows[k])))
+        return k
+
+    def tables(self) -> list[str]:
+        result = []
+        for k, rows in enumerate(self.rows):
+            flat = ", ".join(str(v) for operands in rows for v in operands)
+            result.append(f"{self.name}_T{k} = numpy.array([{flat}], dtype=numpy.int64).reshape({len(rows)}, {len(rows[0])})")
+        if self.runs:
+            flat = ", ".join(str(v) for run in self.runs for v in run)
+            result.append(f"{self.name}_R = numpy.array([{flat}], dtype=numpy.int64).reshape({len(self.runs)}, 3)")
+        return result
 
 
 _CALL = re.compile(r"([A-Za-z_][\w.]*)\(")
@@ -618,8 +688,8 @@ def _substitute(line: str, slots: Mapping[str, int]) -> str:
     return _TOKEN.sub(replace, line)
 
 
-def _schedule(segment: list[tuple[str, str]], slots: Mapping[str, int], level: dict[str, int], name: str, tables: list[str], family: int) -> list[str]:
-    """The statements of one segment (see `vectorize`) as loops over families and written-out code."""
+def _schedule(segment: list[tuple[str, str]], slots: Mapping[str, int], level: dict[str, int], program: _Program) -> list[str]:
+    """The statements of one segment (see `vectorize`) as a dispatch loop over its runs."""
     groups: dict[tuple[int, str, str], list[list[int]]] = {}
     for left, right in segment:
         operands: list[int] = []
@@ -647,19 +717,25 @@ def _schedule(segment: list[tuple[str, str]], slots: Mapping[str, int], level: d
         shape_left = _TOKEN.sub(take, left)
         level[left] = depth + 1
         groups.setdefault((depth, shape_left, shape_right), []).append(operands)
-    code: list[str] = []
+    if not groups:
+        return []
+    first = len(program.runs)
+    used: dict[int, tuple[str, str]] = {}
     for (_, shape_left, shape_right), members in sorted(groups.items(), key=lambda item: item[0][0]):
-        if len(members) < family:
-            for operands in members:
-                values = {f"w{k}": f"_w[{v}]" for k, v in enumerate(operands)} | {f"i{k}": str(v) for k, v in enumerate(operands)}
-                code.append(f"{shape_left.format(**values)} = {shape_right.format(**values)}")
-            continue
-        table = f"{name}_T{len(tables)}"
-        width = len(members[0])
-        flat = ", ".join(str(v) for operands in members for v in operands)
-        tables.append(f"{table} = numpy.array([{flat}], dtype=numpy.int64).reshape({len(members)}, {width})")
-        values = {f"w{k}": f"_w[{table}[_r, {k}]]" for k in range(width)} | {f"i{k}": f"{table}[_r, {k}]" for k in range(width)}
-        code += [f"for _r in range({len(members)}):", f"    {shape_left.format(**values)} = {shape_right.format(**values)}"]
+        used[program.run((shape_left, shape_right), members)] = (shape_left, shape_right)
+    count = {k: sum(1 for run in program.runs[first:] if run[0] == k) for k in used}
+    runs = f"{program.name}_R"
+    code = [f"for _k in range({first}, {len(program.runs)}):", f"    _s = {runs}[_k, 0]"]
+    for position, k in enumerate(sorted(used, key=lambda k: (-count[k], k))):
+        shape_left, shape_right = used[k]
+        table = f"{program.name}_T{k}"
+        width = len(program.rows[k][0])
+        values = {f"w{j}": f"_w[{table}[_r, {j}]]" for j in range(width)} | {f"i{j}": f"{table}[_r, {j}]" for j in range(width)}
+        code += [
+            f"    {'if' if position == 0 else 'elif'} _s == {k}:",
+            f"        for _r in range({runs}[_k, 1], {runs}[_k, 2]):",
+            f"            {shape_left.format(**values)} = {shape_right.format(**values)}",
+        ]
     return code
 
 
