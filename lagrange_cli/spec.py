@@ -21,7 +21,8 @@ import yaml
 
 from lagrange_cli.errors import Diagnostic, LagrangeError, Span, SpecError, fail
 from lagrange_cli.expr import CONSTANTS, RESERVED, Scope, _closest, numeric_value, parse_equation, parse_expression, real_derivative
-from lagrange_cli.model import Parameter
+from lagrange_cli.inputs import check_usage, read_inputs, read_outputs
+from lagrange_cli.model import Input, Parameter
 
 MAX_FILE_BYTES = 1_000_000
 MAX_YAML_DEPTH = 40
@@ -30,7 +31,7 @@ NAME = re.compile(r"[A-Za-z][A-Za-z0-9_]*\Z")
 TOP_KEYS = (
     "title", "description", "coordinates", "parameters", "functions", "gravity", "particles",
     "bodies", "kinetic", "potential", "lagrangian", "dissipation", "forces", "constraints",
-    "eliminate", "initial", "simulate", "exact", "expect", "draw",
+    "eliminate", "initial", "simulate", "exact", "expect", "draw", "inputs", "outputs",
 )  # fmt: skip
 PARTICLE_KEYS = ("mass", "position", "force", "damping")
 FUNCTION_KEYS = ("arguments", "definition", "description")
@@ -166,6 +167,10 @@ class SystemSpec:
     expect: Expect = Expect()
     draw: Drawing | None = None
     """The `draw` block (None without one: an animation then draws particles and bodies as dots)."""
+    inputs: tuple[Input, ...] = ()
+    """The `inputs` (lagrange_cli/inputs.py), in the file's order."""
+    outputs: tuple[tuple[str, sp.Expr], ...] = ()
+    """The `outputs`, name -> expression of q, q_dot, t and the inputs, in the file's order."""
 
 
 def time_derivative(expr: sp.Expr, q: tuple[sp.Symbol, ...], qd: tuple[sp.Symbol, ...], qdd: tuple[sp.Symbol, ...], t: sp.Symbol) -> sp.Expr:
@@ -586,6 +591,8 @@ class _Reader:
         coordinates = self.coordinates(entries, taken)
         parameters = self.parameters(entries, taken)
         functions, arities, definitions = self.functions(entries, taken, coordinates, parameters)
+        inputs = read_inputs(self, entries["inputs"][1] if "inputs" in entries else None, taken)
+        signals = {i.name: i.symbol for i in inputs}
         q = tuple(sp.Symbol(c) for c in coordinates)
         qd = tuple(sp.Symbol(f"{c}_dot") for c in coordinates)
         qdd = tuple(sp.Symbol(f"{c}_ddot") for c in coordinates)
@@ -599,12 +606,20 @@ class _Reader:
 
             return real_derivative(expr, total)
 
-        names = {str(s): s for s in (*q, *qd, *(p.symbol for p in parameters))}
+        names = {str(s): s for s in (*q, *qd, *(p.symbol for p in parameters))} | signals
         velocities = {str(s): "a velocity" for s in qd}
         accelerations = {str(s): "an acceleration" for s in qdd}
         state = Scope(names, undefined, t, ddt, "a coordinate, a velocity (`<q>_dot`), a parameter, `t`", accelerations, arities=arities)
-        config = Scope({str(s): s for s in (*q, *(p.symbol for p in parameters))}, undefined, t, ddt, "a coordinate, a parameter, `t`", {**velocities, **accelerations}, arities=arities)
-        constants = Scope({p.name: p.symbol for p in parameters}, undefined, t, ddt, "a parameter, `t`", {**{c: "a coordinate" for c in coordinates}, **velocities, **accelerations}, arities=arities)
+        config = Scope({str(s): s for s in (*q, *(p.symbol for p in parameters))} | signals, undefined, t, ddt, "a coordinate, a parameter, `t`", {**velocities, **accelerations}, arities=arities)
+        constants = Scope(
+            {p.name: p.symbol for p in parameters},
+            undefined,
+            t,
+            ddt,
+            "a parameter, `t`",
+            {**{c: "a coordinate" for c in coordinates}, **velocities, **accelerations, **dict.fromkeys(signals, "an input")},
+            arities=arities,
+        )
         potential_scope = dataclasses.replace(config, note="velocity-dependent terms belong under `lagrangian`")
 
         def value(key: str) -> yaml.Node | None:
@@ -654,6 +669,9 @@ class _Reader:
             expect=Expect(),
             draw=self.draw(value("draw"), particles, bodies, config),
         )
+        if inputs or "outputs" in entries:
+            spec = _replace(spec, inputs=inputs, outputs=read_outputs(self, value("outputs"), state, taken))
+            check_usage(self, spec)
         expect_node = value("expect")
         if expect_node is not None:
             spec = _replace(spec, expect=self.expect(expect_node, spec, state))
