@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Iterable, Mapping
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import sympy as sp
@@ -231,3 +232,64 @@ def signal_expressions(model: Model, entries: Iterable[tuple[str, str, Any, Any]
             raise fail(span, f"the expression of input '{name}' depends on {elsewhere[bad[0]]} ('{bad[0]}')", scope.what)
         result[name] = expr
     return result
+
+
+@dataclass(frozen=True)
+class ExpectedStateSpace:
+    """`expect.state_space`: the operating point (`about`: name -> exact value, coordinates and
+    inputs) and any of A, B, C, D as rows of expressions of the parameters, each with its place."""
+
+    about: tuple[tuple[str, sp.Expr], ...]
+    matrices: tuple[tuple[str, tuple[tuple[sp.Expr, ...], ...], Any], ...]
+    span: Any = None
+
+
+STATE_SPACE_KEYS = ("about", "A", "B", "C", "D")
+
+
+def read_state_space(reader: Any, node: yaml.Node, spec: SystemSpec) -> ExpectedStateSpace | None:
+    """Read `expect.state_space` (FORMAT.md version 2): entries are expressions of the parameters."""
+    import yaml
+
+    from lagrange_cli.expr import Scope
+
+    fields = {k: v for k, _, v in reader.mapping(node, "'expect.state_space'", STATE_SPACE_KEYS)}
+    names = [*spec.coordinates, *(i.name for i in spec.inputs)]
+    about = []
+    for key, key_node, value in reader.mapping(fields["about"], "'expect.state_space.about'") if "about" in fields else []:
+        if key not in names:
+            reader.problem(key_node, f"'{key}' is not a coordinate or an input", "one of " + ", ".join(names))
+            continue
+        number = reader.number(value, f"the value of '{key}'")
+        if number is not None:
+            text = str(value.value) if isinstance(value, yaml.ScalarNode) else str(number)
+            about.append((key, _exact_number(text, number)))
+    elsewhere = {**{c: "a coordinate" for c in spec.coordinates}, **{str(v): "a velocity" for v in spec.qd}, **{i.name: "an input" for i in spec.inputs}}
+    scope = Scope({p.name: p.symbol for p in spec.parameters}, {}, spec.t, lambda e: e, "a parameter (the matrices are evaluated at the operating point)", {**elsewhere, "t": "time"})
+    matrices = []
+    for key in "ABCD":
+        if key not in fields:
+            continue
+        rows = []
+        for row in reader.sequence(fields[key], f"'expect.state_space.{key}'"):
+            items = reader.sequence(row, f"a row of 'expect.state_space.{key}'")
+            values = [reader.expression(item, f"an entry of 'expect.state_space.{key}'", scope) for item in items]
+            if all(v is not None for v in values):
+                rows.append(tuple(v for v in values if v is not None))
+        if len({len(r) for r in rows}) > 1:
+            reader.problem(fields[key], f"the rows of 'expect.state_space.{key}' have different lengths", "a matrix: a list of rows of equal length")
+            continue
+        matrices.append((key, tuple(rows), reader.where(fields[key])))
+    return ExpectedStateSpace(tuple(about), tuple(matrices), reader.where(node))
+
+
+def _exact_number(text: str, number: float) -> sp.Expr:
+    """`pi/2` stays exact; a decimal is kept as written."""
+    try:
+        from lagrange_cli.errors import Span
+        from lagrange_cli.expr import Scope, parse_expression
+
+        value = parse_expression(text, Span("", 1, 1, text), Scope({}, {}, sp.Symbol("t"), lambda e: e))
+        return value if value.is_number else sp.Float(number)
+    except Exception:
+        return sp.Float(number)

@@ -21,7 +21,7 @@ import yaml
 
 from lagrange_cli.errors import Diagnostic, LagrangeError, Span, SpecError, fail
 from lagrange_cli.expr import CONSTANTS, RESERVED, Scope, _closest, numeric_value, parse_equation, parse_expression, real_derivative
-from lagrange_cli.inputs import check_usage, read_inputs, read_outputs
+from lagrange_cli.inputs import ExpectedStateSpace, check_usage, read_inputs, read_outputs, read_state_space
 from lagrange_cli.model import Input, Parameter
 
 MAX_FILE_BYTES = 1_000_000
@@ -37,7 +37,7 @@ PARTICLE_KEYS = ("mass", "position", "force", "damping")
 FUNCTION_KEYS = ("arguments", "definition", "description")
 BODY_KEYS = ("mass", "position", "inertia", "angular_velocity")
 DRAW_KEYS = ("segments", "trails")
-EXPECT_KEYS = ("equations", "accelerations", "momenta", "conserved", "hamiltonian", "hamilton_equations")
+EXPECT_KEYS = ("equations", "accelerations", "momenta", "conserved", "hamiltonian", "hamilton_equations", "state_space")
 SIMULATE_KEYS = ("t_end", "method", "rtol", "atol", "step", "samples")
 METHODS = ("auto", "RK45", "DOP853", "Radau", "BDF", "LSODA", "symplectic")  # as in numeric/settings.py
 DEFAULT_T_END = 10.0  # numeric/settings.py's default
@@ -125,9 +125,11 @@ class Expect:
     """H in the coordinates and the momenta `p_<q>` (FORMAT.md version 2)."""
     hamilton_equations: tuple[tuple[sp.Expr, Span], ...] = ()
     """Equations in `<q>_dot`, `p_<q>` and `p_<q>_dot` (each `lhs - rhs`)."""
+    state_space: ExpectedStateSpace | None = None
+    """`expect.state_space` (FORMAT.md version 2; lagrange_cli/inputs.py)."""
 
     def __bool__(self) -> bool:
-        return bool(self.equations or self.accelerations or self.momenta or self.conserved or self.hamiltonian or self.hamilton_equations)
+        return bool(self.equations or self.accelerations or self.momenta or self.conserved or self.hamiltonian or self.hamilton_equations or self.state_space)
 
 
 @dataclass(frozen=True)
@@ -1080,7 +1082,8 @@ class _Reader:
                 continue
             conserved.append((str(name), self.span(item)))
         hamiltonian, hamilton_equations = self.hamilton_expect(fields, spec, state)
-        return Expect(tuple(equations), tuple(accelerations), tuple(momenta), tuple(conserved), hamiltonian, hamilton_equations)
+        state_space = read_state_space(self, fields["state_space"], spec) if "state_space" in fields else None
+        return Expect(tuple(equations), tuple(accelerations), tuple(momenta), tuple(conserved), hamiltonian, hamilton_equations, state_space)
 
     def hamilton_expect(self, fields: dict[str, yaml.Node], spec: SystemSpec, state: Scope) -> tuple[tuple[sp.Expr, Span] | None, tuple[tuple[sp.Expr, Span], ...]]:
         """`expect.hamiltonian` (an expression of q, p_<q>, the parameters and t) and
