@@ -157,3 +157,74 @@ def test_simulate_input_refuses_bad_names(tmp_path: Path, value: str, message: s
     path.write_text(CART_POLE)
     result = runner.invoke(app, ["simulate", str(path), "--t-end", "0.1", "-q", "--input", value])
     assert result.exit_code == 2 and message in result.output and "Traceback" not in result.output
+
+
+CONSTRAINED = """\
+coordinates: [x, y]
+parameters: {m: 1.0, g: 9.81, l: 1.0}
+inputs: {tau: {value: 0.3}}
+gravity: [0, -g]
+particles:
+  bob: {mass: m, position: [x, y], force: [-tau*y/l, tau*x/l]}
+constraints:
+  rod: x**2 + y**2 = l**2
+"""
+
+
+@pytest.mark.parametrize("text", [CART_POLE, CONSTRAINED], ids=["cart_pole", "constrained"])
+def test_c_target_takes_u_after_p_and_agrees_with_python(text: str, tmp_path: Path) -> None:
+    import shutil
+    import subprocess
+
+    from lagrange_cli.emit import c
+
+    from .limits import DEADLOCK
+
+    compiler = shutil.which("gcc") or shutil.which("cc")
+    if compiler is None:
+        pytest.skip("no C compiler")
+    model = model_of(text)
+    header = c.emit(model)
+    assert "const double *p, const double *u, double *dydt)" in header and "eom_default_inputs" in header
+    (tmp_path / "eom.h").write_text(header)
+    n = model.n
+    y = [0.3, -0.9, 0.2, 0.1][: 2 * n] if n == 2 else [0.3, 0.2]
+    u = [1.7] * len(model.inputs)
+    driver = f"""#include <stdio.h>
+#include "eom.h"
+int main(void) {{
+    const double y[{2 * n}] = {{{", ".join(map(repr, y))}}};
+    const double u[{len(u)}] = {{{", ".join(map(repr, u))}}};
+    double dydt[{2 * n}];
+    int i, status = eom_rhs(0.0, y, eom_default_parameters, u, dydt);
+    for (i = 0; i < {2 * n}; ++i) printf("%.17g\\n", dydt[i]);
+    printf("%.17g\\n", eom_energy(0.0, y, eom_default_parameters, eom_default_inputs));
+    return status;
+}}
+"""
+    (tmp_path / "main.c").write_text(driver)
+    subprocess.run([compiler, "-std=c99", "-Wall", "-Wextra", "-Werror", "-pedantic", "-o", str(tmp_path / "main"), str(tmp_path / "main.c"), "-lm"], check=True, timeout=DEADLOCK)
+    out = subprocess.run([str(tmp_path / "main")], check=True, capture_output=True, text=True, timeout=DEADLOCK).stdout.split()
+    module = load_module(python.emit(model), tmp_path / "reference.py")
+    names = [i.name for i in model.inputs]
+    want = module.rhs(0.0, y, u=dict(zip(names, u, strict=True)))
+    assert [float(v) for v in out[: 2 * n]] == pytest.approx(want, rel=1e-12, abs=1e-12)
+    energy = module.energy(y[:n], y[n:], **({"u": module.INPUTS} if "u" in module.energy.__code__.co_varnames else {}))
+    assert float(out[-1]) == pytest.approx(energy, rel=1e-12, abs=1e-12)
+
+
+def test_octave_target_takes_u_after_p() -> None:
+    from lagrange_cli.emit import octave
+
+    code = octave.emit(model_of(CART_POLE))
+    assert code.startswith("function [dydt, h, lambda] = eom(t, y, p, u)") and "F = u(1);" in code and "u = [0.5];" in code
+    plain = octave.emit(model_of(CART_POLE.replace("inputs:\n  F: {value: 0.5, description: horizontal force on the cart}\n", "").replace("force: [F, 0]", "force: [1, 0]")))
+    assert plain.split("\n")[0].endswith("eom(t, y, p)") and "nargin < 4" not in plain
+
+
+@pytest.mark.parametrize("args", [["--to", "jax"], ["--to", "json"], ["--python", "--form", "hamilton"]])
+def test_targets_without_inputs_refuse_plainly(tmp_path: Path, args: list[str]) -> None:
+    path = tmp_path / "cart.yaml"
+    path.write_text(CART_POLE)
+    result = runner.invoke(app, ["derive", str(path), *args])
+    assert result.exit_code == 2 and "does not take inputs yet (the file declares F)" in result.output
