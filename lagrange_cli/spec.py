@@ -602,6 +602,11 @@ class _Reader:
         undefined = {f: sp.Function(f) for f in functions}
 
         def ddt(expr: sp.Expr) -> sp.Expr:
+            if signals and expr.free_symbols & set(signals.values()):
+                raise LagrangeError(
+                    f"the time derivative of an expression holding an input ({', '.join(sorted(str(u) for u in expr.free_symbols & set(signals.values())))}) would need u_dot, and inputs are not differentiated"
+                )
+
             def total(e: sp.Expr, real: Mapping[sp.Symbol, sp.Symbol]) -> sp.Expr:
                 rq, rqd, rqdd = (tuple(real.get(s, s) for s in v) for v in (q, qd, qdd))
                 return time_derivative(e, rq, rqd, rqdd, real.get(t, t))

@@ -228,3 +228,8 @@ def test_targets_without_inputs_refuse_plainly(tmp_path: Path, args: list[str]) 
     path.write_text(CART_POLE)
     result = runner.invoke(app, ["derive", str(path), *args])
     assert result.exit_code == 2 and "does not take inputs yet (the file declares F)" in result.output
+
+
+def test_a_time_derivative_of_an_input_is_refused_at_its_place() -> None:
+    message = problem(SPRING.replace("lagrangian: b*x", "lagrangian: b*x\nforces: {generalized: {x: 'diff(a*x, t)'}}"))
+    assert "sys.yaml:6:" in message and "would need u_dot" in message
