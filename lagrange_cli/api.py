@@ -532,11 +532,16 @@ class System:
     def simulate(self, **settings: Any) -> Trajectory:
         """Integrate from the file's initial state, as `lagrange simulate` does. Settings (all
         optional): t_end, method, rtol, atol, step, samples, t_eval, parameters (dict), initial
-        (dict of coordinates and velocities), until, backend, max_step, max_steps. A failed run
-        is returned (`failed` is True, `message` says why), as the command keeps it."""
+        (dict of coordinates and velocities), until, backend, max_step, max_steps, inputs (dict
+        input name -> expression text of t, the coordinates, velocities and parameters, as
+        `simulate --input`; others at their defaults). A failed run is returned (`failed` is
+        True, `message` says why), as the command keeps it."""
+        from lagrange_cli import inputs
         from lagrange_cli.numeric.simulate import simulate
 
-        return Trajectory(self, simulate(self.model, **settings))
+        signals = settings.pop("inputs", None) or {}
+        model = inputs.substitute(self.model, inputs.signal_expressions(self.model, [(name, str(text), None, None) for name, text in signals.items()])) if signals else self.model
+        return Trajectory(self, simulate(model, **settings))
 
     def sweep(
         self,

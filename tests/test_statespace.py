@@ -184,3 +184,11 @@ def test_api_returns_arrays() -> None:
     result = system.state_space({"theta": 0}, lqr=(None, None))
     assert isinstance(result["A"], np.ndarray) and result["A"].shape == (4, 4) and result["B"].shape == (4, 1) and result["D"].shape == (2, 1)
     assert result["K"].shape == (1, 4)
+
+
+def test_api_simulate_takes_input_expressions() -> None:
+    system = api.from_text(CART_POLE)
+    run = system.simulate(t_end=3.0, initial={"theta": 0.1}, inputs={"F": "40*theta + 10*theta_dot + 2*x + 3*x_dot"}, backend="python", samples=31)
+    assert abs(run.states["theta"][-1]) < 0.05
+    with pytest.raises(Exception, match="not an input"):
+        system.simulate(t_end=0.1, inputs={"G": "0"})
