@@ -233,3 +233,37 @@ def test_targets_without_inputs_refuse_plainly(tmp_path: Path, args: list[str]) 
 def test_a_time_derivative_of_an_input_is_refused_at_its_place() -> None:
     message = problem(SPRING.replace("lagrangian: b*x", "lagrangian: b*x\nforces: {generalized: {x: 'diff(a*x, t)'}}"))
     assert "sys.yaml:6:" in message and "would need u_dot" in message
+
+
+def test_input_names_that_shadow_generated_names_are_mangled(tmp_path: Path) -> None:
+    text = """\
+coordinates: [x]
+parameters: {m: 2.0, k: 3.0}
+inputs: {u: {value: 1.0}, INPUTS: {value: 2.0}, p: {value: 4.0}, outputs: {value: 8.0}}
+outputs: {y: x + u, INPUTS_out: p*x}
+potential: k*x**2/2 - u*x - INPUTS*x - p*x - outputs*x
+particles:
+  a: {mass: m, position: [x]}
+"""
+    module = load_module(python.emit(model_of(text)), tmp_path / "hostile.py")
+    assert module.INPUTS == {"u": 1.0, "INPUTS": 2.0, "p": 4.0, "outputs": 8.0}
+    assert module.rhs(0.0, [0.0, 0.0])[1] == pytest.approx(15.0 / 2.0)
+    assert module.rhs(0.0, [0.0, 0.0], u={"u": 0.0, "INPUTS": 0.0, "p": 0.0, "outputs": 2.0})[1] == pytest.approx(1.0)
+    assert module.outputs(0.0, [1.0, 0.0]) == pytest.approx([2.0, 4.0])
+
+
+def test_outputs_follow_an_eliminated_coordinate() -> None:
+    text = """\
+coordinates: [x, y]
+parameters: {m: 1.0, g: 9.81}
+inputs: [f]
+outputs: {height: y}
+gravity: [0, -g]
+particles:
+  a: {mass: m, position: [x, y], force: [f, 0]}
+constraints:
+  incline: y = x
+eliminate: [y]
+"""
+    model = model_of(text)
+    assert model.outputs == (("height", sp.Symbol("x")),)
