@@ -280,3 +280,27 @@ def test_each_input_expression_gets_its_own_compiled_module(tmp_path: Path) -> N
         assert result.exit_code == 0, result.output
         finals.append(float(out.read_text().strip().splitlines()[-1].split(",")[1]))
     assert finals[0] == finals[2] and finals[1] != pytest.approx(finals[0], rel=1e-3)
+
+
+def test_octave_function_runs_with_and_without_u(tmp_path: Path) -> None:
+    import shutil
+    import subprocess
+
+    from lagrange_cli.emit import octave
+
+    from .limits import DEADLOCK
+
+    toolchain = shutil.which("octave")
+    if toolchain is None:
+        pytest.skip("octave is not installed")
+    model = model_of(CART_POLE)
+    (tmp_path / "eom.m").write_text(octave.emit(model), encoding="ascii")
+    script = "y = [0; 0.1; 0.2; 0.3]; printf('%.17g\\n', eom(0, y)); printf('%.17g\\n', eom(0, y, [], [2]));"
+    (tmp_path / "run_inputs.m").write_text(script, encoding="ascii")
+    done = subprocess.run(
+        [toolchain, "--no-gui", "--no-window-system", "--quiet", "--no-init-file", "--eval", "run_inputs"], cwd=tmp_path, capture_output=True, text=True, check=False, timeout=DEADLOCK
+    )
+    values = [float(v) for v in done.stdout.split()]
+    module = load_module(python.emit(model), tmp_path / "reference.py")
+    y = [0.0, 0.1, 0.2, 0.3]
+    assert values == pytest.approx([*module.rhs(0.0, y), *module.rhs(0.0, y, u={"F": 2.0})], rel=1e-12, abs=1e-12), done.stderr
