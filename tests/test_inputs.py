@@ -304,3 +304,15 @@ def test_octave_function_runs_with_and_without_u(tmp_path: Path) -> None:
     module = load_module(python.emit(model), tmp_path / "reference.py")
     y = [0.0, 0.1, 0.2, 0.3]
     assert values == pytest.approx([*module.rhs(0.0, y), *module.rhs(0.0, y, u={"F": 2.0})], rel=1e-12, abs=1e-12), done.stderr
+
+
+def test_conserved_answers_hold_with_the_inputs_held_constant(tmp_path: Path) -> None:
+    """An input in the potential keeps the energy conserved (held constant it is a parameter); an
+    input force does work, so neither the energy nor the cart's momentum is conserved."""
+    path = tmp_path / "spring.yaml"
+    path.write_text(SPRING + "expect:\n  conserved: [energy]\n  accelerations: {x_ddot: (a + b - k*x)/m}\n")
+    result = runner.invoke(app, ["check", str(path)])
+    assert result.exit_code == 0, result.output
+    path.write_text(CART_POLE + "expect:\n  conserved: [x]\n")
+    result = runner.invoke(app, ["check", str(path)])
+    assert result.exit_code == 1 and "a generalized force F acts on it" in result.output
