@@ -498,6 +498,30 @@ class System:
         lin = analysis.linearize(self.model, point)
         return Report(report.linearization_text(self.model, lin), lin, json.dumps(report.linearization_json(self.model, lin), indent=2) + "\n")
 
+    def state_space(self, about: Mapping[str, Any] | None = None, lqr: tuple[Sequence[float] | None, Sequence[float] | None] | None = None) -> dict[str, Any]:
+        """The state-space linearization dx/dt = A x + B du, y - y0 = C x + D du about an operating
+        point (`about` names coordinates and inputs; others 0 and their default), as
+        `lagrange linearize` gives it: numpy arrays `A`, `B`, `C`, `D`, the name lists `state`,
+        `inputs`, `outputs`, `about`, `controllability_rank`, `symbolic` (sympy matrices or None)
+        and, with `lqr=(Q diagonal, R diagonal)` (None for identities), the LQR gain `K`."""
+        from lagrange_cli import statespace
+
+        signals = {i.name for i in self.model.inputs}
+        point, given = {}, {}
+        for name, value in (about or {}).items():
+            if name in signals:
+                given[name] = _exact(value, f"the value of '{name}'")
+            else:
+                point[self._coordinate(name)] = _exact(value, f"the value of '{name}'")
+        ss = statespace.state_space(self.model, point, given)
+        result: dict[str, Any] = {**ss.arrays(), "state": ss.state, "inputs": ss.inputs, "outputs": ss.outputs, "about": dict(ss.about)}
+        result.update(controllability_rank=ss.controllability_rank, symbolic=dict(ss.symbolic), notes=ss.notes)
+        if lqr is not None:
+            import numpy as np
+
+            result["K"] = np.array(statespace.lqr(ss, *lqr), dtype=float)
+        return result
+
     def _coordinate(self, name: str) -> sp.Symbol:
         if name not in self.coordinates:
             raise LagrangeError(f"'{name}' is not a coordinate of {self.source}; choose one of {', '.join(self.coordinates)}")
@@ -508,11 +532,16 @@ class System:
     def simulate(self, **settings: Any) -> Trajectory:
         """Integrate from the file's initial state, as `lagrange simulate` does. Settings (all
         optional): t_end, method, rtol, atol, step, samples, t_eval, parameters (dict), initial
-        (dict of coordinates and velocities), until, backend, max_step, max_steps. A failed run
-        is returned (`failed` is True, `message` says why), as the command keeps it."""
+        (dict of coordinates and velocities), until, backend, max_step, max_steps, inputs (dict
+        input name -> expression text of t, the coordinates, velocities and parameters, as
+        `simulate --input`; others at their defaults). A failed run is returned (`failed` is
+        True, `message` says why), as the command keeps it."""
+        from lagrange_cli import inputs
         from lagrange_cli.numeric.simulate import simulate
 
-        return Trajectory(self, simulate(self.model, **settings))
+        signals = settings.pop("inputs", None) or {}
+        model = inputs.substitute(self.model, inputs.signal_expressions(self.model, [(name, str(text), None, None) for name, text in signals.items()])) if signals else self.model
+        return Trajectory(self, simulate(model, **settings))
 
     def sweep(
         self,

@@ -82,7 +82,17 @@ def check(spec: SystemSpec, model: Model) -> list[Result]:
         results.append(_hamiltonian(model, *spec.expect.hamiltonian, points))
     if spec.expect.hamilton_equations:
         results.append(_hamilton_equations(spec, model, points))
+    if spec.expect.state_space is not None:
+        results.append(_state_space(model, spec.expect.state_space))
     return results
+
+
+def _state_space(model: Model, expected: Any) -> Result:
+    """`expect.state_space` against `statespace.state_space` (a point that is not an equilibrium is bad input, exit 2)."""
+    from lagrange_cli import statespace
+
+    passed, detail = statespace.compare(model, expected)
+    return Result("state_space", passed, detail, expected.span, "symbolic")
 
 
 def _in_velocities(model: Model, expr: sp.Expr, span: Span, key: str) -> sp.Expr:
@@ -147,6 +157,8 @@ def _conserved(model: Model, name: str, span: Span) -> Result:
     i = model.coordinates.index(name)
     ok = model.ignorable(i)
     why = "" if ok else f"'{name}' is not ignorable: dL/d{name} = {_shown(sp.diff(model.lagrangian, model.q[i]))}"
+    if not ok and sp.diff(model.lagrangian, model.q[i]) == 0 and model.generalized_forces[i] != 0:
+        why = f"'{name}' is not ignorable: a generalized force {_shown(model.generalized_forces[i])} acts on it"
     return Result(f"conserved.{name}", ok, why, span, "symbolic")
 
 
@@ -460,6 +472,8 @@ class Samples:
         for v in model.qd:
             values[v] = sp.Float(rng.uniform(-1.5, 1.5) * max(spread, 1.0), DIGITS)
         values[model.t] = sp.Float(rng.uniform(0.1, 2.0), DIGITS)
+        for signal in model.inputs:  # a given function of time, sampled like one (its derivatives never enter: lagrange_cli/inputs.py)
+            values[signal.symbol] = sp.Float(rng.uniform(-1.5, 1.5), DIGITS)
         replacements: dict[sp.Expr, Callable[..., sp.Expr]] = {}
         for f in self.functions:
             a, b, c = (sp.Float(rng.uniform(0.5, 1.5), DIGITS) for _ in range(3))

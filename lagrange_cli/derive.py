@@ -134,6 +134,8 @@ def _derive(spec: SystemSpec) -> tuple[Model, bool]:
         exact=spec.exact,
         spans=spec.spans,
         definitions=spec.definitions,
+        inputs=spec.inputs,
+        outputs=spec.outputs,
     )
     return model, cleared and not given
 
@@ -757,6 +759,7 @@ def _substitute(spec: SystemSpec, k: int, solution: sp.Expr, used: Constraint) -
         constraints=tuple(dataclasses.replace(c, expr=sub(c.expr)) for c in spec.constraints if c is not used),
         eliminate=tuple(e for e in spec.eliminate if e[0] != spec.coordinates[k]),
         initial={key: v for key, v in spec.initial.items() if key not in (spec.coordinates[k], f"{spec.coordinates[k]}_dot")},
+        outputs=tuple((name, sub(e)) for name, e in spec.outputs),
     )
     earlier = tuple((name, sub(e)) for name, e in getattr(spec, "_eliminated", ()))  # in the coordinates that remain
     object.__setattr__(changed, "_eliminated", (*earlier, (spec.coordinates[k], solution)))

@@ -29,6 +29,21 @@ class Parameter:
 
 
 @dataclass(frozen=True)
+class Input:
+    """An external input u(t) (FORMAT.md version 2): a symbol in the equations, with its default
+    value (0 unless the file gives one); see lagrange_cli/inputs.py."""
+
+    symbol: sp.Symbol
+    value: float = 0.0
+    description: str = ""
+    span: Span | None = field(default=None, compare=False)
+
+    @property
+    def name(self) -> str:
+        return str(self.symbol)
+
+
+@dataclass(frozen=True)
 class ConstraintRow:
     """A constraint in velocity form `a . q_dot + b = 0` and acceleration form `a . q_ddot + c = 0`.
 
@@ -100,6 +115,10 @@ class Model:
     definitions: Mapping[str, sp.Lambda] = field(default_factory=dict)
     """The file's definitions of its functions, e.g. U -> Lambda(s, -k/s). The equations keep the
     general U(r); numeric code evaluates `with_definitions()`."""
+    inputs: tuple[Input, ...] = ()
+    """The file's inputs, in its order (lagrange_cli/inputs.py); numeric code evaluates `inputs.substitute(model)`."""
+    outputs: tuple[tuple[str, sp.Expr], ...] = ()
+    """The file's outputs, name -> expression of q, q_dot, t and the inputs, in its order."""
 
     def __getattribute__(self, name: str) -> Any:
         value = object.__getattribute__(self, name)
@@ -273,6 +292,7 @@ class Model:
             constraints=rows,
             eliminated=tuple((name, sub(e)) for name, e in self.eliminated),
             exact={name: sub(e) for name, e in self.exact.items()},
+            outputs=tuple((name, sub(e)) for name, e in self.outputs),
             definitions={},
         )
 

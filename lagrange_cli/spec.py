@@ -21,7 +21,8 @@ import yaml
 
 from lagrange_cli.errors import Diagnostic, LagrangeError, Span, SpecError, fail
 from lagrange_cli.expr import CONSTANTS, RESERVED, Scope, _closest, numeric_value, parse_equation, parse_expression, real_derivative
-from lagrange_cli.model import Parameter
+from lagrange_cli.inputs import ExpectedStateSpace, check_usage, read_inputs, read_outputs, read_state_space
+from lagrange_cli.model import Input, Parameter
 
 MAX_FILE_BYTES = 1_000_000
 MAX_YAML_DEPTH = 40
@@ -30,13 +31,13 @@ NAME = re.compile(r"[A-Za-z][A-Za-z0-9_]*\Z")
 TOP_KEYS = (
     "title", "description", "coordinates", "parameters", "functions", "gravity", "particles",
     "bodies", "kinetic", "potential", "lagrangian", "dissipation", "forces", "constraints",
-    "eliminate", "initial", "simulate", "exact", "expect", "draw",
+    "eliminate", "initial", "simulate", "exact", "expect", "draw", "inputs", "outputs",
 )  # fmt: skip
 PARTICLE_KEYS = ("mass", "position", "force", "damping")
 FUNCTION_KEYS = ("arguments", "definition", "description")
 BODY_KEYS = ("mass", "position", "inertia", "angular_velocity")
 DRAW_KEYS = ("segments", "trails")
-EXPECT_KEYS = ("equations", "accelerations", "momenta", "conserved", "hamiltonian", "hamilton_equations")
+EXPECT_KEYS = ("equations", "accelerations", "momenta", "conserved", "hamiltonian", "hamilton_equations", "state_space")
 SIMULATE_KEYS = ("t_end", "method", "rtol", "atol", "step", "samples")
 METHODS = ("auto", "RK45", "DOP853", "Radau", "BDF", "LSODA", "symplectic")  # as in numeric/settings.py
 DEFAULT_T_END = 10.0  # numeric/settings.py's default
@@ -124,9 +125,11 @@ class Expect:
     """H in the coordinates and the momenta `p_<q>` (FORMAT.md version 2)."""
     hamilton_equations: tuple[tuple[sp.Expr, Span], ...] = ()
     """Equations in `<q>_dot`, `p_<q>` and `p_<q>_dot` (each `lhs - rhs`)."""
+    state_space: ExpectedStateSpace | None = None
+    """`expect.state_space` (FORMAT.md version 2; lagrange_cli/inputs.py)."""
 
     def __bool__(self) -> bool:
-        return bool(self.equations or self.accelerations or self.momenta or self.conserved or self.hamiltonian or self.hamilton_equations)
+        return bool(self.equations or self.accelerations or self.momenta or self.conserved or self.hamiltonian or self.hamilton_equations or self.state_space)
 
 
 @dataclass(frozen=True)
@@ -166,6 +169,10 @@ class SystemSpec:
     expect: Expect = Expect()
     draw: Drawing | None = None
     """The `draw` block (None without one: an animation then draws particles and bodies as dots)."""
+    inputs: tuple[Input, ...] = ()
+    """The `inputs` (lagrange_cli/inputs.py), in the file's order."""
+    outputs: tuple[tuple[str, sp.Expr], ...] = ()
+    """The `outputs`, name -> expression of q, q_dot, t and the inputs, in the file's order."""
 
 
 def time_derivative(expr: sp.Expr, q: tuple[sp.Symbol, ...], qd: tuple[sp.Symbol, ...], qdd: tuple[sp.Symbol, ...], t: sp.Symbol) -> sp.Expr:
@@ -586,6 +593,8 @@ class _Reader:
         coordinates = self.coordinates(entries, taken)
         parameters = self.parameters(entries, taken)
         functions, arities, definitions = self.functions(entries, taken, coordinates, parameters)
+        inputs = read_inputs(self, entries["inputs"][1] if "inputs" in entries else None, taken)
+        signals = {i.name: i.symbol for i in inputs}
         q = tuple(sp.Symbol(c) for c in coordinates)
         qd = tuple(sp.Symbol(f"{c}_dot") for c in coordinates)
         qdd = tuple(sp.Symbol(f"{c}_ddot") for c in coordinates)
@@ -593,18 +602,31 @@ class _Reader:
         undefined = {f: sp.Function(f) for f in functions}
 
         def ddt(expr: sp.Expr) -> sp.Expr:
+            if signals and expr.free_symbols & set(signals.values()):
+                raise LagrangeError(
+                    f"the time derivative of an expression holding an input ({', '.join(sorted(str(u) for u in expr.free_symbols & set(signals.values())))}) would need u_dot, and inputs are not differentiated"
+                )
+
             def total(e: sp.Expr, real: Mapping[sp.Symbol, sp.Symbol]) -> sp.Expr:
                 rq, rqd, rqdd = (tuple(real.get(s, s) for s in v) for v in (q, qd, qdd))
                 return time_derivative(e, rq, rqd, rqdd, real.get(t, t))
 
             return real_derivative(expr, total)
 
-        names = {str(s): s for s in (*q, *qd, *(p.symbol for p in parameters))}
+        names = {str(s): s for s in (*q, *qd, *(p.symbol for p in parameters))} | signals
         velocities = {str(s): "a velocity" for s in qd}
         accelerations = {str(s): "an acceleration" for s in qdd}
         state = Scope(names, undefined, t, ddt, "a coordinate, a velocity (`<q>_dot`), a parameter, `t`", accelerations, arities=arities)
-        config = Scope({str(s): s for s in (*q, *(p.symbol for p in parameters))}, undefined, t, ddt, "a coordinate, a parameter, `t`", {**velocities, **accelerations}, arities=arities)
-        constants = Scope({p.name: p.symbol for p in parameters}, undefined, t, ddt, "a parameter, `t`", {**{c: "a coordinate" for c in coordinates}, **velocities, **accelerations}, arities=arities)
+        config = Scope({str(s): s for s in (*q, *(p.symbol for p in parameters))} | signals, undefined, t, ddt, "a coordinate, a parameter, `t`", {**velocities, **accelerations}, arities=arities)
+        constants = Scope(
+            {p.name: p.symbol for p in parameters},
+            undefined,
+            t,
+            ddt,
+            "a parameter, `t`",
+            {**{c: "a coordinate" for c in coordinates}, **velocities, **accelerations, **dict.fromkeys(signals, "an input")},
+            arities=arities,
+        )
         potential_scope = dataclasses.replace(config, note="velocity-dependent terms belong under `lagrangian`")
 
         def value(key: str) -> yaml.Node | None:
@@ -654,6 +676,9 @@ class _Reader:
             expect=Expect(),
             draw=self.draw(value("draw"), particles, bodies, config),
         )
+        if inputs or "outputs" in entries:
+            spec = _replace(spec, inputs=inputs, outputs=read_outputs(self, value("outputs"), state, taken))
+            check_usage(self, spec)
         expect_node = value("expect")
         if expect_node is not None:
             spec = _replace(spec, expect=self.expect(expect_node, spec, state))
@@ -1062,7 +1087,8 @@ class _Reader:
                 continue
             conserved.append((str(name), self.span(item)))
         hamiltonian, hamilton_equations = self.hamilton_expect(fields, spec, state)
-        return Expect(tuple(equations), tuple(accelerations), tuple(momenta), tuple(conserved), hamiltonian, hamilton_equations)
+        state_space = read_state_space(self, fields["state_space"], spec) if "state_space" in fields else None
+        return Expect(tuple(equations), tuple(accelerations), tuple(momenta), tuple(conserved), hamiltonian, hamilton_equations, state_space)
 
     def hamilton_expect(self, fields: dict[str, yaml.Node], spec: SystemSpec, state: Scope) -> tuple[tuple[sp.Expr, Span] | None, tuple[tuple[sp.Expr, Span], ...]]:
         """`expect.hamiltonian` (an expression of q, p_<q>, the parameters and t) and

@@ -142,8 +142,8 @@ def test_numeric_caches_are_not_keyed_by_id() -> None:
         assert not calls, path.name
 
 
-LAZY = ("lagrange_cli.api", "lagrange_cli.animate", "lagrange_cli.sweep")
-"""The notebook API, the animations and sweeps: imported by `import lagrange_cli` (or `lagrange sweep`) on first use only, they
+LAZY = ("lagrange_cli.api", "lagrange_cli.animate", "lagrange_cli.sweep", "lagrange_cli.statespace")
+"""The notebook API, the animations, sweeps and state-space linearization: imported by `import lagrange_cli` (or `lagrange sweep`) on first use only, they
 import numpy and matplotlib inside the functions that need them, never at module level."""
 
 

@@ -56,8 +56,8 @@ SHOWS = {
     ("derive", "text-hamilton"): "H = ",
     ("derive", "latex-hamilton-standalone"): "\\end{document}",
     ("info", "routh"): "V_eff = ",
-    ("derive", "c"): "static inline int eom_rhs(double t, const double *y, const double *p, double *dydt)",
-    ("derive", "octave"): "function [dydt, h, lambda] = eom(t, y, p)",
+    ("derive", "c"): "static inline int eom_rhs(double t, const double *y, const double *p, ",  # then `const double *u, ` with inputs
+    ("derive", "octave"): "function [dydt, h, lambda] = eom(t, y, p",  # then `, u` with inputs
     **{("derive", f"latex-{form}-standalone"): "\\end{document}" for form in ("lagrange", "matrix", "solved")},
     ("info", "json"): '"hamiltonian"',
     ("simulate", ""): "invariants",

@@ -13,6 +13,7 @@ from lagrange_cli.cli import app, check_outputs, fail_with, output
 if TYPE_CHECKING:
     import sympy as sp
 
+    from lagrange_cli.errors import LagrangeError
     from lagrange_cli.model import Model
 
 
@@ -80,30 +81,92 @@ def equilibria(
 @app.command()
 def linearize(
     file: Annotated[str, typer.Argument(help="A system file, or the name of a bundled system.")],
-    about: Annotated[list[str] | None, typer.Option("--about", help="The equilibrium: name=value, repeated or separated by commas, e.g. theta=0,phi=pi (unnamed coordinates are 0).")] = None,
+    about: Annotated[
+        list[str] | None,
+        typer.Option(
+            "--about", help="The operating point: name=value for coordinates and inputs, repeated or separated by commas, e.g. theta=0,phi=pi (unnamed coordinates are 0, inputs their default)."
+        ),
+    ] = None,
     as_json: Annotated[bool, typer.Option("--json", help="JSON instead of text.")] = False,
+    state_space: Annotated[bool, typer.Option("--state-space", help="Also the state-space matrices A, B, C, D (always given for a file with inputs or outputs).")] = False,
+    latex: Annotated[bool, typer.Option("--latex", help="The state-space matrices A, B, C, D in LaTeX.")] = False,
+    lqr: Annotated[bool, typer.Option("--lqr", help="Also an LQR gain K (du = -K x) for diagonal weights Q and R (default identities; needs scipy).")] = False,
+    lqr_q: Annotated[str | None, typer.Option("--lqr-q", help="Diagonal of Q: one weight per state (comma-separated) or one for all; implies --lqr.")] = None,
+    lqr_r: Annotated[str | None, typer.Option("--lqr-r", help="Diagonal of R: one weight per input (comma-separated) or one for all; implies --lqr.")] = None,
 ) -> None:
-    """The linearization M0 x_ddot + C0 x_dot + K0 x = 0 about an equilibrium, its stability and normal modes."""
+    """The linearization M0 x_ddot + C0 x_dot + K0 x = 0 about an equilibrium, its stability and normal modes; with inputs or outputs also dx/dt = A x + B du, y - y0 = C x + D du."""
     import json
 
-    from lagrange_cli import analysis, report
+    from lagrange_cli import analysis, report, statespace
     from lagrange_cli.errors import LagrangeError
 
+    if latex and as_json:
+        fail_with(_usage("choose one of --latex, --json", "a single output format"))
     try:
         model = _model(file)
-        lin = analysis.linearize(model, _point(model, about))
+        point, given = _operating_point(model, about)
+        wanted = state_space or latex or lqr or lqr_q is not None or lqr_r is not None or bool(model.inputs or model.outputs)
+        if wanted:
+            ss = statespace.state_space(model, point, given)
+            lin = analysis.linearize(inputs_at(model, given), point)
+            gain = statespace.lqr(ss, _weights("--lqr-q", lqr_q), _weights("--lqr-r", lqr_r)) if lqr or lqr_q is not None or lqr_r is not None else None
+        else:
+            lin = analysis.linearize(model, point)
     except LagrangeError as error:
         fail_with(error)
-    output(json.dumps(report.linearization_json(model, lin), indent=2) + "\n" if as_json else report.linearization_text(model, lin), None)
+    if latex:
+        output(statespace.latex(ss), None)
+    elif as_json:
+        data = report.linearization_json(model, lin)
+        if wanted:
+            data.update(statespace.as_json(ss, gain))
+        output(json.dumps(data, indent=2) + "\n", None)
+    else:
+        output(report.linearization_text(model, lin) + (statespace.text(ss, gain) if wanted else ""), None)
+
+
+def inputs_at(model: Model, given: dict[str, sp.Expr]) -> Model:
+    """The model with its inputs at the operating point's values (lagrange_cli/inputs.py)."""
+    from lagrange_cli import inputs
+
+    return inputs.substitute(model, given)
+
+
+def _usage(message: str, expected: str) -> LagrangeError:
+    from lagrange_cli.errors import fail
+
+    return fail(None, message, expected)
+
+
+def _weights(option: str, text: str | None) -> list[float] | None:
+    """The comma-separated numbers of --lqr-q / --lqr-r."""
+    from lagrange_cli.cli.boundary import Item, constant
+
+    if text is None:
+        return None
+    values, start = [], 0
+    for piece in text.split(","):
+        item = Item(option, text, option, piece, start, start)
+        values.append(constant(item, f"a weight of {option}")[1])
+        start += len(piece) + 1
+    return values
 
 
 def _point(model: Model, about: list[str] | None) -> dict[sp.Symbol, sp.Expr]:
     """The coordinates' values of `--about` (exact: pi stays pi)."""
+    return _operating_point(model, about)[0]
+
+
+def _operating_point(model: Model, about: list[str] | None) -> tuple[dict[sp.Symbol, sp.Expr], dict[str, sp.Expr]]:
+    """The coordinates' and the inputs' values of `--about` (exact: pi stays pi)."""
     from lagrange_cli.cli.boundary import assignments, check_names, constant
 
     items = assignments("--about", about, f"{model.coordinates[0]}=0")
-    check_names(items, list(model.coordinates), "coordinate", model.source)
-    return {model.q[model.coordinates.index(item.name)]: constant(item, f"the value of '{item.name}'")[0] for item in items}
+    signals = [i.name for i in model.inputs]
+    check_names(items, [*model.coordinates, *signals], "coordinate or input" if signals else "coordinate", model.source)
+    point = {model.q[model.coordinates.index(item.name)]: constant(item, f"the value of '{item.name}'")[0] for item in items if item.name in model.coordinates}
+    given = {item.name: constant(item, f"the value of '{item.name}'")[0] for item in items if item.name in signals}
+    return point, given
 
 
 def _ranges(model: Model, ranges: list[str] | None) -> dict[sp.Symbol, tuple[float, float]]:

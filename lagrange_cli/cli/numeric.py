@@ -34,6 +34,12 @@ def simulate(
     max_step: Annotated[float | None, typer.Option("--max-step", help="Largest step of adaptive methods.", callback=check_positive)] = None,
     samples: Annotated[int | None, typer.Option(help="Number of evenly spaced output times (default 1001).", callback=check_samples)] = None,
     until: Annotated[str | None, typer.Option(help='Stop when this expression of the state crosses zero, e.g. "lambda_c" or "x - 1".')] = None,
+    input_: Annotated[
+        list[str] | None,
+        typer.Option(
+            "--input", help="An input as an expression of t, the coordinates, the velocities (q_dot) and the parameters: NAME=EXPR, repeatable, e.g. tau=-k1*q1-k2*q1_dot (others keep their default)."
+        ),
+    ] = None,
     output_path: Annotated[Path | None, typer.Option("-o", "--output", help="Write the trajectory: .csv or .npz, or - for CSV on stdout.")] = None,
     plot: Annotated[Path | None, typer.Option(help="Plot coordinates, phase portrait and energy error: .png, .svg or .pdf.")] = None,
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="Show no progress bar on stderr.")] = False,
@@ -54,6 +60,7 @@ def simulate(
             out.check_plot(plot)
         model = core.derive(spec.load(spec.resolve(file)))
         parameters, values = assignments_of(model, set_ or [], "--set"), assignments_of(model, initial or [], "--initial")
+        model = inputs_of(model, input_ or [])
         with _Progress(quiet) as progress:
             trajectory = run(
                 model,
@@ -76,6 +83,19 @@ def simulate(
     _report(trajectory, to_stderr=output_path is not None and str(output_path) == "-")
     if trajectory.failed:
         raise typer.Exit(1)
+
+
+def inputs_of(model: Model, items: list[str]) -> Model:
+    """The model with the inputs of `--input NAME=EXPR` (expressions of t and the state) and the
+    others at their defaults (lagrange_cli/inputs.py)."""
+    from lagrange_cli import inputs
+    from lagrange_cli.cli.boundary import assignments
+    from lagrange_cli.errors import Span
+
+    example = f"{model.inputs[0].name}=-{model.coordinates[0]}" if model.inputs else "u=0"
+    parsed = assignments("--input", items, example)
+    given = inputs.signal_expressions(model, [(item.name, item.value, item.span(), Span(item.option, 1, item.start + 1, item.text)) for item in parsed])
+    return inputs.substitute(model, given)
 
 
 def assignments_of(model: Model, items: list[str], option: str) -> dict[str, float]:

@@ -146,14 +146,14 @@ def generated(prefix: str) -> list[str]:
     """The names the C file defines for `prefix`."""
     upper = prefix.upper()
     return [
-        *(f"{prefix}_{n}" for n in ("rhs", "mass_matrix", "forcing", "energy", "accelerations", "default_parameters", "solve", "ldlt")),
-        *(f"{upper}_{n}" for n in ("NQ", "NP", "NC", "H_INCLUDED")),
+        *(f"{prefix}_{n}" for n in ("rhs", "mass_matrix", "forcing", "energy", "accelerations", "default_parameters", "default_inputs", "solve", "ldlt")),
+        *(f"{upper}_{n}" for n in ("NQ", "NP", "NC", "NU", "H_INCLUDED")),
     ]
 
 
 def c_names(model: Model, prefix: str) -> dict[str, str]:
     """symbol name -> C identifier for the coordinates, velocities and parameters (`mangle`), and t."""
-    symbols = [str(s) for s in (*model.q, *model.qd, *(p.symbol for p in model.parameters))]
+    symbols = [str(s) for s in (*model.q, *model.qd, *(p.symbol for p in model.parameters), *(i.symbol for i in model.inputs))]
     names = mangle(symbols, Reserved({*C_KEYWORDS, *MATH_H, *MACROS, *LOCALS, *generated(prefix)}, MACRO_FAMILIES))
     return {**names, str(model.t): "t"}
 
@@ -201,7 +201,9 @@ class _Writer:
         self.bias = [to_symengine(c.acceleration_bias) for c in model.constraints]
         self.index = {str(s): f"y[{i}]" for i, s in enumerate((*model.q, *model.qd))}
         self.index |= {p.name: f"p[{i}]" for i, p in enumerate(model.parameters)}
-        self.constants = frozenset(p.name for p in model.parameters)
+        self.index |= {i.name: f"u[{k}]" for k, i in enumerate(model.inputs)}  # inputs: `const double *u` after p (FORMAT.md version 2)
+        self.constants = frozenset([*(p.name for p in model.parameters), *(i.name for i in model.inputs)])
+        self.signals = ["const double *u"] if model.inputs else []
         self.velocities = frozenset(str(v) for v in forms.qd)
 
     def block(self, exprs: Sequence[Any], used: set[str]) -> tuple[list[str], list[str]]:
@@ -219,8 +221,8 @@ class _Writer:
         return [f"const double {self.names[s]} = {self.index[s]};" for s in bound] + [f"const double {name} = {code};" for name, code in lines], results
 
     def function(self, returns: str, name: str, doc: str, body: list[str], used: set[str], out: str = "out") -> str:
-        arguments = ["double t", "const double *y", "const double *p"] + ([f"double *{out}"] if out else [])
-        reads = {"t": str(self.model.t) in used, **{a: any(self.index.get(s, "").startswith(a + "[") for s in used) for a in ("y", "p")}}
+        arguments = ["double t", "const double *y", "const double *p", *self.signals] + ([f"double *{out}"] if out else [])
+        reads = {"t": str(self.model.t) in used, **{a: any(self.index.get(s, "").startswith(a + "[") for s in used) for a in ("y", "p", "u"[: len(self.signals)]) if a}}
         lines = [f"/* {comment(doc)} */", f"static inline {returns} {self.prefix}_{name}({', '.join(arguments)})", "{"]
         lines += [f"    (void){a};" for a, read in reads.items() if not read]
         lines += [f"    {line}" for line in body]
@@ -298,7 +300,7 @@ class _Writer:
             lines = [
                 "int _i;",
                 f"double _x[{n + k}];",
-                f"const int _status = {self.prefix}_accelerations(t, y, p, _x);",
+                f"const int _status = {self.prefix}_accelerations(t, y, p, {'u, ' if self.signals else ''}_x);",
                 f"for (_i = 0; _i < {n}; ++_i) {{",
                 "    dydt[_i] = y[_i + EOM_NQ];".replace("EOM", self.upper),
                 "    dydt[_i + EOM_NQ] = _x[_i];".replace("EOM", self.upper),
@@ -339,6 +341,9 @@ class _Writer:
                 lines.append(f"  p[{i}] = {p.name} ({default})")
         else:
             lines.append(f"No parameters ({self.upper}_NP = 0; p is not read).")
+        if model.inputs:
+            lines.append(f"Inputs u ({self.upper}_NU = {len(model.inputs)}, in the file's order, after p in every function; defaults in {self.prefix}_default_inputs):")
+            lines += [f"  u[{i}] = {u.name} (default {u.value!r})" for i, u in enumerate(model.inputs)]
         if model.constraints:
             lines.append("Kept constraints (their multipliers follow q_ddot in " + f"{self.prefix}_accelerations): " + ", ".join(c.name for c in model.constraints) + ".")
         if self.definitions:
@@ -350,10 +355,20 @@ class _Writer:
             lines.append("Names changed to C identifiers: " + ", ".join(f"{c} -> {v}" for c, v in names.items()) + ".")
         lines += [
             "",
-            f"int {self.prefix}_rhs(double t, const double *y, const double *p, double *dydt) returns 0 on success,",
+            f"int {self.prefix}_rhs(double t, const double *y, const double *p, {'const double *u, ' if self.signals else ''}double *dydt) returns 0 on success,",
             "1 when the mass matrix is singular at y, 2 when a result is not finite.",
         ]
         return "/*\n" + "\n".join((" * " + comment(line.rstrip())).rstrip() for line in lines) + "\n */"
+
+    def inputs_block(self) -> list[str]:
+        """`<PREFIX>_NU` and the inputs' defaults (nothing for a file without inputs: its header is unchanged)."""
+        model = self.model
+        if not model.inputs:
+            return []
+        values = ", ".join(_c_number(i.value) for i in model.inputs)
+        return [
+            f"#define {self.upper}_NU {len(model.inputs)}\n/* The inputs' defaults, in the file's order (see above). */\nstatic const double {self.prefix}_default_inputs[{len(model.inputs)}] = {{{values}}};"
+        ]
 
     def file(self) -> str:
         model = self.model
@@ -365,6 +380,7 @@ class _Writer:
             f"#ifndef {guard}\n#define {guard}\n\n#include <math.h>",
             f"#define {self.upper}_NQ {n}\n#define {self.upper}_NP {np_}\n#define {self.upper}_NC {k}",
             f"/* The parameters' defaults, in the file's order (see above). */\nstatic const double {self.prefix}_default_parameters[{max(np_, 1)}] = {{{defaults}}};",
+            *self.inputs_block(),
             SOLVE.replace("eom_", f"{self.prefix}_"),
             self.mass_matrix(),
             self.forcing_function(),

@@ -102,6 +102,9 @@ def python(model: Model, numba: bool = False) -> str:
 
     if numba:
         raise fail(None, "--numba is not available with --form hamilton", "--python --form hamilton without --numba")
+    from lagrange_cli.inputs import refuse
+
+    refuse(model, "the Python module of --form hamilton")
     require_defined(model, "Python code")
     numeric = model.with_definitions()
     ham = hamilton(numeric)

@@ -70,6 +70,9 @@ class JaxPrinter(Printer):
 def emit(model: Model, *, name: str = "eom") -> str:
     """The module's source (`name` is not used: a module is named by its file). The file's function
     definitions are written out (`Model.with_definitions`); undefined functions are refused."""
+    from lagrange_cli.inputs import refuse
+
+    refuse(model, "JAX code")
     definitions = model.definitions
     require_defined(model, "JAX code")
     model = model.with_definitions()

@@ -41,6 +41,9 @@ SCHEMA_VERSION = 1
 
 def emit(model: Model, *, name: str = "eom") -> str:
     """The model as a JSON document (`name` is not used: JSON has no names of its own)."""
+    from lagrange_cli.inputs import refuse
+
+    refuse(model, "the JSON model")
     return json.dumps(document(model), indent=2, ensure_ascii=True, allow_nan=False) + "\n"
 
 

@@ -80,8 +80,8 @@ class OctavePrinter(Printer):
 
 def octave_names(model: Model, function: str) -> dict[str, str]:
     """symbol name -> Octave identifier (`mangle`), and t."""
-    symbols = [str(s) for s in (*model.q, *model.qd, *(p.symbol for p in model.parameters))]
-    names = mangle(symbols, {*KEYWORDS, *BUILTINS, *LOCALS, function})
+    symbols = [str(s) for s in (*model.q, *model.qd, *(p.symbol for p in model.parameters), *(i.symbol for i in model.inputs))]
+    names = mangle(symbols, {*KEYWORDS, *BUILTINS, *LOCALS, function, *("u" for _ in model.inputs[:1])})
     long = [n for n in names.values() if len(n) > 63]
     if long:
         shown = printable(long[0])
@@ -113,12 +113,13 @@ class _Writer:
         self.definitions = definitions
         self.names = octave_names(model, name)
         self.taken = {*KEYWORDS, *BUILTINS, *LOCALS, name, *self.names.values()}
-        self.constants = frozenset(p.name for p in model.parameters)
+        self.constants = frozenset([*(p.name for p in model.parameters), *(i.name for i in model.inputs)])
         self.velocities = frozenset(str(v) for v in model.qd)
         n = model.n
         self.upper = [(i, j) for i in range(n) for j in range(i, n)]
         self.index = {str(s): f"y({i + 1})" for i, s in enumerate((*model.q, *model.qd))}
         self.index |= {p.name: f"p({i + 1})" for i, p in enumerate(model.parameters)}
+        self.index |= {u.name: f"u({i + 1})" for i, u in enumerate(model.inputs)}  # inputs: an argument u after p (FORMAT.md version 2)
 
     def block(self, exprs: list[Any], prefix: str) -> tuple[list[str], list[str]]:
         """Assignments computing `exprs` and their result codes: the printer core's restructuring
@@ -210,8 +211,13 @@ class _Writer:
         renamed = {c: v for c, v in self.names.items() if c != v and c != str(model.t)}
         if renamed:
             help_lines.append("  Names changed to MATLAB identifiers: " + ", ".join(f"{c} -> {v}" for c, v in renamed.items()) + ".")
-        lines = [f"function [dydt, h, lambda] = {self.name}(t, y, p)", *(f"% {comment(line)}".rstrip() for line in help_lines)]
-        lines += ["  if nargin < 3", f"    p = [{defaults}];", "  end"]
+        arguments = "t, y, p, u" if model.inputs else "t, y, p"
+        if model.inputs:
+            help_lines.append(f"  Inputs u = [{', '.join(i.name for i in model.inputs)}] after p: {self.name}(t, y, p, u) (default [{', '.join(_number(i.value) for i in model.inputs)}]).")
+        lines = [f"function [dydt, h, lambda] = {self.name}({arguments})", *(f"% {comment(line)}".rstrip() for line in help_lines)]
+        lines += ["  if nargin < 3 || isempty(p)", f"    p = [{defaults}];", "  end"] if model.inputs else ["  if nargin < 3", f"    p = [{defaults}];", "  end"]
+        if model.inputs:
+            lines += ["  if nargin < 4", f"    u = [{', '.join(_number(i.value) for i in model.inputs)}];", "  end"]
         lines += [f"  {line}" for line in self.body()]
         lines.append("end")
         return "\n".join(lines) + "\n"

@@ -123,6 +123,7 @@ def check_solvable(model: Model) -> None:
     forms = model.symengine
     rng = random.Random(1)
     point = {se.Symbol(p.name): se.RealDouble(p.value if p.value else rng.uniform(0.5, 2.0)) for p in model.parameters}
+    point.update({se.Symbol(i.name): se.RealDouble(rng.uniform(0.5, 2.0)) for i in model.inputs})
     point.update({s: se.RealDouble(rng.uniform(0.2, 1.3)) for s in (*forms.q, *forms.qd, forms.t)})
     try:
         rows = [[float(m.xreplace(point)) if m != 0 else 0.0 for m in row] for row in forms.mass]
@@ -159,7 +160,8 @@ class _Writer:
         self.numba = numba
         self.names = symbol_names(model)
         self.printer = PythonPrinter(self.names)
-        self.constants = frozenset(p.name for p in model.parameters)
+        self.constants = frozenset([*(p.name for p in model.parameters), *(i.name for i in model.inputs)])
+        self.signals = frozenset(i.name for i in model.inputs)
         self.velocities = frozenset(str(v) for v in self.forms.qd)
         self.uses_numpy = False
         self.uses_solve = False
@@ -195,6 +197,10 @@ class _Writer:
             if parameter.name in used:
                 name = self.names[parameter.name]
                 lines.append(f"{name} = p[{literal(parameter.name)}]" + _noqa(name))
+        for signal in self.model.inputs:
+            if signal.name in used:
+                name = self.names[signal.name]
+                lines.append(f"{name} = u[{literal(signal.name)}]" + _noqa(name))
         forms = self.forms
         groups = [("y", [*forms.q, *forms.qd])] if state == "y" else [(g, v) for g, v in (("q", forms.q), ("q_dot", forms.qd)) if g in state.split(",")]
         for group, variables in groups:
@@ -207,7 +213,11 @@ class _Writer:
 
     def signature(self, exprs: Sequence[Any], state: str) -> str:
         has_t = str(self.forms.t) in free_names(exprs)
-        return ", ".join(["t"] * has_t + state.split(",") + ["p=PARAMETERS"])
+        return ", ".join(["t"] * has_t + state.split(",") + ["p=PARAMETERS"] + ["u=INPUTS"] * self.uses_inputs(exprs))
+
+    def uses_inputs(self, exprs: Sequence[Any]) -> bool:
+        """Whether `exprs` (symengine) hold an input: then their function takes `u=INPUTS` after `p`."""
+        return bool(self.signals and self.signals & free_names(exprs))
 
     def function(self, name: str, doc: str, exprs: Sequence[Any], state: str, shape: str) -> str:
         lines, results = self.block(exprs)
@@ -234,6 +244,7 @@ class _Writer:
         exprs = [*self.mass, *force, *extra]  # the order of `shared`
         if self.numba:
             return self.compiled_rhs(exprs)
+        arguments, values = ("t, y, p=PARAMETERS, u=INPUTS", "t, y, p, u") if self.uses_inputs(exprs) else ("t, y, p=PARAMETERS", "t, y, p")
         lines, results = self.block(exprs)
         m = dict(zip(self.upper, results[: len(self.mass)], strict=True))
         f = list(results[len(self.mass) : len(self.mass) + n])
@@ -251,9 +262,9 @@ class _Writer:
             body += self.solve(matrix, [*f, *c], "_x")
             body.append("return _x")
             names = ", ".join(str(x) for x in model.multipliers)
-            solver = define("accelerations", "t, y, p=PARAMETERS", f"[{', '.join(map(str, model.qdd))}, {names}] from [[M, -A^T], [A, 0]] x = [F, -c] (index-1 form).", body)
-            rhs = define("rhs", "t, y, p=PARAMETERS", _rhs_doc(model), ["_x = accelerations(t, y, p)", f'return [*(y.tolist() if hasattr(y, "tolist") else y)[{n}:], *_x[:{n}]]'])
-            multipliers = define("multipliers", "t, y, p=PARAMETERS", f"The multipliers [{names}]; A^T lambda is the generalized constraint force.", [f"return accelerations(t, y, p)[{n}:]"])
+            solver = define("accelerations", arguments, f"[{', '.join(map(str, model.qdd))}, {names}] from [[M, -A^T], [A, 0]] x = [F, -c] (index-1 form).", body)
+            rhs = define("rhs", arguments, _rhs_doc(model), [f"_x = accelerations({values})", f'return [*(y.tolist() if hasattr(y, "tolist") else y)[{n}:], *_x[:{n}]]'])
+            multipliers = define("multipliers", arguments, f"The multipliers [{names}]; A^T lambda is the generalized constraint force.", [f"return accelerations({values})[{n}:]"])
             return "\n\n\n".join([solver, rhs, multipliers])
         if n == 1:
             body.append(f"return [{velocities[0]}, ({f[0]})/({m[(0, 0)]})]")
@@ -264,7 +275,7 @@ class _Writer:
             matrix = [[m[(min(i, j), max(i, j))] for j in range(n)] for i in range(n)]
             body += self.solve(matrix, f, "_x", symmetric=True)
             body.append(f"return [{', '.join(velocities)}, *_x]")
-        return define("rhs", "t, y, p=PARAMETERS", _rhs_doc(model), body)
+        return define("rhs", arguments, _rhs_doc(model), body)
 
     def compiled_rhs(self, exprs: Sequence[Any]) -> str:
         """rhs as a thin wrapper around a numba kernel taking y and the used parameters as arrays,
@@ -275,10 +286,11 @@ class _Writer:
         size = n + k
         used = free_names(exprs)
         parameters = [p for p in model.parameters if p.name in used]
+        signals = [i for i in model.inputs if i.name in used]
         lines, results = self.block(exprs)
         m = dict(zip(self.upper, results[: len(self.mass)], strict=True))
         f = list(results[len(self.mass) : len(self.mass) + n])
-        inputs = [f"{self.names[p.name]} = _p[{i}]" + _noqa(self.names[p.name]) for i, p in enumerate(parameters)]
+        inputs = [f"{self.names[name]} = _p[{i}]" + _noqa(self.names[name]) for i, name in enumerate([*(p.name for p in parameters), *(u.name for u in signals)])]
         inputs += [f"{self.names[str(v)]} = y[{i}]" + _noqa(self.names[str(v)]) for i, v in enumerate([*self.forms.q, *self.forms.qd]) if str(v) in used]
         prologue = [f"_a = numpy.zeros(({size}, {size}))", f"_b = numpy.empty({size})"]
         fill = []
@@ -303,9 +315,11 @@ class _Writer:
         kernels = ["\n".join(tables)] if tables else []
         kernels.append(LU_SOLVE)
         kernels.append("@numba.njit(cache=True)\n" + define("_rhs", "t, y, _p", "The compiled right-hand side.", body))
-        vector = "numpy.array([" + ", ".join(f"float(p[{literal(p.name)}])" for p in parameters) + "])" if parameters else "numpy.empty(0)"
+        entries = [f"float(p[{literal(p.name)}])" for p in parameters] + [f"float(u[{literal(i.name)}])" for i in signals]
+        vector = "numpy.array([" + ", ".join(entries) + "])" if entries else "numpy.empty(0)"
         arguments = ", ".join(["t", "numpy.asarray(y, dtype=numpy.float64)", vector])
-        wrapper = define("rhs", "t, y, p=PARAMETERS", _rhs_doc(model) + " Compiled by numba; returns an array.", [f"return _rhs({arguments})"])
+        signature = "t, y, p=PARAMETERS" + (", u=INPUTS" if signals else "")
+        wrapper = define("rhs", signature, _rhs_doc(model) + " Compiled by numba; returns an array.", [f"return _rhs({arguments})"])
         self.uses_numpy = True
         return "\n\n\n".join([*kernels, wrapper])
 
@@ -334,6 +348,8 @@ class _Writer:
         if model.constraints:
             functions.append(self.residuals())
         functions.append(self.rhs())
+        if model.outputs:
+            functions.append(self.outputs())
         if self.uses_solve:
             functions.append(SOLVE)
         imports = []
@@ -360,7 +376,21 @@ class _Writer:
         parts = [docstring("\n".join([*header, ""])), "\n".join(imports)] if imports else [docstring("\n".join([*header, ""]))]
         coordinates = ", ".join(literal(c) for c in model.coordinates)
         parts.append(f"COORDINATES = ({coordinates}{',' * (model.n == 1)})\nPARAMETERS = {{{parameters}}}")
+        if model.inputs:
+            parts[-1] += "\nINPUTS = {" + ", ".join(f"{literal(i.name)}: {_number(i.value)}" for i in model.inputs) + "}"
         return "\n\n".join(parts) + "\n\n\n" + "\n\n\n".join(functions) + "\n"
+
+    def outputs(self) -> str:
+        """`outputs(t, y, p=PARAMETERS, u=INPUTS)`: the file's outputs, in its order (FORMAT.md version 2)."""
+        from lagrange_cli._symengine import to_symengine
+
+        model = self.model.with_definitions()
+        exprs = [to_symengine(e) for _, e in model.outputs]
+        lines, results = code_lines(self.printer, exprs, self.constants, self.velocities, prefix="_o", tag="o")
+        body = [*self.unpack(exprs, "y"), *(f"{name} = {code}" for name, code in lines), "return [" + ", ".join(results) + "]"]
+        names = ", ".join(name for name, _ in model.outputs)
+        signature = "t, y, p=PARAMETERS" + (", u=INPUTS" if model.inputs else "")
+        return define("outputs", signature, f"The outputs [{names}] at time t and state y.", body)
 
     def autonomous(self) -> bool:
         """No explicit t in M, F or the constraint rows (from the symengine forms)."""
@@ -472,8 +502,9 @@ def mangle(names: Sequence[str], reserved: Collection[str] = RESERVED) -> dict[s
 
 def python_names(model: Model) -> dict[sp.Symbol, str]:
     """Identifiers for the model's coordinates, velocities and parameters (`mangle`), and `t`."""
-    symbols = [*model.q, *model.qd, *(p.symbol for p in model.parameters)]
-    names = mangle([str(s) for s in symbols])
+    symbols = [*model.q, *model.qd, *(p.symbol for p in model.parameters), *(i.symbol for i in model.inputs)]
+    signals = frozenset({"u", "INPUTS", "outputs"}) if model.inputs or model.outputs else frozenset()  # only then: a file without inputs keeps its names
+    names = mangle([str(s) for s in symbols], RESERVED | signals)
     return {**{s: names[str(s)] for s in symbols}, model.t: "t"}
 
 

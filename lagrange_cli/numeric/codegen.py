@@ -39,6 +39,7 @@ import sympy as sp
 from lagrange_cli._symengine import se, to_symengine
 from lagrange_cli.emit import python as emit_python
 from lagrange_cli.emit.python import PythonPrinter, Rows, code_lines, define, free_names, symbol_names, vectorize
+from lagrange_cli.inputs import substitute
 from lagrange_cli.model import Model
 
 ALPHA = se.Symbol("_alpha")
@@ -60,8 +61,9 @@ def parameter_names(model: Model) -> tuple[str, ...]:
 def ignorable(model: Model) -> tuple[int, ...]:
     """Indices of the ignorable coordinates, whose momenta are conserved (with the file's
     definitions written out, as in the generated `_momenta`): dL/dq_i = 0, dR/dq_dot_i = 0,
-    Q_i = 0 and no constraint row along q_i (Model.ignorable, from the symengine forms)."""
-    model = model.with_definitions()
+    Q_i = 0 and no constraint row along q_i (Model.ignorable, from the symengine forms), with the
+    inputs as the run has them (`inputs.substitute`)."""
+    model = substitute(model).with_definitions()
     forms, rows = model.symengine, Rows.of(model)
     return tuple(
         i
@@ -98,7 +100,7 @@ class Generator:
     """Writes the functions of one model, its defined functions written out, for one target ("numba" or "python")."""
 
     def __init__(self, model: Model, target: str) -> None:
-        model = model.with_definitions()
+        model = substitute(model).with_definitions()  # inputs at their defaults unless the caller substituted them (`simulate --input`)
         self.model, self.target = model, target
         self.forms, self.rows = model.symengine, Rows.of(model)
         n, k = model.n, len(model.constraints)

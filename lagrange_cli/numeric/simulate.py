@@ -25,6 +25,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from lagrange_cli.errors import LagrangeError
+from lagrange_cli.inputs import substitute
 from lagrange_cli.model import Model
 from lagrange_cli.numeric import codegen, compile, integrators, policy
 from lagrange_cli.numeric.integrators import Problem, Progress, Run, Stats
@@ -157,7 +158,8 @@ def simulate(
     `max_steps` is the step budget (default `integrators.MAX_STEPS` of the backend): a run that
     has not reached t_end after it stops, failed, with the trajectory so far. `projection` (default:
     on for a model with kept constraints) projects the state onto them after each stretch between
-    two samples (`projection.py`)."""
+    two samples (`projection.py`). A model's inputs are taken at their defaults (`inputs.substitute`)."""
+    model = substitute(model)
     check(model)
     plain = compile.build(model, "python")  # here rather than in the policy's linearisation, so that its cost is reported
     settings = resolve(
@@ -182,6 +184,7 @@ def simulate(
 def integrate(model: Model, settings: Settings, progress: Progress | None = None, max_steps: int | None = None, before: Timing | None = None) -> Trajectory:
     """Run `settings` as decided by `policy.decide` (method and backend resolved); `before` the
     one-time costs already spent on this run."""
+    model = substitute(model)
     python = compile.build(model, "python", jacobian=settings.method in ("Radau", "BDF", "LSODA"), event=settings.event)
     generate = python.generate_seconds + (before.generate if before else 0.0)
     load = python.import_seconds + (before.load if before else 0.0)
