@@ -71,9 +71,10 @@ def _derive(spec: SystemSpec) -> tuple[Model, bool]:
     points = [item for item in _masses(spec) if _structured(item, qd, qdd)]
     others = [item for item in _masses(spec) if not _structured(item, qd, qdd)]
     quad = point_masses(points, q, qd, t, _se(spec.gravity) if spec.gravity is not None else None)
+    spin = oriented_rotation(spec, quad.mass, qd)  # joins the quadratic form; its velocity-linear and constant parts go below
     potential = potential_energy(spec, others) + quad.gravity_potential
     # everything but the point masses' quadratic kinetic energy and gravity: differentiated as written
-    rest_kinetic = combine_trig(quad.linear + quad.constant + kinetic_energy(spec, others) + rotational_energy(spec) + _to_se(spec.kinetic))
+    rest_kinetic = combine_trig(quad.linear + quad.constant + spin + kinetic_energy(spec, others) + rotational_energy(spec) + _to_se(spec.kinetic))
     quadratic = quad.quadratic()
     kinetic = quadratic + rest_kinetic
     rest = rest_kinetic - potential_energy(spec, others) + _to_se(spec.lagrangian)
@@ -369,7 +370,12 @@ def sources(spec: SystemSpec) -> list[Source]:
             add(f"the damping of particle '{item.name}'", item.spans.get("damping"), item.damping)
         else:
             add(f"the inertia of body '{item.name}'", item.spans.get("inertia"), *item.inertia)
-            add(f"the angular velocity of body '{item.name}'", item.spans.get("angular_velocity"), *item.angular_velocity)
+            if item.rotation is None:
+                add(f"the angular velocity of body '{item.name}'", item.spans.get("angular_velocity"), *item.angular_velocity)
+            else:
+                add(f"the orientation of body '{item.name}'", item.spans.get("orientation"), *item.angular_velocity)
+            add(f"the force on body '{item.name}'", item.spans.get("force"), *(e for f, x in item.forces for e in (*f, *x)))
+            add(f"the torque on body '{item.name}'", item.spans.get("torque"), *(e for v in item.torques for e in v))
     for key, what in (("kinetic", "'kinetic'"), ("potential", "the potential"), ("lagrangian", "'lagrangian'"), ("dissipation", "the dissipation function")):
         add(what, spec.sources.get(key), getattr(spec, key))
     add("'gravity'", spec.sources.get("gravity"), *(spec.gravity or ()))
@@ -417,12 +423,61 @@ def kinetic_energy(spec: SystemSpec, items: Sequence[Particle | Body]) -> se.Bas
 
 
 def rotational_energy(spec: SystemSpec) -> se.Basic:
-    """1/2 I omega^2 (planar) or 1/2 sum I_k omega_k^2 (spatial, principal body axes) over bodies."""
+    """1/2 I omega^2 (planar) or 1/2 sum I_k omega_k^2 (spatial, principal body axes) over bodies whose
+    angular velocity the file gives (those with an `orientation` are `oriented_rotation`'s)."""
     total = se.Integer(0)
     for body in spec.bodies:
+        if body.rotation is not None or len(body.inertia) == 9:
+            continue
         inertia, omega = _se(body.inertia), _se(body.angular_velocity)
         total += sum((i * w**2 for i, w in zip(inertia, omega, strict=True)), se.Integer(0)) / 2
     return total
+
+
+def inertia_matrix(body: Body) -> list[list[se.Basic]]:
+    """The body's inertia tensor in body axes: 1x1 (planar), diagonal (principal moments) or full."""
+    values = _se(body.inertia)
+    if len(values) == 9:
+        return [values[3 * i : 3 * i + 3] for i in range(3)]
+    return [[values[i] if i == j else ZERO for j in range(len(values))] for i in range(len(values))]
+
+
+def partial_rates(omega: Sequence[se.Basic], qd: Sequence[se.Basic]) -> tuple[dict[int, Vector], Vector]:
+    """omega = sum_i w_i q_dot_i + w_0 (linear in the velocities): the partial angular velocities w_i
+    (those not zero, by index) and w_0."""
+    partial: dict[int, Vector] = {}
+    for i, v in enumerate(qd):
+        if any(v in w.free_symbols for w in omega):
+            partial[i] = [se.diff(w, v) for w in omega]
+    rest = [w.subs({qd[i]: ZERO for i in partial}) if partial else w for w in omega]
+    return partial, rest
+
+
+def oriented_rotation(spec: SystemSpec, mass: list[list[se.Basic]], qd: Sequence[se.Basic]) -> se.Basic:
+    """1/2 omega^T I omega of the bodies with an `orientation` (or a full inertia tensor), omega the body-axes
+    angular velocity: with omega = sum_i w_i q_dot_i + w_0, adds w_i^T I w_j to `mass` (M_ij, each entry
+    trig-combined once) and returns the rest, sum_i (w_0^T I w_i) q_dot_i + 1/2 w_0^T I w_0."""
+    extra: dict[tuple[int, int], list[se.Basic]] = {}
+    rest: list[se.Basic] = []
+    for body in spec.bodies:
+        if body.rotation is None and len(body.inertia) != 9:
+            continue
+        inertia = inertia_matrix(body)
+        partial, w0 = partial_rates(_se(body.angular_velocity), qd)
+        moments = {i: [_dot(row, w) for row in inertia] for i, w in partial.items()}  # I w_i
+        keys = sorted(partial)
+        for k, i in enumerate(keys):
+            for j in keys[k:]:
+                extra.setdefault((i, j), []).append(_dot(partial[j], moments[i]))
+        if any(w != ZERO for w in w0):
+            rest.extend(_dot(w0, moments[i]) * qd[i] for i in keys)
+            rest.append(_dot(w0, [_dot(row, w0) for row in inertia]) / 2)
+    for (i, j), terms in extra.items():
+        entry = combine_trig(se.Add(*terms))
+        mass[i][j] = mass[i][j] + entry
+        if i != j:
+            mass[j][i] = mass[j][i] + entry
+    return se.Add(*rest) if rest else ZERO
 
 
 def velocity(position: Sequence[se.Basic], q: Sequence[se.Basic], qd: Sequence[se.Basic], t: se.Basic) -> Vector:
@@ -460,6 +515,18 @@ def generalized_forces(spec: SystemSpec) -> Vector:
             f, x = _se(particle.force), _se(particle.position)
             for i, qi in enumerate(q):
                 forces[i] += sum((fj * se.diff(xj, qi) for fj, xj in zip(f, x, strict=True)), se.Integer(0))
+    qd = _se(spec.qd)
+    for body in spec.bodies:
+        for force, at in body.forces:  # f . dv_at/dq_dot_i = f . dx_at/dq_i
+            f, x = _se(force), _se(at)
+            for i, qi in enumerate(q):
+                forces[i] += se.Add(*(fj * se.diff(xj, qi) for fj, xj in zip(f, x, strict=True)))
+        if body.torques:  # tau . d(omega)/dq_dot_i, both in body axes
+            partial, _ = partial_rates(_se(body.angular_velocity), qd)
+            for torque in body.torques:
+                tau = _se(torque)
+                for i, w in partial.items():
+                    forces[i] += _dot(tau, w)
     return forces
 
 
@@ -748,7 +815,7 @@ def _substitute(spec: SystemSpec, k: int, solution: sp.Expr, used: Constraint) -
         qd=rqd,
         qdd=rqdd,
         particles=tuple(dataclasses.replace(p, mass=sub(p.mass), position=subs_all(p.position), force=None if p.force is None else subs_all(p.force)) for p in spec.particles),
-        bodies=tuple(dataclasses.replace(b, position=subs_all(b.position), mass=sub(b.mass), inertia=subs_all(b.inertia), angular_velocity=subs_all(b.angular_velocity)) for b in spec.bodies),
+        bodies=tuple(_substitute_body(b, sub) for b in spec.bodies),
         kinetic=sub(spec.kinetic),
         potential=sub(spec.potential),
         lagrangian=sub(spec.lagrangian),
@@ -761,6 +828,23 @@ def _substitute(spec: SystemSpec, k: int, solution: sp.Expr, used: Constraint) -
     earlier = tuple((name, sub(e)) for name, e in getattr(spec, "_eliminated", ()))  # in the coordinates that remain
     object.__setattr__(changed, "_eliminated", (*earlier, (spec.coordinates[k], solution)))
     return changed
+
+
+def _substitute_body(body: Body, sub: Callable[[sp.Expr], sp.Expr]) -> Body:
+    def many(values: Iterable[sp.Expr]) -> tuple[sp.Expr, ...]:
+        return tuple(sub(v) for v in values)
+
+    return dataclasses.replace(
+        body,
+        position=many(body.position),
+        mass=sub(body.mass),
+        inertia=many(body.inertia),
+        angular_velocity=many(body.angular_velocity),
+        rotation=None if body.rotation is None else tuple(many(row) for row in body.rotation),
+        points={k: many(v) for k, v in body.points.items()},
+        forces=tuple((many(f), many(x)) for f, x in body.forces),
+        torques=tuple(many(v) for v in body.torques),
+    )
 
 
 def _kinks(forms: SymengineForms, spec: SystemSpec) -> tuple[SymengineForms, dict[str, object]]:
