@@ -68,10 +68,11 @@ def _derive(spec: SystemSpec) -> tuple[Model, bool]:
     """The model and whether `validate.survey` cleared its symengine forms."""
     q, qd, t = _se(spec.q), _se(spec.qd), _to_se(spec.t)
     qdd = _se(spec.qdd)
-    points = [item for item in _masses(spec) if _structured(item, qd, qdd)]
-    others = [item for item in _masses(spec) if not _structured(item, qd, qdd)]
+    free = [item for item in _masses(spec) if not (isinstance(item, Body) and item.rotation is not None)]  # oriented bodies: `oriented_bodies`
+    points = [item for item in free if _structured(item, qd, qdd)]
+    others = [item for item in free if not _structured(item, qd, qdd)]
     quad = point_masses(points, q, qd, t, _se(spec.gravity) if spec.gravity is not None else None)
-    spin = oriented_rotation(spec, quad.mass, qd)  # joins the quadratic form; its velocity-linear and constant parts go below
+    spin = oriented_bodies(spec, quad)  # joins the quadratic form and the weights; its velocity-linear and constant parts go below
     potential = potential_energy(spec, others) + quad.gravity_potential
     # everything but the point masses' quadratic kinetic energy and gravity: differentiated as written
     rest_kinetic = combine_trig(quad.linear + quad.constant + spin + kinetic_energy(spec, others) + rotational_energy(spec) + _to_se(spec.kinetic))
@@ -374,7 +375,7 @@ def sources(spec: SystemSpec) -> list[Source]:
                 add(f"the angular velocity of body '{item.name}'", item.spans.get("angular_velocity"), *item.angular_velocity)
             else:
                 add(f"the orientation of body '{item.name}'", item.spans.get("orientation"), *item.angular_velocity)
-            add(f"the force on body '{item.name}'", item.spans.get("force"), *(e for f, x in item.forces for e in (*f, *x)))
+            add(f"the force on body '{item.name}'", item.spans.get("force"), *(e for f, x in (*item.forces, *item.frame_forces) for e in (*f, *x)))
             add(f"the torque on body '{item.name}'", item.spans.get("torque"), *(e for v in item.torques for e in v))
     for key, what in (("kinetic", "'kinetic'"), ("potential", "the potential"), ("lagrangian", "'lagrangian'"), ("dissipation", "the dissipation function")):
         add(what, spec.sources.get(key), getattr(spec, key))
@@ -427,7 +428,12 @@ def rotational_energy(spec: SystemSpec) -> se.Basic:
     angular velocity the file gives (those with an `orientation` are `oriented_rotation`'s)."""
     total = se.Integer(0)
     for body in spec.bodies:
-        if body.rotation is not None or len(body.inertia) == 9:
+        if body.rotation is not None:
+            continue
+        if len(body.inertia) == 9:  # a full tensor with the file's angular velocity (body axes)
+            w = _se(body.angular_velocity)
+            inertia = inertia_matrix(body)
+            total += _dot(w, [_dot(row, w) for row in inertia]) / 2
             continue
         inertia, omega = _se(body.inertia), _se(body.angular_velocity)
         total += sum((i * w**2 for i, w in zip(inertia, omega, strict=True)), se.Integer(0)) / 2
@@ -453,30 +459,62 @@ def partial_rates(omega: Sequence[se.Basic], qd: Sequence[se.Basic]) -> tuple[di
     return partial, rest
 
 
-def oriented_rotation(spec: SystemSpec, mass: list[list[se.Basic]], qd: Sequence[se.Basic]) -> se.Basic:
-    """1/2 omega^T I omega of the bodies with an `orientation` (or a full inertia tensor), omega the body-axes
-    angular velocity: with omega = sum_i w_i q_dot_i + w_0, adds w_i^T I w_j to `mass` (M_ij, each entry
-    trig-combined once) and returns the rest, sum_i (w_0^T I w_i) q_dot_i + 1/2 w_0^T I w_0."""
+MAX_COMBINED = 150
+"""Largest mass-matrix entry of oriented bodies (operations) that is trig-combined."""
+
+
+def oriented_bodies(spec: SystemSpec, quad: PointMasses) -> se.Basic:
+    """The kinetic energy and weight of bodies with an `orientation`, all in body axes, where their vectors are short:
+    with the centre's velocity v = sum_i v_i q_dot_i + v_0 and omega = sum_i w_i q_dot_i + w_0 (both in body axes),
+    adds m v_i . v_j + w_i^T I w_j to M_ij, m (R^T g) . v_i to the generalized weight and -m g . x to the potential
+    (in `quad`), and returns the rest of the kinetic energy, sum_i (m v_0 . v_i + w_0^T I w_i) q_dot_i + 1/2 (m v_0 . v_0
+    + w_0^T I w_0). R^T g is carried down `relative_to` chains (R^T g = L^T (R_parent^T g))."""
+    qd = quad.qd
     extra: dict[tuple[int, int], list[se.Basic]] = {}
     rest: list[se.Basic] = []
+    gravity = _se(spec.gravity) if spec.gravity is not None else None
+    local_gravity: dict[str, Vector] = {}
+    by_name = {b.name: b for b in spec.bodies}
+
+    def down(body: Body) -> Vector:
+        """R^T g in the body's axes."""
+        if body.name not in local_gravity:
+            assert gravity is not None and body.local is not None
+            outer = down(by_name[body.parent]) if body.parent is not None else gravity
+            local = [_se(row) for row in body.local]
+            local_gravity[body.name] = [se.Add(*(local[k][i] * outer[k] for k in range(len(outer)))) for i in range(len(outer))]
+        return local_gravity[body.name]
+
     for body in spec.bodies:
-        if body.rotation is None and len(body.inertia) != 9:
+        if body.rotation is None or body.velocity is None:
             continue
+        m = _to_se(body.mass)
         inertia = inertia_matrix(body)
-        partial, w0 = partial_rates(_se(body.angular_velocity), qd)
-        moments = {i: [_dot(row, w) for row in inertia] for i, w in partial.items()}  # I w_i
-        keys = sorted(partial)
+        omega = _se(body.angular_velocity)
+        velocity = _se(body.velocity)
+        w, w0 = partial_rates(omega, qd)
+        v, v0 = partial_rates(velocity, qd)
+        keys = sorted(set(w) | set(v))
+        zero_w, zero_v = [ZERO] * len(omega), [ZERO] * len(velocity)
+        moments = {i: [_dot(row, w.get(i, zero_w)) for row in inertia] for i in keys}  # I w_i
         for k, i in enumerate(keys):
             for j in keys[k:]:
-                extra.setdefault((i, j), []).append(_dot(partial[j], moments[i]))
-        if any(w != ZERO for w in w0):
-            rest.extend(_dot(w0, moments[i]) * qd[i] for i in keys)
-            rest.append(_dot(w0, [_dot(row, w0) for row in inertia]) / 2)
+                extra.setdefault((i, j), []).append(m * _dot(v.get(i, zero_v), v.get(j, zero_v)) + _dot(w.get(j, zero_w), moments[i]))
+        if any(x != ZERO for x in w0) or any(x != ZERO for x in v0):
+            rest.extend((m * _dot(v0, v.get(i, zero_v)) + _dot(w0, moments[i])) * qd[i] for i in keys)
+            rest.append((m * _dot(v0, v0) + _dot(w0, [_dot(row, w0) for row in inertia])) / 2)
+        if gravity is not None:
+            g_body = down(body)
+            for i, vi in v.items():
+                quad.gravity[i] = quad.gravity[i] + m * _dot(g_body, vi)
+            quad.gravity_potential = quad.gravity_potential - m * _dot(gravity, _se(body.position))
     for (i, j), terms in extra.items():
-        entry = combine_trig(se.Add(*terms))
-        mass[i][j] = mass[i][j] + entry
+        entry = se.Add(*terms)
+        if se.count_ops(entry) <= MAX_COMBINED:
+            entry = combine_trig(entry)
+        quad.mass[i][j] = quad.mass[i][j] + entry
         if i != j:
-            mass[j][i] = mass[j][i] + entry
+            quad.mass[j][i] = quad.mass[j][i] + entry
     return se.Add(*rest) if rest else ZERO
 
 
@@ -521,6 +559,11 @@ def generalized_forces(spec: SystemSpec) -> Vector:
             f, x = _se(force), _se(at)
             for i, qi in enumerate(q):
                 forces[i] += se.Add(*(fj * se.diff(xj, qi) for fj, xj in zip(f, x, strict=True)))
+        for force, rate in body.frame_forces:  # f . dv_at/dq_dot_i, both in body axes
+            f, v = _se(force), _se(rate)
+            partial, _ = partial_rates(v, qd)
+            for i, vi in partial.items():
+                forces[i] += _dot(f, vi)
         if body.torques:  # tau . d(omega)/dq_dot_i, both in body axes
             partial, _ = partial_rates(_se(body.angular_velocity), qd)
             for torque in body.torques:
@@ -844,6 +887,9 @@ def _substitute_body(body: Body, sub: Callable[[sp.Expr], sp.Expr]) -> Body:
         points={k: many(v) for k, v in body.points.items()},
         forces=tuple((many(f), many(x)) for f, x in body.forces),
         torques=tuple(many(v) for v in body.torques),
+        local=None if body.local is None else tuple(many(row) for row in body.local),
+        velocity=None if body.velocity is None else many(body.velocity),
+        frame_forces=tuple((many(f), many(v)) for f, v in body.frame_forces),
     )
 
 

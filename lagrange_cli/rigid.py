@@ -55,6 +55,9 @@ class Places:
         self.positions: dict[str, Vec | None] = {}
         self.bodies: dict[str, Body | None] = {}
         self.reading: list[str] = []
+        self.frames: dict[int, tuple[str, Vec]] = {}
+        """By the identity of a body's centre or point (a world position): the body and the point's velocity in its axes."""
+        self.point_velocities: dict[str, dict[str, Vec]] = {}
 
     # -- names --------------------------------------------------------------------------------
 
@@ -177,26 +180,53 @@ class Places:
         orientation = self.orientation(fields["orientation"], name, dim)
         if orientation is None:
             return None
-        rotation, omega = orientation
+        rotation, omega, local, parent = orientation
+        center: Vec | None = (sp.Integer(0),) * dim
         if "pivot" in fields:
-            reference = self.place(fields["pivot"], f"the pivot of '{name}'", self.config, (dim,))
-            center = self.reader.vector(fields["center"], f"the centre of mass of '{name}'", self.constants, (dim,)) if "center" in fields else (sp.Integer(0),) * dim
+            anchor = reference = self.place(fields["pivot"], f"the pivot of '{name}'", self.config, (dim,))
+            if "center" in fields:
+                center = self.reader.vector(fields["center"], f"the centre of mass of '{name}'", self.constants, (dim,))
             if reference is None or center is None:
                 return None
             position = _add(reference, kin.matvec(rotation, center))
         else:
-            found = self.place(fields["position"], f"the position of '{name}'", self.config, (dim,))
-            if found is None:
+            anchor = self.place(fields["position"], f"the position of '{name}'", self.config, (dim,))
+            if anchor is None:
                 return None
-            reference = position = found
+            reference = position = tuple(list(anchor))  # its own object: `frames` keys points by identity
+        assert anchor is not None and center is not None
+        moving = self.reference_velocity(anchor, rotation, local, parent)
+        velocity = _add(moving, _cross(omega, center))
+        self.frames[id(position)] = (name, velocity)
         points: dict[str, Vec] = {}
+        point_velocities: dict[str, Vec] = {}
         if "points" in fields:
             for point, _, node in r.mapping(fields["points"], f"'points' of body '{name}'"):
                 offset = r.vector(node, f"point '{point}' of '{name}'", self.constants, (dim,))
                 if offset is not None:
                     points[point] = _add(reference, kin.matvec(rotation, offset))
-        body = Body(name, mass, position, inertia, omega, spans, rotation=rotation, points=points)
+                    point_velocities[point] = _add(moving, _cross(omega, offset))
+                    self.frames[id(points[point])] = (name, point_velocities[point])
+        body = Body(name, mass, position, inertia, omega, spans, rotation=rotation, points=points, local=local, parent=parent, velocity=velocity)
+        self.point_velocities[name] = point_velocities
         return self.loads(body, fields)
+
+    def reference_velocity(self, reference: Vec, rotation: kin.Matrix, local: kin.Matrix, parent: str | None) -> Vec:
+        """The velocity of a body's reference point in its own axes: carried over from the body whose point
+        it is (through the rotation relative to that body when it is the parent), else R^T dx/dt of the world position."""
+        zero = sp.Integer(0)
+        found = self.frames.get(id(reference))
+        if found is not None:
+            owner, velocity = found
+            if owner == parent:
+                return kin.matvec(kin.transpose(local), velocity)
+            owner_body = self.bodies.get(owner)
+            if owner_body is not None and owner_body.rotation is not None:
+                return kin.matvec(kin.transpose(rotation), kin.matvec(owner_body.rotation, velocity))
+        rate = tuple(self.config.time_derivative(x) for x in reference)
+        if all(v == 0 for v in rate):
+            return (zero,) * len(reference)
+        return kin.matvec(kin.transpose(rotation), rate)
 
     def plain_body(self, name: str, fields: dict[str, yaml.Node], mass: sp.Expr, inertia: Vec, spans: dict[str, Any]) -> Body | None:
         """A body without orientation (version 1), which may still take loads at its centre of mass."""
@@ -264,8 +294,9 @@ class Places:
 
     # -- orientation --------------------------------------------------------------------------
 
-    def orientation(self, node: yaml.Node, name: str, dim: int) -> tuple[kin.Matrix, Vec] | None:
-        """(world rotation, body-axes angular velocity) of body `name` (planar: (1-tuple omega_z))."""
+    def orientation(self, node: yaml.Node, name: str, dim: int) -> tuple[kin.Matrix, Vec, kin.Matrix, str | None] | None:
+        """(world rotation, body-axes angular velocity (planar: omega_z alone), rotation relative to the parent,
+        the parent's name or None) of body `name`."""
         r = self.reader
         what = f"the orientation of '{name}'"
         fields = {k: v for k, _, v in r.mapping(node, what, ORIENTATION_KEYS)}
@@ -302,7 +333,7 @@ class Places:
                 return None
             local, rate = found
         if "relative_to" not in fields:
-            return local, rate
+            return local, rate, local, None
         parent_node = fields["relative_to"]
         parent_name = r.string(parent_node, f"'relative_to' of '{name}'")
         if parent_name is None:
@@ -323,8 +354,8 @@ class Places:
             return None
         rotation = kin.matmul(parent.rotation, local)
         if dim == 2:
-            return rotation, (parent.angular_velocity[0] + rate[0],)
-        return rotation, _add(kin.matvec(kin.transpose(local), parent.angular_velocity), rate)
+            return rotation, (parent.angular_velocity[0] + rate[0],), local, parent_name
+        return rotation, _add(kin.matvec(kin.transpose(local), parent.angular_velocity), rate), local, parent_name
 
     def constant_vector(self, node: yaml.Node, what: str) -> Vec | None:
         value = self.reader.vector(node, what, self.constants, (3,))
@@ -441,7 +472,7 @@ class Places:
         act, torques in body axes (a planar body's as its z component)."""
         import dataclasses
 
-        forces: list[tuple[Vec, Vec]] = []
+        forces: list[tuple[Vec, Vec]] = []  # world force and point, or (oriented body) body-axes force and the point's body-axes velocity
         torques: list[Vec] = []
         ok = True
         for key in ("force", "torque"):
@@ -457,7 +488,11 @@ class Places:
                     torques.append(found[0])
         if not ok:
             return None
-        return dataclasses.replace(body, forces=tuple(forces), torques=tuple(torques)) if forces or torques else body
+        if not forces and not torques:
+            return body
+        if body.rotation is not None:
+            return dataclasses.replace(body, frame_forces=tuple(forces), torques=tuple(torques))
+        return dataclasses.replace(body, forces=tuple(forces), torques=tuple(torques))
 
     @staticmethod
     def load_items(node: yaml.Node) -> list[yaml.Node]:
@@ -499,15 +534,18 @@ class Places:
         vector = r.vector(vector_node, f"the vector of {what}", self.state, (dim,))
         if vector is None:
             return None
-        if axes == "body" and body.rotation is not None:
-            vector = kin.matvec(body.rotation, vector)
         where = body.position
         if at_node is not None:
             found = self.at(body, at_node)
             if found is None:
                 return None
             where = found
-        return vector, where
+        if body.rotation is None:
+            return vector, where
+        # in body axes, with the body-axes velocity of the point where it acts
+        if axes == "world":
+            vector = kin.matvec(kin.transpose(body.rotation), vector)
+        return vector, self.frames[id(where)][1]
 
     def torque(self, body: Body, node: yaml.Node, axes: str, what: str) -> tuple[Vec, Vec] | None:
         r = self.reader
@@ -553,6 +591,13 @@ class Places:
             r.problem(node, f"body '{body.name}' has no point '{point}'", (f"did you mean '{hint}'? " if hint else "") + expected)
             return None
         return body.points[point]
+
+
+def _cross(omega: Vec, p: Vec) -> Vec:
+    """omega x p (planar: omega_z e_z x p)."""
+    if len(p) == 2:
+        return (-omega[0] * p[1], omega[0] * p[0])
+    return (omega[1] * p[2] - omega[2] * p[1], omega[2] * p[0] - omega[0] * p[2], omega[0] * p[1] - omega[1] * p[0])
 
 
 def _add(a: Vec, b: Vec) -> Vec:

@@ -94,6 +94,14 @@ class Body:
     """Each `force` load: (the force in world axes, the world position where it acts)."""
     torques: tuple[tuple[sp.Expr, ...], ...] = ()
     """Each `torque` load in body axes (a planar body's: its z component alone)."""
+    local: tuple[tuple[sp.Expr, ...], ...] | None = None
+    """With `orientation`: the rotation relative to the parent (`relative_to`, else the world)."""
+    parent: str | None = None
+    """The body named by `relative_to`."""
+    velocity: tuple[sp.Expr, ...] | None = None
+    """With `orientation`: the velocity of the centre of mass in body axes."""
+    frame_forces: tuple[tuple[tuple[sp.Expr, ...], tuple[sp.Expr, ...]], ...] = ()
+    """With `orientation`, each `force` load as (the force in body axes, the velocity of the point where it acts in body axes)."""
 
 
 @dataclass(frozen=True)
