@@ -72,12 +72,12 @@ def _derive(spec: SystemSpec) -> tuple[Model, bool]:
     points = [item for item in free if _structured(item, qd, qdd)]
     others = [item for item in free if not _structured(item, qd, qdd)]
     quad = point_masses(points, q, qd, t, _se(spec.gravity) if spec.gravity is not None else None)
-    spin = oriented_bodies(spec, quad)  # joins the quadratic form and the weights; its velocity-linear and constant parts go below
+    rigid = oriented_bodies(spec, quad, q, t)  # Kane's form for bodies with an orientation; their weight joins `quad`
     potential = potential_energy(spec, others) + quad.gravity_potential
     # everything but the point masses' quadratic kinetic energy and gravity: differentiated as written
-    rest_kinetic = combine_trig(quad.linear + quad.constant + spin + kinetic_energy(spec, others) + rotational_energy(spec) + _to_se(spec.kinetic))
+    rest_kinetic = combine_trig(quad.linear + quad.constant + kinetic_energy(spec, others) + rotational_energy(spec) + _to_se(spec.kinetic))
     quadratic = quad.quadratic()
-    kinetic = quadratic + rest_kinetic
+    kinetic = quadratic + rest_kinetic + rigid.kinetic
     rest = rest_kinetic - potential_energy(spec, others) + _to_se(spec.lagrangian)
     lagrangian = kinetic - potential + _to_se(spec.lagrangian)
     dissipation = combine_trig(rayleigh(spec))
@@ -87,11 +87,11 @@ def _derive(spec: SystemSpec) -> tuple[Model, bool]:
     rest_p = momenta(rest, qd)
     rest_mass, rest_force = euler_lagrange(rest, dissipation, forces, q, qd, t)
     n = len(q)
-    mass = [[quad.mass[i][j] + rest_mass[i][j] for j in range(n)] for i in range(n)]
+    mass = [[quad.mass[i][j] + rest_mass[i][j] + rigid.mass[i][j] for j in range(n)] for i in range(n)]
     velocity_force = quad.forces(q, qd, t)
-    force = [velocity_force[i] + quad.gravity[i] + rest_force[i] for i in range(n)]
-    p = [se.Add(*(quad.mass[i][j] * qd[j] for j in range(n) if quad.mass[i][j] != 0)) + rest_p[i] for i in range(n)]
-    energy = quadratic + quad.gravity_potential + energy_function(rest, rest_p, qd)
+    force = [velocity_force[i] + quad.gravity[i] + rest_force[i] + rigid.forcing[i] for i in range(n)]
+    p = [se.Add(*(quad.mass[i][j] * qd[j] for j in range(n) if quad.mass[i][j] != 0)) + rest_p[i] + rigid.momenta[i] for i in range(n)]
+    energy = quadratic + quad.gravity_potential + energy_function(rest, rest_p, qd) + rigid.energy
     force, p, kinetic, energy = [_tidy(f) for f in force], [_tidy(x) for x in p], _tidy(kinetic), _tidy(energy)
     for i, name in enumerate(spec.coordinates):
         if all(m == ZERO for m in mass[i]) and force[i] == ZERO and not any(_has(c.expr, se.Symbol(name)) or _has(c.expr, qd[i]) for c in map(_se_constraint, spec.constraints)):
@@ -115,11 +115,20 @@ def _derive(spec: SystemSpec) -> tuple[Model, bool]:
     )
     size, tree, cleared = survey(forms_parts(forms), MAX_EQUATION_NODES)
     check_size(spec, size, MAX_EQUATION_NODES, "the equations of motion")
-    check_size(spec, tree, MAX_EQUATION_TREE, "the equations of motion, written out without sharing,")
+    refuse = None
+    if tree > MAX_EQUATION_TREE:  # fine where they are printed with their common subexpressions shared; refused where written in full
+        refuse = fail(
+            None,
+            f"{spec.path}: the equations of motion, written out without sharing, amount to more than {MAX_EQUATION_TREE} terms and factors",
+            "a smaller system; or a command that shares common subexpressions: `derive --to python` (or `--to c`, `--to octave`, `--to jax`), `simulate`",
+        )
+        if not cleared:
+            raise refuse
     forms, given = (forms, {}) if cleared else _kinks(forms, spec)
     model = Model.from_symengine(
         forms,
         given,
+        refuse,
         title=spec.title,
         source=spec.path,
         coordinates=spec.coordinates,
@@ -282,6 +291,8 @@ def _tidy(expr: se.Basic) -> se.Basic:
     """`expr` expanded when that makes it shorter (fewer operations), else as it is: combining only
     what pays. `2*l*m*x_dot*theta_dot + 2*m*x*x_dot*theta_dot` beats `x_dot*theta_dot*(2*l*m + 2*m*x)`,
     but `l1*l2*cos(th1 - th2)*(m2 + m3)` stays (its expansion repeats the geometric factor per mass)."""
+    if tree_size(expr, 4 * MAX_TIDY_NODES) > 4 * MAX_TIDY_NODES:  # surely over MAX_TIDY_NODES operations, found without walking all of a shared tree
+        return expr
     size = se.count_ops(expr)
     if size > MAX_TIDY_NODES or not expandable(expr):
         return expr
@@ -341,10 +352,25 @@ def tree_size(expr: object, limit: int = 10**9) -> int:
 
 
 def input_work(spec: SystemSpec) -> int:
-    """What differentiation multiplies: the size of each term of each entry times (the coordinates
-    and velocities it has + 1); a term without a coordinate differentiates to nothing."""
+    """What differentiation multiplies: the size of each term of each entry times (the coordinates and
+    velocities it has + 1), a term without a coordinate differentiating to nothing. A sub-expression met
+    before (in this term or another: a spatial chain's bodies share their rotations) is counted once."""
     state = {*spec.q, *spec.qd}
-    return sum(tree_size(term) * (len(term.free_symbols & state) + 1) for source in sources(spec) for e in source.exprs for term in sp.Add.make_args(e))
+    seen: set[sp.Basic] = set()
+    return sum(_new_nodes(term, seen) * (len(term.free_symbols & state) + 1) for source in sources(spec) for e in source.exprs for term in sp.Add.make_args(e))
+
+
+def _new_nodes(expr: sp.Basic, seen: set[sp.Basic]) -> int:
+    """The number of distinct nodes of `expr` not in `seen` (which they join)."""
+    count, stack = 0, [expr]
+    while stack:
+        node = stack.pop()
+        if node in seen:
+            continue
+        seen.add(node)
+        count += 1
+        stack.extend(node.args)
+    return count
 
 
 def check_size(spec: SystemSpec, size: int, limit: int, what: str) -> None:
@@ -463,15 +489,35 @@ MAX_COMBINED = 150
 """Largest mass-matrix entry of oriented bodies (operations) that is trig-combined."""
 
 
-def oriented_bodies(spec: SystemSpec, quad: PointMasses) -> se.Basic:
-    """The kinetic energy and weight of bodies with an `orientation`, all in body axes, where their vectors are short:
-    with the centre's velocity v = sum_i v_i q_dot_i + v_0 and omega = sum_i w_i q_dot_i + w_0 (both in body axes),
-    adds m v_i . v_j + w_i^T I w_j to M_ij, m (R^T g) . v_i to the generalized weight and -m g . x to the potential
-    (in `quad`), and returns the rest of the kinetic energy, sum_i (m v_0 . v_i + w_0^T I w_i) q_dot_i + 1/2 (m v_0 . v_0
-    + w_0^T I w_0). R^T g is carried down `relative_to` chains (R^T g = L^T (R_parent^T g))."""
+@dataclass
+class Rigid:
+    """What the bodies with an `orientation` add: to M, to F (velocity terms, Kane's form), the kinetic energy,
+    the momenta and the energy function."""
+
+    mass: list[list[se.Basic]]
+    forcing: Vector
+    kinetic: se.Basic
+    momenta: Vector
+    energy: se.Basic
+
+
+def oriented_bodies(spec: SystemSpec, quad: PointMasses, q: Sequence[se.Basic], t: se.Basic) -> Rigid:
+    """Bodies with an `orientation`, in Kane's form with every vector in body axes, where it is short. With the
+    centre's velocity v = sum_i v_i q_dot_i + v_0 and omega = sum_i w_i q_dot_i + w_0 (body axes; `rigid.Places`
+    builds both down the references without differentiating a composed rotation):
+
+        M_ij += m v_i . v_j + w_i . I w_j
+        F_i  -= m v_i . (a_0 + omega x v) + w_i . (I alpha_0 + omega x I omega)
+
+    where a_0 and alpha_0 are dv/dt and d omega/dt without the accelerations (chain rule: sum_k dv/dq_k q_dot_k + dv/dt).
+    The weight m (R^T g) . v_i joins `quad.gravity` (R^T g carried down `relative_to` chains, R^T g = L^T (R_parent^T g))
+    and -m g . x the potential. T = 1/2 (m v . v + omega . I omega), p_i = m v_i . v + w_i . I omega, h = sum p_i q_dot_i - T."""
     qd = quad.qd
-    extra: dict[tuple[int, int], list[se.Basic]] = {}
-    rest: list[se.Basic] = []
+    n = len(qd)
+    mass: list[list[se.Basic]] = [[ZERO] * n for _ in range(n)]
+    forcing: Vector = [ZERO] * n
+    momenta: Vector = [ZERO] * n
+    kinetic: list[se.Basic] = []
     gravity = _se(spec.gravity) if spec.gravity is not None else None
     local_gravity: dict[str, Vector] = {}
     by_name = {b.name: b for b in spec.bodies}
@@ -485,6 +531,11 @@ def oriented_bodies(spec: SystemSpec, quad: PointMasses) -> se.Basic:
             local_gravity[body.name] = [se.Add(*(local[k][i] * outer[k] for k in range(len(outer)))) for i in range(len(outer))]
         return local_gravity[body.name]
 
+    def rate(vector: Vector) -> Vector:
+        """d/dt without the accelerations: sum_k dx/dq_k q_dot_k + dx/dt."""
+        return [se.Add(*(se.diff(x, q[k]) * qd[k] for k in range(n) if q[k] in x.free_symbols), se.diff(x, t) if t in x.free_symbols else ZERO) for x in vector]
+
+    entries: dict[tuple[int, int], list[se.Basic]] = {}
     for body in spec.bodies:
         if body.rotation is None or body.velocity is None:
             continue
@@ -492,30 +543,47 @@ def oriented_bodies(spec: SystemSpec, quad: PointMasses) -> se.Basic:
         inertia = inertia_matrix(body)
         omega = _se(body.angular_velocity)
         velocity = _se(body.velocity)
-        w, w0 = partial_rates(omega, qd)
-        v, v0 = partial_rates(velocity, qd)
+        w, _ = partial_rates(omega, qd)
+        v, _ = partial_rates(velocity, qd)
         keys = sorted(set(w) | set(v))
         zero_w, zero_v = [ZERO] * len(omega), [ZERO] * len(velocity)
+        spin = [_dot(row, omega) for row in inertia]  # I omega
         moments = {i: [_dot(row, w.get(i, zero_w)) for row in inertia] for i in keys}  # I w_i
         for k, i in enumerate(keys):
             for j in keys[k:]:
-                extra.setdefault((i, j), []).append(m * _dot(v.get(i, zero_v), v.get(j, zero_v)) + _dot(w.get(j, zero_w), moments[i]))
-        if any(x != ZERO for x in w0) or any(x != ZERO for x in v0):
-            rest.extend((m * _dot(v0, v.get(i, zero_v)) + _dot(w0, moments[i])) * qd[i] for i in keys)
-            rest.append((m * _dot(v0, v0) + _dot(w0, [_dot(row, w0) for row in inertia])) / 2)
+                entries.setdefault((i, j), []).append(m * _dot(v.get(i, zero_v), v.get(j, zero_v)) + _dot(w.get(j, zero_w), moments[i]))
+        acceleration = _plus(rate(velocity), _cross(omega, velocity))
+        torque = [_dot(row, rate(omega)) for row in inertia]
+        if len(omega) == 3:  # a planar body's omega x I omega is 0
+            torque = _plus(torque, _cross(omega, spin))
+        for i in keys:
+            forcing[i] = forcing[i] - m * _dot(v.get(i, zero_v), acceleration) - _dot(w.get(i, zero_w), torque)
+            momenta[i] = momenta[i] + m * _dot(v.get(i, zero_v), velocity) + _dot(w.get(i, zero_w), spin)
+        kinetic.append((m * _dot(velocity, velocity) + _dot(omega, spin)) / 2)
         if gravity is not None:
             g_body = down(body)
             for i, vi in v.items():
                 quad.gravity[i] = quad.gravity[i] + m * _dot(g_body, vi)
             quad.gravity_potential = quad.gravity_potential - m * _dot(gravity, _se(body.position))
-    for (i, j), terms in extra.items():
+    for (i, j), terms in entries.items():
         entry = se.Add(*terms)
         if se.count_ops(entry) <= MAX_COMBINED:
             entry = combine_trig(entry)
-        quad.mass[i][j] = quad.mass[i][j] + entry
-        if i != j:
-            quad.mass[j][i] = quad.mass[j][i] + entry
-    return se.Add(*rest) if rest else ZERO
+        mass[i][j] = mass[j][i] = entry
+    total = se.Add(*kinetic) if kinetic else ZERO
+    energy = se.Add(*(momenta[i] * qd[i] for i in range(n) if momenta[i] != ZERO)) - total
+    return Rigid(mass, forcing, total, momenta, energy)
+
+
+def _cross(a: Vector, b: Vector) -> Vector:
+    """a x b; planar (a = (omega_z,), b 2-D): omega_z e_z x b."""
+    if len(b) == 2:
+        return [-a[0] * b[1], a[0] * b[0]]
+    return [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
+
+
+def _plus(a: Vector, b: Vector) -> Vector:
+    return [x + y for x, y in zip(a, b, strict=True)]
 
 
 def velocity(position: Sequence[se.Basic], q: Sequence[se.Basic], qd: Sequence[se.Basic], t: se.Basic) -> Vector:
@@ -949,8 +1017,7 @@ def _to_se(expr: object) -> se.Basic:
     hit = _CONVERTED.get(id(expr))
     if hit is not None and hit[0] is expr:
         return hit[1]
-    value = to_symengine(expr)
-    _CONVERTED[id(expr)] = (expr, value)
+    value = to_symengine(expr, _CONVERTED)  # also each shared sub-expression once
     return value
 
 
