@@ -25,13 +25,26 @@ else:
 se = symengine
 
 
-def to_symengine(expr: object) -> symengine.Basic:
+def to_symengine(expr: object, cache: dict[int, tuple[object, symengine.Basic]] | None = None) -> symengine.Basic:
     """Convert a sympy expression by walking its tree.
 
     `symengine.sympify` of a sympy object consults numpy, which is hidden above; the
     expressions converted here (positions, energies, forces) use only what the safe parser
-    can produce, so a small walk covers them, and anything else is an error.
+    can produce, so a small walk covers them, and anything else is an error. With `cache`
+    (by the identity of the sympy object, which it keeps alive), a sub-expression shared by
+    several parents is converted once (a spatial chain's rotations share their factors).
     """
+    if cache is not None:
+        hit = cache.get(id(expr))
+        if hit is not None and hit[0] is expr:
+            return hit[1]
+        value = _to_symengine(expr, cache)
+        cache[id(expr)] = (expr, value)
+        return value
+    return _to_symengine(expr, None)
+
+
+def _to_symengine(expr: object, cache: dict[int, tuple[object, symengine.Basic]] | None) -> symengine.Basic:
     import sympy as sp
 
     if isinstance(expr, int):
@@ -51,22 +64,22 @@ def to_symengine(expr: object) -> symengine.Basic:
     if expr is sp.E:
         return se.E
     if isinstance(expr, sp.Add):
-        return se.Add(*(to_symengine(a) for a in expr.args))
+        return se.Add(*(to_symengine(a, cache) for a in expr.args))
     if isinstance(expr, sp.Mul):
-        return se.Mul(*(to_symengine(a) for a in expr.args))
+        return se.Mul(*(to_symengine(a, cache) for a in expr.args))
     if isinstance(expr, sp.Pow):
         base, exponent = expr.args
-        return se.Pow(to_symengine(base), to_symengine(exponent))
+        return se.Pow(to_symengine(base, cache), to_symengine(exponent, cache))
     if isinstance(expr, sp.Derivative):
-        result = to_symengine(expr.expr)
+        result = to_symengine(expr.expr, cache)
         for variable, count in expr.variable_count:
             for _ in range(int(count)):
-                result = se.diff(result, to_symengine(variable))
+                result = se.diff(result, to_symengine(variable, cache))
         return result
     if isinstance(expr, sp.core.function.AppliedUndef):
-        return se.Function(str(expr.func))(*(to_symengine(a) for a in expr.args))
+        return se.Function(str(expr.func))(*(to_symengine(a, cache) for a in expr.args))
     if isinstance(expr, sp.Function) and hasattr(se, type(expr).__name__):
-        return getattr(se, type(expr).__name__)(*(to_symengine(a) for a in expr.args))
+        return getattr(se, type(expr).__name__)(*(to_symengine(a, cache) for a in expr.args))
     raise TypeError(f"cannot convert {type(expr).__name__} to symengine: {expr}")
 
 

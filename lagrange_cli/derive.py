@@ -68,14 +68,16 @@ def _derive(spec: SystemSpec) -> tuple[Model, bool]:
     """The model and whether `validate.survey` cleared its symengine forms."""
     q, qd, t = _se(spec.q), _se(spec.qd), _to_se(spec.t)
     qdd = _se(spec.qdd)
-    points = [item for item in _masses(spec) if _structured(item, qd, qdd)]
-    others = [item for item in _masses(spec) if not _structured(item, qd, qdd)]
+    free = [item for item in _masses(spec) if not (isinstance(item, Body) and item.rotation is not None)]  # oriented bodies: `oriented_bodies`
+    points = [item for item in free if _structured(item, qd, qdd)]
+    others = [item for item in free if not _structured(item, qd, qdd)]
     quad = point_masses(points, q, qd, t, _se(spec.gravity) if spec.gravity is not None else None)
+    rigid = oriented_bodies(spec, quad, q, t)  # Kane's form for bodies with an orientation; their weight joins `quad`
     potential = potential_energy(spec, others) + quad.gravity_potential
     # everything but the point masses' quadratic kinetic energy and gravity: differentiated as written
     rest_kinetic = combine_trig(quad.linear + quad.constant + kinetic_energy(spec, others) + rotational_energy(spec) + _to_se(spec.kinetic))
     quadratic = quad.quadratic()
-    kinetic = quadratic + rest_kinetic
+    kinetic = quadratic + rest_kinetic + rigid.kinetic
     rest = rest_kinetic - potential_energy(spec, others) + _to_se(spec.lagrangian)
     lagrangian = kinetic - potential + _to_se(spec.lagrangian)
     dissipation = combine_trig(rayleigh(spec))
@@ -85,11 +87,11 @@ def _derive(spec: SystemSpec) -> tuple[Model, bool]:
     rest_p = momenta(rest, qd)
     rest_mass, rest_force = euler_lagrange(rest, dissipation, forces, q, qd, t)
     n = len(q)
-    mass = [[quad.mass[i][j] + rest_mass[i][j] for j in range(n)] for i in range(n)]
+    mass = [[quad.mass[i][j] + rest_mass[i][j] + rigid.mass[i][j] for j in range(n)] for i in range(n)]
     velocity_force = quad.forces(q, qd, t)
-    force = [velocity_force[i] + quad.gravity[i] + rest_force[i] for i in range(n)]
-    p = [se.Add(*(quad.mass[i][j] * qd[j] for j in range(n) if quad.mass[i][j] != 0)) + rest_p[i] for i in range(n)]
-    energy = quadratic + quad.gravity_potential + energy_function(rest, rest_p, qd)
+    force = [velocity_force[i] + quad.gravity[i] + rest_force[i] + rigid.forcing[i] for i in range(n)]
+    p = [se.Add(*(quad.mass[i][j] * qd[j] for j in range(n) if quad.mass[i][j] != 0)) + rest_p[i] + rigid.momenta[i] for i in range(n)]
+    energy = quadratic + quad.gravity_potential + energy_function(rest, rest_p, qd) + rigid.energy
     force, p, kinetic, energy = [_tidy(f) for f in force], [_tidy(x) for x in p], _tidy(kinetic), _tidy(energy)
     for i, name in enumerate(spec.coordinates):
         if all(m == ZERO for m in mass[i]) and force[i] == ZERO and not any(_has(c.expr, se.Symbol(name)) or _has(c.expr, qd[i]) for c in map(_se_constraint, spec.constraints)):
@@ -113,11 +115,20 @@ def _derive(spec: SystemSpec) -> tuple[Model, bool]:
     )
     size, tree, cleared = survey(forms_parts(forms), MAX_EQUATION_NODES)
     check_size(spec, size, MAX_EQUATION_NODES, "the equations of motion")
-    check_size(spec, tree, MAX_EQUATION_TREE, "the equations of motion, written out without sharing,")
+    refuse = None
+    if tree > MAX_EQUATION_TREE:  # fine where they are printed with their common subexpressions shared; refused where written in full
+        refuse = fail(
+            None,
+            f"{spec.path}: the equations of motion, written out without sharing, amount to more than {MAX_EQUATION_TREE} terms and factors",
+            "a smaller system; or a command that shares common subexpressions: `derive --to python` (or `--to c`, `--to octave`, `--to jax`), `simulate`",
+        )
+        if not cleared:
+            raise refuse
     forms, given = (forms, {}) if cleared else _kinks(forms, spec)
     model = Model.from_symengine(
         forms,
         given,
+        refuse,
         title=spec.title,
         source=spec.path,
         coordinates=spec.coordinates,
@@ -282,6 +293,8 @@ def _tidy(expr: se.Basic) -> se.Basic:
     """`expr` expanded when that makes it shorter (fewer operations), else as it is: combining only
     what pays. `2*l*m*x_dot*theta_dot + 2*m*x*x_dot*theta_dot` beats `x_dot*theta_dot*(2*l*m + 2*m*x)`,
     but `l1*l2*cos(th1 - th2)*(m2 + m3)` stays (its expansion repeats the geometric factor per mass)."""
+    if tree_size(expr, 4 * MAX_TIDY_NODES) > 4 * MAX_TIDY_NODES:  # surely over MAX_TIDY_NODES operations, found without walking all of a shared tree
+        return expr
     size = se.count_ops(expr)
     if size > MAX_TIDY_NODES or not expandable(expr):
         return expr
@@ -341,10 +354,25 @@ def tree_size(expr: object, limit: int = 10**9) -> int:
 
 
 def input_work(spec: SystemSpec) -> int:
-    """What differentiation multiplies: the size of each term of each entry times (the coordinates
-    and velocities it has + 1); a term without a coordinate differentiates to nothing."""
+    """What differentiation multiplies: the size of each term of each entry times (the coordinates and
+    velocities it has + 1), a term without a coordinate differentiating to nothing. A sub-expression met
+    before (in this term or another: a spatial chain's bodies share their rotations) is counted once."""
     state = {*spec.q, *spec.qd}
-    return sum(tree_size(term) * (len(term.free_symbols & state) + 1) for source in sources(spec) for e in source.exprs for term in sp.Add.make_args(e))
+    seen: set[sp.Basic] = set()
+    return sum(_new_nodes(term, seen) * (len(term.free_symbols & state) + 1) for source in sources(spec) for e in source.exprs for term in sp.Add.make_args(e))
+
+
+def _new_nodes(expr: sp.Basic, seen: set[sp.Basic]) -> int:
+    """The number of distinct nodes of `expr` not in `seen` (which they join)."""
+    count, stack = 0, [expr]
+    while stack:
+        node = stack.pop()
+        if node in seen:
+            continue
+        seen.add(node)
+        count += 1
+        stack.extend(node.args)
+    return count
 
 
 def check_size(spec: SystemSpec, size: int, limit: int, what: str) -> None:
@@ -371,7 +399,12 @@ def sources(spec: SystemSpec) -> list[Source]:
             add(f"the damping of particle '{item.name}'", item.spans.get("damping"), item.damping)
         else:
             add(f"the inertia of body '{item.name}'", item.spans.get("inertia"), *item.inertia)
-            add(f"the angular velocity of body '{item.name}'", item.spans.get("angular_velocity"), *item.angular_velocity)
+            if item.rotation is None:
+                add(f"the angular velocity of body '{item.name}'", item.spans.get("angular_velocity"), *item.angular_velocity)
+            else:
+                add(f"the orientation of body '{item.name}'", item.spans.get("orientation"), *item.angular_velocity)
+            add(f"the force on body '{item.name}'", item.spans.get("force"), *(e for f, x in (*item.forces, *item.frame_forces) for e in (*f, *x)))
+            add(f"the torque on body '{item.name}'", item.spans.get("torque"), *(e for v in item.torques for e in v))
     for key, what in (("kinetic", "'kinetic'"), ("potential", "the potential"), ("lagrangian", "'lagrangian'"), ("dissipation", "the dissipation function")):
         add(what, spec.sources.get(key), getattr(spec, key))
     add("'gravity'", spec.sources.get("gravity"), *(spec.gravity or ()))
@@ -419,12 +452,140 @@ def kinetic_energy(spec: SystemSpec, items: Sequence[Particle | Body]) -> se.Bas
 
 
 def rotational_energy(spec: SystemSpec) -> se.Basic:
-    """1/2 I omega^2 (planar) or 1/2 sum I_k omega_k^2 (spatial, principal body axes) over bodies."""
+    """1/2 I omega^2 (planar) or 1/2 sum I_k omega_k^2 (spatial, principal body axes) over bodies whose
+    angular velocity the file gives (those with an `orientation` are `oriented_rotation`'s)."""
     total = se.Integer(0)
     for body in spec.bodies:
+        if body.rotation is not None:
+            continue
+        if len(body.inertia) == 9:  # a full tensor with the file's angular velocity (body axes)
+            w = _se(body.angular_velocity)
+            inertia = inertia_matrix(body)
+            total += _dot(w, [_dot(row, w) for row in inertia]) / 2
+            continue
         inertia, omega = _se(body.inertia), _se(body.angular_velocity)
         total += sum((i * w**2 for i, w in zip(inertia, omega, strict=True)), se.Integer(0)) / 2
     return total
+
+
+def inertia_matrix(body: Body) -> list[list[se.Basic]]:
+    """The body's inertia tensor in body axes: 1x1 (planar), diagonal (principal moments) or full."""
+    values = _se(body.inertia)
+    if len(values) == 9:
+        return [values[3 * i : 3 * i + 3] for i in range(3)]
+    return [[values[i] if i == j else ZERO for j in range(len(values))] for i in range(len(values))]
+
+
+def partial_rates(omega: Sequence[se.Basic], qd: Sequence[se.Basic]) -> tuple[dict[int, Vector], Vector]:
+    """omega = sum_i w_i q_dot_i + w_0 (linear in the velocities): the partial angular velocities w_i
+    (those not zero, by index) and w_0."""
+    partial: dict[int, Vector] = {}
+    for i, v in enumerate(qd):
+        if any(v in w.free_symbols for w in omega):
+            partial[i] = [se.diff(w, v) for w in omega]
+    rest = [w.subs({qd[i]: ZERO for i in partial}) if partial else w for w in omega]
+    return partial, rest
+
+
+MAX_COMBINED = 150
+"""Largest mass-matrix entry of oriented bodies (operations) that is trig-combined."""
+
+
+@dataclass
+class Rigid:
+    """What the bodies with an `orientation` add: to M, to F (velocity terms, Kane's form), the kinetic energy,
+    the momenta and the energy function."""
+
+    mass: list[list[se.Basic]]
+    forcing: Vector
+    kinetic: se.Basic
+    momenta: Vector
+    energy: se.Basic
+
+
+def oriented_bodies(spec: SystemSpec, quad: PointMasses, q: Sequence[se.Basic], t: se.Basic) -> Rigid:
+    """Bodies with an `orientation`, in Kane's form with every vector in body axes, where it is short. With the
+    centre's velocity v = sum_i v_i q_dot_i + v_0 and omega = sum_i w_i q_dot_i + w_0 (body axes; `rigid.Places`
+    builds both down the references without differentiating a composed rotation):
+
+        M_ij += m v_i . v_j + w_i . I w_j
+        F_i  -= m v_i . (a_0 + omega x v) + w_i . (I alpha_0 + omega x I omega)
+
+    where a_0 and alpha_0 are dv/dt and d omega/dt without the accelerations (chain rule: sum_k dv/dq_k q_dot_k + dv/dt).
+    The weight m (R^T g) . v_i joins `quad.gravity` (R^T g carried down `relative_to` chains, R^T g = L^T (R_parent^T g))
+    and -m g . x the potential. T = 1/2 (m v . v + omega . I omega), p_i = m v_i . v + w_i . I omega, h = sum p_i q_dot_i - T."""
+    qd = quad.qd
+    n = len(qd)
+    mass: list[list[se.Basic]] = [[ZERO] * n for _ in range(n)]
+    forcing: Vector = [ZERO] * n
+    momenta: Vector = [ZERO] * n
+    kinetic: list[se.Basic] = []
+    gravity = _se(spec.gravity) if spec.gravity is not None else None
+    local_gravity: dict[str, Vector] = {}
+    by_name = {b.name: b for b in spec.bodies}
+
+    def down(body: Body) -> Vector:
+        """R^T g in the body's axes."""
+        if body.name not in local_gravity:
+            assert gravity is not None and body.local is not None
+            outer = down(by_name[body.parent]) if body.parent is not None else gravity
+            local = [_se(row) for row in body.local]
+            local_gravity[body.name] = [se.Add(*(local[k][i] * outer[k] for k in range(len(outer)))) for i in range(len(outer))]
+        return local_gravity[body.name]
+
+    def rate(vector: Vector) -> Vector:
+        """d/dt without the accelerations: sum_k dx/dq_k q_dot_k + dx/dt."""
+        return [se.Add(*(se.diff(x, q[k]) * qd[k] for k in range(n) if q[k] in x.free_symbols), se.diff(x, t) if t in x.free_symbols else ZERO) for x in vector]
+
+    entries: dict[tuple[int, int], list[se.Basic]] = {}
+    for body in spec.bodies:
+        if body.rotation is None or body.velocity is None:
+            continue
+        m = _to_se(body.mass)
+        inertia = inertia_matrix(body)
+        omega = _se(body.angular_velocity)
+        velocity = _se(body.velocity)
+        w, _ = partial_rates(omega, qd)
+        v, _ = partial_rates(velocity, qd)
+        keys = sorted(set(w) | set(v))
+        zero_w, zero_v = [ZERO] * len(omega), [ZERO] * len(velocity)
+        spin = [_dot(row, omega) for row in inertia]  # I omega
+        moments = {i: [_dot(row, w.get(i, zero_w)) for row in inertia] for i in keys}  # I w_i
+        for k, i in enumerate(keys):
+            for j in keys[k:]:
+                entries.setdefault((i, j), []).append(m * _dot(v.get(i, zero_v), v.get(j, zero_v)) + _dot(w.get(j, zero_w), moments[i]))
+        acceleration = _plus(rate(velocity), _cross(omega, velocity))
+        torque = [_dot(row, rate(omega)) for row in inertia]
+        if len(omega) == 3:  # a planar body's omega x I omega is 0
+            torque = _plus(torque, _cross(omega, spin))
+        for i in keys:
+            forcing[i] = forcing[i] - m * _dot(v.get(i, zero_v), acceleration) - _dot(w.get(i, zero_w), torque)
+            momenta[i] = momenta[i] + m * _dot(v.get(i, zero_v), velocity) + _dot(w.get(i, zero_w), spin)
+        kinetic.append((m * _dot(velocity, velocity) + _dot(omega, spin)) / 2)
+        if gravity is not None:
+            g_body = down(body)
+            for i, vi in v.items():
+                quad.gravity[i] = quad.gravity[i] + m * _dot(g_body, vi)
+            quad.gravity_potential = quad.gravity_potential - m * _dot(gravity, _se(body.position))
+    for (i, j), terms in entries.items():
+        entry = se.Add(*terms)
+        if se.count_ops(entry) <= MAX_COMBINED:
+            entry = combine_trig(entry)
+        mass[i][j] = mass[j][i] = entry
+    total = se.Add(*kinetic) if kinetic else ZERO
+    energy = se.Add(*(momenta[i] * qd[i] for i in range(n) if momenta[i] != ZERO)) - total
+    return Rigid(mass, forcing, total, momenta, energy)
+
+
+def _cross(a: Vector, b: Vector) -> Vector:
+    """a x b; planar (a = (omega_z,), b 2-D): omega_z e_z x b."""
+    if len(b) == 2:
+        return [-a[0] * b[1], a[0] * b[0]]
+    return [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
+
+
+def _plus(a: Vector, b: Vector) -> Vector:
+    return [x + y for x, y in zip(a, b, strict=True)]
 
 
 def velocity(position: Sequence[se.Basic], q: Sequence[se.Basic], qd: Sequence[se.Basic], t: se.Basic) -> Vector:
@@ -462,6 +623,23 @@ def generalized_forces(spec: SystemSpec) -> Vector:
             f, x = _se(particle.force), _se(particle.position)
             for i, qi in enumerate(q):
                 forces[i] += sum((fj * se.diff(xj, qi) for fj, xj in zip(f, x, strict=True)), se.Integer(0))
+    qd = _se(spec.qd)
+    for body in spec.bodies:
+        for force, at in body.forces:  # f . dv_at/dq_dot_i = f . dx_at/dq_i
+            f, x = _se(force), _se(at)
+            for i, qi in enumerate(q):
+                forces[i] += se.Add(*(fj * se.diff(xj, qi) for fj, xj in zip(f, x, strict=True)))
+        for force, rate in body.frame_forces:  # f . dv_at/dq_dot_i, both in body axes
+            f, v = _se(force), _se(rate)
+            partial, _ = partial_rates(v, qd)
+            for i, vi in partial.items():
+                forces[i] += _dot(f, vi)
+        if body.torques:  # tau . d(omega)/dq_dot_i, both in body axes
+            partial, _ = partial_rates(_se(body.angular_velocity), qd)
+            for torque in body.torques:
+                tau = _se(torque)
+                for i, w in partial.items():
+                    forces[i] += _dot(tau, w)
     return forces
 
 
@@ -750,7 +928,7 @@ def _substitute(spec: SystemSpec, k: int, solution: sp.Expr, used: Constraint) -
         qd=rqd,
         qdd=rqdd,
         particles=tuple(dataclasses.replace(p, mass=sub(p.mass), position=subs_all(p.position), force=None if p.force is None else subs_all(p.force)) for p in spec.particles),
-        bodies=tuple(dataclasses.replace(b, position=subs_all(b.position), mass=sub(b.mass), inertia=subs_all(b.inertia), angular_velocity=subs_all(b.angular_velocity)) for b in spec.bodies),
+        bodies=tuple(_substitute_body(b, sub) for b in spec.bodies),
         kinetic=sub(spec.kinetic),
         potential=sub(spec.potential),
         lagrangian=sub(spec.lagrangian),
@@ -764,6 +942,26 @@ def _substitute(spec: SystemSpec, k: int, solution: sp.Expr, used: Constraint) -
     earlier = tuple((name, sub(e)) for name, e in getattr(spec, "_eliminated", ()))  # in the coordinates that remain
     object.__setattr__(changed, "_eliminated", (*earlier, (spec.coordinates[k], solution)))
     return changed
+
+
+def _substitute_body(body: Body, sub: Callable[[sp.Expr], sp.Expr]) -> Body:
+    def many(values: Iterable[sp.Expr]) -> tuple[sp.Expr, ...]:
+        return tuple(sub(v) for v in values)
+
+    return dataclasses.replace(
+        body,
+        position=many(body.position),
+        mass=sub(body.mass),
+        inertia=many(body.inertia),
+        angular_velocity=many(body.angular_velocity),
+        rotation=None if body.rotation is None else tuple(many(row) for row in body.rotation),
+        points={k: many(v) for k, v in body.points.items()},
+        forces=tuple((many(f), many(x)) for f, x in body.forces),
+        torques=tuple(many(v) for v in body.torques),
+        local=None if body.local is None else tuple(many(row) for row in body.local),
+        velocity=None if body.velocity is None else many(body.velocity),
+        frame_forces=tuple((many(f), many(v)) for f, v in body.frame_forces),
+    )
 
 
 def _kinks(forms: SymengineForms, spec: SystemSpec) -> tuple[SymengineForms, dict[str, object]]:
@@ -822,8 +1020,7 @@ def _to_se(expr: object) -> se.Basic:
     hit = _CONVERTED.get(id(expr))
     if hit is not None and hit[0] is expr:
         return hit[1]
-    value = to_symengine(expr)
-    _CONVERTED[id(expr)] = (expr, value)
+    value = to_symengine(expr, _CONVERTED)  # also each shared sub-expression once
     return value
 
 

@@ -128,9 +128,10 @@ class Model:
         return value
 
     @classmethod
-    def from_symengine(cls, forms: SymengineForms, sympy: Mapping[str, Any] | None = None, **fields: Any) -> Model:
+    def from_symengine(cls, forms: SymengineForms, sympy: Mapping[str, Any] | None = None, refuse: Exception | None = None, **fields: Any) -> Model:
         """A model whose equations are `forms`; each field of `LAZY_FIELDS` is converted to sympy on first
-        access, unless `sympy` gives it already (a value computed in sympy on the way)."""
+        access, unless `sympy` gives it already (a value computed in sympy on the way). With `refuse`, reading
+        a sympy field raises it instead (equations too large to write out in full, usable in symengine only)."""
         import lagrange_cli._symengine as convert
 
         given = dict(sympy or {})
@@ -157,6 +158,12 @@ class Model:
             "mass_matrix": Lazy(lambda: sp.ImmutableMatrix(n, n, [conv(m) for row in forms.mass for m in row])),
             "forcing": Lazy(lambda: sp.ImmutableMatrix(n, 1, [conv(f) for f in forms.forcing])),
         }
+        if refuse is not None:
+
+            def refused() -> Any:
+                raise refuse
+
+            lazy = {name: Lazy(refused) for name in lazy}
         lazy.update(given)
         model = cls(**fields, **lazy)
         object.__setattr__(model, "_symengine", forms)

@@ -23,6 +23,8 @@ from lagrange_cli.errors import Diagnostic, LagrangeError, Span, SpecError, fail
 from lagrange_cli.expr import CONSTANTS, RESERVED, Scope, _closest, numeric_value, parse_equation, parse_expression, real_derivative
 from lagrange_cli.inputs import ExpectedStateSpace, check_usage, read_inputs, read_outputs, read_state_space
 from lagrange_cli.model import Input, Parameter
+from lagrange_cli.rigid import BODY_KEYS as BODY_KEYS
+from lagrange_cli.rigid import Places
 
 MAX_FILE_BYTES = 1_000_000
 MAX_YAML_DEPTH = 40
@@ -35,7 +37,6 @@ TOP_KEYS = (
 )  # fmt: skip
 PARTICLE_KEYS = ("mass", "position", "force", "damping")
 FUNCTION_KEYS = ("arguments", "definition", "description")
-BODY_KEYS = ("mass", "position", "inertia", "angular_velocity")
 DRAW_KEYS = ("segments", "trails")
 EXPECT_KEYS = ("equations", "accelerations", "momenta", "conserved", "hamiltonian", "hamilton_equations", "state_space")
 SIMULATE_KEYS = ("t_end", "method", "rtol", "atol", "step", "samples")
@@ -84,6 +85,24 @@ class Body:
     angular_velocity: tuple[sp.Expr, ...]
     spans: Mapping[str, Span] = field(default_factory=dict, compare=False)
     """Where each field (`mass`, `inertia`, ...) is written in the file."""
+    rotation: tuple[tuple[sp.Expr, ...], ...] | None = None
+    """With `orientation` (FORMAT.md version 2): the rotation to world axes (2x2 planar, 3x3 spatial), whose
+    columns are the body axes; `angular_velocity` is then the tool's body-axes omega (planar: omega_z).
+    `inertia` has 9 entries (row by row) for a full tensor."""
+    points: Mapping[str, tuple[sp.Expr, ...]] = field(default_factory=dict)
+    """The body's `points`, as world positions."""
+    forces: tuple[tuple[tuple[sp.Expr, ...], tuple[sp.Expr, ...]], ...] = ()
+    """Each `force` load: (the force in world axes, the world position where it acts)."""
+    torques: tuple[tuple[sp.Expr, ...], ...] = ()
+    """Each `torque` load in body axes (a planar body's: its z component alone)."""
+    local: tuple[tuple[sp.Expr, ...], ...] | None = None
+    """With `orientation`: the rotation relative to the parent (`relative_to`, else the world)."""
+    parent: str | None = None
+    """The body named by `relative_to`."""
+    velocity: tuple[sp.Expr, ...] | None = None
+    """With `orientation`: the velocity of the centre of mass in body axes."""
+    frame_forces: tuple[tuple[tuple[sp.Expr, ...], tuple[sp.Expr, ...]], ...] = ()
+    """With `orientation`, each `force` load as (the force in body axes, the velocity of the point where it acts in body axes)."""
 
 
 @dataclass(frozen=True)
@@ -642,6 +661,7 @@ class _Reader:
         gravity = self.vector(gravity_node, "'gravity'", constants) if gravity_node is not None else None
         if gravity_node is not None:
             self.sources["gravity"] = self.where(gravity_node)
+        self.places = Places(self, value("particles"), value("bodies"), config, state, constants, {p.symbol: p.value for p in parameters if p.value is not None})
         particles = self.particles(value("particles"), config, state, constants)
         bodies = self.bodies(value("bodies"), config, state, constants)
         self.check_dimensions(gravity, particles, bodies, value)
@@ -724,18 +744,9 @@ class _Reader:
         if not isinstance(node, yaml.ScalarNode) or node.tag != "tag:yaml.org,2002:str":
             self.problem(node, f"a point of 'draw' must be a name or a position list, got {_kind(node)}", expected)
             return None
-        name = node.value
-        items: tuple[Particle | Body, ...] = (*particles, *bodies)
-        found = next((item for item in items if item.name == name), None)
-        if found is not None:
-            return DrawPoint(name, found.position, self.text_span(node))
-        body, dot, point = name.partition(".")
-        if dot and any(b.name == body for b in bodies):
-            self.problem(node, f"unknown point '{name}': body '{body}' has no point '{point}'", expected)
-        else:
-            hint = _closest(name, [item.name for item in items])
-            self.problem(node, f"unknown point '{name}' in 'draw'", (f"did you mean '{hint}'? " if hint else "") + expected)
-        return None
+        name = str(node.value).strip()
+        position = self.places.place(node, "a point of 'draw'", config, lengths=(length,) if length else (1, 2, 3))
+        return DrawPoint(name, position, self.text_span(node)) if position is not None else None
 
     def string(self, node: yaml.Node | None, what: str) -> str | None:
         if node is None:
@@ -857,7 +868,7 @@ class _Reader:
                 if required not in fields and isinstance(value, yaml.MappingNode) and required not in self.near_misses(value, PARTICLE_KEYS):
                     self.problem(value, f"particle '{name}' has no '{required}'", f"`{required}:` " + ("an expression" if required == "mass" else "a list of 1 to 3 components"))
             mass = self.expression(fields["mass"], f"the mass of '{name}'", constants) if "mass" in fields else None
-            position = self.vector(fields["position"], f"the position of '{name}'", config) if "position" in fields else None
+            position = self.places.particle(name, fields["position"]) if "position" in fields else None
             force = self.vector(fields["force"], f"the force on '{name}'", state) if "force" in fields else None
             damping = self.expression(fields["damping"], f"the damping of '{name}'", constants) if "damping" in fields else None
             if mass is not None and position is not None:
@@ -868,31 +879,15 @@ class _Reader:
         return tuple(result)
 
     def bodies(self, node: yaml.Node | None, config: Scope, state: Scope, constants: Scope) -> tuple[Body, ...]:
+        """Each body, read by `rigid.Places` (on demand, so that pivots, positions and `relative_to` may
+        refer to bodies and particles anywhere in the file)."""
         if node is None:
             return ()
         result = []
-        for name, _, value in self.mapping(node, "'bodies'"):
-            fields = {k: v for k, _, v in self.mapping(value, f"body '{name}'", BODY_KEYS)}
-            missing = [k for k in BODY_KEYS if k not in fields and (not isinstance(value, yaml.MappingNode) or k not in self.near_misses(value, BODY_KEYS))]
-            if not missing and len(fields) < len(BODY_KEYS):
-                continue  # a misspelt key, reported with a "did you mean"
-            if missing and isinstance(value, yaml.MappingNode):
-                self.problem(value, f"body '{name}' has no {', '.join(repr(m) for m in missing)}", "mass, position, inertia and angular_velocity")
-                continue
-            if missing:
-                continue
-            mass = self.expression(fields["mass"], f"the mass of '{name}'", constants)
-            position = self.vector(fields["position"], f"the position of '{name}'", config)
-            inertia = self.scalar_or_triple(fields["inertia"], f"the inertia of '{name}'", config)
-            omega = self.scalar_or_triple(fields["angular_velocity"], f"the angular velocity of '{name}'", state)
-            if mass is None or position is None or inertia is None or omega is None:
-                continue
-            if len(inertia) != len(omega):
-                self.problem(
-                    fields["angular_velocity"], f"body '{name}': inertia has {len(inertia)} component(s) but angular_velocity has {len(omega)}", "both scalars (planar) or both 3-lists (spatial)"
-                )
-                continue
-            result.append(Body(name, mass, position, inertia, omega, {k: self.where(v) for k, v in fields.items()}))
+        for name, _, _ in self.mapping(node, "'bodies'"):
+            body = self.places.body(name)
+            if body is not None:
+                result.append(body)
         return tuple(result)
 
     def scalar_or_triple(self, node: yaml.Node, what: str, scope: Scope) -> tuple[sp.Expr, ...] | None:

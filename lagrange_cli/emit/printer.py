@@ -351,8 +351,12 @@ def common_subexpressions(exprs: Sequence[Any], prefix: str, taken: Collection[s
             counter += 1
         rename[symbol] = se.Symbol(f"{prefix}{counter}")
         counter += 1
-    temporaries = [(str(rename[symbol]), value.xreplace(rename)) for symbol, value in replacements]
-    return temporaries, [e.xreplace(rename) for e in reduced]
+
+    def renamed(value: Any) -> Any:  # only the temporaries it has: xreplace converts its whole map on each call
+        return value.xreplace({s: rename[s] for s in value.free_symbols if s in rename})
+
+    temporaries = [(str(rename[symbol]), renamed(value)) for symbol, value in replacements]
+    return temporaries, [renamed(e) for e in reduced]
 
 
 _EXP1 = type(se.E)

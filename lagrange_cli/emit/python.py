@@ -104,10 +104,20 @@ def symbol_names(model: Model) -> dict[str, str]:
 
 
 def free_names(exprs: Sequence[Any]) -> set[str]:
-    """The names of the symbols in `exprs` (symengine)."""
+    """The names of the symbols in `exprs` (symengine), each distinct sub-expression visited once (symengine's
+    `free_symbols` walks a shared sub-expression once per occurrence: exponential work on a spatial chain)."""
     names: set[str] = set()
-    for e in exprs:
-        names.update(str(s) for s in e.free_symbols)
+    seen: set[Any] = set()
+    stack = list(exprs)
+    while stack:
+        e = stack.pop()
+        if e in seen:
+            continue
+        seen.add(e)
+        if e.is_Symbol:
+            names.add(str(e))
+        else:
+            stack.extend(e.args)
     return names
 
 
