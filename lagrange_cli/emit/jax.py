@@ -24,7 +24,8 @@ from __future__ import annotations
 import builtins
 import keyword
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, ClassVar
 
@@ -149,11 +150,19 @@ class _Writer:
         f = results[len(self.mass) : len(self.mass) + n]
         a = results[len(self.mass) + n : len(self.mass) + n + n * k]
         c = results[len(self.mass) + n + n * k :]
+        body = [*self.unpack("y"), *lines]
+        zero = {ij for ij, expr in zip(self.upper, self.mass, strict=True) if expr == 0}
+        if n + k <= UNROLLED_MAX:
+            mass = {ij: (None if ij in zero else code) for ij, code in m.items()}
+            jacobian = [[None if self.jacobian[r * n + j] == 0 else a[r * n + j] for j in range(n)] for r in range(k)]
+            forcing = [None if expr == 0 else code for expr, code in zip(self.forcing, f, strict=True)]
+            bias = [None if expr == 0 else _negate(code) for expr, code in zip(self.bias, c, strict=True)]
+            solved = unrolled_solve(n, mass, forcing, jacobian, bias)
+            return body + solved.lines + ["_x = _array([" + ", ".join(solved.results) + "])"]
         matrix = [[m[(min(i, j), max(i, j))] for j in range(n)] + [_negate(a[r * n + i]) for r in range(k)] for i in range(n)]
         matrix += [[a[r * n + j] for j in range(n)] + ["0.0"] * k for r in range(k)]
         vector = [*f, *(_negate(x) for x in c)]
         rows = ", ".join("[" + ", ".join(row) + "]" for row in matrix)
-        body = [*self.unpack("y"), *lines]
         body.append(f"_a = _array([{rows}])")
         body.append(f"_b = _array([{', '.join(vector)}])")
         body.append("_x = jnp.linalg.solve(_a, _b)")
@@ -248,6 +257,108 @@ class _Writer:
         ]
         head = docstring("\n".join([*header, ""])) + "\n\nimport jax.numpy as jnp\n\n" + "\n".join(constants)
         return head + "\n\n\n" + "\n\n\n".join([*helpers, *functions]) + "\n"
+
+
+UNROLLED_MAX = 12
+"""Largest n + k (coordinates plus kept constraints) whose linear system is solved by unrolled
+scalar code (`unrolled_solve`) rather than `jnp.linalg.solve`; measured by benchmarks/jax_bench.py."""
+
+
+@dataclass
+class Solved:
+    """Straight-line code for a solve: the lines, and the printed solution components."""
+
+    lines: list[str]
+    results: list[str]
+
+
+def unrolled_solve(n: int, mass: dict[tuple[int, int], str | None], forcing: Sequence[str | None], jacobian: Sequence[Sequence[str | None]], bias: Sequence[str | None]) -> Solved:
+    """Scalar code for M x = F (and, with rows of A, for M x - A^T lam = F, A x = bias): the solution
+    [x..., lam...] as one line per scalar, so that under `jax.vmap` every operation is elementwise over
+    the batch (`jnp.linalg.solve` runs one LAPACK call per matrix on CPU).
+
+    M (its upper triangle, None for a structural zero) is symmetric positive definite, so it is
+    factored as L D L^T without pivoting (no square roots: smooth for `jax.grad`; structural zeros
+    are skipped, so a diagonal M costs n divisions). Kept constraints use the Schur complement
+    rather than an unpivoted LU of the saddle-point matrix [[M, -A^T], [A, 0]], whose zero block
+    needs pivoting: with Y = M^-1 A^T and x0 = M^-1 F (the same factors), S = A Y is symmetric
+    positive definite when A has full rank, lam solves S lam = bias - A x0 (L D L^T again), and
+    x = x0 + Y lam. Both factorizations are of positive definite matrices, where L D L^T without
+    pivoting is backward stable."""
+    lines: list[str] = []
+    counter = iter(range(1 << 30))
+
+    def let(code: str) -> str:
+        name = f"_u{next(counter)}"
+        lines.append(f"{name} = {code}")
+        return name
+
+    def combine(base: str | None, terms: Sequence[str]) -> str | None:
+        """base - sum(terms), None for a structural zero."""
+        if not terms:
+            return base
+        sub = " - ".join(terms)
+        return let(f"{base} - {sub}" if base is not None else f"-({' + '.join(terms)})")
+
+    def factor(size: int, matrix: Callable[[int, int], str | None]) -> tuple[dict[tuple[int, int], str], list[str]]:
+        """L (strictly lower, by (i, j); absent entries are zero) and D of L D L^T."""
+        low: dict[tuple[int, int], str] = {}
+        diagonal: list[str] = []
+        products: dict[tuple[int, int], str] = {}  # L_ik D_k
+        for j in range(size):
+            d = combine(matrix(j, j), [f"{low[(j, k)]} * {products[(j, k)]}" for k in range(j) if (j, k) in low])
+            assert d is not None, "a structurally zero pivot"
+            diagonal.append(d)
+            for i in range(j + 1, size):
+                value = combine(matrix(i, j), [f"{low[(i, k)]} * {products[(j, k)]}" for k in range(j) if (i, k) in low and (j, k) in low])
+                if value is not None:
+                    products[(i, j)] = value
+                    low[(i, j)] = let(f"{value} / {diagonal[j]}")
+        return low, diagonal
+
+    def substitute(size: int, low: dict[tuple[int, int], str], diagonal: list[str], vector: Sequence[str | None]) -> list[str | None]:
+        """(L D L^T)^-1 vector."""
+        forward: list[str | None] = []
+        for i in range(size):
+            forward.append(combine(vector[i], [f"{low[(i, k)]} * {forward[k]}" for k in range(i) if (i, k) in low and forward[k] is not None]))
+        scaled = [None if v is None else let(f"{v} / {diagonal[i]}") for i, v in enumerate(forward)]
+        back: list[str | None] = [None] * size
+        for i in reversed(range(size)):
+            back[i] = combine(scaled[i], [f"{low[(k, i)]} * {back[k]}" for k in range(i + 1, size) if (k, i) in low and back[k] is not None])
+        return back
+
+    def bound(code: str | None) -> str | None:
+        """A printed input as a name of its own, so that it is an operand anywhere."""
+        return None if code is None else let(code)
+
+    mass = {ij: bound(code) for ij, code in mass.items()}
+    forcing = [bound(code) for code in forcing]
+    jacobian = [[bound(code) for code in row] for row in jacobian]
+    bias = [bound(code) for code in bias]
+
+    def entry(i: int, j: int) -> str | None:
+        return mass[(min(i, j), max(i, j))]
+
+    low, diagonal = factor(n, entry)
+    x0 = substitute(n, low, diagonal, list(forcing))
+    k = len(jacobian)
+    if not k:
+        return Solved(lines, [v if v is not None else "0.0" for v in x0])
+    columns = [substitute(n, low, diagonal, list(row)) for row in jacobian]  # Y = M^-1 A^T, by column
+    schur: dict[tuple[int, int], str | None] = {}
+    for r in range(k):
+        for s in range(r, k):
+            terms = [f"{jacobian[r][j]} * {columns[s][j]}" for j in range(n) if jacobian[r][j] is not None and columns[s][j] is not None]
+            schur[(r, s)] = let(" + ".join(terms)) if terms else None
+    reduced = [combine(bias[r], [f"{jacobian[r][j]} * {x0[j]}" for j in range(n) if jacobian[r][j] is not None and x0[j] is not None]) for r in range(k)]
+    low_s, diagonal_s = factor(k, lambda r, s: schur[(min(r, s), max(r, s))])
+    lam = substitute(k, low_s, diagonal_s, reduced)
+    x: list[str] = []
+    for j in range(n):
+        start = x0[j]
+        terms = [f"{columns[r][j]} * {lam[r]}" for r in range(k) if columns[r][j] is not None and lam[r] is not None]
+        x.append(let(" + ".join(([start] if start is not None else []) + terms)) if terms else (start if start is not None else "0.0"))
+    return Solved(lines, [*x, *(v if v is not None else "0.0" for v in lam)])
 
 
 def _negate(code: str) -> str:
