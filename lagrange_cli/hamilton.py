@@ -107,9 +107,7 @@ def hamilton(model: Model) -> Hamilton:
     bias = tuple(sp.diff(model.lagrangian, v).xreplace(zero) for v in model.qd)
     rest = model.lagrangian.xreplace(zero)
     qd = model.qd
-    # dL/dq + Q - dR/dq_dot = F + d/dt(p) without the accelerations: from the derived forcing, whose
-    # derivatives of sign, Abs and the file's functions the deriver has already taken
-    in_velocities = tuple(model.forcing[i] + sum((sp.diff(model.momenta[i], model.q[j]) * qd[j] for j in range(model.n)), sp.diff(model.momenta[i], model.t)) for i in range(model.n))
+    in_velocities = rates_in_velocities(model)
     n = model.n
     if n > MAX_SYMBOLIC and not mass.is_diagonal():
         return Hamilton(model, p, pd, False, None, (), in_velocities, mass, bias, rest)
@@ -120,6 +118,14 @@ def hamilton(model: Model) -> Hamilton:
     solved = dict(zip(qd, velocities, strict=True))
     rates = tuple(_combined(r.xreplace(solved)) for r in in_velocities)
     return Hamilton(model, p, pd, True, hamiltonian, velocities, rates, mass, bias, rest)
+
+
+def rates_in_velocities(model: Model) -> tuple[sp.Expr, ...]:
+    """p_dot = dL/dq + Q - dR/dq_dot as functions of (q, q_dot, t): F + d/dt(p) without the
+    accelerations, from the derived forcing, whose derivatives of sign, Abs and the file's
+    functions the deriver has already taken (what generated code evaluates at q_dot = M^-1 (p - b))."""
+    qd = model.qd
+    return tuple(model.forcing[i] + sum((sp.diff(model.momenta[i], model.q[j]) * qd[j] for j in range(model.n)), sp.diff(model.momenta[i], model.t)) for i in range(model.n))
 
 
 def _inverse(mass: sp.ImmutableMatrix, where: str) -> tuple[sp.Matrix, sp.Expr]:

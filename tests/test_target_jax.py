@@ -261,3 +261,59 @@ def test_a_diagonal_mass_matrix_costs_one_division_per_coordinate() -> None:
     code = jax_target.emit(model_from(ROOT / "systems" / "kepler.yaml"))
     solve = code.split("def rhs", 1)[1]
     assert solve.count(" / _u") == 2 and " * _u" not in solve
+
+
+# -- --form hamilton ------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("path", SYSTEMS, ids=lambda p: p.stem)
+def test_hamilton_agrees_with_the_python_hamilton_module_and_the_lagrange_form(path: Path, tmp_path: Path) -> None:
+    """rhs, velocities and H agree with `--python --form hamilton` at random (q, p); and from a state (q, q_dot),
+    p = momenta(q, q_dot) gives back q_dot, and p_dot is d/dt of momenta along the Lagrange form's motion."""
+    from lagrange_cli.emit import hamiltonian
+    from lagrange_cli.errors import LagrangeError
+
+    model = model_from(path)
+    try:
+        reference = load_module(hamiltonian.python(model), tmp_path / "reference.py")
+    except LagrangeError:
+        with pytest.raises(LagrangeError):
+            jax_target.emit_hamilton(model)
+        return
+    target = load_module(jax_target.emit_hamilton(model), tmp_path / "target.py")
+    lagrange = load_module(jax_target.emit(model), tmp_path / "lagrange.py")
+    assert target.MOMENTA == reference.MOMENTA and target.COORDINATES == reference.COORDINATES
+    n = model.n
+    for seed in range(2):
+        point = random_point(model, seed)
+        p = {parameter.name: point[parameter.symbol] for parameter in model.parameters}
+        t = point[model.t]
+        q, qd = [point[s] for s in model.q], [point[s] for s in model.qd]
+        momenta = np.asarray(target.momenta(t, q, qd, p))
+        np.testing.assert_allclose(momenta, np.asarray(reference.momenta(t, q, qd, p), dtype=float), rtol=1e-10, atol=1e-12)
+        y = [*q, *momenta.tolist()]
+        expected = np.asarray(reference.rhs(t, y, p), dtype=float)
+        got = target.rhs(t, jnp.asarray(y), p)
+        assert got.dtype == jnp.float64 and got.shape == (2 * n,)
+        np.testing.assert_allclose(np.asarray(got), expected, rtol=1e-9, atol=1e-11)
+        np.testing.assert_allclose(np.asarray(target.velocities(t, y, p)), qd, rtol=1e-9, atol=1e-11)
+        assert float(target.hamiltonian(t, y, p)) == pytest.approx(reference.hamiltonian(t, y, p), rel=1e-9, abs=1e-11)
+        assert float(target.hamiltonian(t, y, p)) == pytest.approx(float(lagrange.energy(t, q, qd, p)), rel=1e-9, abs=1e-11)
+        # Hamilton's equations against the Lagrange form: p_dot = d/dt momenta(t, q(t), q_dot(t))
+        qdd = np.asarray(lagrange.rhs(t, jnp.asarray([*q, *qd]), p))[n:]
+        _, rate = jax.jvp(lambda tt, qq, vv, p=p: target.momenta(tt, qq, vv, p), (jnp.asarray(t), jnp.asarray(q), jnp.asarray(qd)), (jnp.asarray(1.0), jnp.asarray(qd), jnp.asarray(qdd)))
+        np.testing.assert_allclose(np.asarray(got)[n:], np.asarray(rate), rtol=1e-8, atol=1e-10)
+
+
+def test_hamilton_jit_vmap_and_grad(tmp_path: Path) -> None:
+    """The Hamilton module is jax-transformable: jit(vmap(rhs)) equals a loop, and grad of H with respect to the
+    momenta is q_dot (Hamilton's first equation, by automatic differentiation)."""
+    model = model_from(ROOT / "systems" / "double_pendulum.yaml")
+    target = load_module(jax_target.emit_hamilton(model), tmp_path / "target.py")
+    states = jnp.asarray(np.random.default_rng(2).uniform(-1.0, 1.0, (200, 4)))
+    batched = np.asarray(jax.jit(jax.vmap(target.rhs, in_axes=(None, 0)))(0.0, states))
+    np.testing.assert_allclose(batched[:20], np.array([np.asarray(target.rhs(0.0, s)) for s in states[:20]]), rtol=1e-13, atol=1e-14)
+    for state in states[:5]:
+        grad = jax.grad(lambda y: target.hamiltonian(0.0, y))(state)
+        np.testing.assert_allclose(np.asarray(grad[2:]), np.asarray(target.rhs(0.0, state)[:2]), rtol=1e-10, atol=1e-12)
+        np.testing.assert_allclose(-np.asarray(grad[:2]), np.asarray(target.rhs(0.0, state)[2:]), rtol=1e-10, atol=1e-12)
