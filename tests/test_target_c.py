@@ -390,3 +390,39 @@ def test_ldlt_hands_an_indefinite_matrix_to_the_lu_solve(tmp_path: Path) -> None
     toolchain("gcc")
     subprocess.run([*GCC, str(tmp_path / "t.c"), "-o", str(tmp_path / "t"), "-lm"], check=True)
     assert subprocess.run([str(tmp_path / "t")], capture_output=True, text=True, check=True).stdout.split() == ["1", "2", "3", "0", "3", "2", "1", "1"]
+
+
+# -- --form hamilton (shared with tests/test_target_octave.py) ------------------------------------------
+
+
+@dataclass
+class HamiltonPoint:
+    """A state (q, q_dot) mapped to y = [q, p] by the Python Hamilton module, with that module's dy/dt and H
+    there, and the Lagrange form's energy (which H must equal)."""
+
+    t: float
+    y: list[float]
+    p: dict[str, float]
+    velocities: list[float]
+    rhs: list[float]
+    hamiltonian: float
+    energy: float
+
+
+def hamilton_points(model: Model, folder: Path, seed: int, count: int = 2) -> list[HamiltonPoint] | None:
+    """Seeded random Hamilton states of `model` (None where `--form hamilton` refuses the model)."""
+    from lagrange_cli.emit import hamiltonian
+
+    try:
+        reference = load_module(hamiltonian.python(model), folder / f"hamilton_reference_{seed}.py")
+    except LagrangeError:
+        return None
+    lagrange = load_module(python.emit(model), folder / f"lagrange_reference_{seed}.py")
+    n = model.n
+    found = []
+    for t, state, p in states(model, seed, count):
+        q, qd = state[:n], state[n:]
+        y = [*q, *(float(v) for v in reference.momenta(t, q, qd, p))]
+        energy = lagrange.energy(*(([t] if "t" in inspect.signature(lagrange.energy).parameters else []) + [q, qd, p]))
+        found.append(HamiltonPoint(t, y, p, qd, [float(v) for v in reference.rhs(t, y, p)], float(reference.hamiltonian(t, y, p)), float(energy)))
+    return found
