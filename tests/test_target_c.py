@@ -426,3 +426,70 @@ def hamilton_points(model: Model, folder: Path, seed: int, count: int = 2) -> li
         energy = lagrange.energy(*(([t] if "t" in inspect.signature(lagrange.energy).parameters else []) + [q, qd, p]))
         found.append(HamiltonPoint(t, y, p, qd, [float(v) for v in reference.rhs(t, y, p)], float(reference.hamiltonian(t, y, p)), float(energy)))
     return found
+
+
+@pytest.mark.parametrize("compiler", sorted(COMPILERS))
+def test_hamilton_headers_compile_and_agree_with_the_python_hamilton_module(compiler: str, tmp_path: Path) -> None:
+    """`--to c --form hamilton` of every bundled system Hamilton's equations are written for: one harness,
+    compiled cleanly (-Werror) as C99 and C++, whose rhs agrees with the Python Hamilton module at random
+    (q, p), whose velocities are the state's q_dot, whose H is the Lagrange form's energy, and whose momenta
+    map (q, q_dot) back to p."""
+    toolchain(COMPILERS[compiler][0])
+    cases = []
+    for seed, path in enumerate(SYSTEMS):
+        model = model_from(path)
+        points = hamilton_points(model, tmp_path, 700 + seed)
+        if points is None:
+            with pytest.raises(LagrangeError):
+                c.emit_hamilton(model)
+            continue
+        prefix = f"ham{seed}"
+        (tmp_path / f"{prefix}.h").write_text(c.emit_hamilton(model, name=prefix), encoding="ascii")
+        cases.append((path.stem, prefix, model, points))
+    assert len(cases) >= 20
+    lines = ["#include <stdio.h>", *(f'#include "{prefix}.h"' for _, prefix, _, _ in cases), "", "int main(void)", "{", "    int j;"]
+    for i, (_, prefix, model, points) in enumerate(cases):
+        n, np_ = model.n, max(1, len(model.parameters))
+        for k, point in enumerate(points):
+            lagrange_state = [*point.y[:n], *point.velocities]
+            lines += [
+                "    {",
+                f"        const double y[{2 * n}] = {literal(point.y)};",
+                f"        const double s[{2 * n}] = {literal(lagrange_state)};",
+                f"        const double p[{np_}] = {literal([point.p[q.name] for q in model.parameters])};",
+                f"        double d[{2 * n}], v[{n}], m[{n}];",
+                f"        const int status = {prefix}_rhs({point.t!r}, y, p, d);",
+                f"        {prefix}_velocities({point.t!r}, y, p, v);",
+                f"        {prefix}_momenta({point.t!r}, s, p, m);",
+                f'        printf("{i} {k} %d", status);',
+                f'        for (j = 0; j < {2 * n}; ++j) printf(" %.17g", d[j]);',
+                f'        for (j = 0; j < {n}; ++j) printf(" %.17g", v[j]);',
+                f'        for (j = 0; j < {n}; ++j) printf(" %.17g", m[j]);',
+                f'        printf(" %.17g\\n", {prefix}_hamiltonian({point.t!r}, y, p));',
+                "    }",
+            ]
+    (tmp_path / "harness.c").write_text("\n".join([*lines, "    return 0;", "}", ""]), encoding="ascii")
+    executable = tmp_path / "harness"
+    built = subprocess.run([*COMPILERS[compiler], "-I", str(tmp_path), str(tmp_path / "harness.c"), "-o", str(executable), "-lm"], capture_output=True, text=True, check=False)
+    assert built.returncode == 0 and not built.stderr, built.stderr[-4000:]
+    ran = subprocess.run([str(executable)], capture_output=True, text=True, check=True)
+    got = {(int(line.split()[0]), int(line.split()[1])): [float(v) for v in line.split()[2:]] for line in ran.stdout.splitlines()}
+    problems = []
+    for i, (label, _, model, points) in enumerate(cases):
+        n = model.n
+        for k, point in enumerate(points):
+            status, *values = got[(i, k)]
+            want = [*point.rhs, *point.velocities, *point.y[n:], point.hamiltonian]
+            scale = max(abs(v) for v in want)
+            if status != 0 or not all(math.isclose(a, b, rel_tol=RTOL, abs_tol=RTOL * scale) for a, b in zip(values, want, strict=True)):
+                problems.append(f"{label} state {k}: C status {status} {values} != Python {want}")
+            if not math.isclose(values[-1], point.energy, rel_tol=RTOL, abs_tol=RTOL * max(1.0, abs(point.energy))):
+                problems.append(f"{label} state {k}: H {values[-1]} != the Lagrange form's energy {point.energy}")
+    assert not problems, "\n".join(problems)
+
+
+def test_hamilton_names_stay_apart_from_c_names() -> None:
+    model = model_of(PENDULUM.replace("{m: 1.0", "{eom_velocities: 1.0, eom_hamiltonian: 2.0, m: 1.0").replace("mass: m", "mass: m*eom_velocities*eom_hamiltonian"))
+    names = c.c_names(model, "eom", ["p_theta"])
+    assert names["eom_velocities"] != "eom_velocities" and names["eom_hamiltonian"] != "eom_hamiltonian"
+    assert "double eom_velocities_ = p[0];" in c.emit_hamilton(model).replace("const ", "")
