@@ -127,7 +127,7 @@ def test_cli_text_form() -> None:
     assert "p_r_dot = (-k*m*r + p_theta**2)/(m*r**3)" in out and "p_theta_dot = 0" in out
 
 
-WRITTEN = {"jax": "def rhs(t, y, p=None):", "octave": "function [dydt, H, qdot] = eom(t, y, p)", "c": "static inline int eom_velocities("}
+WRITTEN = {"jax": "def rhs(t, y, p=None):", "octave": "function [dydt, H, qdot] = eom(t, y, p)", "c": "static inline int eom_velocities(", "json": '"momentum_rates"'}
 """The targets besides text, latex and python that write `--form hamilton`, and a line of their output
 (the targets' own tests, tests/test_target_*.py, check the equations numerically)."""
 

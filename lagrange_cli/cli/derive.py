@@ -59,7 +59,7 @@ def derive(
     python: Annotated[bool, typer.Option("--python", help="A Python module for numerical work; same as --to python.")] = False,
     form: Annotated[
         Form,
-        typer.Option(help="lagrange: one equation per coordinate; matrix: M q_ddot = F; solved: q_ddot = ...; hamilton: H(q, p) and Hamilton's equations in the state (q, p) (text, latex, python)."),
+        typer.Option(help="lagrange: one equation per coordinate; matrix: M q_ddot = F; solved: q_ddot = ...; hamilton: H(q, p) and Hamilton's equations in the state (q, p) (every target)."),
     ] = Form.lagrange,
     standalone: Annotated[bool, typer.Option(help="With --latex: a whole compilable document.")] = False,
     numba: Annotated[bool, typer.Option("--numba", help="With --python: compile rhs with numba (needs numba where the module runs).")] = False,
