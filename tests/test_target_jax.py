@@ -317,3 +317,29 @@ def test_hamilton_jit_vmap_and_grad(tmp_path: Path) -> None:
         grad = jax.grad(lambda y: target.hamiltonian(0.0, y))(state)
         np.testing.assert_allclose(np.asarray(grad[2:]), np.asarray(target.rhs(0.0, state)[:2]), rtol=1e-10, atol=1e-12)
         np.testing.assert_allclose(-np.asarray(grad[:2]), np.asarray(target.rhs(0.0, state)[2:]), rtol=1e-10, atol=1e-12)
+
+
+@pytest.mark.parametrize("as_title", [True, False], ids=["title", "file-name"])
+@pytest.mark.parametrize("text", HOSTILE, ids=range(len(HOSTILE)))
+def test_file_text_in_every_hamilton_target_is_data(text: str, as_title: bool, tmp_path: Path) -> None:
+    """A hostile title or file name in `--form hamilton` of jax (imported: nothing runs), c, octave (printable
+    comments that cannot end early) and json (a JSON string that round-trips)."""
+    import json
+
+    from lagrange_cli.emit import c, jsonmodel, octave
+
+    model = hostile(text, as_title)
+    code = jax_target.emit_hamilton(model)
+    ast.parse(code)
+    module = load_module(code, tmp_path / "module.py")
+    assert not (tmp_path / "EXECUTED").exists()
+    assert float(module.rhs(0.0, [0.3, 0.0])[3]) == pytest.approx(-9.81 * 2.0 * np.sin(0.3))  # p_dot = -m g l sin(theta), m = 1, l = 2
+    header = c.emit_hamilton(model)
+    assert all(ch == "\n" or " " <= ch <= "~" for ch in header)
+    assert header.count("*/") == header.count("/*") and "??" not in header.split("#ifndef", 1)[0].replace("? ?", "")
+    matlab = octave.emit_hamilton(model)
+    assert all(ch == "\n" or " " <= ch <= "~" for ch in matlab)
+    help_text = matlab.split("\n  if nargin < 3\n", 1)[0].splitlines()[1:]
+    assert len(help_text) >= 5 and all(line.startswith("% ") for line in help_text)
+    data = json.loads(jsonmodel.emit_hamilton(model))
+    assert data["title"] == model.title and data["source"] == Path(model.source).name

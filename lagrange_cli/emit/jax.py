@@ -5,8 +5,11 @@ The module defines COORDINATES, PARAMETER_NAMES, PARAMETERS (defaults), NQ, NP,
 and `rhs(t, y, p)` with y = [q..., q_dot...] (with kept constraints also `accelerations`,
 `multipliers` and `constraint_residuals`). Every function is straight-line jnp code (no Python
 control flow on values, no in-place updates), so `jax.jit`, `jax.vmap` and `jax.grad` apply;
-the accelerations come from `jnp.linalg.solve` of M (or of [[M, -A^T], [A, 0]] for kept
-constraints, as in the Python module). `p` is optional everywhere: None means the file's
+the accelerations solve M q_ddot = F (or [[M, -A^T], [A, 0]] [q_ddot, lambda] = [F, -c] for kept
+constraints, as in the Python module): by unrolled scalar L D L^T code (`unrolled_solve`; the Schur
+complement for kept constraints) up to `UNROLLED_MAX` unknowns, which `jax.vmap` turns into
+elementwise operations over the batch, and by `jnp.linalg.solve` above. `emit_hamilton` writes
+Hamilton's equations (`derive --to jax --form hamilton`). `p` is optional everywhere: None means the file's
 defaults, a dict gives values by name (missing ones take their defaults), and an array gives
 them all in PARAMETER_NAMES order (what `jax.grad` with respect to the parameters takes).
 
