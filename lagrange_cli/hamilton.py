@@ -78,10 +78,11 @@ def declared(model: Model) -> list[str]:
     return [*model.coordinates, *(str(v) for v in model.qd), *(p.name for p in model.parameters), *sorted(functions | set(model.definitions))]
 
 
-def hamilton(model: Model) -> Hamilton:
+def hamilton(model: Model, symbolic: bool = True) -> Hamilton:
     """Hamilton's equations of `model` (see the module's docstring); a `LagrangeError` (exit 2)
     saying why where they cannot be written: kept constraints, a declared name of the form `p_<q>`,
-    a mass matrix that depends on the velocities or is singular."""
+    a mass matrix that depends on the velocities or is singular. `symbolic=False` takes the numeric
+    route whatever the size (what generated code that solves M q_dot = p - b itself needs)."""
     where = model.source
     if model.constraints:
         names = ", ".join(c.name for c in model.constraints)
@@ -109,7 +110,7 @@ def hamilton(model: Model) -> Hamilton:
     qd = model.qd
     in_velocities = rates_in_velocities(model)
     n = model.n
-    if n > MAX_SYMBOLIC and not mass.is_diagonal():
+    if not symbolic or (n > MAX_SYMBOLIC and not mass.is_diagonal()):
         return Hamilton(model, p, pd, False, None, (), in_velocities, mass, bias, rest)
     adjugate, det = _inverse(mass, where)
     shifted = sp.Matrix([p[i] - bias[i] for i in range(n)])

@@ -392,16 +392,16 @@ def emit_hamilton(model: Model, *, name: str = "eom") -> str:
     numerically (the straight-line LDL^T, the LU solve when it fails, as `NAME_rhs` of the Lagrange
     form), never by a symbolic inverse; `NAME_rhs` gives [q_dot, p_dot] with p_dot = dL/dq + Q - dR/dq_dot
     at that q_dot; `NAME_hamiltonian` H = p . q_dot - L; `NAME_momenta` maps [q, q_dot] to p."""
-    from lagrange_cli.hamilton import hamilton, rates_in_velocities
+    from lagrange_cli.hamilton import hamilton
 
     if not re.fullmatch(r"[A-Za-z][A-Za-z0-9_]*", name):
         raise DerivationError(f"the C prefix '{printable(name)}' is not a C identifier")
     definitions = model.definitions
     model = model.with_definitions()
     require_defined(model, "C code")
-    ham = hamilton(model)
+    ham = hamilton(model, symbolic=False)
     check_solvable(model)
-    return _HamiltonWriter(model, name, definitions, ham.p, ham.bias, rates_in_velocities(model)).file()
+    return _HamiltonWriter(model, name, definitions, ham.p, ham.bias, ham.rates).file()
 
 
 class _HamiltonWriter(_Writer):

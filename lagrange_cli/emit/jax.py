@@ -279,14 +279,14 @@ def emit_hamilton(model: Model, *, name: str = "eom") -> str:
     a mass matrix depending on the velocities or singular). q_dot = M^-1 (p - b) is solved numerically
     at each call (the unrolled L D L^T up to `UNROLLED_MAX` coordinates, `jnp.linalg.solve` above),
     never inverted symbolically; then p_dot = dL/dq + Q - dR/dq_dot at that q_dot and H = p . q_dot - L."""
-    from lagrange_cli.hamilton import hamilton, rates_in_velocities
+    from lagrange_cli.hamilton import hamilton
 
     definitions = model.definitions
     require_defined(model, "JAX code")
     model = model.with_definitions()
-    ham = hamilton(model)
+    ham = hamilton(model, symbolic=False)
     check_invertible(model)
-    return _HamiltonWriter(model, definitions, ham.p, ham.bias, rates_in_velocities(model)).module()
+    return _HamiltonWriter(model, definitions, ham.p, ham.bias, ham.rates).module()
 
 
 class _HamiltonWriter(_Writer):

@@ -230,16 +230,16 @@ def emit_hamilton(model: Model, *, name: str = "eom") -> str:
     its refusals are its own). q_dot = M \\ (p - b) is solved numerically at each call (never a symbolic
     inverse), with the same singularity check as the Lagrange form; p_dot = dL/dq + Q - dR/dq_dot at that
     q_dot; H = p . q_dot - L on request."""
-    from lagrange_cli.hamilton import hamilton, rates_in_velocities
+    from lagrange_cli.hamilton import hamilton
 
     if not IDENTIFIER.fullmatch(name) or name in KEYWORDS:
         raise DerivationError(f"'{printable(name)}' is not a MATLAB function name")
     definitions = model.definitions
     model = model.with_definitions()
     require_defined(model, "Octave code")
-    ham = hamilton(model)
+    ham = hamilton(model, symbolic=False)
     check_solvable(model)
-    return _HamiltonWriter(model, name, definitions, ham.p, ham.bias, rates_in_velocities(model)).file()
+    return _HamiltonWriter(model, name, definitions, ham.p, ham.bias, ham.rates).file()
 
 
 class _HamiltonWriter(_Writer):
