@@ -409,6 +409,16 @@ class HamiltonPoint:
     energy: float
 
 
+@functools.lru_cache(maxsize=1)
+def hamilton_cases() -> list[tuple[str, Model, list[HamiltonPoint] | None]]:
+    """Every bundled system with its Hamilton points (None where `--form hamilton` refuses it), computed
+    once for the C and Octave tests."""
+    import tempfile
+
+    with tempfile.TemporaryDirectory() as folder:
+        return [(path.stem, model, hamilton_points(model, Path(folder), 700 + seed)) for seed, path in enumerate(SYSTEMS) for model in [model_from(path)]]
+
+
 def hamilton_points(model: Model, folder: Path, seed: int, count: int = 2) -> list[HamiltonPoint] | None:
     """Seeded random Hamilton states of `model` (None where `--form hamilton` refuses the model)."""
     from lagrange_cli.emit import hamiltonian
@@ -436,16 +446,14 @@ def test_hamilton_headers_compile_and_agree_with_the_python_hamilton_module(comp
     map (q, q_dot) back to p."""
     toolchain(COMPILERS[compiler][0])
     cases = []
-    for seed, path in enumerate(SYSTEMS):
-        model = model_from(path)
-        points = hamilton_points(model, tmp_path, 700 + seed)
+    for seed, (stem, model, points) in enumerate(hamilton_cases()):
         if points is None:
             with pytest.raises(LagrangeError):
                 c.emit_hamilton(model)
             continue
         prefix = f"ham{seed}"
         (tmp_path / f"{prefix}.h").write_text(c.emit_hamilton(model, name=prefix), encoding="ascii")
-        cases.append((path.stem, prefix, model, points))
+        cases.append((stem, prefix, model, points))
     assert len(cases) >= 20
     lines = ["#include <stdio.h>", *(f'#include "{prefix}.h"' for _, prefix, _, _ in cases), "", "int main(void)", "{", "    int j;"]
     for i, (_, prefix, model, points) in enumerate(cases):
