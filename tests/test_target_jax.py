@@ -351,3 +351,22 @@ def test_file_text_in_every_hamilton_target_is_data(text: str, as_title: bool, t
     assert len(help_text) >= 5 and all(line.startswith("% ") for line in help_text)
     data = json.loads(jsonmodel.emit_hamilton(model))
     assert data["title"] == model.title and data["source"] == Path(model.source).name
+
+
+def test_the_benchmark_measures_what_it_claims(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """benchmarks/jax_bench.py on 20 states of the 2-link general chain: it checks the vmap result against the
+    Python loop (and would raise on a disagreement) and reports the three timings; no timing is asserted."""
+    monkeypatch.syspath_prepend(str(ROOT / "benchmarks"))
+    import importlib.util
+
+    found = importlib.util.spec_from_file_location("jax_bench", ROOT / "benchmarks" / "jax_bench.py")
+    assert found and found.loader
+    bench = importlib.util.module_from_spec(found)
+    found.loader.exec_module(bench)
+    import pendulum
+
+    row = bench.bench("general_chain_2", pendulum.Chain("general", 2).yaml(), 20, tmp_path)
+    assert row["n"] == 2 and all(len(row[key]) == 2 and min(row[key]) >= 0.0 for key in ("compile", "vmap", "loop"))
+    monkeypatch.setattr(python, "emit", lambda model, **_: jax_target.emit(model).replace("return jnp.concatenate([y[2:], _x])", "return jnp.concatenate([y[2:], 2 * _x])"))
+    with pytest.raises(AssertionError):
+        bench.bench("wrong", pendulum.Chain("general", 2).yaml(), 20, tmp_path)
