@@ -78,10 +78,11 @@ def declared(model: Model) -> list[str]:
     return [*model.coordinates, *(str(v) for v in model.qd), *(p.name for p in model.parameters), *sorted(functions | set(model.definitions))]
 
 
-def hamilton(model: Model) -> Hamilton:
+def hamilton(model: Model, symbolic: bool = True) -> Hamilton:
     """Hamilton's equations of `model` (see the module's docstring); a `LagrangeError` (exit 2)
     saying why where they cannot be written: kept constraints, a declared name of the form `p_<q>`,
-    a mass matrix that depends on the velocities or is singular."""
+    a mass matrix that depends on the velocities or is singular. `symbolic=False` takes the numeric
+    route whatever the size (what generated code that solves M q_dot = p - b itself needs)."""
     where = model.source
     if model.constraints:
         names = ", ".join(c.name for c in model.constraints)
@@ -107,11 +108,9 @@ def hamilton(model: Model) -> Hamilton:
     bias = tuple(sp.diff(model.lagrangian, v).xreplace(zero) for v in model.qd)
     rest = model.lagrangian.xreplace(zero)
     qd = model.qd
-    # dL/dq + Q - dR/dq_dot = F + d/dt(p) without the accelerations: from the derived forcing, whose
-    # derivatives of sign, Abs and the file's functions the deriver has already taken
-    in_velocities = tuple(model.forcing[i] + sum((sp.diff(model.momenta[i], model.q[j]) * qd[j] for j in range(model.n)), sp.diff(model.momenta[i], model.t)) for i in range(model.n))
+    in_velocities = rates_in_velocities(model)
     n = model.n
-    if n > MAX_SYMBOLIC and not mass.is_diagonal():
+    if not symbolic or (n > MAX_SYMBOLIC and not mass.is_diagonal()):
         return Hamilton(model, p, pd, False, None, (), in_velocities, mass, bias, rest)
     adjugate, det = _inverse(mass, where)
     shifted = sp.Matrix([p[i] - bias[i] for i in range(n)])
@@ -120,6 +119,14 @@ def hamilton(model: Model) -> Hamilton:
     solved = dict(zip(qd, velocities, strict=True))
     rates = tuple(_combined(r.xreplace(solved)) for r in in_velocities)
     return Hamilton(model, p, pd, True, hamiltonian, velocities, rates, mass, bias, rest)
+
+
+def rates_in_velocities(model: Model) -> tuple[sp.Expr, ...]:
+    """p_dot = dL/dq + Q - dR/dq_dot as functions of (q, q_dot, t): F + d/dt(p) without the
+    accelerations, from the derived forcing, whose derivatives of sign, Abs and the file's
+    functions the deriver has already taken (what generated code evaluates at q_dot = M^-1 (p - b))."""
+    qd = model.qd
+    return tuple(model.forcing[i] + sum((sp.diff(model.momenta[i], model.q[j]) * qd[j] for j in range(model.n)), sp.diff(model.momenta[i], model.t)) for i in range(model.n))
 
 
 def _inverse(mass: sp.ImmutableMatrix, where: str) -> tuple[sp.Matrix, sp.Expr]:

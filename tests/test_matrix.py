@@ -34,6 +34,7 @@ INVOCATIONS: dict[str, dict[str, list[str]]] = {
         "latex-hamilton-standalone": ["--latex", "--standalone", "--form", "hamilton"],
         "c": ["--to", "c"],
         "octave": ["--to", "octave"],
+        **{f"{target}-hamilton": ["--to", target, "--form", "hamilton"] for target in ("c", "octave", "jax", "json")},
     },
     "check": {"": []},
     "info": {"text": [], "latex": ["--latex"], "json": ["--json"], "routh": ["--routh"]},
@@ -58,6 +59,10 @@ SHOWS = {
     ("info", "routh"): "V_eff = ",
     ("derive", "c"): "static inline int eom_rhs(double t, const double *y, const double *p, ",  # then `const double *u, ` with inputs
     ("derive", "octave"): "function [dydt, h, lambda] = eom(t, y, p",  # then `, u` with inputs
+    ("derive", "c-hamilton"): "static inline int eom_velocities(double t, const double *y, const double *p, double *out)",
+    ("derive", "octave-hamilton"): "function [dydt, H, qdot] = eom(t, y, p)",
+    ("derive", "jax-hamilton"): "def velocities(t, y, p=None):",
+    ("derive", "json-hamilton"): '"momentum_rates"',
     **{("derive", f"latex-{form}-standalone"): "\\end{document}" for form in ("lagrange", "matrix", "solved")},
     ("info", "json"): '"hamiltonian"',
     ("simulate", ""): "invariants",

@@ -390,3 +390,114 @@ def test_ldlt_hands_an_indefinite_matrix_to_the_lu_solve(tmp_path: Path) -> None
     toolchain("gcc")
     subprocess.run([*GCC, str(tmp_path / "t.c"), "-o", str(tmp_path / "t"), "-lm"], check=True)
     assert subprocess.run([str(tmp_path / "t")], capture_output=True, text=True, check=True).stdout.split() == ["1", "2", "3", "0", "3", "2", "1", "1"]
+
+
+# -- --form hamilton (shared with tests/test_target_octave.py) ------------------------------------------
+
+
+@dataclass
+class HamiltonPoint:
+    """A state (q, q_dot) mapped to y = [q, p] by the Python Hamilton module, with that module's dy/dt and H
+    there, and the Lagrange form's energy (which H must equal)."""
+
+    t: float
+    y: list[float]
+    p: dict[str, float]
+    velocities: list[float]
+    rhs: list[float]
+    hamiltonian: float
+    energy: float
+
+
+@functools.lru_cache(maxsize=1)
+def hamilton_cases() -> list[tuple[str, Model, list[HamiltonPoint] | None]]:
+    """Every bundled system with its Hamilton points (None where `--form hamilton` refuses it), computed
+    once for the C and Octave tests."""
+    import tempfile
+
+    with tempfile.TemporaryDirectory() as folder:
+        return [(path.stem, model, hamilton_points(model, Path(folder), 700 + seed)) for seed, path in enumerate(SYSTEMS) for model in [model_from(path)]]
+
+
+def hamilton_points(model: Model, folder: Path, seed: int, count: int = 2) -> list[HamiltonPoint] | None:
+    """Seeded random Hamilton states of `model` (None where `--form hamilton` refuses the model)."""
+    from lagrange_cli.emit import hamiltonian
+
+    try:
+        reference = load_module(hamiltonian.python(model), folder / f"hamilton_reference_{seed}.py")
+    except LagrangeError:
+        return None
+    lagrange = load_module(python.emit(model), folder / f"lagrange_reference_{seed}.py")
+    n = model.n
+    found = []
+    for t, state, p in states(model, seed, count):
+        q, qd = state[:n], state[n:]
+        y = [*q, *(float(v) for v in reference.momenta(t, q, qd, p))]
+        energy = lagrange.energy(*(([t] if "t" in inspect.signature(lagrange.energy).parameters else []) + [q, qd, p]))
+        found.append(HamiltonPoint(t, y, p, qd, [float(v) for v in reference.rhs(t, y, p)], float(reference.hamiltonian(t, y, p)), float(energy)))
+    return found
+
+
+@pytest.mark.parametrize("compiler", sorted(COMPILERS))
+def test_hamilton_headers_compile_and_agree_with_the_python_hamilton_module(compiler: str, tmp_path: Path) -> None:
+    """`--to c --form hamilton` of every bundled system Hamilton's equations are written for: one harness,
+    compiled cleanly (-Werror) as C99 and C++, whose rhs agrees with the Python Hamilton module at random
+    (q, p), whose velocities are the state's q_dot, whose H is the Lagrange form's energy, and whose momenta
+    map (q, q_dot) back to p."""
+    toolchain(COMPILERS[compiler][0])
+    cases = []
+    for seed, (stem, model, points) in enumerate(hamilton_cases()):
+        if points is None:
+            with pytest.raises(LagrangeError):
+                c.emit_hamilton(model)
+            continue
+        prefix = f"ham{seed}"
+        (tmp_path / f"{prefix}.h").write_text(c.emit_hamilton(model, name=prefix), encoding="ascii")
+        cases.append((stem, prefix, model, points))
+    assert len(cases) >= 20
+    lines = ["#include <stdio.h>", *(f'#include "{prefix}.h"' for _, prefix, _, _ in cases), "", "int main(void)", "{", "    int j;"]
+    for i, (_, prefix, model, points) in enumerate(cases):
+        n, np_ = model.n, max(1, len(model.parameters))
+        for k, point in enumerate(points):
+            lagrange_state = [*point.y[:n], *point.velocities]
+            lines += [
+                "    {",
+                f"        const double y[{2 * n}] = {literal(point.y)};",
+                f"        const double s[{2 * n}] = {literal(lagrange_state)};",
+                f"        const double p[{np_}] = {literal([point.p[q.name] for q in model.parameters])};",
+                f"        double d[{2 * n}], v[{n}], m[{n}];",
+                f"        const int status = {prefix}_rhs({point.t!r}, y, p, d);",
+                f"        {prefix}_velocities({point.t!r}, y, p, v);",
+                f"        {prefix}_momenta({point.t!r}, s, p, m);",
+                f'        printf("{i} {k} %d", status);',
+                f'        for (j = 0; j < {2 * n}; ++j) printf(" %.17g", d[j]);',
+                f'        for (j = 0; j < {n}; ++j) printf(" %.17g", v[j]);',
+                f'        for (j = 0; j < {n}; ++j) printf(" %.17g", m[j]);',
+                f'        printf(" %.17g\\n", {prefix}_hamiltonian({point.t!r}, y, p));',
+                "    }",
+            ]
+    (tmp_path / "harness.c").write_text("\n".join([*lines, "    return 0;", "}", ""]), encoding="ascii")
+    executable = tmp_path / "harness"
+    built = subprocess.run([*COMPILERS[compiler], "-I", str(tmp_path), str(tmp_path / "harness.c"), "-o", str(executable), "-lm"], capture_output=True, text=True, check=False)
+    assert built.returncode == 0 and not built.stderr, built.stderr[-4000:]
+    ran = subprocess.run([str(executable)], capture_output=True, text=True, check=True)
+    got = {(int(line.split()[0]), int(line.split()[1])): [float(v) for v in line.split()[2:]] for line in ran.stdout.splitlines()}
+    problems = []
+    for i, (label, _, model, points) in enumerate(cases):
+        n = model.n
+        for k, point in enumerate(points):
+            status, *values = got[(i, k)]
+            want = [*point.rhs, *point.velocities, *point.y[n:], point.hamiltonian]
+            scale = max(abs(v) for v in want)
+            if status != 0 or not all(math.isclose(a, b, rel_tol=RTOL, abs_tol=RTOL * scale) for a, b in zip(values, want, strict=True)):
+                problems.append(f"{label} state {k}: C status {status} {values} != Python {want}")
+            if not math.isclose(values[-1], point.energy, rel_tol=RTOL, abs_tol=RTOL * max(1.0, abs(point.energy))):
+                problems.append(f"{label} state {k}: H {values[-1]} != the Lagrange form's energy {point.energy}")
+    assert not problems, "\n".join(problems)
+
+
+def test_hamilton_names_stay_apart_from_c_names() -> None:
+    model = model_of(PENDULUM.replace("{m: 1.0", "{eom_velocities: 1.0, eom_hamiltonian: 2.0, m: 1.0").replace("mass: m", "mass: m*eom_velocities*eom_hamiltonian"))
+    names = c.c_names(model, "eom", ["p_theta"])
+    assert names["eom_velocities"] != "eom_velocities" and names["eom_hamiltonian"] != "eom_hamiltonian"
+    assert "double eom_velocities_ = p[0];" in c.emit_hamilton(model).replace("const ", "")

@@ -228,3 +228,145 @@ def test_the_readme_example_runs(tmp_path: Path, monkeypatch: pytest.MonkeyPatch
     assert namespace["rates"].shape == (10_000, 4)
     assert np.isfinite(float(capsys.readouterr().out))
     sys.modules.pop("eom", None)
+
+
+# -- the unrolled solve (small systems) and jnp.linalg.solve (large ones) ---------------------------------
+
+
+@pytest.mark.parametrize("stem", ["double_pendulum", "pendulum_multiplier", "rolling_disk_pendulum_multiplier", "chain_3", "kepler"])
+def test_the_unrolled_solve_and_jnp_linalg_solve_agree(stem: str, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Small systems are solved by unrolled L D L^T code (Schur complement for kept constraints), with no
+    `jnp.linalg.solve` left; above `UNROLLED_MAX` the module calls `jnp.linalg.solve`; both give the Python module's values."""
+    model = model_from(ROOT / "systems" / f"{stem}.yaml")
+    unrolled_code = jax_target.emit(model)
+    assert "jnp.linalg" not in unrolled_code
+    monkeypatch.setattr(jax_target, "UNROLLED_MAX", 0)
+    solved_code = jax_target.emit(model)
+    assert "jnp.linalg.solve" in solved_code
+    reference = load_module(python.emit(model), tmp_path / "reference.py")
+    unrolled, solved = load_module(unrolled_code, tmp_path / "unrolled.py"), load_module(solved_code, tmp_path / "solved.py")
+    rng = np.random.default_rng(5)
+    states = jnp.asarray(rng.uniform(0.2, 1.2, (64, 2 * model.n)))
+    fast = np.asarray(jax.vmap(unrolled.rhs, in_axes=(None, 0))(0.3, states))
+    slow = np.asarray(jax.vmap(solved.rhs, in_axes=(None, 0))(0.3, states))
+    loop = np.array([reference.rhs(0.3, list(np.asarray(state))) for state in states], dtype=float)
+    np.testing.assert_allclose(fast, loop, rtol=1e-10, atol=1e-12)
+    np.testing.assert_allclose(slow, loop, rtol=1e-10, atol=1e-12)
+    if model.constraints:
+        np.testing.assert_allclose(np.asarray(unrolled.multipliers(0.3, states[0])), np.asarray(solved.multipliers(0.3, states[0])), rtol=1e-10, atol=1e-12)
+
+
+def test_a_diagonal_mass_matrix_costs_one_division_per_coordinate() -> None:
+    """Structural zeros of M are skipped: Kepler in polar coordinates (M diagonal) has no elimination step."""
+    code = jax_target.emit(model_from(ROOT / "systems" / "kepler.yaml"))
+    solve = code.split("def rhs", 1)[1]
+    assert solve.count(" / _u") == 2 and " * _u" not in solve
+
+
+# -- --form hamilton ------------------------------------------------------------------------------------
+
+
+HAMILTON_SYSTEMS = [
+    *("double_pendulum", "kepler", "chain_3", "charged_particle_magnetic", "damped_oscillator_rayleigh", "kapitza_pendulum"),
+    *("heavy_top", "rotating_hoop_bead", "cart_pole", "rolling_coin", "central_potential"),
+]
+"""A velocity-dependent b, dissipation, time dependence, a 3 x 3 M, and refusals (kept constraints, an
+undefined function); tests/test_target_c.py and test_target_octave.py take every bundled system."""
+
+
+@pytest.mark.parametrize("stem", HAMILTON_SYSTEMS)
+def test_hamilton_agrees_with_the_python_hamilton_module_and_the_lagrange_form(stem: str, tmp_path: Path) -> None:
+    """rhs, velocities and H agree with `--python --form hamilton` at random (q, p); and from a state (q, q_dot),
+    p = momenta(q, q_dot) gives back q_dot, and p_dot is d/dt of momenta along the Lagrange form's motion."""
+    from lagrange_cli.emit import hamiltonian
+    from lagrange_cli.errors import LagrangeError
+
+    model = model_from(ROOT / "systems" / f"{stem}.yaml")
+    try:
+        reference = load_module(hamiltonian.python(model), tmp_path / "reference.py")
+    except LagrangeError:
+        with pytest.raises(LagrangeError):
+            jax_target.emit_hamilton(model)
+        return
+    target = load_module(jax_target.emit_hamilton(model), tmp_path / "target.py")
+    lagrange = load_module(jax_target.emit(model), tmp_path / "lagrange.py")
+    assert target.MOMENTA == reference.MOMENTA and target.COORDINATES == reference.COORDINATES
+    n = model.n
+    for seed in range(2):
+        point = random_point(model, seed)
+        p = {parameter.name: point[parameter.symbol] for parameter in model.parameters}
+        t = point[model.t]
+        q, qd = [point[s] for s in model.q], [point[s] for s in model.qd]
+        momenta = np.asarray(target.momenta(t, q, qd, p))
+        np.testing.assert_allclose(momenta, np.asarray(reference.momenta(t, q, qd, p), dtype=float), rtol=1e-10, atol=1e-12)
+        y = [*q, *momenta.tolist()]
+        expected = np.asarray(reference.rhs(t, y, p), dtype=float)
+        got = target.rhs(t, jnp.asarray(y), p)
+        assert got.dtype == jnp.float64 and got.shape == (2 * n,)
+        np.testing.assert_allclose(np.asarray(got), expected, rtol=1e-9, atol=1e-11)
+        np.testing.assert_allclose(np.asarray(target.velocities(t, y, p)), qd, rtol=1e-9, atol=1e-11)
+        assert float(target.hamiltonian(t, y, p)) == pytest.approx(reference.hamiltonian(t, y, p), rel=1e-9, abs=1e-11)
+        assert float(target.hamiltonian(t, y, p)) == pytest.approx(float(lagrange.energy(t, q, qd, p)), rel=1e-9, abs=1e-11)
+        # Hamilton's equations against the Lagrange form: p_dot = d/dt momenta(t, q(t), q_dot(t))
+        qdd = np.asarray(lagrange.rhs(t, jnp.asarray([*q, *qd]), p))[n:]
+        _, rate = jax.jvp(lambda tt, qq, vv, p=p: target.momenta(tt, qq, vv, p), (jnp.asarray(t), jnp.asarray(q), jnp.asarray(qd)), (jnp.asarray(1.0), jnp.asarray(qd), jnp.asarray(qdd)))
+        np.testing.assert_allclose(np.asarray(got)[n:], np.asarray(rate), rtol=1e-8, atol=1e-10)
+
+
+def test_hamilton_jit_vmap_and_grad(tmp_path: Path) -> None:
+    """The Hamilton module is jax-transformable: jit(vmap(rhs)) equals a loop, and grad of H with respect to the
+    momenta is q_dot (Hamilton's first equation, by automatic differentiation)."""
+    model = model_from(ROOT / "systems" / "double_pendulum.yaml")
+    target = load_module(jax_target.emit_hamilton(model), tmp_path / "target.py")
+    states = jnp.asarray(np.random.default_rng(2).uniform(-1.0, 1.0, (200, 4)))
+    batched = np.asarray(jax.jit(jax.vmap(target.rhs, in_axes=(None, 0)))(0.0, states))
+    np.testing.assert_allclose(batched[:20], np.array([np.asarray(target.rhs(0.0, s)) for s in states[:20]]), rtol=1e-13, atol=1e-14)
+    for state in states[:5]:
+        grad = jax.grad(lambda y: target.hamiltonian(0.0, y))(state)
+        np.testing.assert_allclose(np.asarray(grad[2:]), np.asarray(target.rhs(0.0, state)[:2]), rtol=1e-10, atol=1e-12)
+        np.testing.assert_allclose(-np.asarray(grad[:2]), np.asarray(target.rhs(0.0, state)[2:]), rtol=1e-10, atol=1e-12)
+
+
+@pytest.mark.parametrize("as_title", [True, False], ids=["title", "file-name"])
+@pytest.mark.parametrize("text", HOSTILE, ids=range(len(HOSTILE)))
+def test_file_text_in_every_hamilton_target_is_data(text: str, as_title: bool, tmp_path: Path) -> None:
+    """A hostile title or file name in `--form hamilton` of jax (imported: nothing runs), c, octave (printable
+    comments that cannot end early) and json (a JSON string that round-trips)."""
+    import json
+
+    from lagrange_cli.emit import c, jsonmodel, octave
+
+    model = hostile(text, as_title)
+    code = jax_target.emit_hamilton(model)
+    ast.parse(code)
+    module = load_module(code, tmp_path / "module.py")
+    assert not (tmp_path / "EXECUTED").exists()
+    assert float(module.rhs(0.0, [0.3, 0.0])[3]) == pytest.approx(-9.81 * 2.0 * np.sin(0.3))  # p_dot = -m g l sin(theta), m = 1, l = 2
+    header = c.emit_hamilton(model)
+    assert all(ch == "\n" or " " <= ch <= "~" for ch in header)
+    assert header.count("*/") == header.count("/*") and "??" not in header.split("#ifndef", 1)[0].replace("? ?", "")
+    matlab = octave.emit_hamilton(model)
+    assert all(ch == "\n" or " " <= ch <= "~" for ch in matlab)
+    help_text = matlab.split("\n  if nargin < 3\n", 1)[0].splitlines()[1:]
+    assert len(help_text) >= 5 and all(line.startswith("% ") for line in help_text)
+    data = json.loads(jsonmodel.emit_hamilton(model))
+    assert data["title"] == model.title and data["source"] == Path(model.source).name
+
+
+def test_the_benchmark_measures_what_it_claims(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """benchmarks/jax_bench.py on 20 states of the 2-link general chain: it checks the vmap result against the
+    Python loop (and would raise on a disagreement) and reports the three timings; no timing is asserted."""
+    monkeypatch.syspath_prepend(str(ROOT / "benchmarks"))
+    import importlib.util
+
+    found = importlib.util.spec_from_file_location("jax_bench", ROOT / "benchmarks" / "jax_bench.py")
+    assert found and found.loader
+    bench = importlib.util.module_from_spec(found)
+    found.loader.exec_module(bench)
+    import pendulum
+
+    row = bench.bench("general_chain_2", pendulum.Chain("general", 2).yaml(), 20, tmp_path)
+    assert row["n"] == 2 and all(len(row[key]) == 2 and min(row[key]) >= 0.0 for key in ("compile", "vmap", "loop"))
+    monkeypatch.setattr(python, "emit", lambda model, **_: jax_target.emit(model).replace("return jnp.concatenate([y[2:], _x])", "return jnp.concatenate([y[2:], 2 * _x])"))
+    with pytest.raises(AssertionError):
+        bench.bench("wrong", pendulum.Chain("general", 2).yaml(), 20, tmp_path)

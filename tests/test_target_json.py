@@ -13,6 +13,7 @@ from typing import Any
 
 import pytest
 import sympy as sp
+from sympy.core.function import AppliedUndef
 
 from lagrange_cli.emit import jsonmodel, latex
 from lagrange_cli.errors import DerivationError, Span
@@ -207,4 +208,71 @@ def test_hostile_files_give_valid_documents(path: Path) -> None:
 def test_every_key_of_the_schema_is_documented() -> None:
     documentation = (ROOT / "docs" / "json.md").read_text()
     for key in SCHEMA["required"]:
+        assert f"`{key}`" in documentation, key
+
+
+# -- --form hamilton ------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("path", SYSTEMS, ids=lambda p: p.stem)
+def test_hamilton_documents_are_valid_and_read_back(path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """`--to json --form hamilton`: valid against the schema, the model's keys as without the form, and the
+    `hamilton` key's expressions read back into lagrange_cli.hamilton's (momenta declared as names); at a
+    random state the rates in (q, q_dot) equal the symbolic route's rates in (q, p)."""
+    from lagrange_cli.errors import LagrangeError
+    from lagrange_cli.hamilton import hamilton, rates_in_velocities
+
+    model = model_from(path)
+    try:
+        ham = hamilton(model)
+    except LagrangeError:
+        with pytest.raises(LagrangeError):
+            jsonmodel.emit_hamilton(model)
+        return
+    text = jsonmodel.emit_hamilton(model)
+    assert text.isascii()
+    data = json.loads(text)
+    VALIDATOR.validate(data)
+    assert list(data)[-1] == "hamilton" and {k: v for k, v in data.items() if k != "hamilton"} == document(model)
+    section = data["hamilton"]
+    assert [m["name"] for m in section["momenta"]] == [str(p) for p in ham.p] and [m["rate"] for m in section["momenta"]] == [str(p) for p in ham.pd]
+    assert section["route"] == ("symbolic" if ham.symbolic else "numeric")
+    reader = Reader(data)
+    momenta = {str(p): p for p in ham.p}
+    for limit in ("MAX_LENGTH", "MAX_NODES"):  # the symbolic inverse of a full 3 x 3 M is bigger than a file's expression may be
+        monkeypatch.setattr(f"lagrange_cli.expr.{limit}", 10**6)
+    pairs = list(zip(section["bias"], ham.bias, strict=True)) + list(zip(section["rates"], rates_in_velocities(model), strict=True))
+    if ham.symbolic:
+        assert ham.hamiltonian is not None
+        pairs += [(section["hamiltonian"], ham.hamiltonian), *zip(section["velocities"], ham.velocities, strict=True), *zip(section["momentum_rates"], ham.rates, strict=True)]
+    else:
+        assert section["hamiltonian"] is None and section["velocities"] is None and section["momentum_rates"] is None
+    for expression, original in pairs:
+        parsed = reader.read(expression, momenta)
+        assert parsed == original or sp.expand(parsed - original) == 0 or _close(parsed, original), (expression["text"], original)
+    undefined = any(e.atoms(AppliedUndef) for e in rates_in_velocities(model))
+    if ham.symbolic and not undefined:  # (a function left undefined has no value at a point)
+        rng = random.Random(4)
+        point = {s: rng.uniform(0.5, 1.5) for s in [*model.q, *ham.p, *(p.symbol for p in model.parameters)]} | {model.t: 0.4}
+        velocities = {v: float(e.xreplace(point)) for v, e in zip(model.qd, ham.velocities, strict=True)}
+        for in_velocities, in_momenta in zip(section["rates"], section["momentum_rates"], strict=True):
+            a = float(reader.read(in_velocities, momenta).xreplace(point | velocities))
+            assert a == pytest.approx(float(reader.read(in_momenta, momenta).xreplace(point)), rel=1e-9, abs=1e-12)
+
+
+def _close(parsed: sp.Expr, original: sp.Expr) -> bool:
+    """Equal at a few random points (for expressions too big to simplify)."""
+    rng = random.Random(9)
+    symbols = sorted(original.free_symbols | parsed.free_symbols, key=str)
+    for _ in range(3):
+        point = {s: rng.uniform(0.5, 1.5) for s in symbols}
+        if complex(parsed.xreplace(point)) != pytest.approx(complex(original.xreplace(point)), rel=1e-10, abs=1e-12):
+            return False
+    return True
+
+
+def test_the_hamilton_key_is_documented() -> None:
+    documentation = (ROOT / "docs" / "json.md").read_text()
+    assert "`hamilton`" in documentation
+    for key in SCHEMA["properties"]["hamilton"]["required"]:
         assert f"`{key}`" in documentation, key

@@ -24,7 +24,7 @@ from lagrange_cli.model import Model
 
 from .conftest import ROOT
 from .helpers import model_from, model_of
-from .test_target_c import C_HOSTILE, HOSTILE, PENDULUM, Case, python_values, readme_block, states
+from .test_target_c import C_HOSTILE, HOSTILE, PENDULUM, Case, hamilton_cases, python_values, readme_block, states
 
 RTOL = 1e-9
 T_END = 2.0
@@ -255,3 +255,76 @@ def test_a_name_longer_than_matlab_allows_is_refused(tmp_path: Path) -> None:
     short = tmp_path / "short.yaml"
     short.write_text(path.read_text().replace(name, name[:59]))  # its velocity a..a_dot has 63 characters
     assert runner.invoke(app, ["derive", str(short), "--to", "octave"]).exit_code == 0
+
+
+# -- --form hamilton ------------------------------------------------------------------------------------
+
+
+def test_hamilton_agrees_with_the_python_hamilton_module_and_the_lagrange_form(tmp_path: Path) -> None:
+    """`--to octave --form hamilton` of every bundled system Hamilton's equations are written for, in one Octave
+    process: dy/dt agrees with the Python Hamilton module at random (q, p), q_dot is the state's velocities,
+    and H is the Lagrange form's energy; ode45 on the double pendulum's Hamilton form ends where the
+    Lagrange form's does (p mapped back to q_dot)."""
+    toolchain()
+    script = ["more off;", "warning('off', 'all');"]
+    cases = []
+    for seed, (stem, model, points) in enumerate(hamilton_cases()):
+        if points is None:
+            with pytest.raises(LagrangeError):
+                octave.emit_hamilton(model)
+            continue
+        prefix = f"ham_{seed}"
+        (tmp_path / f"{prefix}.m").write_text(octave.emit_hamilton(model, name=prefix), encoding="ascii")
+        for k, point in enumerate(points):
+            values = [point.p[q.name] for q in model.parameters]
+            script += [
+                f"[d, H, v] = {prefix}({point.t!r}, {matrix(point.y, True)}, {matrix(values, False)});",
+                f"printf('value {len(cases)} {k}'); printf(' %.17g', d); printf(' %.17g', v); printf(' %.17g\\n', H);",
+            ]
+        cases.append((stem, model, points))
+    assert len(cases) >= 20
+    dp = model_from(ROOT / "systems" / "double_pendulum.yaml")
+    (tmp_path / "dph.m").write_text(octave.emit_hamilton(dp, name="dph"), encoding="ascii")
+    (tmp_path / "dpl.m").write_text(octave.emit(dp, name="dpl"), encoding="ascii")
+    script += [
+        "opts = odeset('RelTol', 1e-10, 'AbsTol', 1e-12);",
+        f"[~, yl] = ode45(@dpl, [0 {T_END!r}], [1; 0.5; 0; 0], opts);",
+        f"[~, yh] = ode45(@dph, [0 {T_END!r}], [1; 0.5; 0; 0], opts);",
+        "[~, ~, v] = dph(0, yh(end, :)');",
+        "printf('ode45'); printf(' %.17g', yl(end, :)); printf(' %.17g', yh(end, 1:2)); printf(' %.17g', v); printf('\\n');",
+    ]
+    (tmp_path / "run_all.m").write_text("\n".join(script) + "\n", encoding="ascii")
+    done = subprocess.run([toolchain(), "--no-gui", "--no-window-system", "--quiet", "--no-init-file", "--eval", "run_all"], cwd=tmp_path, capture_output=True, text=True, check=False, timeout=300)
+    assert done.returncode == 0, f"octave failed:\n{done.stdout[-3000:]}\n{done.stderr[-3000:]}"
+    values = {}
+    for line in done.stdout.splitlines():
+        head, *rest = line.split()
+        if head == "value":
+            values[(int(rest[0]), int(rest[1]))] = [float(v) for v in rest[2:]]
+        elif head == "ode45":
+            ode = [float(v) for v in rest]
+    problems = []
+    for i, (label, model, points) in enumerate(cases):
+        n = model.n
+        for k, point in enumerate(points):
+            got = values[(i, k)]
+            want = [*point.rhs, *point.velocities, point.hamiltonian]
+            scale = max(abs(v) for v in want)
+            if not all(math.isclose(a, b, rel_tol=RTOL, abs_tol=RTOL * scale) for a, b in zip(got, want, strict=True)):
+                problems.append(f"{label} state {k}: Octave {got} != Python {want}")
+            if not math.isclose(got[-1], point.energy, rel_tol=RTOL, abs_tol=RTOL * max(1.0, abs(point.energy))):
+                problems.append(f"{label} state {k}: H {got[-1]} != the Lagrange form's energy {point.energy}")
+            assert len(got) == 3 * n + 1
+    assert not problems, "\n".join(problems)
+    assert all(math.isclose(a, b, abs_tol=ODE_TOL) for a, b in zip(ode[:4], ode[4:], strict=True)), ode
+
+
+def test_hamilton_file_is_a_matlab_function_file_and_names_stay_apart() -> None:
+    text = octave.emit_hamilton(model_of(NAMES), name="eom")
+    assert text.startswith("function [dydt, H, qdot] = eom(t, y, p)\n")
+    assert all(ch == "\n" or " " <= ch <= "~" for ch in text)
+    shadowing = NAMES.replace("h: 1.0", "h: 1.0, H: 1.0, qdot: 2.0").replace("b*h", "b*h*H*qdot")
+    assert "qdot" in shadowing
+    names = octave.octave_names(model_of(shadowing), "eom", ["p_x"], octave.HAMILTON_LOCALS)
+    assert names["H"] != "H" and names["qdot"] != "qdot"
+    assert not {v for k, v in names.items() if k != "t"} & {*octave.KEYWORDS, *octave.BUILTINS, *octave.HAMILTON_LOCALS, "eom"}

@@ -59,7 +59,7 @@ def derive(
     python: Annotated[bool, typer.Option("--python", help="A Python module for numerical work; same as --to python.")] = False,
     form: Annotated[
         Form,
-        typer.Option(help="lagrange: one equation per coordinate; matrix: M q_ddot = F; solved: q_ddot = ...; hamilton: H(q, p) and Hamilton's equations in the state (q, p) (text, latex, python)."),
+        typer.Option(help="lagrange: one equation per coordinate; matrix: M q_ddot = F; solved: q_ddot = ...; hamilton: H(q, p) and Hamilton's equations in the state (q, p) (every target)."),
     ] = Form.lagrange,
     standalone: Annotated[bool, typer.Option(help="With --latex: a whole compilable document.")] = False,
     numba: Annotated[bool, typer.Option("--numba", help="With --python: compile rhs with numba (needs numba where the module runs).")] = False,
@@ -77,7 +77,7 @@ def derive(
 
         model = core.derive(spec.load(spec.resolve(file)))
         if form is Form.hamilton:
-            output(_hamilton(model, target, numba, standalone), output_path)
+            output(_hamilton(model, target, numba, standalone, name), output_path)
             return
         emitter = _emitter(target)
         if target == "python":
@@ -93,9 +93,14 @@ def derive(
         fail_with(error)
 
 
-def _hamilton(model: Any, target: str, numba: bool, standalone: bool) -> str:
-    """`--form hamilton`: text, latex and python write Hamilton's equations; other targets refuse (exit 2)."""
+def _hamilton(model: Any, target: str, numba: bool, standalone: bool, name: str) -> str:
+    """`--form hamilton`: text, latex and python write Hamilton's equations (emit/hamiltonian.py), the
+    other targets by their module's `emit_hamilton`; a target without one refuses (exit 2)."""
     from lagrange_cli.emit import hamiltonian
+
+    emitter = _emitter(target) if target not in ("text", "latex", "python") else None
+    if emitter is not None and hasattr(emitter, "emit_hamilton"):
+        return str(emitter.emit_hamilton(model, name=name))
 
     if target == "text":
         return hamiltonian.text(model)

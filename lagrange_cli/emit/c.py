@@ -151,10 +151,12 @@ def generated(prefix: str) -> list[str]:
     ]
 
 
-def c_names(model: Model, prefix: str) -> dict[str, str]:
-    """symbol name -> C identifier for the coordinates, velocities and parameters (`mangle`), and t."""
-    symbols = [str(s) for s in (*model.q, *model.qd, *(p.symbol for p in model.parameters), *(i.symbol for i in model.inputs))]
-    names = mangle(symbols, Reserved({*C_KEYWORDS, *MATH_H, *MACROS, *LOCALS, *generated(prefix)}, MACRO_FAMILIES))
+def c_names(model: Model, prefix: str, momenta: Sequence[str] = ()) -> dict[str, str]:
+    """symbol name -> C identifier for the coordinates, velocities and parameters (and `momenta`,
+    with the Hamilton form's function names reserved too) (`mangle`), and t."""
+    symbols = [str(s) for s in (*model.q, *model.qd, *(p.symbol for p in model.parameters), *(i.symbol for i in model.inputs))] + list(momenta)
+    extra = [f"{prefix}_{n}" for n in HAMILTON_FUNCTIONS] if momenta else []
+    names = mangle(symbols, Reserved({*C_KEYWORDS, *MATH_H, *MACROS, *LOCALS, *generated(prefix), *extra}, MACRO_FAMILIES))
     return {**names, str(model.t): "t"}
 
 
@@ -185,12 +187,12 @@ def emit(model: Model, *, name: str = "eom") -> str:
 
 
 class _Writer:
-    def __init__(self, model: Model, prefix: str, definitions: Mapping[str, Any]) -> None:
+    def __init__(self, model: Model, prefix: str, definitions: Mapping[str, Any], momenta: Sequence[str] = ()) -> None:
         self.model = model
         self.prefix = prefix
         self.upper = prefix.upper()
         self.definitions = definitions
-        self.names = c_names(model, prefix)
+        self.names = c_names(model, prefix, momenta)
         n = model.n
         forms = model.symengine
         self.upper_cells = [(i, j) for i in range(n) for j in range(i, n)]
@@ -392,6 +394,150 @@ class _Writer:
             parts.append(ldlt(self.prefix, n))
         parts.append(self.rhs())
         parts.append(f"#endif /* {guard} */")
+        return "\n\n".join(parts) + "\n"
+
+
+# -- --form hamilton ----------------------------------------------------------------------------------
+
+HAMILTON_FUNCTIONS = ("momenta", "velocities", "hamiltonian")
+
+
+def emit_hamilton(model: Model, *, name: str = "eom") -> str:
+    """`derive --to c --form hamilton`: the header of Hamilton's equations in the state y = [q, p]
+    (lagrange_cli/hamilton.py; its refusals are its own). `NAME_velocities` solves M q_dot = p - b
+    numerically (the straight-line LDL^T, the LU solve when it fails, as `NAME_rhs` of the Lagrange
+    form), never by a symbolic inverse; `NAME_rhs` gives [q_dot, p_dot] with p_dot = dL/dq + Q - dR/dq_dot
+    at that q_dot; `NAME_hamiltonian` H = p . q_dot - L; `NAME_momenta` maps [q, q_dot] to p."""
+    from lagrange_cli.hamilton import hamilton
+
+    if not re.fullmatch(r"[A-Za-z][A-Za-z0-9_]*", name):
+        raise DerivationError(f"the C prefix '{printable(name)}' is not a C identifier")
+    definitions = model.definitions
+    model = model.with_definitions()
+    require_defined(model, "C code")
+    ham = hamilton(model, symbolic=False)
+    check_solvable(model)
+    return _HamiltonWriter(model, name, definitions, ham.p, ham.bias, ham.rates).file()
+
+
+class _HamiltonWriter(_Writer):
+    def __init__(self, model: Model, prefix: str, definitions: Mapping[str, Any], momenta: Sequence[Any], bias: Sequence[Any], rates: Sequence[Any]) -> None:
+        super().__init__(model, prefix, definitions, [str(m) for m in momenta])
+        self.momenta = list(momenta)
+        self.lagrange_index = self.index
+        self.index = {str(s): f"y[{i}]" for i, s in enumerate((*model.q, *momenta))}
+        self.index |= {p.name: f"p[{i}]" for i, p in enumerate(model.parameters)}
+        self.shifted = [to_symengine(m - b) for m, b in zip(momenta, bias, strict=True)]
+        self.rates = [to_symengine(r) for r in rates]
+        self.momentum_exprs = [to_symengine(sum((model.mass_matrix[i, j] * model.qd[j] for j in range(model.n)), b)) for i, b in enumerate(bias)]
+        self.hamiltonian = to_symengine(sum((m * v for m, v in zip(momenta, model.qd, strict=True)), -model.lagrangian))
+
+    def bind_velocities(self, lines: list[str], results: list[str], source: str) -> list[str]:
+        """Declarations of the velocities that `lines` and `results` read, from `source`."""
+        words = {w for code in [*results, *lines] for w in WORD.findall(code)}
+        return [f"const double {self.names[str(v)]} = {source}[{i}];" for i, v in enumerate(self.model.qd) if self.names[str(v)] in words]
+
+    def momenta_function(self) -> str:
+        self.index, hamilton_index = self.lagrange_index, self.index
+        try:
+            used: set[str] = set()
+            lines, results = self.block(self.momentum_exprs, used)
+            lines += [f"out[{i}] = {r};" for i, r in enumerate(results)]
+            return self.function("void", "momenta", f"The momenta p = dL/dq_dot = M q_dot + b ({self.model.n} values) of y = [q, q_dot]: the map to this file's state.", lines, used)
+        finally:
+            self.index = hamilton_index
+
+    def velocities_function(self) -> str:
+        n = self.model.n
+        used: set[str] = set()
+        lines, results = self.block([*self.mass, *self.shifted], used)
+        mass = dict(zip(self.upper_cells, results[: len(self.mass)], strict=True))
+        lines[:0] = [f"double _a[{n * n}];", f"double _b[{n}];", "int _status;", "int _i;"]
+        for i, j in self.upper_cells:
+            lines.append(f"_a[{i * n + j}] = {mass[(i, j)]};")
+            if i != j:
+                lines.append(f"_a[{j * n + i}] = _a[{i * n + j}];")
+        lines += [f"_b[{i}] = {v};" for i, v in enumerate(results[len(self.mass) :])]
+        solve = f"{self.prefix}_solve({n}, _a, _b)"
+        lines.append(f"_status = {self.prefix}_ldlt(_a, _b) == 0 ? 0 : {solve};" if n <= LDLT_SIZE else f"_status = {solve};")
+        lines += [
+            f"for (_i = 0; _i < {n}; ++_i) {{",
+            "    out[_i] = _status ? NAN : _b[_i];",
+            "    if (!_status && !isfinite(out[_i])) _status = 2;",
+            "}",
+            "return _status;",
+        ]
+        doc = f"q_dot = M^-1 (p - b) ({n} values), solved numerically, at y = [q, p]: 0, or 1 when M is singular, 2 when not finite."
+        return self.function("int", "velocities", doc, lines, used)
+
+    def hamiltonian_function(self) -> str:
+        n = self.model.n
+        used: set[str] = set()
+        lines, results = self.block([self.hamiltonian], used)
+        head = [f"double _v[{n}];", f"if ({self.prefix}_velocities(t, y, p, _v) == 1) return NAN;", *self.bind_velocities(lines, results, "_v")]
+        return self.function("double", "hamiltonian", "H = p . q_dot - L at y = [q, p] (NAN where M is singular).", [*head, *lines, f"return {results[0]};"], {str(self.model.t), *self.index}, out="")
+
+    def rhs(self) -> str:
+        n = self.model.n
+        used: set[str] = set()
+        lines, results = self.block(self.rates, used)
+        head = ["int _i;", f"double _v[{n}];", f"int _status = {self.prefix}_velocities(t, y, p, _v);", *self.bind_velocities(lines, results, "_v")]
+        body = [*head, *lines]
+        body += [f"dydt[{i}] = _v[{i}];" for i in range(n)]
+        body += [f"dydt[{n + i}] = _status ? NAN : {r};" for i, r in enumerate(results)]
+        body += [f"for (_i = 0; _i < {2 * n} && !_status; ++_i) if (!isfinite(dydt[_i])) _status = 2;", "return _status;"]
+        doc = "dy/dt = [dH/dp, -dH/dq + Q] for y = [q, p]: 0, or 1 when M is singular at y, 2 when a value is not finite."
+        return self.function("int", "rhs", doc, body, {str(self.model.t), *self.index}, out="dydt")
+
+    def header(self) -> str:
+        model, n = self.model, self.model.n
+        state = ", ".join(f"y[{i}] = {c}" for i, c in enumerate([*model.coordinates, *map(str, self.momenta)]))
+        lines = [
+            f"{model.title}: Hamilton's equations generated by lagrange {__version__} from {Path(model.source).name}.",
+            "",
+            f"State y = [q, p] ({2 * n} values): {state}: the coordinates and their momenta p = dL/dq_dot = M q_dot + b (not the velocities).",
+            f"{self.prefix}_rhs gives dy/dt = [dH/dp, -dH/dq + Q]; {self.prefix}_velocities q_dot = M^-1 (p - b), solved numerically at each call",
+            f"(no symbolic inverse); {self.prefix}_hamiltonian H = p . q_dot - L; {self.prefix}_momenta maps [q, q_dot] to p.",
+        ]
+        if model.parameters:
+            lines.append(f"Parameters p ({self.upper}_NP = {len(model.parameters)}, in the file's order, defaults in {self.prefix}_default_parameters):")
+            for i, p in enumerate(model.parameters):
+                default = "no default: give it in p" if p.value is None else f"default {p.value!r}"
+                lines.append(f"  p[{i}] = {p.name} ({default})")
+        else:
+            lines.append(f"No parameters ({self.upper}_NP = 0; p is not read).")
+        if self.definitions:
+            lines.append(
+                "Functions written out from their definitions in the file: " + "; ".join(f"{k}({', '.join(map(str, f.variables))}) = {f.expr}" for k, f in sorted(self.definitions.items())) + "."
+            )
+        names = {c: v for c, v in self.names.items() if c != v and c != str(model.t)}
+        if names:
+            lines.append("Names changed to C identifiers: " + ", ".join(f"{c} -> {v}" for c, v in names.items()) + ".")
+        lines += [
+            "",
+            f"int {self.prefix}_rhs(double t, const double *y, const double *p, double *dydt) returns 0 on success,",
+            "1 when the mass matrix is singular at y, 2 when a result is not finite.",
+        ]
+        return "/*\n" + "\n".join((" * " + comment(line.rstrip())).rstrip() for line in lines) + "\n */"
+
+    def file(self) -> str:
+        model = self.model
+        n, np_ = model.n, len(model.parameters)
+        guard = f"{self.upper}_H_INCLUDED"
+        defaults = ", ".join(_c_number(p.value) for p in model.parameters) if model.parameters else "0.0"
+        parts = [
+            self.header(),
+            f"#ifndef {guard}\n#define {guard}\n\n#include <math.h>",
+            f"#define {self.upper}_NQ {n}\n#define {self.upper}_NP {np_}\n#define {self.upper}_NC 0",
+            f"/* The parameters' defaults, in the file's order (see above). */\nstatic const double {self.prefix}_default_parameters[{max(np_, 1)}] = {{{defaults}}};",
+            SOLVE.replace("eom_", f"{self.prefix}_"),
+            *([ldlt(self.prefix, n)] if n <= LDLT_SIZE else []),
+            self.momenta_function(),
+            self.velocities_function(),
+            self.hamiltonian_function(),
+            self.rhs(),
+            f"#endif /* {guard} */",
+        ]
         return "\n\n".join(parts) + "\n"
 
 

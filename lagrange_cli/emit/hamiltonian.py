@@ -1,4 +1,5 @@
-"""`derive --form hamilton`: Hamilton's equations (lagrange_cli/hamilton.py) as text, LaTeX and Python.
+"""`derive --form hamilton`: Hamilton's equations (lagrange_cli/hamilton.py) as text, LaTeX and Python
+(the code targets c, octave, jax and json have their own `emit_hamilton`).
 
 Text and LaTeX print H(q, p) and q_dot = dH/dp, p_dot = -dH/dq + Q on the symbolic route; on the
 numeric route (more than `hamilton.MAX_SYMBOLIC` coordinates with a full mass matrix) they print
@@ -25,12 +26,13 @@ from lagrange_cli.hamilton import hamilton
 from lagrange_cli.model import Model
 
 TARGETS = ("text", "latex", "python")
-"""The targets that write `--form hamilton`; the others refuse it (exit 2)."""
+"""The targets whose `--form hamilton` this module writes; c, octave, jax and json write it by their
+module's `emit_hamilton` (lagrange_cli/emit/<target>.py, the same lagrange_cli.hamilton equations)."""
 
 
 def refuse(target: str) -> None:
-    """Exit 2 for a target that does not write Hamilton's equations."""
-    raise fail(None, f"--form hamilton is not available for --to {target}", "--to text, --to latex or --to python with --form hamilton (or another --form for --to " + target + ")")
+    """Exit 2 for a target that does not write Hamilton's equations (one without `emit_hamilton`)."""
+    raise fail(None, f"--form hamilton is not available for --to {target}", "--to text, latex, python, c, octave, jax or json with --form hamilton (or another --form for --to " + target + ")")
 
 
 # -- text -----------------------------------------------------------------------------------------

@@ -5,8 +5,11 @@ The module defines COORDINATES, PARAMETER_NAMES, PARAMETERS (defaults), NQ, NP,
 and `rhs(t, y, p)` with y = [q..., q_dot...] (with kept constraints also `accelerations`,
 `multipliers` and `constraint_residuals`). Every function is straight-line jnp code (no Python
 control flow on values, no in-place updates), so `jax.jit`, `jax.vmap` and `jax.grad` apply;
-the accelerations come from `jnp.linalg.solve` of M (or of [[M, -A^T], [A, 0]] for kept
-constraints, as in the Python module). `p` is optional everywhere: None means the file's
+the accelerations solve M q_ddot = F (or [[M, -A^T], [A, 0]] [q_ddot, lambda] = [F, -c] for kept
+constraints, as in the Python module): by unrolled scalar L D L^T code (`unrolled_solve`; the Schur
+complement for kept constraints) up to `UNROLLED_MAX` unknowns, which `jax.vmap` turns into
+elementwise operations over the batch, and by `jnp.linalg.solve` above. `emit_hamilton` writes
+Hamilton's equations (`derive --to jax --form hamilton`). `p` is optional everywhere: None means the file's
 defaults, a dict gives values by name (missing ones take their defaults), and an array gives
 them all in PARAMETER_NAMES order (what `jax.grad` with respect to the parameters takes).
 
@@ -24,7 +27,8 @@ from __future__ import annotations
 import builtins
 import keyword
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, ClassVar
 
@@ -118,17 +122,18 @@ class _Writer:
             lines.append(f"{', '.join(targets)}{',' * (len(targets) == 1)} = " + ", ".join(f"{group}[{i}]" for i in range(len(variables))) + ("," * (len(variables) == 1)))
         return lines
 
-    def block(self, exprs: Sequence[Any]) -> tuple[list[str], list[str]]:
+    def block(self, exprs: Sequence[Any], tag: str = "") -> tuple[list[str], list[str]]:
         """Straight-line code for `exprs`: the printer core's `restructure` (sin and cos of each
         angle once, those of differences as products, sums collected by their varying part), then
-        one CSE over everything; the lines and the result of each expression."""
+        one CSE over everything; the lines and the result of each expression. Blocks with distinct
+        `tag`s can share a function."""
         printer = self.printer()
-        definitions, rewritten = restructure(exprs, [p.name for p in self.model.parameters])
+        definitions, rewritten = restructure(exprs, [p.name for p in self.model.parameters], tag=tag)
         lines = []
         for lhs, value in definitions:
             lines.append(f"{lhs} = {printer.doprint(value)}")
             printer.names[lhs] = lhs
-        temporaries, results = printer.block(rewritten, "_c", [*self.names.values(), *(lhs for lhs, _ in definitions)])
+        temporaries, results = printer.block(rewritten, f"_c{tag}", [*self.names.values(), *(lhs for lhs, _ in definitions)])
         return lines + [f"{lhs} = {code}" for lhs, code in temporaries], results
 
     def function(self, name: str, doc: str, exprs: Sequence[Any], state: str, shape: str) -> str:
@@ -152,11 +157,19 @@ class _Writer:
         f = results[len(self.mass) : len(self.mass) + n]
         a = results[len(self.mass) + n : len(self.mass) + n + n * k]
         c = results[len(self.mass) + n + n * k :]
+        body = [*self.unpack("y"), *lines]
+        zero = {ij for ij, expr in zip(self.upper, self.mass, strict=True) if expr == 0}
+        if n + k <= UNROLLED_MAX:
+            mass = {ij: (None if ij in zero else code) for ij, code in m.items()}
+            jacobian = [[None if self.jacobian[r * n + j] == 0 else a[r * n + j] for j in range(n)] for r in range(k)]
+            forcing = [None if expr == 0 else code for expr, code in zip(self.forcing, f, strict=True)]
+            bias = [None if expr == 0 else _negate(code) for expr, code in zip(self.bias, c, strict=True)]
+            solved = unrolled_solve(n, mass, forcing, jacobian, bias)
+            return body + solved.lines + ["_x = _array([" + ", ".join(solved.results) + "])"]
         matrix = [[m[(min(i, j), max(i, j))] for j in range(n)] + [_negate(a[r * n + i]) for r in range(k)] for i in range(n)]
         matrix += [[a[r * n + j] for j in range(n)] + ["0.0"] * k for r in range(k)]
         vector = [*f, *(_negate(x) for x in c)]
         rows = ", ".join("[" + ", ".join(row) + "]" for row in matrix)
-        body = [*self.unpack("y"), *lines]
         body.append(f"_a = _array([{rows}])")
         body.append(f"_b = _array([{', '.join(vector)}])")
         body.append("_x = jnp.linalg.solve(_a, _b)")
@@ -222,35 +235,256 @@ class _Writer:
             f"NQ = {model.n}",
             f"NP = {len(model.parameters)}",
         ]
-        helpers = [
+        head = docstring("\n".join([*header, ""])) + "\n\nimport jax.numpy as jnp\n\n" + "\n".join(constants)
+        return head + "\n\n\n" + "\n\n\n".join([*_helpers(), *functions]) + "\n"
+
+
+def _helpers() -> list[str]:
+    """default_parameters, _parameters and _array, as every module defines them."""
+    return [
+        define(
+            "default_parameters",
+            "",
+            "The file's defaults as an array in PARAMETER_NAMES order (ValueError for a parameter without one).",
+            [
+                "_missing = [_name for _name in PARAMETER_NAMES if _name not in PARAMETERS]",
+                "if _missing:",
+                '    raise ValueError("no default for the parameters " + ", ".join(_missing))',
+                "return jnp.asarray([PARAMETERS[_name] for _name in PARAMETER_NAMES], dtype=jnp.result_type(float))",
+            ],
+        ),
+        define(
+            "_parameters",
+            "p",
+            "The parameter values in PARAMETER_NAMES order, from None, a dict by name, or an array.",
+            [
+                "if p is None:",
+                "    p = PARAMETERS",
+                "if isinstance(p, dict):",
+                "    return tuple(p[_name] if _name in p else PARAMETERS[_name] for _name in PARAMETER_NAMES)",
+                "p = jnp.asarray(p)",
+                "return tuple(p[_i] for _i in range(NP))",
+            ],
+        ),
+        define("_array", "values", "A float array of `values` (nested lists of numbers and traced scalars).", ["return jnp.asarray(values, dtype=jnp.result_type(float))"]),
+    ]
+
+
+# -- --form hamilton ----------------------------------------------------------------------------------
+
+HAMILTON_GENERATED = frozenset({"MOMENTA", "momenta", "velocities", "hamiltonian"})
+"""The names a Hamilton module defines besides those of `GENERATED`."""
+
+
+def emit_hamilton(model: Model, *, name: str = "eom") -> str:
+    """`derive --to jax --form hamilton`: the module of Hamilton's equations in the state y = [q..., p...]
+    (lagrange_cli/hamilton.py; the refusals are its own: kept constraints, a name of the form `p_<q>`,
+    a mass matrix depending on the velocities or singular). q_dot = M^-1 (p - b) is solved numerically
+    at each call (the unrolled L D L^T up to `UNROLLED_MAX` coordinates, `jnp.linalg.solve` above),
+    never inverted symbolically; then p_dot = dL/dq + Q - dR/dq_dot at that q_dot and H = p . q_dot - L."""
+    from lagrange_cli.hamilton import hamilton
+
+    definitions = model.definitions
+    require_defined(model, "JAX code")
+    model = model.with_definitions()
+    ham = hamilton(model, symbolic=False)
+    check_invertible(model)
+    return _HamiltonWriter(model, definitions, ham.p, ham.bias, ham.rates).module()
+
+
+class _HamiltonWriter(_Writer):
+    def __init__(self, model: Model, definitions: Any, momenta: Sequence[sp.Symbol], bias: Sequence[sp.Expr], rates: Sequence[sp.Expr]) -> None:
+        super().__init__(model, definitions)
+        symbols = [str(s) for s in (*model.q, *model.qd, *(p.symbol for p in model.parameters), *momenta)]
+        self.names = {**mangle(symbols, RESERVED | HAMILTON_GENERATED), str(model.t): "t"}
+        self.momenta = list(momenta)
+        self.shifted = [to_symengine(m - b) for m, b in zip(momenta, bias, strict=True)]
+        self.momentum_exprs = [to_symengine(sum((model.mass_matrix[i, j] * model.qd[j] for j in range(model.n)), b)) for i, b in enumerate(bias)]
+        self.rates = [to_symengine(r) for r in rates]
+        self.energy = to_symengine(sum((m * v for m, v in zip(momenta, model.qd, strict=True)), -model.lagrangian))
+
+    def unpack_state(self) -> list[str]:
+        """Lines binding the parameters and y = [q..., p...] to the user's names and the momenta."""
+        model = self.model
+        lines = []
+        if model.parameters:
+            targets = [self.names[p.name] for p in model.parameters]
+            lines.append(f"{', '.join(targets)}{',' * (len(targets) == 1)} = _parameters(p)")
+        state = [*model.q, *self.momenta]
+        lines.append("y = jnp.asarray(y)")
+        lines.append(", ".join(self.names[str(v)] for v in state) + " = " + ", ".join(f"y[{i}]" for i in range(len(state))))
+        return lines
+
+    def velocity_lines(self) -> list[str]:
+        """The body lines binding the velocities' names to M^-1 (p - b)."""
+        n = self.model.n
+        lines, results = self.block([*self.mass, *self.shifted], "m")
+        m = dict(zip(self.upper, results[: len(self.mass)], strict=True))
+        velocities = [self.names[str(v)] for v in self.model.qd]
+        body = [*self.unpack_state(), *lines]
+        if n <= UNROLLED_MAX:
+            zero = {ij for ij, expr in zip(self.upper, self.mass, strict=True) if expr == 0}
+            mass = {ij: (None if ij in zero else code) for ij, code in m.items()}
+            shifted = [None if expr == 0 else code for expr, code in zip(self.shifted, results[len(self.mass) :], strict=True)]
+            solved = unrolled_solve(n, mass, shifted, [], [])
+            return body + solved.lines + [", ".join(velocities) + " = " + ", ".join(solved.results)]
+        rows = ", ".join("[" + ", ".join(m[(min(i, j), max(i, j))] for j in range(n)) + "]" for i in range(n))
+        body.append(f"_v = jnp.linalg.solve(_array([{rows}]), _array([{', '.join(results[len(self.mass) :])}]))")
+        return [*body, ", ".join(velocities) + " = " + ", ".join(f"_v[{i}]" for i in range(n))]
+
+    def module(self) -> str:
+        model = self.model
+        qd = ", ".join(self.names[str(v)] for v in model.qd)
+        state = ", ".join(map(str, (*model.q, *self.momenta)))
+        rate_lines, rates = self.block(self.rates, "r")
+        energy_lines, energy = self.block([self.energy], "h")
+        functions = [
+            self.function("momenta", "The momenta p = dL/dq_dot = M q_dot + b of the state (q, q_dot): the map to this module's state.", self.momentum_exprs, "q,q_dot", "vector"),
+            define("velocities", "t, y, p=None", "q_dot = M^-1 (p - b), solved numerically, at y = [q..., p...].", [*self.velocity_lines(), f"return _array([{qd}])"]),
+            define("hamiltonian", "t, y, p=None", "H = p . q_dot - L at y = [q..., p...], q_dot solved numerically.", [*self.velocity_lines(), *energy_lines, f"return _array({energy[0]})"]),
             define(
-                "default_parameters",
-                "",
-                "The file's defaults as an array in PARAMETER_NAMES order (ValueError for a parameter without one).",
-                [
-                    "_missing = [_name for _name in PARAMETER_NAMES if _name not in PARAMETERS]",
-                    "if _missing:",
-                    '    raise ValueError("no default for the parameters " + ", ".join(_missing))',
-                    "return jnp.asarray([PARAMETERS[_name] for _name in PARAMETER_NAMES], dtype=jnp.result_type(float))",
-                ],
+                "rhs",
+                "t, y, p=None",
+                f"dy/dt = [dH/dp, -dH/dq + Q] for y = [{state}]: an array of {2 * model.n} values (jit-, vmap- and grad-compatible).",
+                [*self.velocity_lines(), *rate_lines, f"return _array([{qd}, {', '.join(rates)}])"],
             ),
-            define(
-                "_parameters",
-                "p",
-                "The parameter values in PARAMETER_NAMES order, from None, a dict by name, or an array.",
-                [
-                    "if p is None:",
-                    "    p = PARAMETERS",
-                    "if isinstance(p, dict):",
-                    "    return tuple(p[_name] if _name in p else PARAMETERS[_name] for _name in PARAMETER_NAMES)",
-                    "p = jnp.asarray(p)",
-                    "return tuple(p[_i] for _i in range(NP))",
-                ],
-            ),
-            define("_array", "values", "A float array of `values` (nested lists of numbers and traced scalars).", ["return jnp.asarray(values, dtype=jnp.result_type(float))"]),
+        ]
+        missing = [p.name for p in model.parameters if p.value is None]
+        defaults = ", ".join(f"{literal(p.name)}: {_number(p.value)}" for p in model.parameters if p.value is not None)
+        parameter_names = ", ".join(literal(p.name) for p in model.parameters) + ("," if len(model.parameters) == 1 else "")
+        coordinates = ", ".join(literal(c) for c in model.coordinates) + ("," if model.n == 1 else "")
+        momenta = ", ".join(literal(str(p)) for p in self.momenta) + ("," if model.n == 1 else "")
+        header = [
+            f"{model.title}: Hamilton's equations generated by lagrange {__version__} from {Path(model.source).name}, for JAX.",
+            "",
+            f"The state is y = [{state}]: the coordinates and their momenta p = dL/dq_dot (not the velocities).",
+            "rhs(t, y, p) gives dy/dt = [dH/dp, -dH/dq + Q]; hamiltonian(t, y, p) and velocities(t, y, p) give H and q_dot;",
+            "momenta(t, q, q_dot, p) maps a state (q, q_dot) to its momenta. q_dot = M^-1 (p - b) is solved numerically at each",
+            "call (no symbolic inverse). Each function is pure jax.numpy, so jax.jit, jax.vmap and jax.grad apply.",
+            "p is None (the file's defaults, PARAMETERS), a dict by name (missing names take their defaults) or an array",
+            "of NP values in PARAMETER_NAMES order (default_parameters() gives the defaults so).",
+            "",
+            "Float64: JAX computes in float32 unless 64-bit mode is on. For results that agree with the other targets",
+            'to about 1e-12, run `import jax; jax.config.update("jax_enable_x64", True)` before creating any array;',
+            "this module leaves that global setting to you.",
+        ]
+        if self.definitions:
+            written = "; ".join(f"{fname}({', '.join(map(str, f.variables))}) = {sp.sstr(f.expr)}" for fname, f in sorted(self.definitions.items()))
+            header += ["", f"Functions written out from their definitions in the file: {written}."]
+        if missing:
+            header += ["", f"Parameters without a default, to be given in p: {', '.join(missing)}."]
+        constants = [
+            f"COORDINATES = ({coordinates})",
+            f"MOMENTA = ({momenta})",
+            f"PARAMETER_NAMES = ({parameter_names})",
+            f"PARAMETERS = {{{defaults}}}",
+            f"NQ = {model.n}",
+            f"NP = {len(model.parameters)}",
         ]
         head = docstring("\n".join([*header, ""])) + "\n\nimport jax.numpy as jnp\n\n" + "\n".join(constants)
-        return head + "\n\n\n" + "\n\n\n".join([*helpers, *functions]) + "\n"
+        return head + "\n\n\n" + "\n\n\n".join([*_helpers(), *functions]) + "\n"
+
+
+UNROLLED_MAX = 12
+"""Largest n + k (coordinates plus kept constraints) whose linear system is solved by unrolled
+scalar code (`unrolled_solve`) rather than `jnp.linalg.solve`; measured by benchmarks/jax_bench.py."""
+
+
+@dataclass
+class Solved:
+    """Straight-line code for a solve: the lines, and the printed solution components."""
+
+    lines: list[str]
+    results: list[str]
+
+
+def unrolled_solve(n: int, mass: dict[tuple[int, int], str | None], forcing: Sequence[str | None], jacobian: Sequence[Sequence[str | None]], bias: Sequence[str | None]) -> Solved:
+    """Scalar code for M x = F (and, with rows of A, for M x - A^T lam = F, A x = bias): the solution
+    [x..., lam...] as one line per scalar, so that under `jax.vmap` every operation is elementwise over
+    the batch (`jnp.linalg.solve` runs one LAPACK call per matrix on CPU).
+
+    M (its upper triangle, None for a structural zero) is symmetric positive definite, so it is
+    factored as L D L^T without pivoting (no square roots: smooth for `jax.grad`; structural zeros
+    are skipped, so a diagonal M costs n divisions). Kept constraints use the Schur complement
+    rather than an unpivoted LU of the saddle-point matrix [[M, -A^T], [A, 0]], whose zero block
+    needs pivoting: with Y = M^-1 A^T and x0 = M^-1 F (the same factors), S = A Y is symmetric
+    positive definite when A has full rank, lam solves S lam = bias - A x0 (L D L^T again), and
+    x = x0 + Y lam. Both factorizations are of positive definite matrices, where L D L^T without
+    pivoting is backward stable."""
+    lines: list[str] = []
+    counter = iter(range(1 << 30))
+
+    def let(code: str) -> str:
+        name = f"_u{next(counter)}"
+        lines.append(f"{name} = {code}")
+        return name
+
+    def combine(base: str | None, terms: Sequence[str]) -> str | None:
+        """base - sum(terms), None for a structural zero."""
+        if not terms:
+            return base
+        sub = " - ".join(terms)
+        return let(f"{base} - {sub}" if base is not None else f"-({' + '.join(terms)})")
+
+    def factor(size: int, matrix: Callable[[int, int], str | None]) -> tuple[dict[tuple[int, int], str], list[str]]:
+        """L (strictly lower, by (i, j); absent entries are zero) and D of L D L^T."""
+        low: dict[tuple[int, int], str] = {}
+        diagonal: list[str] = []
+        products: dict[tuple[int, int], str] = {}  # L_ik D_k
+        for j in range(size):
+            d = combine(matrix(j, j), [f"{low[(j, k)]} * {products[(j, k)]}" for k in range(j) if (j, k) in low])
+            assert d is not None, "a structurally zero pivot"
+            diagonal.append(d)
+            for i in range(j + 1, size):
+                value = combine(matrix(i, j), [f"{low[(i, k)]} * {products[(j, k)]}" for k in range(j) if (i, k) in low and (j, k) in low])
+                if value is not None:
+                    products[(i, j)] = value
+                    low[(i, j)] = let(f"{value} / {diagonal[j]}")
+        return low, diagonal
+
+    def substitute(size: int, low: dict[tuple[int, int], str], diagonal: list[str], vector: Sequence[str | None]) -> list[str | None]:
+        """(L D L^T)^-1 vector."""
+        forward: list[str | None] = []
+        for i in range(size):
+            forward.append(combine(vector[i], [f"{low[(i, k)]} * {forward[k]}" for k in range(i) if (i, k) in low and forward[k] is not None]))
+        scaled = [None if v is None else let(f"{v} / {diagonal[i]}") for i, v in enumerate(forward)]
+        back: list[str | None] = [None] * size
+        for i in reversed(range(size)):
+            back[i] = combine(scaled[i], [f"{low[(k, i)]} * {back[k]}" for k in range(i + 1, size) if (k, i) in low and back[k] is not None])
+        return back
+
+    def bound(code: str | None) -> str | None:
+        """A printed input as a name of its own, so that it is an operand anywhere."""
+        return None if code is None else let(code)
+
+    mass = {ij: bound(code) for ij, code in mass.items()}
+    forcing = [bound(code) for code in forcing]
+    jacobian = [[bound(code) for code in row] for row in jacobian]
+    bias = [bound(code) for code in bias]
+
+    def entry(i: int, j: int) -> str | None:
+        return mass[(min(i, j), max(i, j))]
+
+    low, diagonal = factor(n, entry)
+    x0 = substitute(n, low, diagonal, list(forcing))
+    k = len(jacobian)
+    if not k:
+        return Solved(lines, [v if v is not None else "0.0" for v in x0])
+    columns = [substitute(n, low, diagonal, list(row)) for row in jacobian]  # Y = M^-1 A^T, by column
+    schur: dict[tuple[int, int], str | None] = {}
+    for r in range(k):
+        for s in range(r, k):
+            terms = [f"{jacobian[r][j]} * {columns[s][j]}" for j in range(n) if jacobian[r][j] is not None and columns[s][j] is not None]
+            schur[(r, s)] = let(" + ".join(terms)) if terms else None
+    reduced = [combine(bias[r], [f"{jacobian[r][j]} * {x0[j]}" for j in range(n) if jacobian[r][j] is not None and x0[j] is not None]) for r in range(k)]
+    low_s, diagonal_s = factor(k, lambda r, s: schur[(min(r, s), max(r, s))])
+    lam = substitute(k, low_s, diagonal_s, reduced)
+    x: list[str] = []
+    for j in range(n):
+        start = x0[j]
+        terms = [f"{columns[r][j]} * {lam[r]}" for r in range(k) if columns[r][j] is not None and lam[r] is not None]
+        x.append(let(" + ".join(([start] if start is not None else []) + terms)) if terms else (start if start is not None else "0.0"))
+    return Solved(lines, [*x, *(v if v is not None else "0.0" for v in lam)])
 
 
 def _negate(code: str) -> str:

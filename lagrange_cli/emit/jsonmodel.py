@@ -47,10 +47,20 @@ def emit(model: Model, *, name: str = "eom") -> str:
     return json.dumps(document(model), indent=2, ensure_ascii=True, allow_nan=False) + "\n"
 
 
-def document(model: Model) -> dict[str, Any]:
-    """The JSON document as Python data (what `emit` writes)."""
+def emit_hamilton(model: Model, *, name: str = "eom") -> str:
+    """`derive --to json --form hamilton`: the model's document with the key `hamilton` added
+    (Hamilton's equations, lagrange_cli/hamilton.py; its refusals are its own)."""
+    return json.dumps(document(model, hamilton=True), indent=2, ensure_ascii=True, allow_nan=False) + "\n"
+
+
+def document(model: Model, hamilton: bool = False) -> dict[str, Any]:
+    """The JSON document as Python data (what `emit` writes); with `hamilton`, also the key `hamilton`
+    (what `emit_hamilton` writes)."""
+    from lagrange_cli import hamilton as legendre
+
+    ham = legendre.hamilton(model) if hamilton else None
     functions = _functions(model)
-    namer = latex.names(model)
+    namer = latex.names(model, ham.p if ham is not None else ())
     tex = namer.printer().doprint
 
     def expression(expr: sp.Expr) -> dict[str, str]:
@@ -62,6 +72,17 @@ def document(model: Model) -> dict[str, Any]:
     symbols = namer.symbols
     n = model.n
     initial = {key: _finite(value, f"the initial value of '{key}'") for key, value in model.initial.items()}
+    extra: dict[str, Any] = {}
+    if ham is not None:
+        extra["hamilton"] = {
+            "momenta": [{"name": str(p), "latex": symbols[p], "rate": str(pd), "rate_latex": f"\\dot{{{symbols[p]}}}"} for p, pd in zip(ham.p, ham.pd, strict=True)],
+            "route": "symbolic" if ham.symbolic else "numeric",
+            "bias": expressions(ham.bias),
+            "rates": expressions(legendre.rates_in_velocities(model)),
+            "hamiltonian": expression(ham.hamiltonian) if ham.hamiltonian is not None else None,
+            "velocities": expressions(ham.velocities) if ham.symbolic else None,
+            "momentum_rates": expressions(ham.rates) if ham.symbolic else None,
+        }
     return {
         "format": FORMAT,
         "schema_version": SCHEMA_VERSION,
@@ -127,7 +148,7 @@ def document(model: Model) -> dict[str, Any]:
             "q": [initial.get(c, 0.0) for c in model.coordinates],
             "q_dot": [initial.get(f"{c}_dot", 0.0) for c in model.coordinates],
         },
-    }
+    } | extra
 
 
 def _functions(model: Model) -> list[str]:

@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import math
 import re
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any, ClassVar
 
@@ -78,10 +78,11 @@ class OctavePrinter(Printer):
         return self.call("sign", [self.doprint(expr.args[0])])
 
 
-def octave_names(model: Model, function: str) -> dict[str, str]:
-    """symbol name -> Octave identifier (`mangle`), and t."""
-    symbols = [str(s) for s in (*model.q, *model.qd, *(p.symbol for p in model.parameters), *(i.symbol for i in model.inputs))]
-    names = mangle(symbols, {*KEYWORDS, *BUILTINS, *LOCALS, function, *("u" for _ in model.inputs[:1])})
+def octave_names(model: Model, function: str, momenta: Sequence[str] = (), local: Sequence[str] = LOCALS) -> dict[str, str]:
+    """symbol name -> Octave identifier (`mangle`) for the coordinates, velocities, parameters (and
+    `momenta`), apart from the function's `local` variables; and t."""
+    symbols = [str(s) for s in (*model.q, *model.qd, *(p.symbol for p in model.parameters), *(i.symbol for i in model.inputs))] + list(momenta)
+    names = mangle(symbols, {*KEYWORDS, *BUILTINS, *local, function, *("u" for _ in model.inputs[:1])})
     long = [n for n in names.values() if len(n) > 63]
     if long:
         shown = printable(long[0])
@@ -107,12 +108,12 @@ def emit(model: Model, *, name: str = "eom") -> str:
 
 
 class _Writer:
-    def __init__(self, model: Model, name: str, definitions: Mapping[str, Any]) -> None:
+    def __init__(self, model: Model, name: str, definitions: Mapping[str, Any], momenta: Sequence[str] = (), local: Sequence[str] = LOCALS) -> None:
         self.model = model
         self.name = name
         self.definitions = definitions
-        self.names = octave_names(model, name)
-        self.taken = {*KEYWORDS, *BUILTINS, *LOCALS, name, *self.names.values()}
+        self.names = octave_names(model, name, momenta, local)
+        self.taken = {*KEYWORDS, *BUILTINS, *local, name, *self.names.values()}
         self.constants = frozenset([*(p.name for p in model.parameters), *(i.name for i in model.inputs)])
         self.velocities = frozenset(str(v) for v in model.qd)
         n = model.n
@@ -218,6 +219,106 @@ class _Writer:
         lines += ["  if nargin < 3 || isempty(p)", f"    p = [{defaults}];", "  end"] if model.inputs else ["  if nargin < 3", f"    p = [{defaults}];", "  end"]
         if model.inputs:
             lines += ["  if nargin < 4", f"    u = [{', '.join(_number(i.value) for i in model.inputs)}];", "  end"]
+        lines += [f"  {line}" for line in self.body()]
+        lines.append("end")
+        return "\n".join(lines) + "\n"
+
+
+# -- --form hamilton ----------------------------------------------------------------------------------
+
+HAMILTON_LOCALS = ("t", "y", "p", "dydt", "H", "qdot", "M", "b", "r")
+"""The Hamilton function's arguments, outputs and variables."""
+
+
+def emit_hamilton(model: Model, *, name: str = "eom") -> str:
+    """`derive --to octave --form hamilton`: `function [dydt, H, qdot] = NAME(t, y, p)` for y = [q; p]
+    (coordinates and momenta p = M q_dot + b), dydt = [dH/dp; -dH/dq + Q] (lagrange_cli/hamilton.py;
+    its refusals are its own). q_dot = M \\ (p - b) is solved numerically at each call (never a symbolic
+    inverse), with the same singularity check as the Lagrange form; p_dot = dL/dq + Q - dR/dq_dot at that
+    q_dot; H = p . q_dot - L on request."""
+    from lagrange_cli.hamilton import hamilton
+
+    if not IDENTIFIER.fullmatch(name) or name in KEYWORDS:
+        raise DerivationError(f"'{printable(name)}' is not a MATLAB function name")
+    definitions = model.definitions
+    model = model.with_definitions()
+    require_defined(model, "Octave code")
+    ham = hamilton(model, symbolic=False)
+    check_solvable(model)
+    return _HamiltonWriter(model, name, definitions, ham.p, ham.bias, ham.rates).file()
+
+
+class _HamiltonWriter(_Writer):
+    def __init__(self, model: Model, name: str, definitions: Mapping[str, Any], momenta: Sequence[Any], bias: Sequence[Any], rates: Sequence[Any]) -> None:
+        super().__init__(model, name, definitions, [str(m) for m in momenta], HAMILTON_LOCALS)
+        n = model.n
+        self.momenta = list(momenta)
+        self.index = {str(s): f"y({i + 1})" for i, s in enumerate((*model.q, *momenta))}
+        self.index |= {p.name: f"p({i + 1})" for i, p in enumerate(model.parameters)}
+        self.shifted = [to_symengine(m - b) for m, b in zip(momenta, bias, strict=True)]
+        self.rates = [to_symengine(r) for r in rates]
+        self.energy = to_symengine(sum((m * v for m, v in zip(momenta, model.qd, strict=True)), -model.lagrangian))
+        self.mass = [model.symengine.mass[i][j] for i, j in self.upper]
+        assert len(self.shifted) == n
+
+    def body(self) -> list[str]:
+        model, n = self.model, self.model.n
+        exprs = [*self.mass, *self.shifted]
+        used = {str(s) for e in [*exprs, *self.rates, self.energy] for s in e.free_symbols}
+        lines = [f"{self.names[s]} = {self.index[s]};" for s in self.index if s in used]
+        temporaries, results = self.block(exprs, "c")
+        lines += temporaries
+        cell = dict(zip(self.upper, results[: len(self.mass)], strict=True))
+        lines.append(f"M = zeros({n}, {n});")
+        for i, j in self.upper:
+            if cell[(i, j)] != "0":
+                lines.append(f"M({i + 1}, {j + 1}) = {cell[(i, j)]};")
+                if i != j:
+                    lines.append(f"M({j + 1}, {i + 1}) = M({i + 1}, {j + 1});")
+        lines.append(f"b = [{'; '.join(results[len(self.mass) :])}];")
+        lines += [
+            "r = rcond(M ./ max(abs(M), [], 2));",
+            "if ~(r >= eps)",
+            f"  error('{self.name}:singular', 'the mass matrix is singular at t = %g (reciprocal condition number %g)', t, r);",
+            "end",
+            "qdot = M \\ b;",
+            "if ~all(isfinite(qdot))",
+            f"  error('{self.name}:nonfinite', 'the velocities are not finite at t = %g', t);",
+            "end",
+        ]
+        later = {str(s) for e in [*self.rates, self.energy] for s in e.free_symbols}
+        lines += [f"{self.names[str(v)]} = qdot({i + 1});" for i, v in enumerate(model.qd) if str(v) in later]
+        rate_lines, rates = self.block(self.rates, "d")
+        lines += rate_lines
+        lines.append(f"dydt = [qdot; {'; '.join(rates)}];")
+        energy_lines, energy = self.block([self.energy], "e")
+        lines += ["if nargout > 1", *(f"  {line}" for line in energy_lines), f"  H = {energy[0]};", "end"]
+        return lines
+
+    def file(self) -> str:
+        model, n = self.model, self.model.n
+        state = "; ".join([*model.coordinates, *(str(m) for m in self.momenta)])
+        parameters = ", ".join(p.name for p in model.parameters)
+        defaults = ", ".join(_number(p.value) for p in model.parameters)
+        help_lines = [
+            f"{self.name.upper()}  {model.title}: Hamilton's equations generated by lagrange {__version__} from {Path(model.source).name}.",
+            f"  dydt = {self.name}(t, y) with the file's parameters, or {self.name}(t, y, p) with p = [{parameters}].",
+            f"  y = [q; p] = [{state}] ({2 * n} values): the coordinates and their momenta p = dL/dq_dot = M q_dot + b (not the velocities).",
+            f"  dydt = [dH/dp; -dH/dq + Q]; [dydt, H, qdot] = {self.name}(t, y, p) also gives H = p . q_dot - L and the velocities.",
+            "  q_dot = M \\ (p - b) is solved numerically at each call (no symbolic inverse).",
+            f"  Example: [tt, yy] = ode45(@{self.name}, [0 10], y0, odeset('RelTol', 1e-8, 'AbsTol', 1e-10));",
+        ]
+        missing = [p.name for p in model.parameters if p.value is None]
+        if missing:
+            help_lines.append(f"  Parameters without a default (NaN unless given in p): {', '.join(missing)}.")
+        if self.definitions:
+            written = "; ".join(f"{k}({', '.join(map(str, f.variables))}) = {f.expr}" for k, f in sorted(self.definitions.items()))
+            help_lines.append(f"  Functions written out from their definitions in the file: {written}.")
+        renamed = {c: v for c, v in self.names.items() if c != v and c != str(model.t)}
+        if renamed:
+            help_lines.append("  Names changed to MATLAB identifiers: " + ", ".join(f"{c} -> {v}" for c, v in renamed.items()) + ".")
+        lines = [f"function [dydt, H, qdot] = {self.name}(t, y, p)", *(f"% {comment(line)}".rstrip() for line in help_lines)]
+        lines += ["  if nargin < 3", f"    p = [{defaults}];", "  end"]
         lines += [f"  {line}" for line in self.body()]
         lines.append("end")
         return "\n".join(lines) + "\n"

@@ -1,0 +1,116 @@
+"""JAX target benchmark (issue 16): `jax.vmap` of the generated `rhs` over 10^4 states against a
+Python loop over the pure-Python module's `rhs`, both in the same run.
+
+    .venv/bin/python benchmarks/jax_bench.py                    # double pendulum, general chain N = 2, 5, 10, 15
+    .venv/bin/python benchmarks/jax_bench.py --states 2000 --sizes 2 5
+    .venv/bin/python benchmarks/jax_bench.py --unrolled-max 0   # every solve by jnp.linalg.solve (the old code)
+
+For each system: `derive --to jax` (64-bit mode) and `derive --to python`; 10^4 states drawn with
+seed 0 (angles in [-1, 1], rates in [-1, 1]); the JAX side is `jax.jit(jax.vmap(rhs, (None, 0, None)))`
+with its first call (tracing and XLA compilation) timed apart and excluded, then the best of
+REPEATS calls (each ended by `block_until_ready`); the Python side is one loop over the states.
+Times are CPU time (`time.process_time`, all threads of this process) and wall; XLA on CPU may use
+more than one thread, so the CPU ratio is the fair one on a shared machine. The results agree to
+1e-9 (checked). The generated module solves M q_ddot = F by unrolled L D L^T code for
+n + k <= `jax.UNROLLED_MAX`, by `jnp.linalg.solve` above (`--unrolled-max` changes it here).
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib.util
+import sys
+import tempfile
+import time
+from pathlib import Path
+from types import ModuleType
+from typing import Any
+
+import numpy as np
+
+HERE = Path(__file__).resolve().parent
+ROOT = HERE.parent
+sys.path.insert(0, str(HERE))
+sys.path.insert(0, str(ROOT))
+
+import pendulum  # noqa: E402
+
+REPEATS = 5
+
+
+def load(code: str, path: Path) -> ModuleType:
+    path.write_text(code)
+    found = importlib.util.spec_from_file_location(path.stem, path)
+    assert found and found.loader
+    module = importlib.util.module_from_spec(found)
+    found.loader.exec_module(module)
+    return module
+
+
+def timed(function: Any) -> tuple[Any, float, float]:
+    """(result, cpu seconds, wall seconds) of one call."""
+    cpu, wall = time.process_time(), time.perf_counter()
+    result = function()
+    return result, time.process_time() - cpu, time.perf_counter() - wall
+
+
+def bench(label: str, text: str, states: int, folder: Path) -> dict[str, Any]:
+    import jax
+    import jax.numpy as jnp
+
+    from lagrange_cli import derive, spec
+    from lagrange_cli.emit import jax as jax_target
+    from lagrange_cli.emit import python
+
+    model = derive.derive(spec.parse(text, f"{label}.yaml"))
+    reference = load(python.emit(model), folder / f"{label}_py.py")
+    target = load(jax_target.emit(model), folder / f"{label}_jax.py")
+    rng = np.random.default_rng(0)
+    y = rng.uniform(-1.0, 1.0, (states, 2 * model.n))
+    batched = jax.jit(jax.vmap(target.rhs, in_axes=(None, 0, None)))
+    ys = jnp.asarray(y)
+    _, compile_cpu, compile_wall = timed(lambda: batched(0.0, ys, None).block_until_ready())
+    best_cpu = best_wall = float("inf")
+    for _ in range(REPEATS):
+        result, cpu, wall = timed(lambda: batched(0.0, ys, None).block_until_ready())
+        best_cpu, best_wall = min(best_cpu, cpu), min(best_wall, wall)
+    rows = y.tolist()
+    rhs = reference.rhs
+    loop, loop_cpu, loop_wall = timed(lambda: [rhs(0.0, row) for row in rows])
+    np.testing.assert_allclose(np.asarray(result), np.asarray(loop, dtype=float), rtol=1e-9, atol=1e-11)
+    return {
+        "system": label,
+        "n": model.n,
+        "compile": (compile_cpu, compile_wall),
+        "vmap": (best_cpu, best_wall),
+        "loop": (loop_cpu, loop_wall),
+    }
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--states", type=int, default=10_000)
+    parser.add_argument("--sizes", type=int, nargs="*", default=[2, 5, 10, 15])
+    parser.add_argument("--unrolled-max", type=int, default=None, help="override lagrange_cli.emit.jax.UNROLLED_MAX (0: jnp.linalg.solve everywhere)")
+    args = parser.parse_args()
+    import jax
+
+    jax.config.update("jax_enable_x64", True)
+    from lagrange_cli.emit import jax as jax_target
+
+    if args.unrolled_max is not None:
+        jax_target.UNROLLED_MAX = args.unrolled_max
+    systems = [("double_pendulum", (ROOT / "systems" / "double_pendulum.yaml").read_text())]
+    systems += [(f"general_chain_{n}", pendulum.Chain("general", n).yaml()) for n in args.sizes]
+    print(f"jax {jax.__version__}, {args.states} states, unrolled solve for n + k <= {jax_target.UNROLLED_MAX}")
+    print("| system | n | first call (compile), CPU / wall s | vmap, CPU / wall ms | Python loop, CPU / wall ms | ratio CPU | ratio wall |")
+    print("|---|---|---|---|---|---|---|")
+    with tempfile.TemporaryDirectory() as folder:
+        for label, text in systems:
+            r = bench(label, text, args.states, Path(folder))
+            (cc, cw), (vc, vw), (lc, lw) = r["compile"], r["vmap"], r["loop"]
+            print(f"| {label} | {r['n']} | {cc:.2f} / {cw:.2f} | {vc * 1e3:.1f} / {vw * 1e3:.1f} | {lc * 1e3:.0f} / {lw * 1e3:.0f} | {lc / vc:.0f}x | {lw / vw:.0f}x |", flush=True)
+
+
+if __name__ == "__main__":
+    main()
