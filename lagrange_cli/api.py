@@ -416,6 +416,18 @@ class System:
 
         return routh(self.model)
 
+    def noether(self, search: bool = False) -> dict[str, sp.Expr]:
+        """The conserved Noether charges of the file's declared `symmetries` (name -> charge
+        sum p delta q - h delta t - G, in q, q_dot and t), and with `search` also those of the
+        built-in family that `lagrange info` searches (`translation_x`, `rotation_z`, ...,
+        `time_translation`). Raises `SpecError` for a declared symmetry that is not one."""
+        from lagrange_cli import noether
+
+        charges = {c.name: c.charge for c in noether.declared(self.spec, self.model)}
+        if search:
+            charges.update({c.name: c.charge for c in noether.search(self.spec, self.model) if c.name not in charges})
+        return charges
+
     @functools.cached_property
     def info(self) -> Report:
         """Degrees of freedom, momenta, ignorable coordinates, energy and Hamiltonian: `lagrange info`."""

@@ -52,9 +52,23 @@ def info(
             return
         result = analysis.info(model)
         render = report.info_json if as_json else report.info_latex if latex else report.info_text
-        output(render(model, result), output_path)
+        output(_with_charges(file, model, render(model, result), as_json, latex), output_path)
     except LagrangeError as error:
         fail_with(error)
+
+
+def _with_charges(file: str, model: Model, rendered: str, as_json: bool, latex: bool) -> str:
+    """`info`'s output with the Noether charges of the declared symmetries and of the built-in
+    family's symmetries (lagrange_cli/noether.py) added."""
+    import json
+
+    from lagrange_cli import noether, spec
+
+    system = spec.load(spec.resolve(file))
+    declared, found = noether.declared(system, model), noether.search(system, model)
+    if as_json:
+        return json.dumps({**json.loads(rendered), **noether.to_json(declared, found)}, indent=2) + "\n"
+    return rendered + (noether.latex(model, declared, found) if latex else noether.text(declared, found))
 
 
 @app.command()
