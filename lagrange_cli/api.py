@@ -430,10 +430,12 @@ class System:
 
     @functools.cached_property
     def info(self) -> Report:
-        """Degrees of freedom, momenta, ignorable coordinates, energy and Hamiltonian: `lagrange info`."""
+        """Degrees of freedom, momenta, ignorable coordinates, energy, Hamiltonian and Noether charges: `lagrange info`."""
         from lagrange_cli import report
+        from lagrange_cli.noether import with_charges
 
-        return Report(report.info_text(self.model, self._info), self._info, report.info_json(self.model, self._info))
+        text = with_charges(self.spec, self.model, report.info_text(self.model, self._info))
+        return Report(text, self._info, with_charges(self.spec, self.model, report.info_json(self.model, self._info), "json"))
 
     @functools.cached_property
     def _info(self) -> Any:

@@ -80,6 +80,9 @@ def _is_zero(expr: sp.Expr) -> bool:
 
 
 def _tidy(expr: sp.Expr) -> sp.Expr:
+    """`expr` simplified where it is small; a large one as it is (expanding it could blow it up)."""
+    if sp.count_ops(expr) > SIMPLIFY_OPS:
+        return expr
     expanded = sp.expand(expr)
     if sp.count_ops(expanded) <= SIMPLIFY_OPS:
         simpler = sp.simplify(expanded)
@@ -92,9 +95,12 @@ def variation(model: Model, eta: Sequence[sp.Expr], tau: sp.Expr) -> sp.Expr:
     """delta L: the first-order change of L dt under q -> q + eps eta, t -> t + eps tau."""
     lagrangian, t = model.lagrangian, model.t
     dtau = _ddt(tau, model)
-    change = sp.diff(lagrangian, t) * tau + lagrangian * dtau
+    change = (sp.diff(lagrangian, t) * tau if tau != 0 else sp.Integer(0)) + lagrangian * dtau
     for q, qd, e in zip(model.q, model.qd, eta, strict=True):
-        change += sp.diff(lagrangian, q) * e + sp.diff(lagrangian, qd) * (_ddt(e, model) - qd * dtau)
+        if e != 0:
+            change += sp.diff(lagrangian, q) * e
+        if e != 0 or dtau != 0:
+            change += sp.diff(lagrangian, qd) * (_ddt(e, model) - qd * dtau)
     return change
 
 
@@ -259,3 +265,14 @@ def latex(model: Model, declared_charges: Sequence[Charge], found: Sequence[Char
     named = "; ".join(f"C{k + 1}: {'found' if c.builtin else 'declared'} {c.name}" for k, c in enumerate(charges))
     rows = [Row(label, layout.pieces(c.charge, doprint, space)) for label, c in zip(labels, charges, strict=True)]
     return comment(f"Noether charges: {named}") + align(rows)
+
+
+def with_charges(spec: SystemSpec, model: Model, rendered: str, form: str = "text") -> str:
+    """`info`'s output (`form` "text", "json" or "latex") with the declared symmetries' charges and
+    what the built-in search found added (the CLI and `System.info` both use this)."""
+    import json
+
+    declared_charges, found = declared(spec, model), search(spec, model)
+    if form == "json":
+        return json.dumps({**json.loads(rendered), **to_json(declared_charges, found)}, indent=2) + "\n"
+    return rendered + (latex(model, declared_charges, found) if form == "latex" else text(declared_charges, found))

@@ -38,11 +38,12 @@ def info(
 ) -> None:
     """Degrees of freedom, generalized momenta, ignorable coordinates, the energy function and the Hamiltonian."""
     check_outputs(output_path, reading=file)
-    from lagrange_cli import analysis, report
+    from lagrange_cli import analysis, derive, noether, report, spec
     from lagrange_cli.errors import LagrangeError, fail
 
     try:
-        model = _model(file)
+        system = spec.load(spec.resolve(file))
+        model = derive.derive(system)
         if routh:
             from lagrange_cli import routh as reduction
 
@@ -52,23 +53,10 @@ def info(
             return
         result = analysis.info(model)
         render = report.info_json if as_json else report.info_latex if latex else report.info_text
-        output(_with_charges(file, model, render(model, result), as_json, latex), output_path)
+        form = "json" if as_json else "latex" if latex else "text"
+        output(noether.with_charges(system, model, render(model, result), form), output_path)
     except LagrangeError as error:
         fail_with(error)
-
-
-def _with_charges(file: str, model: Model, rendered: str, as_json: bool, latex: bool) -> str:
-    """`info`'s output with the Noether charges of the declared symmetries and of the built-in
-    family's symmetries (lagrange_cli/noether.py) added."""
-    import json
-
-    from lagrange_cli import noether, spec
-
-    system = spec.load(spec.resolve(file))
-    declared, found = noether.declared(system, model), noether.search(system, model)
-    if as_json:
-        return json.dumps({**json.loads(rendered), **noether.to_json(declared, found)}, indent=2) + "\n"
-    return rendered + (noether.latex(model, declared, found) if latex else noether.text(declared, found))
 
 
 @app.command()
