@@ -28,6 +28,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import sympy as sp
+from sympy.core.function import AppliedUndef
 
 from lagrange_cli.errors import fail, printable
 from lagrange_cli.model import Model
@@ -71,12 +72,50 @@ def _ddt(expr: sp.Expr, model: Model) -> sp.Expr:
 
 
 def _is_zero(expr: sp.Expr) -> bool:
+    """True when `expr` vanishes identically: expanding shows it, or simplifying (small
+    expressions), or else its values at ZERO_POINTS random states (DIGITS digits, undefined
+    functions replaced by a smooth function) are all zero to round-off of its terms' sizes."""
     expanded = sp.expand(expr)
     if expanded == 0:
         return True
-    if sp.count_ops(expanded) > SIMPLIFY_OPS:
-        return False
-    return bool(sp.simplify(expanded) == 0)
+    if sp.count_ops(expanded) <= SIMPLIFY_OPS and sp.simplify(expanded) == 0:
+        return True
+    return _numerically_zero(expanded)
+
+
+ZERO_POINTS = 4
+DIGITS = 30
+
+
+def _numerically_zero(expr: sp.Expr) -> bool:
+    """`expr` (expanded) is zero at ZERO_POINTS seeded random states, relative to the sum of its
+    terms' magnitudes; states where it is not a finite real number are skipped (too few good
+    states: not zero)."""
+    import random
+
+    rng = random.Random(20261123)
+    concrete = expr.replace(lambda e: isinstance(e, AppliedUndef), lambda e: sp.exp(-sum(e.args, sp.Integer(0)) / 3) + sp.sin(sum(e.args, sp.Integer(0))) / 2)
+    if concrete.has(sp.Derivative, sp.Subs):
+        concrete = concrete.doit()
+    symbols = sorted(concrete.free_symbols, key=str)
+    terms = sp.Add.make_args(concrete)
+    good = 0
+    for _ in range(3 * ZERO_POINTS):
+        values = {s: sp.Float(rng.uniform(0.3, 1.4), DIGITS) for s in symbols}
+        try:
+            numbers = [sp.N(term.xreplace(values), DIGITS) for term in terms]
+            total = sp.N(sp.Add(*numbers), DIGITS)
+        except (ArithmeticError, ValueError, TypeError):
+            continue
+        if not all(n.is_real and n.is_finite for n in [*numbers, total]):
+            continue
+        scale = sum((abs(n) for n in numbers), sp.Float(0))
+        if abs(total) > sp.Float(10) ** (10 - DIGITS) * max(scale, 1):
+            return False
+        good += 1
+        if good == ZERO_POINTS:
+            return True
+    return False
 
 
 def _tidy(expr: sp.Expr) -> sp.Expr:

@@ -693,6 +693,9 @@ class _Reader:
         expected = "`{coordinates: {x: -y, y: x}}` (the change of each listed coordinate) and/or `time: 1` (a time shift)"
         for key, key_node, value in self.mapping(node, "'symmetries'"):
             name = self.name(key_node, "symmetry", taken)
+            if name == "energy":
+                self.problem(key_node, "'energy' cannot name a symmetry: `expect: conserved: [energy]` means the energy function", "another name, e.g. `time_shift`")
+                name = None
             fields = {k: (kn, v) for k, kn, v in self.mapping(value, f"symmetry '{key}'", SYMMETRY_KEYS)}
             if name is None or not isinstance(value, yaml.MappingNode):
                 continue

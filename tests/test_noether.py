@@ -191,3 +191,61 @@ def test_api_noether() -> None:
     charges = system.noether()
     assert sp.expand(charges["rotation_z"] - m * (x * y_dot - y * x_dot)) == 0
     assert "rotation_y" in system.noether(search=True)
+
+
+@pytest.mark.parametrize("simplify_ops", [noether.SIMPLIFY_OPS, 0])
+def test_a_symmetry_hidden_behind_trigonometry_is_recognized(simplify_ops: int, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A free particle in polar coordinates, translated along x: delta r = cos(theta),
+    delta theta = -sin(theta)/r. delta L vanishes only through sin**2 + cos**2 = 1: decided by
+    simplifying, and (with simplification off, as for a large expression) by the numeric zero
+    test; the charge is m*x_dot in polar form."""
+    monkeypatch.setattr(noether, "SIMPLIFY_OPS", simplify_ops)
+    system = "coordinates: [r, theta]\nparameters: {m: 1.0}\nparticles:\n  p: {mass: m, position: [r*cos(theta), r*sin(theta)]}\n"
+    parsed, model = load(with_keys(system, symmetries={"slide": {"coordinates": {"r": "cos(theta)", "theta": "-sin(theta)/r"}}}))
+    (charge,) = noether.declared(parsed, model)
+    r, theta, r_dot, theta_dot = sp.symbols("r theta r_dot theta_dot")
+    assert sp.simplify(charge.charge - m * (r_dot * sp.cos(theta) - r * theta_dot * sp.sin(theta))) == 0
+
+
+def test_the_numeric_zero_test_tells_zero_from_small() -> None:
+    a, b = sp.symbols("a b")
+    assert noether._numerically_zero(sp.expand((sp.sin(a) ** 2 + sp.cos(a) ** 2 - 1) * (a + b) ** 6))
+    assert not noether._numerically_zero(sp.expand((sp.sin(a) ** 2 + sp.cos(a) ** 2 - 1 + sp.Rational(1, 10**12)) * (a + b) ** 6))
+
+
+def test_scaling_symmetry_of_an_inverse_square_potential() -> None:
+    """V = k/x**2 is invariant under x -> (1 + eps) x, t -> (1 + 2 eps) t: the charge m*x*x_dot - 2*t*h."""
+    system = "coordinates: [x]\nparameters: {m: 1.0, k: 1.0}\nparticles:\n  p: {mass: m, position: [x]}\npotential: k/x**2\n"
+    parsed, model = load(with_keys(system, symmetries={"dilation": {"coordinates": {"x": "x"}, "time": "2*t"}}))
+    (charge,) = noether.declared(parsed, model)
+    assert sp.expand(charge.charge - (m * x * x_dot - 2 * t * model.energy)) == 0
+    assert all(r.passed for r in verdicts(system, symmetries={"dilation": {"coordinates": {"x": "x"}, "time": "2*t"}}, expect={"conserved": ["dilation"]}))
+
+
+def test_energy_cannot_name_a_symmetry() -> None:
+    with pytest.raises(SpecError, match="'energy' cannot name a symmetry"):
+        spec.parse(with_keys(CENTRAL, symmetries={"energy": {"time": 1}}), "sym.yaml")
+
+
+ELIMINATED = """
+coordinates: [x, y, theta]
+parameters: {m: 1.0, l: 1.0}
+particles:
+  p: {mass: m, position: [x, y]}
+constraints:
+  cx: x = l*cos(theta)
+  cy: y = l*sin(theta)
+eliminate: [x, y]
+"""
+
+
+def test_conserved_expressions_in_eliminated_coordinates_are_written_in_the_rest() -> None:
+    results = verdicts(ELIMINATED, symmetries={"turn": {"coordinates": {"theta": 1}}}, expect={"conserved": ["turn", "m*(x*y_dot - y*x_dot)", "m*x_dot"]})
+    assert [r.passed for r in results] == [True, True, False]
+    assert results[2].entry == "conserved.m*x_dot" and "not constant along the motion" in results[2].detail
+
+
+def test_a_symmetry_may_not_move_an_eliminated_coordinate() -> None:
+    parsed, model = load(with_keys(ELIMINATED, symmetries={"rot": {"coordinates": {"x": "-y", "y": "x"}}}))
+    with pytest.raises(SpecError, match="moves 'x', which is eliminated"):
+        noether.declared(parsed, model)
