@@ -214,38 +214,57 @@ def _in_model(expr: sp.Expr, model: Model) -> sp.Expr:
     return expr.xreplace(eliminated) if eliminated else expr
 
 
-def cartesian(spec: SystemSpec, model: Model) -> list[tuple[str, ...]] | None:
-    """The particles' positions as coordinate names, when the coordinates are exactly the Cartesian
-    positions of the particles (each component a distinct coordinate, all particles of one
-    dimension, no rigid bodies and no eliminated coordinates); else None."""
-    particles = spec.particles
-    if not particles or spec.bodies or model.eliminated:
+def cartesian(spec: SystemSpec, model: Model) -> tuple[list[tuple[str | None, ...]], bool] | None:
+    """The positions of the particles (and bodies' centres) as coordinate names, one per component
+    (None for a constant component, e.g. the 0 of `[x, y, 0]`), and whether rigid bodies are among
+    them; None unless every component is a coordinate of the model or a constant, no coordinate
+    serves twice and all positions have one length. (Coordinates that no position uses, such as
+    an angle in `kinetic`, stay unchanged by the family; the check decides.)"""
+    points = [*spec.particles, *spec.bodies]
+    if not points:
         return None
-    positions = [tuple(str(c) for c in p.position) for p in particles]
-    if any(not isinstance(c, sp.Symbol) for p in particles for c in p.position):
+    names: list[tuple[str | None, ...]] = []
+    used: list[str] = []
+    for point in points:
+        row: list[str | None] = []
+        for component in point.position:
+            if isinstance(component, sp.Symbol) and str(component) in model.coordinates:
+                row.append(str(component))
+                used.append(str(component))
+            elif component.free_symbols <= {p.symbol for p in model.parameters}:
+                row.append(None)
+            else:
+                return None
+        names.append(tuple(row))
+    if len({len(p) for p in names}) != 1 or len(set(used)) != len(used) or not used:
         return None
-    names = [c for position in positions for c in position]
-    if len({len(p) for p in positions}) != 1 or len(set(names)) != len(names) or sorted(names) != sorted(model.coordinates):
-        return None
-    return positions
+    return names, bool(spec.bodies)
 
 
 def candidates(spec: SystemSpec, model: Model) -> list[tuple[str, dict[str, sp.Expr], sp.Expr]]:
-    """The built-in family: translations along and rotations about the axes (Cartesian particles
-    only), and the time shift."""
+    """The built-in family: translations along the axes (when every particle and body has a
+    coordinate along that axis) and rotations about them (when every particle has coordinates in
+    the plane of the rotation, and there are no bodies, whose orientation would turn too), of
+    Cartesian particles only; and the time shift."""
     found: list[tuple[str, dict[str, sp.Expr], sp.Expr]] = []
-    positions = cartesian(spec, model)
-    if positions is not None:
+    layout = cartesian(spec, model)
+    if layout is not None:
+        positions, bodies = layout
         dimension = len(positions[0])
-        symbols = [[sp.Symbol(c) for c in p] for p in positions]
         for k, axis in enumerate("xyz"[:dimension]):
-            found.append((f"translation_{axis}", {p[k]: sp.Integer(1) for p in positions}, sp.Integer(0)))
+            moved = [p[k] for p in positions]
+            if all(moved):
+                found.append((f"translation_{axis}", {q: sp.Integer(1) for q in moved if q}, sp.Integer(0)))
         planes = {"z": (0, 1)} if dimension == 2 else {"x": (1, 2), "y": (2, 0), "z": (0, 1)} if dimension == 3 else {}
         for axis, (i, j) in planes.items():
+            if bodies or not all(p[i] and p[j] for p in positions):
+                continue
             changes: dict[str, sp.Expr] = {}
-            for p, s in zip(positions, symbols, strict=True):
-                changes[p[i]] = -s[j]
-                changes[p[j]] = s[i]
+            for p in positions:
+                first, second = p[i], p[j]
+                if first and second:
+                    changes[first] = -sp.Symbol(second)
+                    changes[second] = sp.Symbol(first)
             found.append((f"rotation_{axis}", changes, sp.Integer(0)))
     found.append(("time_translation", {}, sp.Integer(1)))
     return found

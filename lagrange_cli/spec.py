@@ -692,6 +692,7 @@ class _Reader:
         found = []
         expected = "`{coordinates: {x: -y, y: x}}` (the change of each listed coordinate) and/or `time: 1` (a time shift)"
         for key, key_node, value in self.mapping(node, "'symmetries'"):
+            before = len(self.problems)
             name = self.name(key_node, "symmetry", taken)
             if name == "energy":
                 self.problem(key_node, "'energy' cannot name a symmetry: `expect: conserved: [energy]` means the energy function", "another name, e.g. `time_shift`")
@@ -712,7 +713,7 @@ class _Reader:
             time = None
             if "time" in fields:
                 time = self.expression(fields["time"][1], f"the change of time in symmetry '{key}'", config)
-            if not changes and time is None and not self.problems:
+            if not changes and time is None and len(self.problems) == before:
                 self.problem(value, f"symmetry '{key}' changes nothing", expected)
                 continue
             found.append(Symmetry(name, tuple(changes), time, self.span(key_node), self.span(fields["time"][1]) if "time" in fields else None))

@@ -249,3 +249,20 @@ def test_a_symmetry_may_not_move_an_eliminated_coordinate() -> None:
     parsed, model = load(with_keys(ELIMINATED, symmetries={"rot": {"coordinates": {"x": "-y", "y": "x"}}}))
     with pytest.raises(SpecError, match="moves 'x', which is eliminated"):
         noether.declared(parsed, model)
+
+
+def test_an_empty_symmetry_is_reported_also_next_to_other_problems() -> None:
+    text = with_keys(CENTRAL, symmetries={"rot": {"coordinates": {}}}, initial={"w": 1})
+    with pytest.raises(SpecError) as error:
+        spec.parse(text, "sym.yaml")
+    assert "symmetry 'rot' changes nothing" in str(error.value) and "'w'" in str(error.value)
+
+
+def test_the_search_takes_constant_components_and_other_coordinates() -> None:
+    """A particle at [x, y, h] on a spring to the z axis, with a flywheel angle in `kinetic`: the
+    z translation is not tried (no coordinate along z), the rotation about z holds, and so does
+    the translation along x only if nothing pulls (here it does not hold)."""
+    text = "coordinates: [x, y, phi]\nparameters: {m: 1.0, h: 1.0, k: 1.0, J: 1.0}\nparticles:\n  p: {mass: m, position: [x, y, h]}\nkinetic: J*phi_dot**2/2\npotential: k*(x**2 + y**2)/2\n"
+    parsed, model = load(text)
+    assert [c.name for c in noether.search(parsed, model)] == ["rotation_z", "time_translation"]
+    assert [name for name, _, _ in noether.candidates(parsed, model)] == ["translation_x", "translation_y", "rotation_z", "time_translation"]
