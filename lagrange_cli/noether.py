@@ -220,14 +220,14 @@ def cartesian(spec: SystemSpec, model: Model) -> tuple[list[tuple[str | None, ..
     them; None unless every component is a coordinate of the model or a constant, no coordinate
     serves twice and all positions have one length. (Coordinates that no position uses, such as
     an angle in `kinetic`, stay unchanged by the family; the check decides.)"""
-    points = [*spec.particles, *spec.bodies]
+    points = [p.position for p in spec.particles] + [b.position for b in spec.bodies]
     if not points:
         return None
     names: list[tuple[str | None, ...]] = []
     used: list[str] = []
-    for point in points:
+    for position in points:
         row: list[str | None] = []
-        for component in point.position:
+        for component in position:
             if isinstance(component, sp.Symbol) and str(component) in model.coordinates:
                 row.append(str(component))
                 used.append(str(component))
