@@ -119,15 +119,11 @@ def _numerically_zero(expr: sp.Expr) -> bool:
 
 
 def _tidy(expr: sp.Expr) -> sp.Expr:
-    """`expr` simplified where it is small; a large one as it is (expanding it could blow it up)."""
+    """`expr` expanded with common factors pulled out where it is small (cheap: no `simplify`); a
+    large one as it is (expanding it could blow it up)."""
     if sp.count_ops(expr) > SIMPLIFY_OPS:
         return expr
-    expanded = sp.expand(expr)
-    if sp.count_ops(expanded) <= SIMPLIFY_OPS:
-        simpler = sp.simplify(expanded)
-        if sp.count_ops(simpler) < sp.count_ops(expanded):
-            return sp.factor_terms(simpler)
-    return sp.factor_terms(expanded)
+    return sp.factor_terms(sp.expand(expr))
 
 
 def variation(model: Model, eta: Sequence[sp.Expr], tau: sp.Expr) -> sp.Expr:

@@ -266,3 +266,18 @@ def test_the_search_takes_constant_components_and_other_coordinates() -> None:
     parsed, model = load(text)
     assert [c.name for c in noether.search(parsed, model)] == ["rotation_z", "time_translation"]
     assert [name for name, _, _ in noether.candidates(parsed, model)] == ["translation_x", "translation_y", "rotation_z", "time_translation"]
+
+
+def test_the_two_body_problem_has_its_ten_classical_integrals() -> None:
+    """Two gravitating particles in space: the search finds the three translations (momentum),
+    the three rotations (angular momentum) and the time shift (energy); with `boost_x` declared
+    (delta x_i = t, G = sum m_i x_i) the centre of mass's uniform motion is conserved too."""
+    coordinates = [f"{a}{i}" for i in range(2) for a in "xyz"]
+    particles = "\n".join(f"  p{i}: {{mass: m{i}, position: [x{i}, y{i}, z{i}]}}" for i in range(2))
+    potential = " + ".join(f"-m{i}*m{j}/sqrt((x{i} - x{j})**2 + (y{i} - y{j})**2 + (z{i} - z{j})**2)" for i in range(2) for j in range(i + 1, 2))
+    text = f"coordinates: [{', '.join(coordinates)}]\nparameters: {{m0: 1.0, m1: 2.0}}\nparticles:\n{particles}\npotential: {potential}\n"
+    parsed, model = load(with_keys(text, symmetries={"boost_x": {"coordinates": {f"x{i}": "t" for i in range(2)}}}))
+    assert [c.name for c in noether.search(parsed, model)] == ["translation_x", "translation_y", "translation_z", "rotation_x", "rotation_y", "rotation_z", "time_translation"]
+    (boost,) = noether.declared(parsed, model)
+    masses, xs, vs = sp.symbols("m0 m1"), sp.symbols("x0 x1"), sp.symbols("x0_dot x1_dot")
+    assert sp.expand(boost.charge - sum(mi * (t * vi - xi) for mi, xi, vi in zip(masses, xs, vs, strict=True))) == 0
