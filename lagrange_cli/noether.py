@@ -30,6 +30,7 @@ from typing import TYPE_CHECKING
 import sympy as sp
 from sympy.core.function import AppliedUndef
 
+from lagrange_cli.algebra import expandable
 from lagrange_cli.errors import fail, printable
 from lagrange_cli.model import Model
 
@@ -75,6 +76,8 @@ def _is_zero(expr: sp.Expr) -> bool:
     """True when `expr` vanishes identically: expanding shows it, or simplifying (small
     expressions), or else its values at ZERO_POINTS random states (DIGITS digits, undefined
     functions replaced by a smooth function) are all zero to round-off of its terms' sizes."""
+    if not expandable(expr):  # expanding would blow up (large powers of sums): decide by values
+        return _numerically_zero(expr)
     expanded = sp.expand(expr)
     if expanded == 0:
         return True
@@ -118,10 +121,20 @@ def _numerically_zero(expr: sp.Expr) -> bool:
     return False
 
 
+SHOWN = 600
+"""Characters of an expression a message shows at most."""
+
+
+def _shown(expr: sp.Expr) -> str:
+    """`expr` tidied, as text cut at SHOWN characters (saying how long it is) for a message."""
+    text = str(_tidy(expr))
+    return text if len(text) <= SHOWN else f"{text[:SHOWN]} ... ({len(text)} characters in all)"
+
+
 def _tidy(expr: sp.Expr) -> sp.Expr:
     """`expr` expanded with common factors pulled out where it is small (cheap: no `simplify`); a
     large one as it is (expanding it could blow it up)."""
-    if sp.count_ops(expr) > SIMPLIFY_OPS:
+    if sp.count_ops(expr) > SIMPLIFY_OPS or not expandable(expr):
         return expr
     return sp.factor_terms(sp.expand(expr))
 
@@ -141,6 +154,8 @@ def variation(model: Model, eta: Sequence[sp.Expr], tau: sp.Expr) -> sp.Expr:
 
 def gauge(model: Model, change: sp.Expr) -> sp.Expr | None:
     """G(q, t), a polynomial in the coordinates and t with dG/dt = `change`, or None when there is none."""
+    if not expandable(change):  # too large to expand into polynomial coefficients: only G = 0 is tried
+        return sp.Integer(0) if _numerically_zero(change) else None
     change = sp.expand(change)
     if change == 0:
         return sp.Integer(0)
@@ -165,15 +180,15 @@ def analyse(model: Model, name: str, changes: Mapping[str, sp.Expr], time: sp.Ex
     change = variation(model, eta, tau)
     found = gauge(model, change)
     if found is None:
-        raise NotASymmetry(f"the Lagrangian is not invariant: its first-order change delta L = {_tidy(change)} is neither zero nor the time derivative of a polynomial G(q, t)")
+        raise NotASymmetry(f"the Lagrangian is not invariant: its first-order change delta L = {_shown(change)} is neither zero nor the time derivative of a polynomial G(q, t)")
     forces = [q - sp.diff(model.dissipation, qd) for q, qd in zip(model.generalized_forces, model.qd, strict=True)]
     work = sum((f * (e - qd * tau) for f, e, qd in zip(forces, eta, model.qd, strict=True)), sp.Integer(0))
     if not _is_zero(work):
-        raise NotASymmetry(f"the non-conservative forces (applied forces and dissipation) do work along it: sum Q_i (delta q_i - q_dot_i delta t) = {_tidy(work)}")
+        raise NotASymmetry(f"the non-conservative forces (applied forces and dissipation) do work along it: sum Q_i (delta q_i - q_dot_i delta t) = {_shown(work)}")
     for constraint in model.constraints:
         moved = sum((a * e for a, e in zip(constraint.jacobian, eta, strict=True)), sp.Integer(0)) + constraint.bias * tau
         if not _is_zero(moved):
-            raise NotASymmetry(f"it does not preserve the constraint '{constraint.name}': a . delta q + b delta t = {_tidy(moved)}")
+            raise NotASymmetry(f"it does not preserve the constraint '{constraint.name}': a . delta q + b delta t = {_shown(moved)}")
     charge = sum((p * e for p, e in zip(model.momenta, eta, strict=True)), sp.Integer(0)) - model.energy * tau - found
     kept = tuple((c, e) for c, e in zip(model.coordinates, eta, strict=True) if e != 0)
     return Charge(name, kept, tau, found, _tidy(charge), builtin)
