@@ -306,7 +306,7 @@ def text(declared_charges: Sequence[Charge], found: Sequence[Charge]) -> str:
     if declared_charges:
         lines.append("declared symmetries (Noether charges sum p delta q - h delta t - G):")
         lines += [f"  {describe(c)}" for c in declared_charges]
-    lines.append("symmetries found (translations and rotations of Cartesian particles, time shift): " + ("none" if not found else ""))
+    lines.append("symmetries found (translations and rotations of Cartesian particles, time shift):" + ("" if found else " none"))
     lines += [f"  {describe(c)}" for c in found]
     return "\n".join(map(printable, lines)) + "\n"
 
