@@ -416,12 +416,26 @@ class System:
 
         return routh(self.model)
 
+    def noether(self, search: bool = False) -> dict[str, sp.Expr]:
+        """The conserved Noether charges of the file's declared `symmetries` (name -> charge
+        sum p delta q - h delta t - G, in q, q_dot and t), and with `search` also those of the
+        built-in family that `lagrange info` searches (`translation_x`, `rotation_z`, ...,
+        `time_translation`). Raises `SpecError` for a declared symmetry that is not one."""
+        from lagrange_cli import noether
+
+        charges = {c.name: c.charge for c in noether.declared(self.spec, self.model)}
+        if search:
+            charges.update({c.name: c.charge for c in noether.search(self.spec, self.model) if c.name not in charges})
+        return charges
+
     @functools.cached_property
     def info(self) -> Report:
-        """Degrees of freedom, momenta, ignorable coordinates, energy and Hamiltonian: `lagrange info`."""
+        """Degrees of freedom, momenta, ignorable coordinates, energy, Hamiltonian and Noether charges: `lagrange info`."""
         from lagrange_cli import report
+        from lagrange_cli.noether import with_charges
 
-        return Report(report.info_text(self.model, self._info), self._info, report.info_json(self.model, self._info))
+        text = with_charges(self.spec, self.model, report.info_text(self.model, self._info))
+        return Report(text, self._info, with_charges(self.spec, self.model, report.info_json(self.model, self._info), "json"))
 
     @functools.cached_property
     def _info(self) -> Any:

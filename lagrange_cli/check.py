@@ -78,6 +78,8 @@ def check(spec: SystemSpec, model: Model) -> list[Result]:
         results.append(_compare(f"momenta.{coordinate}", expected_value, model.momenta[i], points, span))
     for name, span in spec.expect.conserved:
         results.append(_conserved(model, name, span))
+    if spec.expect.conserved_expressions or spec.symmetries:
+        results += _conserved_expressions(spec, model)
     if spec.expect.hamiltonian is not None:
         results.append(_hamiltonian(model, *spec.expect.hamiltonian, points))
     if spec.expect.hamilton_equations:
@@ -160,6 +162,36 @@ def _conserved(model: Model, name: str, span: Span) -> Result:
     if not ok and sp.diff(model.lagrangian, model.q[i]) == 0 and model.generalized_forces[i] != 0:
         why = f"'{name}' is not ignorable: a generalized force {_shown(model.generalized_forces[i])} acts on it"
     return Result(f"conserved.{name}", ok, why, span, "symbolic")
+
+
+def _conserved_expressions(spec: SystemSpec, model: Model) -> list[Result]:
+    """`expect.conserved` entries that are expressions or names of declared symmetries (their
+    Noether charges, lagrange_cli/noether.py): each is right when its total time derivative
+    vanishes on the equations of motion, at random states (on the constraints, with the
+    accelerations solved there). Every declared symmetry is checked (one that is not a symmetry
+    is a `SpecError` at its name), also when no entry names it."""
+    from lagrange_cli import noether
+    from lagrange_cli.spec import time_derivative
+
+    charges = {c.name: c.charge for c in noether.declared(spec, model)}
+    if not spec.expect.conserved_expressions:
+        return []
+    eliminated = {sp.Symbol(name): value for name, value in model.eliminated}
+    rates = {sp.Symbol(f"{name}_dot"): time_derivative(value, model.q, model.qd, model.qdd, model.t) for name, value in model.eliminated}
+    quantities = []
+    for text, expr, span in spec.expect.conserved_expressions:
+        quantity = charges[text] if expr is None else expr.xreplace({**eliminated, **rates})
+        quantities.append((f"conserved.{text}", time_derivative(quantity, model.q, model.qd, model.qdd, model.t), span))
+    points = Samples(model, extra=[rate for _, rate, _ in quantities])
+    results = []
+    for entry, rate, span in quantities:
+        result = Result(entry, True, "", span)
+        for _, ((value, scale),) in points.where([rate], f"the time derivative of '{entry.removeprefix('conserved.')}'", span, with_unknowns=True):
+            if abs(value) > TOLERANCE * max(scale, 1):
+                result = Result(entry, False, f"not constant along the motion: its time derivative on the equations of motion is {_number_text(value)} at a random state", span)
+                break
+        results.append(result)
+    return results
 
 
 def _why_not_energy(model: Model) -> str:

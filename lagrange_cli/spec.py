@@ -33,11 +33,12 @@ NAME = re.compile(r"[A-Za-z][A-Za-z0-9_]*\Z")
 TOP_KEYS = (
     "title", "description", "coordinates", "parameters", "functions", "gravity", "particles",
     "bodies", "kinetic", "potential", "lagrangian", "dissipation", "forces", "constraints",
-    "eliminate", "initial", "simulate", "exact", "expect", "draw", "inputs", "outputs",
+    "eliminate", "initial", "simulate", "exact", "expect", "draw", "inputs", "outputs", "symmetries",
 )  # fmt: skip
 PARTICLE_KEYS = ("mass", "position", "force", "damping")
 FUNCTION_KEYS = ("arguments", "definition", "description")
 DRAW_KEYS = ("segments", "trails")
+SYMMETRY_KEYS = ("coordinates", "time")
 EXPECT_KEYS = ("equations", "accelerations", "momenta", "conserved", "hamiltonian", "hamilton_equations", "state_space")
 SIMULATE_KEYS = ("t_end", "method", "rtol", "atol", "step", "samples")
 METHODS = ("auto", "RK45", "DOP853", "Radau", "BDF", "LSODA", "symplectic")  # as in numeric/settings.py
@@ -135,20 +136,37 @@ class Drawing:
 
 
 @dataclass(frozen=True)
+class Symmetry:
+    """A declared continuous symmetry (`symmetries: {name: {coordinates: {q: delta_q}, time: delta_t}}`):
+    the infinitesimal change of the listed coordinates (others unchanged) and of time, each an
+    expression of the coordinates, parameters and `t`; lagrange_cli/noether.py checks it."""
+
+    name: str
+    coordinates: tuple[tuple[str, sp.Expr, Span], ...]
+    time: sp.Expr | None
+    span: Span
+    time_span: Span | None = None
+
+
+@dataclass(frozen=True)
 class Expect:
     equations: tuple[tuple[sp.Expr, Span], ...] = ()
     accelerations: tuple[tuple[str, sp.Expr, Span], ...] = ()
     momenta: tuple[tuple[str, sp.Expr, Span], ...] = ()
     conserved: tuple[tuple[str, Span], ...] = ()
+    """Coordinate names and `energy` (their conservation is decided symbolically)."""
     hamiltonian: tuple[sp.Expr, Span] | None = None
     """H in the coordinates and the momenta `p_<q>` (FORMAT.md version 2)."""
     hamilton_equations: tuple[tuple[sp.Expr, Span], ...] = ()
     """Equations in `<q>_dot`, `p_<q>` and `p_<q>_dot` (each `lhs - rhs`)."""
     state_space: ExpectedStateSpace | None = None
     """`expect.state_space` (FORMAT.md version 2; lagrange_cli/inputs.py)."""
+    conserved_expressions: tuple[tuple[str, sp.Expr | None, Span], ...] = ()
+    """`conserved` entries that are expressions (text, expression) or the name of a declared
+    symmetry (name, None: its Noether charge); each is checked to be constant along every motion."""
 
     def __bool__(self) -> bool:
-        return bool(self.equations or self.accelerations or self.momenta or self.conserved or self.hamiltonian or self.hamilton_equations or self.state_space)
+        return bool(self.equations or self.accelerations or self.momenta or self.conserved or self.conserved_expressions or self.hamiltonian or self.hamilton_equations or self.state_space)
 
 
 @dataclass(frozen=True)
@@ -192,6 +210,8 @@ class SystemSpec:
     """The `inputs` (lagrange_cli/inputs.py), in the file's order."""
     outputs: tuple[tuple[str, sp.Expr], ...] = ()
     """The `outputs`, name -> expression of q, q_dot, t and the inputs, in the file's order."""
+    symmetries: tuple[Symmetry, ...] = ()
+    """The declared continuous symmetries, in file order (checked by lagrange_cli/noether.py)."""
 
 
 def time_derivative(expr: sp.Expr, q: tuple[sp.Symbol, ...], qd: tuple[sp.Symbol, ...], qdd: tuple[sp.Symbol, ...], t: sp.Symbol) -> sp.Expr:
@@ -699,6 +719,9 @@ class _Reader:
         if inputs or "outputs" in entries:
             spec = _replace(spec, inputs=inputs, outputs=read_outputs(self, value("outputs"), state, taken))
             check_usage(self, spec)
+        symmetries_node = value("symmetries")
+        if symmetries_node is not None:
+            spec = _replace(spec, symmetries=self.symmetries(symmetries_node, coordinates, config, taken))
         expect_node = value("expect")
         if expect_node is not None:
             spec = _replace(spec, expect=self.expect(expect_node, spec, state))
@@ -707,6 +730,39 @@ class _Reader:
         if self.problems:
             raise SpecError(sorted(self.problems, key=lambda d: (d.span.line, d.span.column) if d.span else (0, 0)))
         return spec
+
+    def symmetries(self, node: yaml.Node, coordinates: tuple[str, ...], config: Scope, taken: dict[str, str]) -> tuple[Symmetry, ...]:
+        """`symmetries: {name: {coordinates: {q: delta_q, ...}, time: delta_t}}`: each change an
+        expression of the coordinates, parameters and `t`; at least one change per symmetry."""
+        found = []
+        expected = "`{coordinates: {x: -y, y: x}}` (the change of each listed coordinate) and/or `time: 1` (a time shift)"
+        for key, key_node, value in self.mapping(node, "'symmetries'"):
+            before = len(self.problems)
+            name = self.name(key_node, "symmetry", taken)
+            if name == "energy":
+                self.problem(key_node, "'energy' cannot name a symmetry: `expect: conserved: [energy]` means the energy function", "another name, e.g. `time_shift`")
+                name = None
+            fields = {k: (kn, v) for k, kn, v in self.mapping(value, f"symmetry '{key}'", SYMMETRY_KEYS)}
+            if name is None or not isinstance(value, yaml.MappingNode):
+                continue
+            changes = []
+            if "coordinates" in fields:
+                for q, q_node, delta in self.mapping(fields["coordinates"][1], f"'symmetries.{key}.coordinates'"):
+                    if q not in coordinates:
+                        hint = _closest(q, list(coordinates))
+                        self.problem(q_node, f"'{q}' in symmetry '{key}' is not a coordinate", (f"did you mean '{hint}'? " if hint else "") + "one of " + ", ".join(coordinates))
+                        continue
+                    expr = self.expression(delta, f"the change of '{q}' in symmetry '{key}'", config)
+                    if expr is not None:
+                        changes.append((q, expr, self.span(delta)))
+            time = None
+            if "time" in fields:
+                time = self.expression(fields["time"][1], f"the change of time in symmetry '{key}'", config)
+            if not changes and time is None and len(self.problems) == before:
+                self.problem(value, f"symmetry '{key}' changes nothing", expected)
+                continue
+            found.append(Symmetry(name, tuple(changes), time, self.span(key_node), self.span(fields["time"][1]) if "time" in fields else None))
+        return tuple(found)
 
     def draw(self, node: yaml.Node | None, particles: tuple[Particle, ...], bodies: tuple[Body, ...], config: Scope) -> Drawing | None:
         """`draw: {segments: [[A, B], ...], trails: [A, ...]}`, each point a particle's name, a body's
@@ -1074,16 +1130,31 @@ class _Reader:
             expr = self.expression(value, f"the expected momentum of '{key}'", state)
             if expr is not None:
                 momenta.append((key, expr, self.span(value)))
-        conserved = []
-        for item in self.sequence(fields["conserved"], "'expect.conserved'") if "conserved" in fields else []:
-            name = getattr(item, "value", None)
-            if not isinstance(item, yaml.ScalarNode) or (name not in spec.coordinates and name != "energy"):
-                self.problem(item, f"{repr(name) if isinstance(item, yaml.ScalarNode) else _kind(item)} is not a coordinate or 'energy'", "coordinate names and/or `energy`")
-                continue
-            conserved.append((str(name), self.span(item)))
+        conserved, conserved_expressions = self.conserved_expect(fields, spec, state)
         hamiltonian, hamilton_equations = self.hamilton_expect(fields, spec, state)
         state_space = read_state_space(self, fields["state_space"], spec) if "state_space" in fields else None
-        return Expect(tuple(equations), tuple(accelerations), tuple(momenta), tuple(conserved), hamiltonian, hamilton_equations, state_space)
+        return Expect(tuple(equations), tuple(accelerations), tuple(momenta), conserved, hamiltonian, hamilton_equations, state_space, conserved_expressions)
+
+    def conserved_expect(self, fields: dict[str, yaml.Node], spec: SystemSpec, state: Scope) -> tuple[tuple[tuple[str, Span], ...], tuple[tuple[str, sp.Expr | None, Span], ...]]:
+        """`expect.conserved`: coordinate names and `energy` (decided symbolically), the names of
+        declared symmetries (their Noether charges) and expressions of the state (e.g.
+        `m*(x*y_dot - y*x_dot)`), the last two checked to be constant along every motion."""
+        names, expressions = [], []
+        symmetries = {s.name for s in spec.symmetries}
+        expected = "coordinate names, `energy`, names of declared symmetries, or expressions of the coordinates, velocities, parameters and `t`"
+        for item in self.sequence(fields["conserved"], "'expect.conserved'") if "conserved" in fields else []:
+            name = getattr(item, "value", None)
+            if not isinstance(item, yaml.ScalarNode):
+                self.problem(item, f"{_kind(item)} is not a coordinate, 'energy', a symmetry or an expression", expected)
+            elif name in spec.coordinates or name == "energy":
+                names.append((str(name), self.span(item)))
+            elif name in symmetries:
+                expressions.append((str(name), None, self.span(item)))
+            else:
+                expr = self.expression(item, "an expected conserved quantity", state)
+                if expr is not None:
+                    expressions.append((str(name), expr, self.text_span(item)))
+        return tuple(names), tuple(expressions)
 
     def hamilton_expect(self, fields: dict[str, yaml.Node], spec: SystemSpec, state: Scope) -> tuple[tuple[sp.Expr, Span] | None, tuple[tuple[sp.Expr, Span], ...]]:
         """`expect.hamiltonian` (an expression of q, p_<q>, the parameters and t) and

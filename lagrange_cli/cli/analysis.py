@@ -39,11 +39,12 @@ def info(
 ) -> None:
     """Degrees of freedom, generalized momenta, ignorable coordinates, the energy function and the Hamiltonian."""
     check_outputs(output_path, reading=file)
-    from lagrange_cli import analysis, report
+    from lagrange_cli import analysis, derive, noether, report, spec
     from lagrange_cli.errors import LagrangeError, fail
 
     try:
-        model = _model(file)
+        system = spec.load(spec.resolve(file))
+        model = derive.derive(system)
         if routh:
             from lagrange_cli import routh as reduction
 
@@ -53,7 +54,8 @@ def info(
             return
         result = analysis.info(model)
         render = report.info_json if as_json else report.info_latex if latex else report.info_text
-        output(render(model, result), output_path)
+        form = "json" if as_json else "latex" if latex else "text"
+        output(noether.with_charges(system, model, render(model, result), form), output_path)
     except LagrangeError as error:
         fail_with(error)
 
