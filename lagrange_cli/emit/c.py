@@ -409,6 +409,9 @@ def emit_hamilton(model: Model, *, name: str = "eom") -> str:
     form), never by a symbolic inverse; `NAME_rhs` gives [q_dot, p_dot] with p_dot = dL/dq + Q - dR/dq_dot
     at that q_dot; `NAME_hamiltonian` H = p . q_dot - L; `NAME_momenta` maps [q, q_dot] to p."""
     from lagrange_cli.hamilton import hamilton
+    from lagrange_cli.inputs import refuse
+
+    refuse(model, "the C header of --form hamilton")
 
     if not re.fullmatch(r"[A-Za-z][A-Za-z0-9_]*", name):
         raise DerivationError(f"the C prefix '{printable(name)}' is not a C identifier")

@@ -283,6 +283,9 @@ def emit_hamilton(model: Model, *, name: str = "eom") -> str:
     at each call (the unrolled L D L^T up to `UNROLLED_MAX` coordinates, `jnp.linalg.solve` above),
     never inverted symbolically; then p_dot = dL/dq + Q - dR/dq_dot at that q_dot and H = p . q_dot - L."""
     from lagrange_cli.hamilton import hamilton
+    from lagrange_cli.inputs import refuse
+
+    refuse(model, "the JAX module of --form hamilton")
 
     definitions = model.definitions
     require_defined(model, "JAX code")

@@ -50,6 +50,9 @@ def emit(model: Model, *, name: str = "eom") -> str:
 def emit_hamilton(model: Model, *, name: str = "eom") -> str:
     """`derive --to json --form hamilton`: the model's document with the key `hamilton` added
     (Hamilton's equations, lagrange_cli/hamilton.py; its refusals are its own)."""
+    from lagrange_cli.inputs import refuse
+
+    refuse(model, "the JSON model of --form hamilton")
     return json.dumps(document(model, hamilton=True), indent=2, ensure_ascii=True, allow_nan=False) + "\n"
 
 

@@ -237,6 +237,9 @@ def emit_hamilton(model: Model, *, name: str = "eom") -> str:
     inverse), with the same singularity check as the Lagrange form; p_dot = dL/dq + Q - dR/dq_dot at that
     q_dot; H = p . q_dot - L on request."""
     from lagrange_cli.hamilton import hamilton
+    from lagrange_cli.inputs import refuse
+
+    refuse(model, "the Octave function of --form hamilton")
 
     if not IDENTIFIER.fullmatch(name) or name in KEYWORDS:
         raise DerivationError(f"'{printable(name)}' is not a MATLAB function name")
