@@ -124,7 +124,7 @@ def _derive(spec: SystemSpec, shared: bool = False) -> tuple[Model, bool]:
         refuse = fail(
             None,
             f"{spec.path}: the equations of motion, written out without sharing, amount to more than {MAX_EQUATION_TREE} terms and factors",
-            "a smaller system; or generated code, which shares common subexpressions: `derive --to python` (or `--to c`, `--to octave`)",
+            "a smaller system; or `derive --to python`, whose code shares common subexpressions",
         )
         if not cleared or not shared:
             raise refuse
