@@ -106,6 +106,20 @@ def multipliers(t, y, p=PARAMETERS):
     return accelerations(t, y, p)[3:]
 
 
+def constraint_forces(t, y, p=PARAMETERS):
+    """Each kept constraint's force by name: lambda, the generalized force lambda * d(lhs - rhs)/dq and, on each particle/body, the force (and torque about its centre) that does the same virtual work (the part along the motions the coordinates allow (minimum norm): the coordinates constrain the particles or bodies too). N = lambda * |force / lambda| is positive along the gradient of lhs - rhs."""
+    _lam0, = multipliers(t, y, p)
+    R = p["R"]
+    alpha = p["alpha"]
+    _, _, theta, s_dot, phi_dot, theta_dot = y.tolist() if hasattr(y, "tolist") else y
+    _f0 = -R*_lam0
+    _f1 = theta + alpha
+    _f2 = _lam0/(3 - cos(2*_f1))
+    _f3 = 2*_f2
+    _f4 = sin(alpha)
+    return {"rolling": {"lambda": _lam0, "generalized": [_lam0, _f0, 0], "on": {"bob": {"force": [_f3*sin(_f1)*sin(theta), -_f2*(sin(alpha + 2*theta) + _f4)], "N": (1.0 if _lam0 >= 0 else -1.0) * sum(_v * _v for _v in [_f3*sin(_f1)*sin(theta), -_f2*(sin(alpha + 2*theta) + _f4)]) ** 0.5}, "disk": {"force": [_f3*cos(alpha), -_f4*_f3], "N": (1.0 if _lam0 >= 0 else -1.0) * sum(_v * _v for _v in [_f3*cos(alpha), -_f4*_f3]) ** 0.5, "torque": [_f0]}}}}
+
+
 def _solve(a, b):
     """Solve a x = b by Gaussian elimination with partial pivoting (a, b are overwritten), each
     row first divided by its largest entry so that rows in different units compare fairly;
