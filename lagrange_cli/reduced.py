@@ -56,6 +56,8 @@ class Reduced:
     rhs: tuple[sp.Expr, ...]
     where: str
     """Where the pivoting was done, for the output ("at the defaults and x = 0, ...")."""
+    determinant: sp.Expr
+    """det A_D: the equations hold where it is not 0."""
 
     @property
     def u(self) -> tuple[sp.Symbol, ...]:
@@ -78,7 +80,8 @@ class Reduced:
         names = self.model.coordinates
         ind = ", ".join(f"{names[i]}_dot" for i in self.independent) or "none"
         dep = ", ".join(f"{names[i]}_dot" for i in self.dependent)
-        return f"independent velocities: {ind}; dependent: {dep} (chosen by pivoting on the constraint matrix {self.where})"
+        valid = "valid everywhere: det A_D is constant" if self.determinant.is_number else f"valid where {sp.sstr(self.determinant)} != 0"
+        return f"independent velocities: {ind}; dependent: {dep} (chosen by pivoting on the constraint matrix {self.where}; {valid})"
 
 
 def reduced(model: Model) -> Reduced:
@@ -126,7 +129,7 @@ def reduced(model: Model) -> Reduced:
     F = sp.Matrix(model.forcing).xreplace(on)
     mass = (C.T * M * C).applyfunc(_tidy)
     rhs = (C.T * (F - M * e)).applyfunc(_tidy)
-    return Reduced(model, independent, tuple(dependent), tuple(_tidy(v) for v in velocity), sp.ImmutableMatrix(mass), tuple(rhs), where)
+    return Reduced(model, independent, tuple(dependent), tuple(_tidy(v) for v in velocity), sp.ImmutableMatrix(mass), tuple(rhs), where, _tidy(AD.det(method="berkowitz")))
 
 
 def _tidy(expr: sp.Expr) -> sp.Expr:
@@ -158,7 +161,8 @@ def choose(model: Model, A: sp.Matrix) -> tuple[tuple[int, ...], str]:
     values.update({p.symbol: float(p.value) for p in model.parameters if p.value is not None})
     values.update({q: float(model.initial.get(name, 0.0)) for name, q in zip(model.coordinates, model.q, strict=True)})
     try:
-        numeric = [[float(sp.sympify(a).xreplace(values).evalf()) for a in A.row(i)] for i in range(A.rows)]
+        point = {symbol: sp.Float(value) for symbol, value in values.items()}
+        numeric = [[float(sp.sympify(a).xreplace(point).evalf()) for a in A.row(i)] for i in range(A.rows)]
     except (TypeError, ValueError) as error:
         raise fail(None, f"--form reduced cannot evaluate the constraint matrix at the defaults: {error}", "constraints defined at the default parameters and initial coordinates") from None
     where = "at the default parameters and " + ", ".join(f"{name} = {float(model.initial.get(name, 0.0)):g}" for name in model.coordinates)

@@ -205,3 +205,38 @@ def test_the_coin_rolls_at_constant_rates(tmp_path: Path) -> None:
     dz = red.rhs(0.0, z)
     assert dz[4:] == pytest.approx([0.0, 0.0], abs=1e-14)
     assert dz[0] == pytest.approx(0.5 * math.cos(0.3) * 2.0)
+
+
+MIXED = """
+title: a particle on a growing ring with a velocity constraint
+coordinates: [x, y, z]
+parameters: {m: 1.0, g: 9.81, k: 0.1}
+gravity: [0, 0, -g]
+particles:
+  p: {mass: m, position: [x, y, z]}
+constraints:
+  ring: x**2 + y**2 = (1 + k*t)**2
+  twist: z_dot = x*y_dot - y*x_dot
+initial: {x: 1.0}
+"""
+
+
+def test_a_kept_rheonomic_holonomic_constraint_joins_the_velocity_one(tmp_path: Path) -> None:
+    """The ring (holonomic, time-dependent) is differentiated into a velocity row with a bias b(t)
+    and an acceleration bias: the reduced trajectories still follow the multiplier form's."""
+    model = model_of(MIXED)
+    red = reduced(model)
+    assert [model.coordinates[i] for i in red.dependent] == ["x", "z"]
+    full = load_module(pyemit.emit(model), tmp_path / "mixed_full.py")
+    mod = load_module(emit_reduced.python(model), tmp_path / "mixed_reduced.py")
+    z0 = np.array([1.0, 0.0, 0.0, 0.7])
+    qd0 = mod.velocities(0.0, z0)
+    assert qd0[0] == pytest.approx(0.1) and qd0[2] == pytest.approx(0.7)
+    t = np.linspace(0, 0.6, 13)  # x stays away from 0, where the chosen block A_D (det 2 x) is singular
+    a = solve_ivp(full.rhs, (0, 0.6), [1.0, 0.0, 0.0, *qd0], method="DOP853", rtol=1e-11, atol=1e-12, t_eval=t)
+    b = solve_ivp(mod.rhs, (0, 0.6), z0, method="DOP853", rtol=1e-11, atol=1e-12, t_eval=t)
+    assert a.success and b.success
+    assert np.min(np.abs(b.y[0])) > 0.5
+    assert np.max(np.abs(a.y[:3] - b.y[:3])) < 1e-7
+    assert "valid where 2*x != 0" in red.summary()
+    assert np.allclose(np.hypot(b.y[0], b.y[1]), 1 + 0.1 * t, atol=1e-7)  # on the growing ring
