@@ -36,6 +36,8 @@ from lagrange_cli.model import Model
 
 MAX_DEPENDENT = 4
 """Most dependent velocities whose block A_D is inverted symbolically."""
+TRIGSIMP_MAX_OPS = 60
+"""Largest entry (in sympy's count_ops) that is trig-simplified for readability."""
 PIVOT_TOLERANCE = 1e-9
 """A column whose remaining norm is below this (relative to A's largest entry) does not pivot."""
 
@@ -133,12 +135,16 @@ def reduced(model: Model) -> Reduced:
 
 
 def _tidy(expr: sp.Expr) -> sp.Expr:
-    """A bounded clean-up for readability: expand products of sums only when small."""
-    if sp.count_ops(expr) <= 400:
-        try:
+    """A bounded clean-up for readability: small entries trig-simplified (sin^2 + cos^2 = 1),
+    medium ones expanded, big ones left as they are."""
+    ops = sp.count_ops(expr)
+    try:
+        if ops <= TRIGSIMP_MAX_OPS and expr.has(sp.sin, sp.cos):
+            return sp.trigsimp(sp.cancel(expr))
+        if ops <= 400:
             return sp.expand(expr)
-        except (TypeError, ValueError):  # pragma: no cover - sympy on odd input
-            return expr
+    except (TypeError, ValueError):  # pragma: no cover - sympy on odd input
+        pass
     return expr
 
 
@@ -157,7 +163,11 @@ def choose(model: Model, A: sp.Matrix) -> tuple[tuple[int, ...], str]:
     values: dict[sp.Symbol, float] = {model.t: 0.0}
     missing = [p.name for p in model.parameters if p.value is None]
     if missing:
-        raise fail(None, f"--form reduced chooses the independent velocities at the default parameters, and {', '.join(missing)} has no default", "a `value` for every parameter")
+        raise fail(
+            None,
+            f"--form reduced chooses the independent velocities at the default parameters, and {', '.join(missing)} {'has' if len(missing) == 1 else 'have'} no default",
+            "a `value` for every parameter",
+        )
     values.update({p.symbol: float(p.value) for p in model.parameters if p.value is not None})
     values.update({q: float(model.initial.get(name, 0.0)) for name, q in zip(model.coordinates, model.q, strict=True)})
     try:

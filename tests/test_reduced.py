@@ -240,3 +240,20 @@ def test_a_kept_rheonomic_holonomic_constraint_joins_the_velocity_one(tmp_path: 
     assert np.max(np.abs(a.y[:3] - b.y[:3])) < 1e-7
     assert "valid where 2*x != 0" in red.summary()
     assert np.allclose(np.hypot(b.y[0], b.y[1]), 1 + 0.1 * t, atol=1e-7)  # on the growing ring
+
+
+def test_a_parameter_without_a_default_is_refused() -> None:
+    """The choice is made at the default parameters: a list of names gives none."""
+    text = KNIFE.replace("{PHI}", "{phi: 0.0}").replace("parameters: {m: 1.0, I: 0.1}", "parameters: [m, I]")
+    with pytest.raises(LagrangeError, match="chooses the independent velocities at the default parameters, and m, I have no default"):
+        reduced(model_of(text))
+
+
+def test_the_api_writes_the_reduced_form() -> None:
+    from lagrange_cli.api import load
+
+    system = load("chaplygin_sleigh")
+    assert system.reduced.dependent == (1,)
+    assert "def rhs(" in system.to("python", form="reduced")
+    with pytest.raises(LagrangeError, match="--form reduced is not available for --to c"):
+        system.to("c", form="reduced")
