@@ -124,37 +124,44 @@ def forces(model: Model, symbolic: bool = True) -> Forces:
     """The constraint-force map of `model` (which must keep constraints); `symbolic` solves W
     as expressions for at most `MAX_SYMBOLIC` coordinates: W = (J J^T)^-1 J a^T when J has at
     most as many rows as coordinates (the unique solution when one exists), else the minimum-norm
-    J (J^T J)^-1 a^T."""
+    J (J^T J)^-1 a^T. The status is decided numerically at a sample point (`_status`)."""
     found = rows(model)
     n = model.n
     J = sp.Matrix(len(found), n, [e for row in found for e in row.entries]) if found else sp.zeros(0, n)
-    status = "projected" if J.rows > n else "exact"
+    A = sp.Matrix(model.constraint_matrix)
+    status = _status(model, J, A)
     directions = None
     if symbolic and n <= MAX_SYMBOLIC and found:
-        A = sp.Matrix(model.constraint_matrix)
         try:
             W = J.T.LUsolve(A.T) if J.rows == n else ((J * J.T).LUsolve(J * A.T) if J.rows < n else J * (J.T * J).LUsolve(A.T))
         except (ValueError, ZeroDivisionError):  # singular: no symbolic directions
             W = None
         if W is not None:
             directions = tuple(tuple(_tidy(W[i, k]) for i in range(J.rows)) for k in range(A.rows))
-            if J.rows < n and not _consistent(model, J, A, W):
-                status = "partial"
     return Forces(model, found, status, directions)
 
 
-def _consistent(model: Model, J: sp.Matrix, A: sp.Matrix, W: sp.Matrix) -> bool:
-    """J^T W = A^T at a sample point (default parameters, coordinates 0.3, 0.4, ...): the
-    constraint acts only through the carriers."""
-    point: dict[sp.Symbol, float] = {model.t: 0.1}
-    point.update({p.symbol: float(p.value) if p.value is not None else 1.3 for p in model.parameters})
-    point.update({q: 0.3 + 0.1 * i for i, q in enumerate(model.q)})
-    point.update({v: 0.2 - 0.1 * i for i, v in enumerate(model.qd)})
+def _status(model: Model, J: sp.Matrix, A: sp.Matrix) -> str:
+    """ "projected" with more rows than coordinates; else "exact" when J^T W = A^T has a solution
+    at a sample point (default parameters, coordinates 0.3, 0.4, ...; numbers only, no symbolic
+    solve), "partial" when it has none (or J's rows are dependent there)."""
+    if J.rows > model.n:
+        return "projected"
+    if J.rows == 0:
+        return "partial"
+    point: dict[sp.Symbol, sp.Float] = {model.t: sp.Float(0.1)}
+    point.update({p.symbol: sp.Float(p.value if p.value is not None else 1.3) for p in model.parameters})
+    point.update({q: sp.Float(0.3 + 0.1 * i) for i, q in enumerate(model.q)})
+    point.update({v: sp.Float(0.2 - 0.1 * i) for i, v in enumerate(model.qd)})
     try:
-        residual = (J.T * W - A.T).xreplace(point).evalf()
-        return all(abs(complex(x)) < 1e-9 for x in residual)
-    except (TypeError, ValueError):
-        return False
+        Jn = J.xreplace(point).evalf()
+        An = A.xreplace(point).evalf()
+        W = (Jn * Jn.T).LUsolve(Jn * An.T)
+        residual = Jn.T * W - An.T
+        scale = max([1.0, *(abs(complex(x)) for x in An)])
+        return "exact" if all(abs(complex(x)) < 1e-9 * scale for x in residual) else "partial"
+    except (TypeError, ValueError, ZeroDivisionError):
+        return "partial"
 
 
 def _tidy(expr: sp.Expr) -> sp.Expr:
@@ -189,11 +196,12 @@ def python_function(model: Model, printer: Any, unpack: Callable[[list[Any], str
     """The generated module's `constraint_forces(t, y, p)` (emit/python.py passes its printer and
     its `unpack`): for each kept constraint, by name, its multiplier, the generalized force
     lambda * a and the force (and torque) on each particle and body, with the signed size N.
-    Solved symbolically for at most `MAX_SYMBOLIC` coordinates, else numerically (numpy lstsq)."""
+    Solved numerically at each call (numpy lstsq: the unique solution, or the minimum-norm or
+    least-squares one as `Forces.status` says), so that no symbolic solve slows the emitter."""
     from lagrange_cli._symengine import to_symengine
     from lagrange_cli.emit.python import define, literal
 
-    fm = forces(model)
+    fm = forces(model, symbolic=False)  # numbers at run time: no symbolic solve for the generated code
     k = len(model.constraints)
     lams = [sp.Symbol(f"_lam{i}") for i in range(k)]
     for lam in lams:
@@ -202,14 +210,7 @@ def python_function(model: Model, printer: Any, unpack: Callable[[list[Any], str
     exprs: list[sp.Expr] = []
     for i, c in enumerate(model.constraints):
         exprs += [lams[i] * a for a in c.jacobian]
-    numeric = fm.directions is None
-    if numeric:
-        exprs += [e for row in fm.rows for e in row.entries] + [a for c in model.constraints for a in c.jacobian]
-    else:
-        assert fm.directions is not None
-        for i in range(k):
-            for ws in fm.on(i, keep_zero=True).values():
-                exprs += [lams[i] * sp.sympify(w) for w in ws]
+    exprs += [e for row in fm.rows for e in row.entries] + [a for c in model.constraints for a in c.jacobian]
     converted = [to_symengine(sp.sympify(e).xreplace(swap)) for e in exprs]
     temporaries, results = printer.block(converted, "_f", set())
     body = [f"{', '.join(map(str, lams))}{',' * (k == 1)} = multipliers(t, y, p)", *unpack(converted, "y"), *(f"{name} = {code}" for name, code in temporaries)]
@@ -217,27 +218,19 @@ def python_function(model: Model, printer: Any, unpack: Callable[[list[Any], str
     out = iter(results)
     entries: list[tuple[str, int, list[tuple[str, str, str]]]] = []
     generalized = [[next(out) for _ in range(n)] for _ in range(k)]
-    if numeric:
-        r = len(fm.rows)
-        jac = [next(out) for _ in range(r * n)]
-        amat = [next(out) for _ in range(k * n)]
-        body.append("import numpy")
-        body.append("_J = numpy.array([" + ", ".join("[" + ", ".join(jac[i * n : (i + 1) * n]) + "]" for i in range(r)) + f"], dtype=float).reshape({r}, {n})")
-        body.append("_A = numpy.array([" + ", ".join("[" + ", ".join(amat[i * n : (i + 1) * n]) + "]" for i in range(k)) + f"], dtype=float).reshape({k}, {n})")
-        body.append("_W = numpy.linalg.lstsq(_J.T, _A.T, rcond=None)[0].tolist()")
-        for i, c in enumerate(model.constraints):
-            parts = []
-            for (carrier, kind), codes in spread(model, fm.rows, tuple(f"{lams[i]} * _W[{j}][{i}]" for j in range(r)), keep_zero=True).items():
-                vector = "[" + ", ".join(str(x) if isinstance(x, str) else "0.0" for x in codes) + "]"
-                parts.append((carrier, kind, vector))
-            entries.append((c.name, i, parts))
-    else:
-        for i, c in enumerate(model.constraints):
-            parts = []
-            for (carrier, kind), ws in fm.on(i, keep_zero=True).items():
-                vector = "[" + ", ".join(next(out) for _ in ws) + "]"
-                parts.append((carrier, kind, vector))
-            entries.append((c.name, i, parts))
+    r = len(fm.rows)
+    jac = [next(out) for _ in range(r * n)]
+    amat = [next(out) for _ in range(k * n)]
+    body.append("import numpy")
+    body.append("_J = numpy.array([" + ", ".join("[" + ", ".join(jac[i * n : (i + 1) * n]) + "]" for i in range(r)) + f"], dtype=float).reshape({r}, {n})")
+    body.append("_A = numpy.array([" + ", ".join("[" + ", ".join(amat[i * n : (i + 1) * n]) + "]" for i in range(k)) + f"], dtype=float).reshape({k}, {n})")
+    body.append("_W = numpy.linalg.lstsq(_J.T, _A.T, rcond=None)[0].tolist()")
+    for i, c in enumerate(model.constraints):
+        parts = []
+        for (carrier, kind), codes in spread(model, fm.rows, tuple(f"{lams[i]} * _W[{j}][{i}]" for j in range(r)), keep_zero=True).items():
+            vector = "[" + ", ".join(str(x) if isinstance(x, str) else "0.0" for x in codes) + "]"
+            parts.append((carrier, kind, vector))
+        entries.append((c.name, i, parts))
     items = []
     for name, i, parts in entries:
         carriers: dict[str, list[str]] = {}

@@ -119,26 +119,32 @@ constraints:
 """
 
 
-def test_the_numeric_route_agrees_with_the_symbolic_one(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    """Five coordinates: forces solved numerically in the generated code (numpy lstsq); with the
-    symbolic limit raised, the symbolic route gives the same numbers."""
+def test_the_generated_code_agrees_with_the_symbolic_directions(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Five coordinates: the generated code solves J^T W = a numerically (numpy lstsq); the
+    symbolic W (with the symbolic limit raised) times the module's lambda gives the same forces."""
+    import sympy as sp
+
     model = model_of(CHAIN)
     assert model.n > cf.MAX_SYMBOLIC and cf.forces(model).directions is None
-    numeric = load_module(pyemit.emit(model), tmp_path / "chain_numeric.py")
+    mod = load_module(pyemit.emit(model), tmp_path / "chain.py")
     monkeypatch.setattr(cf, "MAX_SYMBOLIC", 6)
-    symbolic = load_module(pyemit.emit(model_of(CHAIN)), tmp_path / "chain_symbolic.py")
+    fm = cf.forces(model)
+    assert fm.status == "exact" and fm.directions is not None
     y = [0.6, -0.8, 1.2, -1.6, 0.3, 0.5, 0.375, 0.1, 0.2, -0.4]
-    a, b = numeric.constraint_forces(0.0, y), symbolic.constraint_forces(0.0, y)
-    assert set(a) == set(b) == {"rod1", "rod2"}
-    for name in a:
-        assert a[name]["lambda"] == pytest.approx(b[name]["lambda"])
-        assert set(a[name]["on"]) == set(b[name]["on"])
-        for carrier in a[name]["on"]:
-            assert a[name]["on"][carrier]["force"] == pytest.approx(b[name]["on"][carrier]["force"], abs=1e-9)
-            assert a[name]["on"][carrier]["N"] == pytest.approx(b[name]["on"][carrier]["N"], abs=1e-9)
+    point = {**dict(zip((*model.q, *model.qd), y, strict=True)), **{p.symbol: p.value for p in model.parameters}}
+    out = mod.constraint_forces(0.0, y)
+    assert set(out) == {"rod1", "rod2"}
+    for k, c in enumerate(model.constraints):
+        lam = out[c.name]["lambda"]
+        expected = {key: [lam * float(sp.sympify(w).xreplace(point)) for w in ws] for key, ws in fm.on(k, keep_zero=True).items()}
+        got = {(carrier, kind): values for carrier, entry in out[c.name]["on"].items() for kind, values in entry.items() if kind != "N"}
+        assert set(got) == set(expected)
+        for key in expected:
+            assert got[key] == pytest.approx(expected[key], abs=1e-9)
     # rod2 pulls a and b with equal and opposite forces; rod1 acts on a only (every particle is listed, 0 where nothing acts)
-    assert a["rod2"]["on"]["a"]["force"] == pytest.approx([-f for f in a["rod2"]["on"]["b"]["force"]])
-    assert set(a["rod1"]["on"]) == {"a", "b", "bead"} and a["rod1"]["on"]["b"]["force"] == pytest.approx([0, 0]) and a["rod1"]["on"]["bead"]["N"] == 0
+    assert out["rod2"]["on"]["a"]["force"] == pytest.approx([-f for f in out["rod2"]["on"]["b"]["force"]])
+    assert out["rod1"]["on"]["b"]["force"] == pytest.approx([0, 0]) and out["rod1"]["on"]["bead"]["N"] == 0
+    assert out["rod1"]["on"]["a"]["N"] == pytest.approx(2 * out["rod1"]["lambda"] * math.hypot(0.6, -0.8))
 
 
 def test_text_and_latex_solved_forms_state_the_forces_and_the_convention() -> None:
