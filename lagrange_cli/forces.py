@@ -164,6 +164,20 @@ def _status(model: Model, J: sp.Matrix, A: sp.Matrix) -> str:
         return "partial"
 
 
+SIZE_MAX_CHARACTERS = 60
+"""Longest |W| printed as N in text and LaTeX (a longer one is left to the generated code)."""
+
+
+def _size(ws: list[object]) -> sp.Expr | None:
+    """|W| for the printed N, when it is short and plain (no negative power, which reads badly and
+    may not fit a line); None otherwise (N is then given by the generated `constraint_forces`)."""
+    size = _tidy(sp.sqrt(sum((sp.sympify(w) ** 2 for w in ws), sp.Integer(0))))
+    text = sp.sstr(size)
+    if len(text) > SIZE_MAX_CHARACTERS or "**(-" in text or "/(-" in text:
+        return None
+    return size
+
+
 def _tidy(expr: sp.Expr) -> sp.Expr:
     if sp.count_ops(expr) <= 150:
         return sp.trigsimp(sp.cancel(expr))
@@ -184,8 +198,8 @@ def lines(model: Model, printer: Callable[[sp.Expr], str]) -> list[str]:
         for (carrier, kind), ws in fm.on(k).items():
             vector = "[" + ", ".join(printer(sp.factor_terms(lam * sp.sympify(w))) for w in ws) + "]"
             line = f"  {c.name} on {carrier}: {kind} = {vector}"
-            if kind == "force":
-                size = _tidy(sp.sqrt(sum((sp.sympify(w) ** 2 for w in ws), sp.Integer(0))))
+            size = _size(ws) if kind == "force" else None
+            if size is not None:
                 line += f", N = {printer(lam * size)}"
             out.append(line)
     out.append(f"  ({fm.describe()})")
@@ -262,6 +276,7 @@ def latex_items(model: Model, escape_text: Callable[[str], str]) -> list[tuple[s
             where = f"\\text{{{escape_text(c.name)}}}\\to\\text{{{escape_text(carrier)}}}"
             letter = "F" if kind == "force" else "\\tau"
             items += [(f"{letter}_{{{where},{i + 1}}}", sp.factor_terms(lam * sp.sympify(w))) for i, w in enumerate(ws)]
-            if kind == "force":
-                items.append((f"N_{{{where}}}", lam * _tidy(sp.sqrt(sum((sp.sympify(w) ** 2 for w in ws), sp.Integer(0))))))
+            size = _size(ws) if kind == "force" else None
+            if size is not None:
+                items.append((f"N_{{{where}}}", lam * size))
     return items
