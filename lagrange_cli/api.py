@@ -407,6 +407,24 @@ class System:
         return hamilton(self.model)
 
     @functools.cached_property
+    def reduced(self) -> Any:
+        """Maggi's equations (`lagrange_cli.reduced.Reduced`) for velocity constraints: the independent
+        velocities, q_dot = C u + d and (C^T M C) u_dot = C^T (F - M e), as `derive --form reduced`
+        writes them. Raises `LagrangeError` for a system without a velocity constraint."""
+        from lagrange_cli.reduced import reduced
+
+        return reduced(self.model)
+
+    @functools.cached_property
+    def constraint_forces(self) -> Any:
+        """The force (and torque) of each kept constraint on each particle and body
+        (`lagrange_cli.forces.Forces`: `.on(k)` gives (carrier, "force"/"torque") -> lambda_k's
+        factor, `.status` whether it is exact); see docs/format.md, "Sign conventions"."""
+        from lagrange_cli.forces import forces
+
+        return forces(self.model)
+
+    @functools.cached_property
     def routhian(self) -> Any:
         """Routh's reduction (`lagrange_cli.routh.Routh`): the Routhian R(q_rest, q_rest_dot; p_<c>)
         for the ignorable coordinates c, the ignorable velocities, the effective potential and the
@@ -450,14 +468,15 @@ class System:
     def to(self, target: str, **settings: Any) -> str:
         """The equations written for `target`: text, latex or python (and c, octave, jax, json
         where those emitters are installed); `settings` go to the emitter (`form="matrix"` for
-        text and latex, `form="hamilton"` for Hamilton's equations in text, latex or python,
+        text and latex, `form="hamilton"` for Hamilton's equations in text, latex or python, `form="reduced"` for
+        the reduced equations of velocity constraints (the same targets),
         `standalone=True` for latex, `numba=True` for python)."""
         module_name = EMITTERS.get(target)
         if module_name is None:
             raise LagrangeError(f"unknown target '{target}'; choose one of {', '.join(EMITTERS)}")
-        if settings.get("form") == "hamilton":  # Hamilton's equations in (q, p): `derive --form hamilton`
-            from lagrange_cli.emit import hamiltonian
-
+        written = {"hamilton": "hamiltonian", "reduced": "reduced"}.get(str(settings.get("form")))
+        if written is not None:  # Hamilton's equations in (q, p), Maggi's in (q, u): `derive --form hamilton/reduced`
+            hamiltonian = importlib.import_module(f"lagrange_cli.emit.{written}")
             rest = {k: v for k, v in settings.items() if k != "form"}
             writers = {"text": hamiltonian.text, "latex": hamiltonian.latex, "python": hamiltonian.python}
             if target not in writers:
@@ -465,7 +484,7 @@ class System:
             try:
                 return str(writers[target](self.model, **rest))
             except TypeError as error:
-                raise LagrangeError(f"the '{target}' target does not take these settings with form='hamilton': {', '.join(rest)} ({error})") from None
+                raise LagrangeError(f"the '{target}' target does not take these settings with form='{settings['form']}': {', '.join(rest)} ({error})") from None
         try:
             module = importlib.import_module(f"lagrange_cli.emit.{module_name}")
         except ModuleNotFoundError as error:

@@ -36,7 +36,7 @@ from lagrange_cli._symengine import se, to_symengine
 from lagrange_cli.algebra import combine_trig, expand_bounded, expandable
 from lagrange_cli.errors import Span, fail
 from lagrange_cli.expr import numeric_value, real_derivative
-from lagrange_cli.model import ConstraintRow, Model, SymengineForms
+from lagrange_cli.model import Carrier, ConstraintRow, Model, SymengineForms
 from lagrange_cli.spec import Body, Constraint, Particle, SystemSpec, time_derivative
 from lagrange_cli.validate import Source, first_refusal, forms_parts, refusal, survey, validate
 
@@ -144,6 +144,7 @@ def _derive(spec: SystemSpec, shared: bool = False) -> tuple[Model, bool]:
         constraints=tuple(constraint_row(c, spec) for c in spec.constraints),
         eliminated=getattr(spec, "_eliminated", ()),
         description=spec.description,
+        carriers=(*(Carrier(p.name, False, p.position) for p in spec.particles), *(Carrier(b.name, True, b.position, b.angular_velocity) for b in spec.bodies)),
         initial=spec.initial,
         simulate=spec.simulate,
         exact=spec.exact,

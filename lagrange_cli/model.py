@@ -60,6 +60,17 @@ class ConstraintRow:
     acceleration_bias: sp.Expr
 
 
+@dataclass(frozen=True)
+class Carrier:
+    """A particle or body that constraint forces act on (`forces.py`): its position and, for a body,
+    its angular velocity (planar: one entry; spatial: body axes), in the model's coordinates."""
+
+    name: str
+    body: bool
+    position: tuple[sp.Expr, ...]
+    angular_velocity: tuple[sp.Expr, ...] = ()
+
+
 class Lazy:
     """A sympy field of a `Model` that is built on first access (`make()`), then kept.
 
@@ -108,6 +119,8 @@ class Model:
     constraints: tuple[ConstraintRow, ...] = ()
     eliminated: tuple[tuple[str, sp.Expr], ...] = ()
     description: str = ""
+    carriers: tuple[Carrier, ...] = ()
+    """The particles and bodies, for the constraint forces on each (`forces.py`)."""
     initial: Mapping[str, float] = field(default_factory=dict)
     simulate: Mapping[str, Any] = field(default_factory=dict)
     exact: Mapping[str, sp.Expr] = field(default_factory=dict)
@@ -297,6 +310,7 @@ class Model:
             momenta=subs_all(self.momenta),
             energy=sub(self.energy),
             constraints=rows,
+            carriers=tuple(dataclasses.replace(c, position=subs_all(c.position), angular_velocity=subs_all(c.angular_velocity)) for c in self.carriers),
             eliminated=tuple((name, sub(e)) for name, e in self.eliminated),
             exact={name: sub(e) for name, e in self.exact.items()},
             outputs=tuple((name, sub(e)) for name, e in self.outputs),

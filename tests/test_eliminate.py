@@ -154,3 +154,23 @@ def test_a_constraint_undefined_at_zero_is_refused_not_a_nan_comparison() -> Non
     text = PLANE + "constraints:\n  c: 'sqrt(atan2(0, 2*cot(x))) = x'\neliminate: [x]\n"
     problem = refused(text)
     assert problem.span is not None and (problem.span.line, problem.span.column) == position(text, "[x]\n", 1)
+
+
+@pytest.mark.parametrize("order", ["circle, line", "line, circle"])
+def test_the_linear_constraint_is_picked_whatever_the_order(order: str) -> None:
+    """Constraints [x**2 + y**2 - l**2, y - x*tan(a)], eliminate x: the circle has two solutions
+    for x, the line one; in either order of the list the line is used and the circle kept."""
+    rows = {"circle": "  circle: x**2 + y**2 = l**2\n", "line": "  line: y = x*tan(a)\n"}
+    text = "coordinates: [x, y]\nparameters: {m: 1.0, l: 1.0, a: 0.5}\nparticles:\n  p: {mass: m, position: [x, y]}\nconstraints:\n"
+    text += "".join(rows[name] for name in order.split(", ")) + "eliminate: [x]\n"
+    model = derive.derive(spec.parse(text, "sys.yaml"))
+    assert [c.name for c in model.constraints] == ["circle"]
+    y, a = model.q[0], sp.Symbol("a")
+    assert sp.simplify(dict(model.eliminated)["x"] - y / sp.tan(a)) == 0
+
+
+def test_no_constraint_that_determines_the_coordinate_uniquely_is_refused() -> None:
+    text = "coordinates: [x, y]\nparameters: {m: 1.0, l: 1.0}\nparticles:\n  p: {mass: m, position: [x, y]}\n"
+    text += "constraints:\n  circle: x**2 + y**2 = l**2\n  other: x**2 = y + 2\neliminate: [x]\n"
+    diagnostic = refused(text)
+    assert "cannot eliminate 'x'" in diagnostic.message and "solutions for 'x'" in diagnostic.message

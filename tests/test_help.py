@@ -55,7 +55,7 @@ def test_usage_lines_name_arguments_plainly() -> None:
 def test_flags_have_no_metavar_and_options_show_what_they_take() -> None:
     text = helps("derive")[0]
     assert re.search(r"^  --latex +A LaTeX", text, re.MULTILINE)
-    assert "--form [lagrange|matrix|solved|hamilton]" in text and "-o, --output FILE" in text
+    assert "--form [lagrange|matrix|solved|hamilton|reduced]" in text and "-o, --output FILE" in text
     assert "--t-end NUMBER" in helps("simulate")[0]
 
 

@@ -32,6 +32,7 @@ INVOCATIONS: dict[str, dict[str, list[str]]] = {
         "python": ["--python"],
         **{f"{fmt}-hamilton": [f"--{fmt}", "--form", "hamilton"] for fmt in ("text", "latex", "python")},
         "latex-hamilton-standalone": ["--latex", "--standalone", "--form", "hamilton"],
+        **{f"{fmt}-reduced": [f"--{fmt}", "--form", "reduced"] for fmt in ("text", "latex", "python")},
         "c": ["--to", "c"],
         "octave": ["--to", "octave"],
         **{f"{target}-hamilton": ["--to", target, "--form", "hamilton"] for target in ("c", "octave", "jax", "json")},
@@ -55,6 +56,8 @@ SHOWS = {
     ("derive", "python"): "def rhs(",
     ("derive", "python-hamilton"): "def rhs(",
     ("derive", "text-hamilton"): "H = ",
+    ("derive", "text-reduced"): "independent velocities: ",
+    ("derive", "python-reduced"): "def rhs(",
     ("derive", "latex-hamilton-standalone"): "\\end{document}",
     ("info", "routh"): "V_eff = ",
     ("derive", "c"): "static inline int eom_rhs(double t, const double *y, const double *p, ",  # then `const double *u, ` with inputs

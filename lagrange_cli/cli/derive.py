@@ -31,6 +31,7 @@ class Form(str, Enum):
     matrix = "matrix"
     solved = "solved"
     hamilton = "hamilton"
+    reduced = "reduced"
 
 
 class Target(str, Enum):
@@ -59,7 +60,9 @@ def derive(
     python: Annotated[bool, typer.Option("--python", help="A Python module for numerical work; same as --to python.")] = False,
     form: Annotated[
         Form,
-        typer.Option(help="lagrange: one equation per coordinate; matrix: M q_ddot = F; solved: q_ddot = ...; hamilton: H(q, p) and Hamilton's equations in the state (q, p) (every target)."),
+        typer.Option(
+            help="lagrange: one equation per coordinate; matrix: M q_ddot = F; solved: q_ddot = ...; hamilton: H(q, p) and Hamilton's equations in the state (q, p) (every target); reduced: with velocity constraints, the equations in the independent velocities, multipliers eliminated (text, latex, python)."
+        ),
     ] = Form.lagrange,
     standalone: Annotated[bool, typer.Option(help="With --latex: a whole compilable document.")] = False,
     numba: Annotated[bool, typer.Option("--numba", help="With --python: compile rhs with numba (needs numba where the module runs).")] = False,
@@ -78,6 +81,9 @@ def derive(
         model = core.derive(spec.load(spec.resolve(file)), shared=target == "python" and form is not Form.hamilton)
         if form is Form.hamilton:
             output(_hamilton(model, target, numba, standalone, name), output_path)
+            return
+        if form is Form.reduced:
+            output(_reduced(model, target, numba, standalone), output_path)
             return
         emitter = _emitter(target)
         if target == "python":
@@ -109,6 +115,20 @@ def _hamilton(model: Any, target: str, numba: bool, standalone: bool, name: str)
     if target == "python":
         return hamiltonian.python(model, numba=numba)
     hamiltonian.refuse(target)
+    raise AssertionError("unreachable")
+
+
+def _reduced(model: Any, target: str, numba: bool, standalone: bool) -> str:
+    """`--form reduced`: text, latex and python write Maggi's equations; other targets refuse (exit 2)."""
+    from lagrange_cli.emit import reduced
+
+    if target == "text":
+        return reduced.text(model)
+    if target == "latex":
+        return reduced.latex(model, standalone=standalone)
+    if target == "python":
+        return reduced.python(model, numba=numba)
+    reduced.refuse(target)
     raise AssertionError("unreachable")
 
 

@@ -60,8 +60,17 @@ def emit(model: Model, form: str = "lagrange", standalone: bool = False) -> str:
     else:
         values = [tidy(v) for v in solved_accelerations(model)]
         lhs = [doprint(s) for s in (*model.qdd, *model.multipliers)]
-        body = align([Row(name, layout.pieces(v, doprint, room(lhs))) for name, v in zip(lhs, values, strict=True)])
+        items = list(zip(lhs, values, strict=True))
+        if model.constraints:
+            from lagrange_cli.forces import latex_items
+
+            items += latex_items(model, escape_text)
+        body = align([Row(name, layout.pieces(v, doprint, room([n for n, _ in items]))) for name, v in items])
     header = comment(f"{model.title}: {'Lagrange' if form == 'lagrange' else form} form, from {Path(model.source).name}")
+    if form == "solved" and model.constraints:
+        from lagrange_cli.forces import CONVENTION
+
+        header += comment(f"constraint forces F (torques tau) on each particle/body: {CONVENTION}")
     if not standalone:
         return header + body
     return (

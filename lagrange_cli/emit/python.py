@@ -53,7 +53,7 @@ SPLIT = 1000
 GENERATED = frozenset(
     {
         *("t", "y", "p", "q", "q_dot", "math", "numpy", "numba", "njit", "tolist", "hasattr", "float", "abs", "pow", "copysign", "inf", "nan"),
-        *("COORDINATES", "PARAMETERS", "mass_matrix", "forcing", "energy", "rhs", "accelerations", "multipliers", "constraint_residuals"),
+        *("COORDINATES", "PARAMETERS", "mass_matrix", "forcing", "energy", "rhs", "accelerations", "multipliers", "constraint_residuals", "constraint_forces"),
     }
 )
 """Names without a leading `_` that generated code uses: arguments, modules, public functions."""
@@ -360,6 +360,10 @@ class _Writer:
         functions.append(self.rhs())
         if model.outputs:
             functions.append(self.outputs())
+        if model.constraints and not self.numba:
+            from lagrange_cli.forces import python_function
+
+            functions.append(python_function(model, self.printer, self.unpack))
         if self.uses_solve:
             functions.append(SOLVE)
         imports = []

@@ -108,6 +108,10 @@ def emit(model: Model, form: str = "lagrange") -> str:
         values = [tidy(v) for v in solved_accelerations(model)]
         for symbol, value in zip((*model.qdd, *model.multipliers), values, strict=True):
             lines.append(f"{symbol} = {sympy_printer.doprint(value)}")
+        if model.constraints:
+            from lagrange_cli.forces import lines as force_lines
+
+            lines += force_lines(model, sympy_printer.doprint)
     return "\n".join(map(printable, lines)) + "\n"
 
 

@@ -72,6 +72,19 @@ def multipliers(t, y, p=PARAMETERS):
     return accelerations(t, y, p)[3:]
 
 
+def constraint_forces(t, y, p=PARAMETERS):
+    """Each kept constraint's force by name: lambda, the generalized force lambda * d(lhs - rhs)/dq and, on each particle/body, the force (and torque about its centre) that does the same virtual work (exact: the only forces on the particles and bodies with this generalized force). N = lambda * |force / lambda| is positive along the gradient of lhs - rhs."""
+    _lam0, = multipliers(t, y, p)
+    _, _, phi, x_dot, y_dot, phi_dot = y.tolist() if hasattr(y, "tolist") else y
+    _f0 = sin(phi)
+    _f1 = cos(phi)
+    import numpy
+    _J = numpy.array([[1, 0, 0], [0, 1, 0]], dtype=float).reshape(2, 3)
+    _A = numpy.array([[-_f0, _f1, 0]], dtype=float).reshape(1, 3)
+    _W = numpy.linalg.lstsq(_J.T, _A.T, rcond=None)[0].tolist()
+    return {"blade": {"lambda": _lam0, "generalized": [-_f0*_lam0, _f1*_lam0, 0], "on": {"blade": {"force": [_lam0 * _W[0][0], _lam0 * _W[1][0]], "N": (1.0 if _lam0 >= 0 else -1.0) * sum(_v * _v for _v in [_lam0 * _W[0][0], _lam0 * _W[1][0]]) ** 0.5}}}}
+
+
 def _solve(a, b):
     """Solve a x = b by Gaussian elimination with partial pivoting (a, b are overwritten), each
     row first divided by its largest entry so that rows in different units compare fairly;

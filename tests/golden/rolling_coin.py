@@ -78,6 +78,20 @@ def multipliers(t, y, p=PARAMETERS):
     return accelerations(t, y, p)[4:]
 
 
+def constraint_forces(t, y, p=PARAMETERS):
+    """Each kept constraint's force by name: lambda, the generalized force lambda * d(lhs - rhs)/dq and, on each particle/body, the force (and torque about its centre) that does the same virtual work (the part along the motions the coordinates allow (minimum norm): the coordinates constrain the particles or bodies too). N = lambda * |force / lambda| is positive along the gradient of lhs - rhs."""
+    _lam0, _lam1 = multipliers(t, y, p)
+    R = p["R"]
+    _, _, phi, theta, x_dot, y_dot, phi_dot, theta_dot = y.tolist() if hasattr(y, "tolist") else y
+    _f0 = R*cos(phi)
+    _f1 = R*sin(phi)
+    import numpy
+    _J = numpy.array([[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, sin(theta), 0], [0, 0, cos(theta), 0], [0, 0, 0, 1]], dtype=float).reshape(5, 4)
+    _A = numpy.array([[1, 0, 0, -_f0], [0, 1, 0, -_f1]], dtype=float).reshape(2, 4)
+    _W = numpy.linalg.lstsq(_J.T, _A.T, rcond=None)[0].tolist()
+    return {"roll_x": {"lambda": _lam0, "generalized": [_lam0, 0, 0, -_f0*_lam0], "on": {"coin": {"force": [_lam0 * _W[0][0], _lam0 * _W[1][0], 0.0], "N": (1.0 if _lam0 >= 0 else -1.0) * sum(_v * _v for _v in [_lam0 * _W[0][0], _lam0 * _W[1][0], 0.0]) ** 0.5, "torque": [_lam0 * _W[2][0], _lam0 * _W[3][0], _lam0 * _W[4][0]]}}}, "roll_y": {"lambda": _lam1, "generalized": [0, _lam1, 0, -_f1*_lam1], "on": {"coin": {"force": [_lam1 * _W[0][1], _lam1 * _W[1][1], 0.0], "N": (1.0 if _lam1 >= 0 else -1.0) * sum(_v * _v for _v in [_lam1 * _W[0][1], _lam1 * _W[1][1], 0.0]) ** 0.5, "torque": [_lam1 * _W[2][1], _lam1 * _W[3][1], _lam1 * _W[4][1]]}}}}
+
+
 def _solve(a, b):
     """Solve a x = b by Gaussian elimination with partial pivoting (a, b are overwritten), each
     row first divided by its largest entry so that rows in different units compare fairly;

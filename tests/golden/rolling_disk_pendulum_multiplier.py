@@ -106,6 +106,22 @@ def multipliers(t, y, p=PARAMETERS):
     return accelerations(t, y, p)[3:]
 
 
+def constraint_forces(t, y, p=PARAMETERS):
+    """Each kept constraint's force by name: lambda, the generalized force lambda * d(lhs - rhs)/dq and, on each particle/body, the force (and torque about its centre) that does the same virtual work (the part along the motions the coordinates allow (minimum norm): the coordinates constrain the particles or bodies too). N = lambda * |force / lambda| is positive along the gradient of lhs - rhs."""
+    _lam0, = multipliers(t, y, p)
+    R = p["R"]
+    l = p["l"]  # noqa: E741
+    alpha = p["alpha"]
+    _, _, theta, s_dot, phi_dot, theta_dot = y.tolist() if hasattr(y, "tolist") else y
+    _f0 = cos(alpha)
+    _f1 = -sin(alpha)
+    import numpy
+    _J = numpy.array([[_f0, 0, l*cos(theta)], [_f1, 0, l*sin(theta)], [_f0, 0, 0], [_f1, 0, 0], [0, 1, 0]], dtype=float).reshape(5, 3)
+    _A = numpy.array([[1, -R, 0]], dtype=float).reshape(1, 3)
+    _W = numpy.linalg.lstsq(_J.T, _A.T, rcond=None)[0].tolist()
+    return {"rolling": {"lambda": _lam0, "generalized": [_lam0, -R*_lam0, 0], "on": {"bob": {"force": [_lam0 * _W[0][0], _lam0 * _W[1][0]], "N": (1.0 if _lam0 >= 0 else -1.0) * sum(_v * _v for _v in [_lam0 * _W[0][0], _lam0 * _W[1][0]]) ** 0.5}, "disk": {"force": [_lam0 * _W[2][0], _lam0 * _W[3][0]], "N": (1.0 if _lam0 >= 0 else -1.0) * sum(_v * _v for _v in [_lam0 * _W[2][0], _lam0 * _W[3][0]]) ** 0.5, "torque": [_lam0 * _W[4][0]]}}}}
+
+
 def _solve(a, b):
     """Solve a x = b by Gaussian elimination with partial pivoting (a, b are overwritten), each
     row first divided by its largest entry so that rows in different units compare fairly;
