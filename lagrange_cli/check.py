@@ -63,14 +63,21 @@ def check(spec: SystemSpec, model: Model) -> list[Result]:
     expected = [e for e, _ in spec.expect.equations] + [e for _, e, _ in spec.expect.accelerations] + [e for _, e, _ in spec.expect.momenta]
     expected += [e for e, _ in spec.expect.hamilton_equations] + ([spec.expect.hamiltonian[0]] if spec.expect.hamiltonian else [])
     points = Samples(model, extra=expected)
-    results = [_equations(spec, model, points)] if spec.expect.equations else []
+    wrong = _dimensions(spec)
+    results = [wrong.get("equations") or _equations(spec, model, points)] if spec.expect.equations else []
     for coordinate, expected_value, span in spec.expect.accelerations:
+        if f"accelerations.{coordinate}_ddot" in wrong:
+            results.append(wrong[f"accelerations.{coordinate}_ddot"])
+            continue
         i = model.coordinates.index(coordinate) if coordinate in model.coordinates else None
         if i is None:
             results.append(Result(f"accelerations.{coordinate}_ddot", False, f"'{coordinate}' was eliminated", span))
             continue
         results.append(_compare(f"accelerations.{coordinate}_ddot", expected_value, model.qdd[i], points, span, solved=True))
     for coordinate, expected_value, span in spec.expect.momenta:
+        if f"momenta.{coordinate}" in wrong:
+            results.append(wrong[f"momenta.{coordinate}"])
+            continue
         i = model.coordinates.index(coordinate) if coordinate in model.coordinates else None
         if i is None:
             results.append(Result(f"momenta.{coordinate}", False, f"'{coordinate}' was eliminated", span))
@@ -79,10 +86,39 @@ def check(spec: SystemSpec, model: Model) -> list[Result]:
     for name, span in spec.expect.conserved:
         results.append(_conserved(model, name, span))
     if spec.expect.hamiltonian is not None:
-        results.append(_hamiltonian(model, *spec.expect.hamiltonian, points))
+        results.append(wrong.get("hamiltonian") or _hamiltonian(model, *spec.expect.hamiltonian, points))
     if spec.expect.hamilton_equations:
-        results.append(_hamilton_equations(spec, model, points))
+        results.append(wrong.get("hamilton_equations") or _hamilton_equations(spec, model, points))
     return results
+
+
+def _dimensions(spec: SystemSpec) -> dict[str, Result]:
+    """With `units`, the answers that are not dimensionally consistent, by entry, as failed results
+    (a wrong answer, exit 1): checked before they are compared, so that the verdict says why."""
+    if spec.units is None:
+        return {}
+    from lagrange_cli.units import check_answer, check_file
+
+    energy = check_file(spec)
+    wrong: dict[str, Result] = {}
+    for key, kind, items in (("equations", "equation", spec.expect.equations), ("hamilton_equations", "equation", spec.expect.hamilton_equations)):
+        for k, (expr, span) in enumerate(items):
+            why = check_answer(spec, expr, kind, energy)
+            if why and key not in wrong:
+                wrong[key] = Result(key, False, f"equation {k + 1} is {why}", span)
+    for coordinate, expr, span in spec.expect.accelerations:
+        why = check_answer(spec, expr, "acceleration", energy, coordinate)
+        if why:
+            wrong[f"accelerations.{coordinate}_ddot"] = Result(f"accelerations.{coordinate}_ddot", False, f"the answer is {why}", span)
+    for coordinate, expr, span in spec.expect.momenta:
+        why = check_answer(spec, expr, "momentum", energy, coordinate)
+        if why:
+            wrong[f"momenta.{coordinate}"] = Result(f"momenta.{coordinate}", False, f"the answer is {why}", span)
+    if spec.expect.hamiltonian is not None:
+        why = check_answer(spec, spec.expect.hamiltonian[0], "hamiltonian", energy)
+        if why:
+            wrong["hamiltonian"] = Result("hamiltonian", False, f"the answer is {why}", spec.expect.hamiltonian[1])
+    return wrong
 
 
 def _in_velocities(model: Model, expr: sp.Expr, span: Span, key: str) -> sp.Expr:

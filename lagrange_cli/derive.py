@@ -48,6 +48,10 @@ def derive(spec: SystemSpec) -> Model:
     """File to equations: eliminate constraints, build L and R, apply Lagrange's equation, and
     validate the result (`validate.validate`), so that every later stage sees a sound model."""
     check_size(spec, input_work(spec), MAX_INPUT_WORK, "the file's expressions, each times the number of coordinates and velocities in it,")
+    if spec.units is not None:  # dimensions first, so that a mismatch is reported at the file's line
+        from lagrange_cli.units import check_file
+
+        check_file(spec)
     try:
         spec = eliminate(spec)
         check_masses(spec)
