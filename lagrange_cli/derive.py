@@ -48,10 +48,11 @@ def derive(spec: SystemSpec) -> Model:
     """File to equations: eliminate constraints, build L and R, apply Lagrange's equation, and
     validate the result (`validate.validate`), so that every later stage sees a sound model."""
     check_size(spec, input_work(spec), MAX_INPUT_WORK, "the file's expressions, each times the number of coordinates and velocities in it,")
+    energy = None
     if spec.units is not None:  # dimensions first, so that a mismatch is reported at the file's line
-        from lagrange_cli.units import check_file
+        from lagrange_cli import units
 
-        check_file(spec)
+        energy = units.check_file(spec)
     try:
         spec = eliminate(spec)
         check_masses(spec)
@@ -65,6 +66,8 @@ def derive(spec: SystemSpec) -> Model:
         # sympy evaluating an undefined value on the way (atan2 of a zoo after a substitution)
         raise fail(None, f"{spec.path}: an expression became undefined (not a number) while deriving the equations", "expressions with finite values wherever they are evaluated") from None
     validate(model, sources(spec), (*spec.q, *spec.qd, spec.t), cleared)
+    if spec.units is not None:
+        units.check_equations(spec, model, energy)
     return model
 
 

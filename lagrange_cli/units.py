@@ -326,8 +326,14 @@ class _FileCheck:
 
     def terms(self, what: str, span: Span | None, expr: Any, scale: Dim = NONE) -> None:
         """The top-level terms of an energy-like entry (`scale`: what to multiply them by for an energy)."""
-        found = [(f"term `{term}`", self.of(what, span, term)) for term in sp.Add.make_args(expr) if term != 0]
+        found = [(f"term `{term}`{self.defined(term)}", self.of(what, span, term)) for term in sp.Add.make_args(expr) if term != 0]
         self.entries.append(_Entry(what, span, [(t, d) for t, d in found if d is not None], scale))
+
+    def defined(self, term: Any) -> str:
+        """` (with 'U' as defined at line 9)` for the declared functions with a definition in `term`."""
+        used = sorted({f.func.__name__ for f in term.atoms(AppliedUndef)} & set(self.spec.definitions))
+        lines = [f"'{f}' as defined at line {span.line}" for f in used if (span := self.spec.sources.get(f"functions.{f}")) is not None]
+        return f" (with {', '.join(lines)})" if lines else ""
 
     def vector(self, what: str, span: Span | None, components: Iterable[Any]) -> Dim | None:
         parts = [(c, self.of(what, span, c)) for c in components if c != 0]
@@ -446,3 +452,109 @@ def check_answer(spec: SystemSpec, expr: Any, kind: str, energy: Dim | None = No
 
 def _kind(kind: str, coordinate: str | None) -> str:
     return {"acceleration": f"the acceleration of '{coordinate}'", "momentum": f"the momentum of '{coordinate}'", "hamiltonian": "a Hamiltonian (an energy)"}.get(kind, kind)
+
+
+SE_DIMENSIONLESS = DIMENSIONLESS | {"exp"}
+
+
+class _Derived:
+    """Dimensions of symengine expressions (the derived equations), memoized by subexpression so that
+    the shared subtrees of a big system are visited once. Undefined functions and their derivatives
+    (and anything unknown) are wildcards."""
+
+    def __init__(self, env: Mapping[str, Dim | None]) -> None:
+        self.env = env
+        self.memo: dict[Any, Dim | None] = {}
+
+    def of(self, e: Any) -> Dim | None:
+        if e in self.memo:
+            return self.memo[e]
+        kind = type(e).__name__
+        result: Dim | None
+        if kind == "Symbol":
+            result = self.env.get(str(e))
+        elif kind in ("Integer", "Rational", "Half", "RealDouble", "Pi", "Exp1", "Zero", "One", "NegativeOne", "Float", "EulerGamma"):
+            result = None if e == 0 else NONE
+        elif kind == "Add":
+            result = self.same(e)
+        elif kind == "Mul":
+            parts = [self.of(a) for a in e.args]
+            result = None if any(p is None for p in parts) else _product(parts)  # type: ignore[arg-type]
+        elif kind == "Pow":
+            base, exponent = e.args
+            if type(exponent).__name__ in ("Integer", "Rational", "Half", "RealDouble", "NegativeOne", "One"):
+                b = self.of(base)
+                result = None if b is None else power(b, Fraction(str(exponent)).limit_denominator(1000) if "." in str(exponent) else Fraction(str(exponent)))
+            else:
+                for part in (base, exponent):
+                    d = self.of(part)
+                    if d is not None and d != NONE:
+                        raise Mismatch(f"`{part}` in the power `{e}` has dimension {show(d)}; a symbolic power needs a dimensionless base and exponent")
+                result = NONE
+        elif kind in SE_DIMENSIONLESS or kind in ("atan2", "sign"):
+            for arg in e.args:
+                d = self.of(arg)
+                if d is not None and d != NONE and kind != "atan2":
+                    raise Mismatch(f"the argument of {kind}, `{arg}`, has dimension {show(d)}; it must be dimensionless")
+            result = NONE
+        elif kind == "Abs":
+            result = self.of(e.args[0])
+        else:  # an undefined function, a derivative or substitution of one: any dimension
+            for arg in e.args:
+                self.of(arg)
+            result = None
+        self.memo[e] = result
+        return result
+
+    def same(self, e: Any) -> Dim | None:
+        known = [(t, d) for t in e.args if (d := self.of(t)) is not None]
+        if not known:
+            return None
+        counts = Counter(d for _, d in known)
+        right = next(d for _, d in known if counts[d] == max(counts.values()))
+        for term, d in known:
+            if d != right:
+                raise Mismatch(f"term `{term}` has dimension {show(d)}, the others {show(right)}")
+        return right
+
+
+def _product(parts: Iterable[Dim]) -> Dim:
+    total = NONE
+    for part in parts:
+        total = mul(total, part)
+    return total
+
+
+def check_equations(spec: SystemSpec, model: Any, energy: Dim | None) -> None:
+    """Every term of every derived equation M q_ddot = F in one dimension, energy/unit(q_i) for the
+    equation of q_i (a check of the derivation itself: the file's terms were checked before it)."""
+    units = spec.units
+    if units is None:
+        return
+    forms = model.symengine
+    derived = _Derived(environment(spec, units))
+    energy = energy or ENERGY
+    problems = []
+    for i, name in enumerate(model.coordinates):
+        q = units.dims.get(name)
+        if q is None:
+            continue
+        want = mul(energy, q, -1)
+        terms = [m * a for m, a in zip(forms.mass[i], forms.qdd, strict=True) if m != 0] + [t for t in _se_terms(forms.forcing[i])]
+        for term in terms:
+            try:
+                d = derived.of(term)
+            except Mismatch as exc:
+                problems.append(
+                    Diagnostic(spec.spans.get(name), f"the derived equation of '{name}': {exc.message}", "a file whose terms are consistent gives consistent equations; please report this")
+                )
+                break
+            if d is not None and d != want:
+                problems.append(Diagnostic(spec.spans.get(name), f"the derived equation of '{name}': term `{term}` has dimension {show(d)}, the others {show(want)}", "consistent equations"))
+                break
+    if problems:
+        raise SpecError(problems)
+
+
+def _se_terms(expr: Any) -> list[Any]:
+    return list(expr.args) if type(expr).__name__ == "Add" else [expr] if expr != 0 else []

@@ -97,7 +97,7 @@ MUTATIONS = [
     ("rolling_disk_pendulum", "rolling: s = R*phi", "rolling: s = phi", ["constraint 'rolling'", "`-phi`", "has dimension 1, the other m"]),
     ("cart_pole", "u: N", "u: N*m", ["the generalized force on 'x'", "term `u`", "kg*m^2/s^2", "one x or l too many?"]),
     ("stiff_spring_pendulum_damped", "zeta*sqrt(k*m)*x_dot**2", "zeta*k*m*x_dot**2", ["dissipation", "term `k*m*x_dot**2*zeta`", "energy per s"]),
-    ("central_potential", "definition: -k/s", "definition: -k/s**2", ["potential", "term `U(r)`", "missing r?"]),
+    ("central_potential", "definition: -k/s", "definition: -k/s**2", ["potential", "term `U(r)` (with 'U' as defined at line 24) has dimension kg*m/s^2", "missing r?"]),
     ("charged_particle_magnetic", "qc: C", "qc: A", ["lagrangian", "has dimension kg*m^2/s^3,"]),
 ]
 
@@ -223,3 +223,19 @@ def test_without_units_nothing_is_checked(tmp_path: Path) -> None:
     system = spec.load(path)
     assert system.units is None
     derive.derive(system)
+
+
+def test_derived_equations_are_checked_term_by_term() -> None:
+    """The check of the derivation itself: the model of a consistent file passes; the same model
+    read with a wrong unit for g has a term of the wrong dimension in the equation of theta."""
+    import dataclasses
+
+    from lagrange_cli.units import Units, check_equations
+
+    system = spec.load(ROOT / "systems" / "simple_pendulum.yaml")
+    model = derive.derive(system)
+    check_equations(system, model, ENERGY)
+    assert system.units is not None
+    wrong = dataclasses.replace(system, units=Units({**system.units.dims, "g": parse_unit("m/s")}))
+    with pytest.raises(SpecError, match=r"the derived equation of 'theta': term `.*g.*` has dimension kg\*m\^2/s, the others kg\*m\^2/s\^2"):
+        check_equations(wrong, model, ENERGY)
