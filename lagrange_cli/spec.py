@@ -681,7 +681,9 @@ class _Reader:
         for key, key_node, value in given:
             if key not in declared:
                 hint = _closest(key, declared)
-                self.problem(key_node, f"'units' gives a unit for '{key}', which is not a coordinate, parameter or input", (f"did you mean '{hint}'? " if hint else "") + "one of " + ", ".join(declared))
+                self.problem(
+                    key_node, f"'units' gives a unit for '{key}', which is not a coordinate, parameter or input", (f"did you mean '{hint}'? " if hint else "") + "one of " + ", ".join(declared)
+                )
                 continue
             if not isinstance(value, yaml.ScalarNode) or value.tag in ("tag:yaml.org,2002:null", "tag:yaml.org,2002:bool"):
                 self.problem(value, f"the unit of '{key}' must be a unit, got {_kind(value)}", UNIT_HELP)
@@ -695,7 +697,11 @@ class _Reader:
             spans[key], texts[key] = self.where(value), str(value.value)
         missing = [n for n in declared if n not in {k for k, _, _ in given}]
         if missing and isinstance(node, yaml.MappingNode):
-            self.problem(entries["units"][0], f"'units' has no unit for {', '.join(repr(n) for n in missing)}", "a unit for every coordinate, parameter and input (`1` for a dimensionless one), e.g. " + ", ".join(f"`{n}: m`" for n in missing[:2]))
+            self.problem(
+                entries["units"][0],
+                f"'units' has no unit for {', '.join(repr(n) for n in missing)}",
+                "a unit for every coordinate, parameter and input (`1` for a dimensionless one), e.g. " + ", ".join(f"`{n}: m`" for n in missing[:2]),
+            )
         return Units(dims, spans, texts)
 
     def draw(self, node: yaml.Node | None, particles: tuple[Particle, ...], bodies: tuple[Body, ...], config: Scope) -> Drawing | None:
