@@ -24,7 +24,8 @@ The rules (`Dimensions.of`):
   multiplier and anything else unknown is a wildcard: it matches every dimension (its
   arguments are still checked inside);
 - energy-like entries (kinetic energies, potentials, `lagrangian`, gravity terms) share one
-  dimension, that of energy: the one most of them have (ties: the first, in file order);
+  dimension, that of energy: the one most of them have (ties: kg*m^2/s^2 if it is among
+  them, else the first in file order);
   a dissipation function has energy/s, a generalized force on q energy/unit(q), a Cartesian
   force energy/length of its particle's position.
 """
@@ -373,12 +374,13 @@ class _FileCheck:
 
     def energy(self) -> Dim:
         """Every energy-like term (times its entry's scale) in one dimension: the one most terms have
-        (ties: the first, in file order); each that differs is reported at its entry's line."""
+        (ties: kg*m^2/s^2 if it is among them, else the first in file order); each that differs is
+        reported at its entry's line."""
         scaled = [(entry, term, mul(d, entry.scale)) for entry in self.entries for term, d in entry.terms]
         if not scaled:
             return ENERGY
         counts = Counter(d for _, _, d in scaled)
-        energy = next(d for _, _, d in scaled if counts[d] == max(counts.values()))
+        energy = ENERGY if counts[ENERGY] == max(counts.values()) else next(d for _, _, d in scaled if counts[d] == max(counts.values()))
         for entry, term, d in scaled:
             if d != energy:
                 want, got = mul(energy, entry.scale, -1), mul(d, entry.scale, -1)

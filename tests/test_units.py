@@ -239,3 +239,13 @@ def test_derived_equations_are_checked_term_by_term() -> None:
     wrong = dataclasses.replace(system, units=Units({**system.units.dims, "g": parse_unit("m/s")}))
     with pytest.raises(SpecError, match=r"the derived equation of 'theta': term `.*g.*` has dimension kg\*m\^2/s, the others kg\*m\^2/s\^2"):
         check_equations(wrong, model, ENERGY)
+
+
+def test_a_tie_is_decided_for_the_si_energy(tmp_path: Path) -> None:
+    """One kinetic and one potential term that disagree: the one in kg*m^2/s^2 is right, whatever the order."""
+    path = tmp_path / "tie.yaml"
+    path.write_text("coordinates: [x]\nparameters: {m: 1.0, k: 1.0}\nunits: {x: m, m: kg, k: N/m}\npotential: k*x**2/2\nkinetic: m*x*x_dot**2/2\n")
+    with pytest.raises(SpecError) as caught:
+        derive.derive(spec.load(path))
+    assert len(caught.value.diagnostics) == 1
+    assert "kinetic: term `m*x*x_dot**2/2` has dimension kg*m^3/s^2, the others kg*m^2/s^2; one x too many?" in str(caught.value)
