@@ -97,28 +97,9 @@ def _dimensions(spec: SystemSpec) -> dict[str, Result]:
     (a wrong answer, exit 1): checked before they are compared, so that the verdict says why."""
     if spec.units is None:
         return {}
-    from lagrange_cli.units import check_answer, check_file
+    from lagrange_cli.units import answer_problems
 
-    energy = check_file(spec)
-    wrong: dict[str, Result] = {}
-    for key, kind, items in (("equations", "equation", spec.expect.equations), ("hamilton_equations", "equation", spec.expect.hamilton_equations)):
-        for k, (expr, span) in enumerate(items):
-            why = check_answer(spec, expr, kind, energy)
-            if why and key not in wrong:
-                wrong[key] = Result(key, False, f"equation {k + 1} is {why}", span)
-    for coordinate, expr, span in spec.expect.accelerations:
-        why = check_answer(spec, expr, "acceleration", energy, coordinate)
-        if why:
-            wrong[f"accelerations.{coordinate}_ddot"] = Result(f"accelerations.{coordinate}_ddot", False, f"the answer is {why}", span)
-    for coordinate, expr, span in spec.expect.momenta:
-        why = check_answer(spec, expr, "momentum", energy, coordinate)
-        if why:
-            wrong[f"momenta.{coordinate}"] = Result(f"momenta.{coordinate}", False, f"the answer is {why}", span)
-    if spec.expect.hamiltonian is not None:
-        why = check_answer(spec, spec.expect.hamiltonian[0], "hamiltonian", energy)
-        if why:
-            wrong["hamiltonian"] = Result("hamiltonian", False, f"the answer is {why}", spec.expect.hamiltonian[1])
-    return wrong
+    return {entry: Result(entry, False, detail, span) for entry, (detail, span) in answer_problems(spec).items()}
 
 
 def _in_velocities(model: Model, expr: sp.Expr, span: Span, key: str) -> sp.Expr:

@@ -560,3 +560,25 @@ def check_equations(spec: SystemSpec, model: Any, energy: Dim | None) -> None:
 
 def _se_terms(expr: Any) -> list[Any]:
     return list(expr.args) if type(expr).__name__ == "Add" else [expr] if expr != 0 else []
+
+
+def answer_problems(spec: SystemSpec) -> dict[str, tuple[str, Span]]:
+    """The `expect` answers that are not dimensionally consistent: entry (as `check` names it) ->
+    (why, where); for `equations` and `hamilton_equations`, the first such equation."""
+    energy = check_file(spec)
+    wrong: dict[str, tuple[str, Span]] = {}
+    for key, items in (("equations", spec.expect.equations), ("hamilton_equations", spec.expect.hamilton_equations)):
+        for k, (expr, span) in enumerate(items):
+            why = check_answer(spec, expr, "equation", energy)
+            if why and key not in wrong:
+                wrong[key] = (f"equation {k + 1} is {why}", span)
+    for kind, key, answers in (("acceleration", "accelerations.{}_ddot", spec.expect.accelerations), ("momentum", "momenta.{}", spec.expect.momenta)):
+        for coordinate, expr, span in answers:
+            why = check_answer(spec, expr, kind, energy, coordinate)
+            if why:
+                wrong[key.format(coordinate)] = (f"the answer is {why}", span)
+    if spec.expect.hamiltonian is not None:
+        why = check_answer(spec, spec.expect.hamiltonian[0], "hamiltonian", energy)
+        if why:
+            wrong["hamiltonian"] = (f"the answer is {why}", spec.expect.hamiltonian[1])
+    return wrong
