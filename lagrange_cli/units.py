@@ -167,10 +167,9 @@ class Units:
 class Mismatch(Exception):
     """A term whose dimension does not fit, found while computing a dimension."""
 
-    def __init__(self, message: str, candidates: tuple[Dim, ...] = ()) -> None:
+    def __init__(self, message: str) -> None:
         super().__init__(message)
         self.message = message
-        self.candidates = candidates  # the dimension the term misses (for a "missing g?" hint)
 
 
 class Dimensions:
@@ -271,7 +270,7 @@ class Dimensions:
         for term, d in known:
             if d != right:
                 others = "the other" if len(terms) == 2 else "the others"
-                raise Mismatch(f"{what} `{term}` of {where} has dimension {show(d)}, {others} {show(right)}{self.hint(d, right)}", (mul(right, d, -1),))
+                raise Mismatch(f"{what} `{term}` of {where} has dimension {show(d)}, {others} {show(right)}{self.hint(d, right)}")
         return right
 
     def hint(self, got: Dim, wanted: Dim) -> str:
