@@ -1,7 +1,8 @@
 """Dimensional checking: the `units` key, and a dimension for every term of a file's expressions.
 
 A dimension is an exponent vector over the SI base quantities (M, L, T, I, Theta, N, J),
-a tuple of `Fraction`s, so that comparing two is comparing tuples. Unit strings are read
+a tuple of integers (each exponent times `SCALE`, so that 1/2 and 1/3 are whole numbers too):
+comparing two is comparing tuples, and multiplying adds machine integers. Unit strings are read
 with their own whitelisted `ast` walk (never `eval`) in their own namespace: a parameter
 called `m` does not clash with the metre. Only coherent SI units are known (`kg`, `m`, `s`,
 `N`, `J`, ...; no prefixes such as `g` or `cm`): the tool converts no values, so a file in
@@ -47,12 +48,13 @@ from lagrange_cli.errors import Diagnostic, Span, SpecError
 if TYPE_CHECKING:
     from lagrange_cli.spec import Body, Particle, SystemSpec
 
-Dim = tuple[Fraction, ...]
+Dim = tuple[int, ...]
+SCALE = 720720  # the least common multiple of 1..16: exponents with those denominators are exact
 BASE = ("kg", "m", "s", "A", "K", "mol", "cd")
 
 
 def _d(kg: int = 0, m: int = 0, s: int = 0, a: int = 0, k: int = 0, mol: int = 0, cd: int = 0) -> Dim:
-    return tuple(Fraction(x) for x in (kg, m, s, a, k, mol, cd))
+    return tuple(SCALE * x for x in (kg, m, s, a, k, mol, cd))
 
 
 NONE: Dim = _d()
@@ -70,13 +72,20 @@ UNIT_HELP = "a product of powers of coherent SI units (" + ", ".join(UNITS) + ")
 DIMENSIONLESS = frozenset({"sin", "cos", "tan", "cot", "sec", "csc", "asin", "acos", "atan", "sinh", "cosh", "tanh", "exp", "log"})
 
 
-def mul(a: Dim, b: Dim, k: Fraction | int = 1) -> Dim:
+def mul(a: Dim, b: Dim, k: int = 1) -> Dim:
     """The dimension of a * b**k."""
     return tuple(x + k * y for x, y in zip(a, b, strict=True))
 
 
-def power(a: Dim, k: Fraction | int) -> Dim:
+def power(a: Dim, k: int) -> Dim:
     return tuple(k * x for x in a)
+
+
+def root(a: Dim, k: Fraction) -> Dim | None:
+    """The dimension of a**k for a fraction k, or None when an exponent would not be a multiple of 1/SCALE."""
+    if any(x * k.numerator % k.denominator for x in a):
+        return None
+    return tuple(x * k.numerator // k.denominator for x in a)
 
 
 def show(dim: Dim | None) -> str:
@@ -87,8 +96,9 @@ def show(dim: Dim | None) -> str:
     def part(name: str, e: Fraction) -> str:
         return name if e == 1 else f"{name}^{e}" if e.denominator == 1 else f"{name}^({e})"
 
-    top = [part(n, e) for n, e in zip(BASE, dim, strict=True) if e > 0]
-    bottom = [part(n, -e) for n, e in zip(BASE, dim, strict=True) if e < 0]
+    exponents = [Fraction(x, SCALE) for x in dim]
+    top = [part(n, e) for n, e in zip(BASE, exponents, strict=True) if e > 0]
+    bottom = [part(n, -e) for n, e in zip(BASE, exponents, strict=True) if e < 0]
     text = "*".join(top) or "1"
     return text + ("/" + ("*".join(bottom) if len(bottom) == 1 else "(" + "*".join(bottom) + ")") if bottom else "")
 
@@ -138,7 +148,10 @@ def _unit(node: ast.AST, depth: int) -> Dim:
         left, right = _unit(node.left, depth + 1), _unit(node.right, depth + 1)
         return mul(left, right, 1 if isinstance(node.op, ast.Mult) else -1)
     if isinstance(node, ast.BinOp) and isinstance(node.op, ast.Pow):
-        return power(_unit(node.left, depth + 1), _exponent(node.right))
+        result = root(_unit(node.left, depth + 1), _exponent(node.right))
+        if result is None:
+            raise UnitError(f"the exponent '{ast.unparse(node.right)}' has too large a denominator", node.right.col_offset)
+        return result
     raise UnitError(f"'{ast.unparse(node)}' is not a unit", getattr(node, "col_offset", 0))
 
 
@@ -209,9 +222,9 @@ class Dimensions:
         if isinstance(e, sp.Pow):
             base = self._of(e.base, env, depth + 1)
             if e.exp.is_Rational:
-                return None if base is None else power(base, Fraction(int(e.exp.p), int(e.exp.q)))
+                return None if base is None else root(base, Fraction(int(e.exp.p), int(e.exp.q)))
             if e.exp.is_Float:
-                return None if base is None else power(base, Fraction(float(e.exp)).limit_denominator(1000))
+                return None if base is None else root(base, Fraction(float(e.exp)).limit_denominator(1000))
             exponent = self._of(e.exp, env, depth + 1)
             for part, d in ((e.base, base), (e.exp, exponent)):
                 if d is not None and d != NONE:
@@ -485,7 +498,7 @@ class _Derived:
             base, exponent = e.args
             if type(exponent).__name__ in ("Integer", "Rational", "Half", "RealDouble", "NegativeOne", "One"):
                 b = self.of(base)
-                result = None if b is None else power(b, Fraction(str(exponent)).limit_denominator(1000) if "." in str(exponent) else Fraction(str(exponent)))
+                result = None if b is None else root(b, Fraction(str(exponent)).limit_denominator(1000) if "." in str(exponent) else Fraction(str(exponent)))
             else:
                 for part in (base, exponent):
                     d = self.of(part)
