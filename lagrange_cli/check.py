@@ -63,14 +63,21 @@ def check(spec: SystemSpec, model: Model) -> list[Result]:
     expected = [e for e, _ in spec.expect.equations] + [e for _, e, _ in spec.expect.accelerations] + [e for _, e, _ in spec.expect.momenta]
     expected += [e for e, _ in spec.expect.hamilton_equations] + ([spec.expect.hamiltonian[0]] if spec.expect.hamiltonian else [])
     points = Samples(model, extra=expected)
-    results = [_equations(spec, model, points)] if spec.expect.equations else []
+    wrong = _dimensions(spec)
+    results = [wrong.get("equations") or _equations(spec, model, points)] if spec.expect.equations else []
     for coordinate, expected_value, span in spec.expect.accelerations:
+        if f"accelerations.{coordinate}_ddot" in wrong:
+            results.append(wrong[f"accelerations.{coordinate}_ddot"])
+            continue
         i = model.coordinates.index(coordinate) if coordinate in model.coordinates else None
         if i is None:
             results.append(Result(f"accelerations.{coordinate}_ddot", False, f"'{coordinate}' was eliminated", span))
             continue
         results.append(_compare(f"accelerations.{coordinate}_ddot", expected_value, model.qdd[i], points, span, solved=True))
     for coordinate, expected_value, span in spec.expect.momenta:
+        if f"momenta.{coordinate}" in wrong:
+            results.append(wrong[f"momenta.{coordinate}"])
+            continue
         i = model.coordinates.index(coordinate) if coordinate in model.coordinates else None
         if i is None:
             results.append(Result(f"momenta.{coordinate}", False, f"'{coordinate}' was eliminated", span))
@@ -81,12 +88,22 @@ def check(spec: SystemSpec, model: Model) -> list[Result]:
     if spec.expect.conserved_expressions or spec.symmetries:
         results += _conserved_expressions(spec, model)
     if spec.expect.hamiltonian is not None:
-        results.append(_hamiltonian(model, *spec.expect.hamiltonian, points))
+        results.append(wrong.get("hamiltonian") or _hamiltonian(model, *spec.expect.hamiltonian, points))
     if spec.expect.hamilton_equations:
-        results.append(_hamilton_equations(spec, model, points))
+        results.append(wrong.get("hamilton_equations") or _hamilton_equations(spec, model, points))
     if spec.expect.state_space is not None:
         results.append(_state_space(model, spec.expect.state_space))
     return results
+
+
+def _dimensions(spec: SystemSpec) -> dict[str, Result]:
+    """With `units`, the answers that are not dimensionally consistent, by entry, as failed results
+    (a wrong answer, exit 1): checked before they are compared, so that the verdict says why."""
+    if spec.units is None:
+        return {}
+    from lagrange_cli.units import answer_problems
+
+    return {entry: Result(entry, False, detail, span) for entry, (detail, span) in answer_problems(spec).items()}
 
 
 def _state_space(model: Model, expected: Any) -> Result:

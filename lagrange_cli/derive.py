@@ -52,6 +52,11 @@ def derive(spec: SystemSpec, shared: bool = False) -> Model:
     so equations that are too long only when written out in full (a spatial chain with `relative_to`)
     are accepted; their sympy fields then refuse to be read (`Model.from_symengine`'s `refuse`)."""
     check_size(spec, input_work(spec), MAX_INPUT_WORK, "the file's expressions, each times the number of coordinates and velocities in it,")
+    energy = None
+    if spec.units is not None:  # dimensions first, so that a mismatch is reported at the file's line
+        from lagrange_cli import units
+
+        energy = units.check_file(spec)
     try:
         spec = eliminate(spec)
         check_masses(spec)
@@ -65,6 +70,8 @@ def derive(spec: SystemSpec, shared: bool = False) -> Model:
         # sympy evaluating an undefined value on the way (atan2 of a zoo after a substitution)
         raise fail(None, f"{spec.path}: an expression became undefined (not a number) while deriving the equations", "expressions with finite values wherever they are evaluated") from None
     validate(model, sources(spec), (*spec.q, *spec.qd, spec.t), cleared)
+    if spec.units is not None:
+        units.check_equations(spec, model, energy)
     return model
 
 

@@ -25,6 +25,7 @@ from lagrange_cli.inputs import ExpectedStateSpace, check_usage, read_inputs, re
 from lagrange_cli.model import Input, Parameter
 from lagrange_cli.rigid import BODY_KEYS as BODY_KEYS
 from lagrange_cli.rigid import Places
+from lagrange_cli.units import UNIT_HELP, UnitError, Units, parse_unit
 
 MAX_FILE_BYTES = 1_000_000
 MAX_YAML_DEPTH = 40
@@ -33,7 +34,7 @@ NAME = re.compile(r"[A-Za-z][A-Za-z0-9_]*\Z")
 TOP_KEYS = (
     "title", "description", "coordinates", "parameters", "functions", "gravity", "particles",
     "bodies", "kinetic", "potential", "lagrangian", "dissipation", "forces", "constraints",
-    "eliminate", "initial", "simulate", "exact", "expect", "draw", "inputs", "outputs", "symmetries",
+    "eliminate", "initial", "simulate", "exact", "expect", "draw", "inputs", "outputs", "symmetries", "units",
 )  # fmt: skip
 PARTICLE_KEYS = ("mass", "position", "force", "damping")
 FUNCTION_KEYS = ("arguments", "definition", "description")
@@ -212,6 +213,8 @@ class SystemSpec:
     """The `outputs`, name -> expression of q, q_dot, t and the inputs, in the file's order."""
     symmetries: tuple[Symmetry, ...] = ()
     """The declared continuous symmetries, in file order (checked by lagrange_cli/noether.py)."""
+    units: Units | None = None
+    """The `units` block (None without one: no dimensional checking); see units.py."""
 
 
 def time_derivative(expr: sp.Expr, q: tuple[sp.Symbol, ...], qd: tuple[sp.Symbol, ...], qdd: tuple[sp.Symbol, ...], t: sp.Symbol) -> sp.Expr:
@@ -715,6 +718,7 @@ class _Reader:
             exact=self.exact(value("exact"), coordinates, constants),
             expect=Expect(),
             draw=self.draw(value("draw"), particles, bodies, config),
+            units=self.units(value("units"), entries, coordinates, parameters),
         )
         if inputs or "outputs" in entries:
             spec = _replace(spec, inputs=inputs, outputs=read_outputs(self, value("outputs"), state, taken))
@@ -763,6 +767,43 @@ class _Reader:
                 continue
             found.append(Symmetry(name, tuple(changes), time, self.span(key_node), self.span(fields["time"][1]) if "time" in fields else None))
         return tuple(found)
+
+    def units(self, node: yaml.Node | None, entries: dict[str, tuple[yaml.Node, yaml.Node]], coordinates: tuple[str, ...], parameters: tuple[Parameter, ...]) -> Units | None:
+        """`units: {name: unit}` for every coordinate, parameter and input (see units.py): a missing
+        name, a unit on an undeclared name and an unknown unit are each an error at their place."""
+        if node is None:
+            return None
+        raw = entries["inputs"][1] if "inputs" in entries else None  # read by name only: `inputs` is a list or a map of names
+        items = raw.value if isinstance(raw, (yaml.SequenceNode, yaml.MappingNode)) else []
+        inputs = [str(getattr(i[0] if isinstance(i, tuple) else i, "value", "")) for i in items]
+        declared = [*coordinates, *(p.name for p in parameters), *(i for i in inputs if NAME.match(i))]
+        dims, spans, texts = {}, {}, {}
+        given = self.mapping(node, "'units'")
+        for key, key_node, value in given:
+            if key not in declared:
+                hint = _closest(key, declared)
+                self.problem(
+                    key_node, f"'units' gives a unit for '{key}', which is not a coordinate, parameter or input", (f"did you mean '{hint}'? " if hint else "") + "one of " + ", ".join(declared)
+                )
+                continue
+            if not isinstance(value, yaml.ScalarNode) or value.tag in ("tag:yaml.org,2002:null", "tag:yaml.org,2002:bool"):
+                self.problem(value, f"the unit of '{key}' must be a unit, got {_kind(value)}", UNIT_HELP)
+                continue
+            try:
+                dims[key] = parse_unit(str(value.value))
+            except UnitError as exc:
+                offset = len(str(value.value)) - len(str(value.value).lstrip()) + exc.offset
+                self.problems.append(Diagnostic(self.locate(value, offset), f"the unit of '{key}': {exc}", UNIT_HELP))
+                continue
+            spans[key], texts[key] = self.where(value), str(value.value)
+        missing = [n for n in declared if n not in {k for k, _, _ in given}]
+        if missing and isinstance(node, yaml.MappingNode):
+            self.problem(
+                entries["units"][0],
+                f"'units' has no unit for {', '.join(repr(n) for n in missing)}",
+                "a unit for every coordinate, parameter and input (`1` for a dimensionless one), e.g. " + ", ".join(f"`{n}: m`" for n in missing[:2]),
+            )
+        return Units(dims, spans, texts)
 
     def draw(self, node: yaml.Node | None, particles: tuple[Particle, ...], bodies: tuple[Body, ...], config: Scope) -> Drawing | None:
         """`draw: {segments: [[A, B], ...], trails: [A, ...]}`, each point a particle's name, a body's

@@ -277,7 +277,7 @@ def test_generated_code_is_cached_by_definition() -> None:
     """Two files whose equations are the same general U(r) but whose definitions differ get different modules."""
     text = CENTRAL.read_text()
     first = model_of(text)
-    second = model_of(text.replace("definition: -k/s", "definition: -k/s**2"))
+    second = model_of(text.replace("definition: -k/s", "definition: -k/s**2").replace("k: J*m", "k: J*m**2"))  # (k's unit follows: the file has `units`)
     assert str(first.forcing) == str(second.forcing)
     assert compile.fingerprint(first, "python", False, None) != compile.fingerprint(second, "python", False, None)
 
