@@ -15,7 +15,7 @@ demo: $(STAMP)
 	$(BIN)/lagrange derive double_pendulum
 
 test: $(STAMP) latex-deps toolchains animate-deps
-	$(BIN)/python -m pytest -q
+	$(BIN)/python -m pytest -q -n auto --dist worksteal  # one worker per core (pytest-xdist)
 
 lint: $(STAMP)
 	$(BIN)/ruff check .
