@@ -333,7 +333,7 @@ class Runner:
             out.seek(0)
             err.seek(0)
             stdout, stderr = out.read(), err.read()
-        if process.returncode in (-signal.SIGXCPU, -signal.SIGKILL) and cpu >= limit - 1:
+        if process.returncode == -signal.SIGXCPU or (process.returncode == -signal.SIGKILL and cpu >= limit - 1):
             return {"error": f"did not finish within {limit} s of CPU", "limit": True, "cpu": cpu, "seconds": wall}
         if process.returncode != 0:
             lines = [line.strip() for line in stderr.splitlines() if line.strip()]
@@ -422,7 +422,9 @@ def bench(args: argparse.Namespace) -> str:
     for n in args.sizes:
         files[n] = tmp / f"spatial_chain_{n}.yaml"
         files[n].write_text(chain_yaml(n))
-    jobs: list[tuple[str, int]] = [(m, n) for n in sorted(args.peer_sizes, reverse=True) for m in ("lagrange", "kane")] + [("lagrange_cli", n) for n in args.sizes]  # the slowest first
+    jobs: list[tuple[str, int]] = [(m, n) for n in sorted(args.peer_sizes, reverse=True) for m in ("lagrange", "kane") if m in args.methods] + [
+        ("lagrange_cli", n) for n in args.sizes
+    ]  # the slowest first
 
     def one(job: tuple[str, int]) -> tuple[tuple[str, int], dict[str, Any]]:
         tool, n = job
@@ -443,11 +445,7 @@ def bench(args: argparse.Namespace) -> str:
                 ours[n] = value
             else:
                 theirs[(tool, n)] = value
-    checks: dict[int, dict[str, Any]] = {}
-    for n in args.sizes:
-        modules = [ours[n]] + [theirs[(m, n)] for m in METHODS if (m, n) in theirs]
-        if all("error" not in v for v in modules) and len(modules) > 1:
-            checks[n] = runner.me("check", n, *(v["module"] for v in modules))
+    checks = run_checks(runner, args.sizes, ours, theirs)
     rhs_rows: list[list[object]] = []
     rhs_ratios: list[float] = []
     if args.rhs:
@@ -476,7 +474,41 @@ def bench(args: argparse.Namespace) -> str:
             rows.append("ok" if value["planar check"] else "**planar module WRONG**")
             rhs_rows.append(rows)
     elapsed = time.perf_counter() - clock
+    raw = tmp / "raw.json"
+    raw.write_text(
+        json.dumps(
+            {"started": started.isoformat(), "elapsed": elapsed, "ours": ours, "theirs": [[k, v] for k, v in theirs.items()], "checks": checks, "rhs_rows": rhs_rows, "rhs_ratios": rhs_ratios},
+            default=str,
+        )
+    )
+    log(f"raw results in {raw}")
     return report(args, started, elapsed, ours, theirs, checks, rhs_rows, rhs_ratios)
+
+
+def run_checks(runner: Runner, sizes: Sequence[int], ours: dict[int, dict[str, Any]], theirs: dict[tuple[str, int], dict[str, Any]]) -> dict[int, dict[str, Any]]:
+    """lagrange's module against every peer module that was written, at each N."""
+    checks: dict[int, dict[str, Any]] = {}
+    for n in sizes:
+        peers = [theirs[(m, n)] for m in METHODS if (m, n) in theirs and "error" not in theirs[(m, n)]]
+        if "error" not in ours[n] and peers:
+            checks[n] = runner.me("check", n, ours[n]["module"], *(v["module"] for v in peers))
+    return checks
+
+
+def rerender(args: argparse.Namespace) -> str:
+    """The report again from a run's raw.json (its modules still in place): a process killed by
+    SIGXCPU counts as over the CPU limit, and the checks are run for every N with a peer module."""
+    raw = json.loads(Path(args.rerender).read_text())
+    ours = {int(k): v for k, v in raw["ours"].items()}
+    theirs: dict[tuple[str, int], dict[str, Any]] = {}
+    for (m, n), value in raw["theirs"]:
+        if str(value.get("error", "")).startswith(f"exit {-signal.SIGXCPU}"):
+            value = {**value, "error": f"did not finish within {int(args.cpu_limit)} s of CPU", "limit": True}
+        theirs[(m, int(n))] = value
+    runner = Runner(ROOT, Path(tempfile.mkdtemp(prefix="lagrange-spatial-checks-")), args.cpu_limit)
+    checks = run_checks(runner, args.sizes, ours, theirs)
+    started = datetime.datetime.fromisoformat(raw["started"]) if "started" in raw else datetime.datetime.now(datetime.timezone.utc)
+    return report(args, started, float(raw.get("elapsed", 0.0)), ours, theirs, checks, raw["rhs_rows"], raw["rhs_ratios"])
 
 
 def report(
@@ -514,7 +546,12 @@ def report(
         rows.append(row)
     command = "PYTHONPATH=. .venv/bin/python benchmarks/spatial_bench.py" + "".join(" " + shlex.quote(a) for a in (args.argv or []))
     lines = [
-        f"Run on {started:%Y-%m-%d %H:%M} UTC with `{command}` (took {elapsed / 60:.1f} min, {args.jobs} processes at a time); {machine()}.",
+        f"Run on {started:%Y-%m-%d %H:%M} UTC with `{command}` (took {elapsed / 60:.1f} min, {args.jobs} processes at a time); {machine()}."
+        + (
+            " Report re-rendered from that run's raw results (`--rerender RAW.json`): the accelerations check (which the run itself had skipped at every N where LagrangesMethod did not finish, a harness bug since fixed) was run then, on the modules the run wrote."
+            if getattr(args, "rerender", None)
+            else ""
+        ),
         "",
         "CPU time (user + system of that process alone, from `wait4`) of whole processes, each with a fresh cache and RLIMIT_CPU "
         f"{args.cpu_limit:g} s; wall time beside it (the machine is shared, so wall is noisy). Commands (FILE from `spatial_bench.py yaml N`, N = 6 is benchmarks/spatial_chain_6.yaml):",
@@ -625,13 +662,21 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--peer-sizes", type=sizes_list, default=list(PEER_SIZES), help="the peer's chain sizes (links)")
     parser.add_argument("--rhs-sizes", type=sizes_list, default=[2, 4, 6], help="sizes of the per-call rhs comparison")
     parser.add_argument("--no-rhs", dest="rhs", action="store_false", help="skip the per-call rhs comparison")
+    parser.add_argument("--methods", default=",".join(METHODS), help="the peer's methods: kane, lagrange or both")
     parser.add_argument("--cpu-limit", type=float, default=CPU_LIMIT, help="RLIMIT_CPU of each process, seconds")
     parser.add_argument("--jobs", type=int, default=1, help="processes at a time (CPU times are per process)")
+    parser.add_argument("--rerender", help="a run's raw.json: its report again (the run's own options must be given too)")
     parser.add_argument("--no-write", action="store_true", help="print only")
     args = parser.parse_args(argv)
     args.argv = argv
+    if "--rerender" in argv:  # the run's own command line; the note says it was re-rendered
+        k = argv.index("--rerender")
+        args.argv = argv[:k] + argv[k + 2 :]
+    args.methods = [m.strip() for m in args.methods.split(",") if m.strip()]
+    if set(args.methods) - set(METHODS):
+        parser.error(f"--methods: expected kane, lagrange or both, got {','.join(args.methods)}")
     args.sizes = sorted(set(args.sizes) | set(args.peer_sizes))
-    markdown = bench(args)
+    markdown = rerender(args) if args.rerender else bench(args)
     print(markdown)
     if not args.no_write:
         log(f"written to {write(markdown)}")
