@@ -599,9 +599,13 @@ def report(
             if value and "error" in value:
                 lines.append(f"- {labels[m]} at N = {n}: {value['error']} (left out of its fit).")
     for n in args.peer_sizes:
-        values = [theirs.get((m, n)) for m in METHODS]
-        if all(v is not None and v.get("limit") for v in values) and n in ours and "error" not in ours[n]:
-            lines.append(f"- At N = {n} neither peer finished: faster peer / lagrange is at least {ratio(args.cpu_limit / ours[n]['cpu'])} (the CPU limit / lagrange's {seconds(ours[n]['cpu'])}).")
+        values = [theirs[(m, n)] for m in METHODS if (m, n) in theirs]
+        if values and all(v.get("limit") for v in values) and n in ours and "error" not in ours[n]:
+            spent = min(float(v["cpu"]) for v in values)
+            lines.append(
+                f"- At N = {n} no peer method run finished ({', '.join(labels[m] for m in METHODS if (m, n) in theirs)}): faster peer / lagrange is at least "
+                f"{ratio(spent / ours[n]['cpu'])} ({seconds(spent)} of CPU when stopped / lagrange's {seconds(ours[n]['cpu'])}), a measured lower bound."
+            )
     for n, value in ours.items():
         if "error" in value:
             lines.append(f"- lagrange at N = {n} failed: {value['error']}")

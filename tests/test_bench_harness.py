@@ -168,3 +168,13 @@ def test_spatial_check_agrees_with_kanes_method_and_rejects_another_inertia(tmp_
     assert good["ok"] and max(good["deviation"]) < 1e-10, good
     bad = verdict(ours, other)
     assert not bad["ok"] and bad["deviation"][1] > 1e-6, bad
+
+
+def test_spatial_runner_reports_a_process_over_its_cpu_limit(tmp_path: Path) -> None:
+    """RLIMIT_CPU stops a busy process, reported as not finished within the limit (a CPU-time cap, not a wall-clock verdict)."""
+    bench = load_spatial()
+    runner = bench.Runner(ROOT, tmp_path, 1.0)
+    value = runner.run([sys.executable, "-c", "while True: pass"])
+    assert value["error"] == "did not finish within 1 s of CPU" and value["limit"], value
+    done = runner.run([sys.executable, "-c", "print('RESULT {\"x\": 1}')"])
+    assert done["x"] == 1 and done["cpu"] > 0 and "error" not in done
