@@ -24,6 +24,7 @@ lint: $(STAMP)
 
 bench: $(STAMP)
 	$(BIN)/python benchmarks/run.py  # issue 14: the general chain, whole processes against sympy.physics.mechanics, N up to 60
+	$(BIN)/python benchmarks/spatial_bench.py  # issue 13: the spatial chain N = 2..6, whole processes (CPU time) against KanesMethod / LagrangesMethod at N = 2..4
 	$(BIN)/python benchmarks/simulate_bench.py --write
 	$(BIN)/python benchmarks/study_bench.py
 	$(BIN)/python benchmarks/every_system.py --write  # about an hour: accuracy and stress on every file in systems/

@@ -122,3 +122,59 @@ def test_whole_process_row_at_n2(capsys: pytest.CaptureFixture[str]) -> None:
     assert cells[7].endswith("x") and math.isfinite(float(cells[7].rstrip("x")))
     assert "| general chain N = 15, file to Python module, peer / lagrange | >= 60x | not measured" in out
     assert (ROOT / "BENCHMARKS.md").read_text() == before
+
+
+def load_spatial() -> Any:
+    spec = importlib.util.spec_from_file_location("spatial_bench", BENCH / "spatial_bench.py")
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_spatial_chain_files_parse_derive_and_match_the_bundled_six_link_chain() -> None:
+    """Issue 13's benchmark family: N = 6 is benchmarks/spatial_chain_6.yaml, N = 2 derives (6 coordinates)."""
+    import yaml
+
+    from lagrange_cli import derive, spec
+
+    bench = load_spatial()
+    assert yaml.safe_load(bench.chain_yaml(6)) == yaml.safe_load((BENCH / "spatial_chain_6.yaml").read_text())
+    model = derive.derive(spec.parse(bench.chain_yaml(2), "spatial_chain_2.yaml"))
+    assert model.n == 6 and list(model.coordinates) == bench.coordinates(2)
+    assert {p.name for p in model.parameters} == set(bench.parameters(2))
+
+
+def test_spatial_check_agrees_with_kanes_method_and_rejects_another_inertia(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """One link: lagrange's module and KanesMethod's (frames, orient_body_fixed, RigidBody) give the
+    same accelerations; a module of a chain with other products of inertia is rejected."""
+    import json
+
+    from lagrange_cli import api
+
+    bench = load_spatial()
+    text = bench.chain_yaml(1)
+    ours, other, kane = tmp_path / "ours.py", tmp_path / "other.py", tmp_path / "kane.py"
+    ours.write_text(api.from_text(text).to("python"))
+    other.write_text(api.from_text(text.replace("/100", "/40")).to("python"))
+    bench.peer("kane", "1", str(kane))
+    capsys.readouterr()
+
+    def verdict(*paths: Path) -> dict[str, Any]:
+        bench.check("1", *map(str, paths))
+        return json.loads(capsys.readouterr().out.strip().splitlines()[-1][len("RESULT ") :])
+
+    good = verdict(ours, kane)
+    assert good["ok"] and max(good["deviation"]) < 1e-10, good
+    bad = verdict(ours, other)
+    assert not bad["ok"] and bad["deviation"][1] > 1e-6, bad
+
+
+def test_spatial_runner_reports_a_process_over_its_cpu_limit(tmp_path: Path) -> None:
+    """RLIMIT_CPU stops a busy process, reported as not finished within the limit (a CPU-time cap, not a wall-clock verdict)."""
+    bench = load_spatial()
+    runner = bench.Runner(ROOT, tmp_path, 1.0)
+    value = runner.run([sys.executable, "-c", "while True: pass"])
+    assert value["error"] == "did not finish within 1 s of CPU" and value["limit"], value
+    done = runner.run([sys.executable, "-c", "print('RESULT {\"x\": 1}')"])
+    assert done["x"] == 1 and done["cpu"] > 0 and "error" not in done
