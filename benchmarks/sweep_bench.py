@@ -2,7 +2,7 @@
 
     .venv/bin/python benchmarks/sweep_bench.py               # 10^4 runs, a few minutes on a loaded machine
     .venv/bin/python benchmarks/sweep_bench.py --runs 2000   # fewer
-    .venv/bin/python benchmarks/sweep_bench.py --write       # also append/replace the section of BENCHMARKS.md
+    .venv/bin/python benchmarks/sweep_bench.py --write       # also append this run to the section of BENCHMARKS.md
 
 The system: benchmarks/pendulum.py's 2-link chain (the double pendulum, m = l = 1, g = 9.81,
 absolute angles), started at rest at angles drawn uniformly from [-1.5, 1.5]^2 (seed 0), run to
@@ -152,14 +152,16 @@ def main() -> None:
 
 
 def write_section(text: str) -> None:
-    """Replace (or append) this benchmark's section of BENCHMARKS.md, between its markers."""
+    """Append this run's report to this benchmark's section of BENCHMARKS.md (before its end marker;
+    earlier runs stay, for comparison), or start the section."""
     path = ROOT / "BENCHMARKS.md"
     current = path.read_text() if path.exists() else "# Benchmarks\n"
-    block = f"{BEGIN}\n{text}{END}\n"
     if BEGIN not in current or END not in current:
-        path.write_text(current.rstrip("\n") + "\n\n" + block)
+        path.write_text(current.rstrip("\n") + "\n\n" + f"{BEGIN}\n{text}{END}\n")
         return
-    path.write_text(current[: current.index(BEGIN)] + block + current[current.index(END) + len(END) + 1 :])
+    at = current.index(END)
+    text = text.split("\n", 2)[2] if text.startswith("## ") else text  # the section has its heading
+    path.write_text(current[:at] + "\n### Run of " + time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()) + "\n\n" + text + current[at:])
 
 
 if __name__ == "__main__":
