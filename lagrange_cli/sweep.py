@@ -432,6 +432,7 @@ class Runner:
         ts = np.array(self.settings.t_eval, dtype=float)
         control = self._control(self.settings.t0, self.settings.t_end)
         codes, t_last, y_last, ys, _ = self.batch_entry(self.pair, y0s, ps, control, ts, self.budget, self.accel, self.event)
+        exponents = self.lyapunov_batch(y0s, ps) if any(m.kind == "lyapunov" for m in self.measures) else None
         rows: list[list[Any]] = []
         for b, (k, values) in enumerate(zip(indices, chunk, strict=True)):
             code = int(codes[b])
@@ -440,7 +441,7 @@ class Runner:
                 outcome = Outcome("event" if code == st.EVENT else "finished", "", float(t_last[b]), y_last[b], ts[:m], ys[b, :m], [], float(t_last[b]) if code == st.EVENT else math.nan)
             else:
                 outcome = Outcome.failed(self, code, float(t_last[b]), y_last[b], ts[:m], ys[b, :m], [])
-            rows += self.measured_rows([k, *values.tolist()], outcome, y0s[b], ps[b])
+            rows += self.measured_rows([k, *values.tolist()], outcome, y0s[b], ps[b], None if exponents is None else float(exponents[b]))
         return rows
 
     def _control(self, t0: float, t1: float) -> np.ndarray:
@@ -469,15 +470,15 @@ class Runner:
             return [[*head, "failed", f"the run raised {type(error).__name__}: {error}", *([math.nan] * (len(self.columns) - len(head) - 2))]]
         return self.measured_rows(head, outcome, y0, p)
 
-    def measured_rows(self, head: list[Any], outcome: Outcome, y0: np.ndarray, p: np.ndarray) -> list[list[Any]]:
-        """The row (or a section's rows) of a run that ended as `outcome`."""
+    def measured_rows(self, head: list[Any], outcome: Outcome, y0: np.ndarray, p: np.ndarray, lyapunov: float | None = None) -> list[list[Any]]:
+        """The row (or a section's rows) of a run that ended as `outcome` (`lyapunov`: its exponent when computed with its batch)."""
         import numpy as np
 
         try:
             with np.errstate(all="ignore"):  # a measure undefined somewhere is NaN there
                 if self.section is not None:
                     return self._section_rows(head, outcome, p)
-                measured = self._measured(outcome, y0, p)
+                measured = self._measured(outcome, y0, p, lyapunov)
         except Exception as error:
             return [[*head, "failed", f"a measure cannot be evaluated: {type(error).__name__}: {error}", *([math.nan] * (len(self.columns) - len(head) - 2))]]
         return [[*head, outcome.status, outcome.reason, *measured]]
@@ -545,7 +546,7 @@ class Runner:
         n = len(self.parameter_names)
         return [t, *(y[..., k] for k in range(y.shape[-1])), *p[:n].tolist()]
 
-    def _measured(self, outcome: Outcome, y0: np.ndarray, p: np.ndarray) -> list[float]:
+    def _measured(self, outcome: Outcome, y0: np.ndarray, p: np.ndarray, lyapunov: float | None = None) -> list[float]:
         import numpy as np
 
         values: list[float] = []
@@ -571,7 +572,7 @@ class Runner:
                 change = float(np.max(np.abs(energy - energy[0]))) if len(energy) else math.nan
                 values.append(change / scale if scale > 0 else change)
             elif m.kind == "lyapunov":
-                values.append(self._lyapunov(y0, p))
+                values.append(self._lyapunov(y0, p) if lyapunov is None else lyapunov)
         return values
 
     def _series(self, key: str, outcome: Outcome, p: np.ndarray) -> np.ndarray:
@@ -602,6 +603,35 @@ class Runner:
             total += math.log(distance / d0)
             b = a + gap * (d0 / distance)
         return total / (s.t_end - s.t0)
+
+    def lyapunov_batch(self, y0s: np.ndarray, ps: np.ndarray) -> np.ndarray:
+        """`_lyapunov` for every run of a batch at once (the compiled explicit path): each segment is
+        one compiled call over the batch's trajectories and their neighbours (numeric/ensemble.py),
+        not two calls from Python per run and segment; the same runs, so the same exponents."""
+        import numpy as np
+
+        from lagrange_cli.numeric import status as st
+
+        s = self.settings
+        count, n = y0s.shape
+        d0 = LYAPUNOV_SEPARATION * np.maximum(1.0, np.max(np.abs(y0s), axis=1))
+        direction = np.ones(n) / math.sqrt(n)
+        a, b = y0s.copy(), y0s + d0[:, None] * direction
+        pairs = np.vstack([ps, ps])
+        total = np.zeros(count)
+        alive = np.ones(count, dtype=bool)
+        edges = np.linspace(s.t0, s.t_end, LYAPUNOV_SEGMENTS + 1)
+        for t0, t1 in itertools.pairwise(edges.tolist()):
+            codes, _, y_last, _, _ = self.batch_entry(self.pair, np.vstack([a, b]), pairs, self._control(t0, t1), np.array([t1]), self.budget, self.accel, self.event)
+            alive &= (codes[:count] == st.DONE) & (codes[count:] == st.DONE)
+            a, gap = y_last[:count].copy(), y_last[count:] - y_last[:count]
+            distance = np.linalg.norm(gap, axis=1)
+            with np.errstate(all="ignore"):
+                alive &= (distance > 0) & np.isfinite(distance)
+                total += np.where(alive, np.log(distance / d0), 0.0)
+                b = a + gap * np.where(alive, d0 / distance, 0.0)[:, None]
+            b[~alive] = a[~alive]  # a dead run's pair is kept finite (its exponent is NaN anyway)
+        return np.where(alive, total / (s.t_end - s.t0), math.nan)
 
     def _section_rows(self, head: list[Any], outcome: Outcome, p: np.ndarray) -> list[list[Any]]:
         import numpy as np

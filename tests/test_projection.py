@@ -108,3 +108,27 @@ def test_many_samples_are_projected_in_at_most_max_stretches(pendulum) -> None: 
     assert 100 < stretches <= MAX_STRETCHES, note
     constraint = run.invariant(InvariantKind.CONSTRAINT)
     assert constraint is not None and constraint.final_change < 1e-14  # projected at the end
+
+
+def test_the_cli_turns_projection_on_and_off(tmp_path) -> None:  # type: ignore[no-untyped-def]
+    """`simulate --projection/--no-projection`: the note of the projection (on by default for kept
+    constraints) appears or not, and the constraint residual of the written trajectory follows."""
+    from typer.testing import CliRunner
+
+    from lagrange_cli.cli import app
+
+    runner = CliRunner()
+    path = str(ROOT / "systems" / "pendulum_multiplier.yaml")
+    common = ["simulate", path, "--t-end", "20", "--samples", "41", "--method", "DOP853", "--backend", "python", "--rtol", "1e-5", "--atol", "1e-7", "-q"]
+    results = {flag: runner.invoke(app, [*common, *([flag] if flag else []), "-o", str(tmp_path / f"{flag or 'default'}.csv")]) for flag in ("--projection", "--no-projection", "")}
+    for flag, result in results.items():
+        assert result.exit_code == 0, (flag, result.output)
+    assert "projection onto the kept constraints" in results["--projection"].output
+    assert "projection onto the kept constraints" in results[""].output  # the default for kept constraints
+    assert "projection onto the kept constraints" not in results["--no-projection"].output
+
+    def residual(name: str) -> float:
+        data = np.genfromtxt(tmp_path / f"{name}.csv", delimiter=",", names=True)
+        return float(np.max(np.abs(data["x"] ** 2 + data["y"] ** 2 - 1.0)))
+
+    assert residual("--projection") < 1e-12 < residual("--no-projection")

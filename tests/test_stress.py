@@ -314,3 +314,28 @@ def test_a_top_whose_axis_passes_the_vertical_gets_the_change_of_coordinates_sug
     advice = next(f for f in outcome.diagnosis.findings if f.kind == "near a coordinate singularity")
     assert "coordinates singular at theta = 0" in advice.detail and "phi_dot" in advice.detail and "psi_dot" in advice.detail and "start away from theta = 0" in advice.detail
     assert report.passed and outcome.recommended is not None and outcome.recommended.error + outcome.reference_error <= 1e-6
+
+
+def test_a_reference_is_computed_once_per_model_and_setup(monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    """reference.prepare for the same (system, state, window, tolerance) twice - as stress's regimes
+    and repeated studies ask - runs the reference runs once; another tolerance runs them again."""
+    from lagrange_cli.numeric import reference
+    from lagrange_cli.numeric.runs import Setup
+
+    model = model_from(ROOT / "systems" / "double_pendulum.yaml")
+    calls: list[float] = []
+    real = reference.run
+
+    def counted(*args, **kwargs):  # type: ignore[no-untyped-def]
+        calls.append(args[2])
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(reference, "run", counted)
+    setup = Setup(1.0, tuple(np.linspace(0.0, 1.0, 11).tolist()))
+    first = reference.prepare(model, setup, 1e-10)
+    ran = len(calls)
+    assert ran >= 2  # the reference and its confirmation (and the horizon's runs)
+    again = reference.prepare(model, Setup(1.0, tuple(np.linspace(0.0, 1.0, 11).tolist())), 1e-10)
+    assert len(calls) == ran and again[1] is first[1]
+    reference.prepare(model, setup, 1e-9)
+    assert len(calls) > ran

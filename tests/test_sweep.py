@@ -317,3 +317,22 @@ def test_parquet_needs_pyarrow_or_is_written(tmp_path: Path) -> None:
         import pyarrow.parquet as pq
 
         assert code == 0 and pq.read_table(str(out)).column("g").to_pylist() == [1.0, 2.0]
+
+
+def test_lyapunov_is_measured_for_a_whole_batch_at_once(monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    """The compiled path measures the Lyapunov exponents of a batch with one compiled call per
+    segment (Runner.lyapunov_batch), never run by run from Python, and gets the per-run values."""
+    pendulum = model("double_pendulum")
+    axes = [Axis("initial", "theta", 0.05, 2.0, 3)]
+    options = {"measures": ["lyapunov"], "initial": {"phi": 0.0}, "t_end": 5, "rtol": 1e-9, "method": "DOP853", "backend": "compiled"}
+    table = library.sweep(pendulum, axes, **options)
+    runner = next(r for r in library._RUNNERS.values() if r.model is pendulum and r.job.measures == ("lyapunov",))
+    one_by_one = [runner._lyapunov(*runner.point(values)) for values in library.points(axes)]
+    assert np.array_equal(np.array(table.column("lyapunov")), np.array(one_by_one))
+
+    def refuse(*args, **kwargs):  # type: ignore[no-untyped-def]
+        raise AssertionError("a run's exponent was measured on its own")
+
+    monkeypatch.setattr(library.Runner, "_lyapunov", refuse)
+    again = library.sweep(pendulum, axes, **{**options, "t_end": 5.0})
+    assert np.array_equal(np.array(again.column("lyapunov")), np.array(one_by_one))

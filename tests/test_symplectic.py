@@ -175,3 +175,43 @@ def test_the_pilot_step_meets_the_accuracy_without_false_warnings(name: str) -> 
     reference = simulate(model, method="DOP853", rtol=1e-13, atol=1e-13, t_end=10.0, samples=101)
     assert not trajectory.warnings, trajectory.notes
     assert _position_error(model, trajectory, reference) < 1e-7
+
+
+def test_accuracy_measures_the_symplectic_method_with_the_step_simulate_chooses() -> None:
+    """`accuracy` (and `stress`, through runs.measure) runs the symplectic method at the step
+    `policy.decide` picks for `simulate` (the pilot run's), not at the pilot's unchecked first guess."""
+    from lagrange_cli.numeric import policy
+    from lagrange_cli.numeric.accuracy import study
+    from lagrange_cli.numeric.runs import Candidate
+
+    model = model_from(ROOT / "systems" / "kepler.yaml")
+    tolerance, t_end = 1e-8, 10.0
+    result = study(model, candidates=[Candidate("symplectic")], tolerances=[tolerance], t_end=t_end, samples=21, repeats=0)
+    (point,) = result.points
+    chosen = simulate(model, method="symplectic", rtol=tolerance, atol=tolerance * 1e-3, t_end=t_end, samples=21)
+    guess = policy.symplectic_step(policy.initial_rate(model, chosen.settings), t_end, tolerance)
+    assert chosen.settings.step is not None and chosen.settings.step != pytest.approx(guess)  # the pilot changed the guess: the test can tell them apart
+    assert point.step == pytest.approx(chosen.settings.step, rel=1e-12)
+    assert point.ok and point.max_error < 10 * tolerance
+
+
+def test_every_method_runs_behind_one_solver_interface() -> None:
+    """simulate's integrators share one interface (integrators.Solver, scipy's OdeSolver as the
+    anchor): the solver of each decided method runs a Problem to a typed Run with named counters,
+    and it is the run simulate reports."""
+    from lagrange_cli.numeric import policy
+    from lagrange_cli.numeric.settings import validate
+    from lagrange_cli.numeric.simulate import solver_for
+
+    model = model_from(ROOT / "systems" / "kepler.yaml")
+    kinds = {("DOP853", "compiled"): integrators.ExplicitRK, ("symplectic", "compiled"): integrators.Gauss, ("Radau", "python"): integrators.Scipy}
+    for (method, backend), kind in kinds.items():
+        settings = policy.decide(model, validate(model, method=method, backend=backend, t_end=2.0, samples=5, rtol=1e-8, atol=1e-10))
+        python = compile.build(model, "python", jacobian=method == "Radau")
+        solver = solver_for(settings, python, compile.build(model, "numba") if backend == "compiled" else None)
+        assert isinstance(solver, kind) and method in solver.name
+        problem = integrators.Problem(0.0, 2.0, np.array(settings.y0), np.array(settings.t_eval), np.array(settings.p), False, 10**6)
+        run = solver.run(problem)
+        assert run.status == Status.FINISHED and isinstance(run.stats, integrators.Stats) and run.stats.steps > 0
+        reported = simulate(model, method=method, backend=backend, t_end=2.0, samples=5, rtol=1e-8, atol=1e-10, step=settings.step)
+        assert np.array_equal(run.y, reported.y) and run.stats.steps == reported.stats.steps

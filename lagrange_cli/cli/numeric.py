@@ -43,6 +43,10 @@ def simulate(
     output_path: Annotated[Path | None, typer.Option("-o", "--output", help="Write the trajectory: .csv or .npz, or - for CSV on stdout.")] = None,
     plot: Annotated[Path | None, typer.Option(help="Plot coordinates, phase portrait and energy error: .png, .svg or .pdf.")] = None,
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="Show no progress bar on stderr.")] = False,
+    projection: Annotated[
+        bool | None,
+        typer.Option("--projection/--no-projection", help="Project the state onto the kept constraints (and the energy level) at each sample (default: on when the file keeps constraints)."),
+    ] = None,
 ) -> None:
     """Simulate a system and report energy, momenta and constraint drift (exit 1 if the run fails)."""
     check_outputs(output_path, plot, reading=file, options=("-o", "--plot"))
@@ -76,6 +80,7 @@ def simulate(
                 backend=backend,
                 max_step=max_step,
                 progress=progress,
+                projection=projection,
             )
         _write(trajectory, output_path, plot, model)
     except LagrangeError as error:

@@ -6,7 +6,11 @@
   (so that a failure keeps the trajectory so far, and events and samples use dense output),
   with the generated Python right-hand side and, for the implicit methods, its analytic Jacobian.
 
-Each returns a `Run`: the samples reached, how it ended, and its counts and timings.
+Each returns a `Run`: the samples reached, how it ended, and its counts and timings. Behind one
+interface (scipy's `OdeSolver` as the anchor): a `Solver` is made once from the decided settings
+(`ExplicitRK`, `Gauss`, `Scipy`) and `solver.run(problem, progress)` integrates a `Problem` (or a
+stretch of one: projection runs it stretch by stretch) to a `Run`, with the status enum
+(`status.Status`) and named counters (`Stats`).
 """
 
 from __future__ import annotations
@@ -17,7 +21,7 @@ import time
 import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Protocol
 
 import numpy as np
 
@@ -576,3 +580,77 @@ def _python_event(module: Any, p: Sequence[float]) -> Callable[[float, np.ndarra
         return evaluate(event, t, np.asarray(y).tolist(), params, "the stop condition (--until)")[0]
 
     return g
+
+
+# -- one interface -------------------------------------------------------------------------------
+
+
+class Solver(Protocol):
+    """An integrator with its settings bound: `run` takes a problem to its end, an event, a failure or
+    its step budget, and reports a `Run` (never raises for a failed run)."""
+
+    @property
+    def name(self) -> str: ...
+
+    def run(self, problem: Problem, progress: Progress | None = None) -> Run: ...
+
+
+@dataclass(frozen=True)
+class ExplicitRK:
+    """RK45 or DOP853 compiled (`run_erk`)."""
+
+    functions: Functions
+    method: str
+    rtol: float
+    atol: float
+    max_step: float = math.inf
+
+    @property
+    def name(self) -> str:
+        return f"{self.method} (compiled)"
+
+    def run(self, problem: Problem, progress: Progress | None = None) -> Run:
+        return run_erk(self.functions, problem, self.method, self.rtol, self.atol, self.max_step, progress)
+
+
+@dataclass(frozen=True)
+class Gauss:
+    """The symplectic Gauss-Legendre method (`run_gauss`), in (q, p): the momenta of each problem's
+    start come from `python`'s canonical momenta; where they cannot be evaluated the run is
+    NONFINITE at its start, with the cause."""
+
+    functions: Functions
+    python: Functions
+    stages: int
+    step: float
+
+    @property
+    def name(self) -> str:
+        return "symplectic (compiled)"
+
+    def run(self, problem: Problem, progress: Progress | None = None) -> Run:
+        try:
+            momenta = evaluate(self.python.module._canonical, problem.t0, problem.y0.tolist(), problem.p.tolist(), "the momenta at the initial state")
+        except EvaluationError as found:
+            empty = np.empty((0, len(problem.y0)))
+            return Run(problem.ts[:0], empty, NONFINITE, problem.t0, problem.y0.copy(), Stats(0, 0, 0, 0, None, None, None), 0.0, 0.0, found)
+        z0 = np.concatenate([problem.y0[: len(problem.y0) // 2], np.array(momenta, dtype=float)])
+        return run_gauss(self.functions, problem, z0, self.stages, self.step, progress)
+
+
+@dataclass(frozen=True)
+class Scipy:
+    """scipy.integrate's `method` on the generated Python functions (`run_scipy`)."""
+
+    functions: Functions
+    method: str
+    rtol: float
+    atol: float
+    max_step: float = math.inf
+
+    @property
+    def name(self) -> str:
+        return f"{self.method} (python)"
+
+    def run(self, problem: Problem, progress: Progress | None = None) -> Run:
+        return run_scipy(self.functions, problem, self.method, self.rtol, self.atol, self.max_step, progress)

@@ -164,7 +164,7 @@ def compiled(name: str) -> Any:
 # -- linear algebra --------------------------------------------------------------------------
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def lu_solve(a, b):
     """Solve a x = b in place (b becomes x) by Gaussian elimination with partial pivoting, each
     row first divided by its largest entry; 1 when a pivot is below 1e-13 of its row's largest
@@ -271,10 +271,19 @@ def _initial_step(accel, t0, y0, f0, t_bound, max_step, order, rtol, atol, p, x,
 
 @njit(error_model="numpy")
 def _erk_step(accel, pair, t, y, h, K, y_new, p, x, a, stats):
-    """One step of the pair from (t, y) with K[0] = f(t, y); fills K and y_new, K[stages] = f(t + h, y_new)."""
+    """One step of the pair from (t, y) with K[0] = f(t, y); fills K and y_new, K[stages] = f(t + h, y_new).
+
+    The right-hand side is evaluated here, `accel` called directly on this function's own arrays
+    and its result copied into the rows of K, not through `_rhs(.., K[s], ..)`: every compiled
+    function increments and decrements the reference counts of its array arguments (atomic
+    operations), and a view K[s] is one more; with an indirect call (accel) in between, numba
+    cannot prune them. Per evaluation that was 10 atomic operations, about half the time of a
+    short run (issue 18: a double-pendulum sweep ran 1.5x faster without them, same steps and
+    results)."""
     A, B, C = (_DOP_A, _DOP_B, _DOP_C) if pair == _DOP else (_RK45_A, _RK45_B, _RK45_C)
     stages = _STAGES[pair]
     n = y.shape[0]
+    half = n // 2
     status = 0
     for s in range(1, stages):
         for i in range(n):
@@ -282,13 +291,19 @@ def _erk_step(accel, pair, t, y, h, K, y_new, p, x, a, stats):
             for j in range(s):
                 dy += A[s, j] * K[j, i]
             y_new[i] = y[i] + h * dy
-        status += _rhs(accel, t + C[s] * h, y_new, p, K[s], x, a)
+        status += accel(t + C[s] * h, y_new, p, x, a)
+        for i in range(half):
+            K[s, i] = y_new[half + i]
+            K[s, half + i] = x[i]
     for i in range(n):
         dy = 0.0
         for j in range(stages):
             dy += B[j] * K[j, i]
         y_new[i] = y[i] + h * dy
-    status += _rhs(accel, t + h, y_new, p, K[stages], x, a)
+    status += accel(t + h, y_new, p, x, a)
+    for i in range(half):
+        K[stages, i] = y_new[half + i]
+        K[stages, half + i] = x[i]
     stats[NFEV] += stages
     return status
 
@@ -321,8 +336,10 @@ def _erk_error(pair, K, h, y, y_new, rtol, atol):
 
 @njit(error_model="numpy")
 def _erk_dense(accel, pair, t, y, y_new, f_new, h, K, coef, p, x, a, stats):
-    """The interpolant's coefficients of the step [t, t + h] (DOP853: 3 more evaluations)."""
+    """The interpolant's coefficients of the step [t, t + h] (DOP853: 3 more evaluations; accel
+    called directly, as in `_erk_step`)."""
     n = y.shape[0]
+    half = n // 2
     if pair != _DOP:
         for c in range(_DENSE[pair]):
             for i in range(n):
@@ -339,7 +356,10 @@ def _erk_dense(accel, pair, t, y, y_new, f_new, h, K, coef, p, x, a, stats):
             for j in range(s):
                 dy += _DOP_A[s, j] * K[j, i]
             work[i] = y[i] + h * dy
-        status += _rhs(accel, t + _DOP_C[s] * h, work, p, K[s], x, a)
+        status += accel(t + _DOP_C[s] * h, work, p, x, a)
+        for i in range(half):
+            K[s, i] = work[half + i]
+            K[s, half + i] = x[i]
     stats[NFEV] += _DENSE_EVALUATIONS[pair]
     for i in range(n):
         delta = y_new[i] - y[i]
@@ -545,26 +565,9 @@ def _newton_matrix(s, h, jac, m, pivots):
     return 0
 
 
-@njit(error_model="numpy")
-def _lu_apply(m, pivots, b):
-    """Solve with the LU factors of `_newton_matrix`, in place."""
-    size = b.shape[0]
-    for k in range(size):
-        b[k], b[pivots[k]] = b[pivots[k]], b[k]
-    for i in range(size):
-        for j in range(i):
-            b[i] -= m[i, j] * b[j]
-    for i in range(size - 1, -1, -1):
-        for j in range(i + 1, size):
-            b[i] -= m[i, j] * b[j]
-        b[i] /= m[i, i]
-
-
-@njit(error_model="numpy")
-def _gauss_stages(hamilton, s, t, z, h, W, FZ, p, x, a, m, pivots, g, sizes, work, stats):
-    """Solve W_i = h sum_j a_ij F(z + W_j) for the stage increments W_i = Z_i - z by simplified
-    Newton iteration (matrix m from `_newton_matrix`) until the corrections reach round-off; FZ
-    holds F at the stage values of the last iteration. Returns (status, iterations, the last
+STAGES_DOC = """What gauss_run's stage loop does. Solve W_i = h sum_j a_ij F(z + W_j) for the stage increments W_i = Z_i - z by simplified
+    Newton iteration (matrix m from `_newton_matrix`, in gauss_run's loop) until the corrections reach round-off; FZ
+    holds F at the stage values of the last iteration. It sets (status, iterations, the last
     correction, the slowest contraction of the corrections before the last: how stale the Newton
     matrix is). Working with increments (Hairer, Lubich and Wanner, VIII.6) keeps the stage
     values' round-off at the size of the increments, not of z.
@@ -574,39 +577,6 @@ def _gauss_stages(hamilton, s, t, z, h, W, FZ, p, x, a, m, pivots, g, sizes, wor
     when the corrections stop decreasing at the round-off level (STAGNATION); corrections that stop
     decreasing above it, or MAX_ITERATIONS sweeps, are NO_CONVERGENCE (the caller refreshes
     the Jacobian once, then fails with that status)."""
-    n = z.shape[0]
-    previous, slowest = np.inf, 0.0
-    for iteration in range(1, MAX_ITERATIONS + 1):
-        for i in range(s):
-            for k in range(n):
-                work[k] = z[k] + W[i, k]
-            if hamilton(t + _GAUSS_C[s - 1, i] * h, work, p, FZ[i], x, a):
-                return SINGULAR, iteration, np.inf, slowest
-        stats[NFEV] += s
-        for i in range(s):
-            for k in range(n):
-                value = -W[i, k]
-                for j in range(s):
-                    value += h * _GAUSS_A[s - 1, i, j] * FZ[j, k]
-                g[i * n + k] = value
-        _lu_apply(m, pivots, g)
-        change = 0.0
-        for i in range(s):
-            for k in range(n):
-                W[i, k] += g[i * n + k]
-                correction = abs(g[i * n + k])
-                if correction > 0.0:
-                    change = max(change, correction / (sizes[k] if sizes[k] > 0.0 else 1.0))
-        if not np.isfinite(change):
-            return NONFINITE, iteration, change, slowest
-        if change <= ROUNDOFF:  # FZ was evaluated at stage values within an ulp of the solution
-            return DONE, iteration, change, slowest
-        if iteration > 1 and change >= previous:  # the corrections stopped decreasing: round-off, or no convergence
-            return (DONE if change <= STAGNATION else NO_CONVERGENCE), iteration, change, slowest
-        if iteration > 1:
-            slowest = max(slowest, change / previous)
-        previous = change
-    return NO_CONVERGENCE, MAX_ITERATIONS, previous, slowest
 
 
 @njit(error_model="numpy")
@@ -668,6 +638,7 @@ def gauss_run(s, z, state, control, ts, zs, p, stats, sizes, memory, pivots, ham
     the compensation of the sum and the loop's diagnostics (ITERATIONS_MAX, ...), `pivots` the
     factors' row exchanges, state[NEWTON] 1.0 while those factors are current."""
     n = z.shape[0]
+    unknowns = s * n
     h, steps, t0, t_end, t_stop, use_event = control[STEP], int(control[STEPS]), control[T0], control[T_BOUND], control[T_STOP], control[USE_EVENT] != 0.0
     size = int(control[SIZE])
     x, a = np.empty(size), np.empty((size, size))
@@ -698,7 +669,62 @@ def gauss_run(s, z, state, control, ts, zs, p, stats, sizes, memory, pivots, ham
                     value += _GAUSS_E[s - 1, i, j] * FZ[j, k]
                 W[i, k] = h * value
                 predicted[i, k] = W[i, k]
-        status, iterations, correction, slowest = _gauss_stages(hamilton, s, t, z, h, W, FZ, p, x, a, m, pivots, g, sizes, work, stats)
+        # The stage equations, solved here rather than in a function of their own: a call of a compiled
+        # function (and a view such as FZ[i]) costs atomic reference-count operations on every array
+        # it takes, which numba cannot prune around the indirect call of `hamilton`; they were about
+        # 40% of a step's time on Kepler's problem (issue 15). STAGES_DOC says what this does.
+        previous, slowest = np.inf, 0.0
+        status, iterations, correction = NO_CONVERGENCE, MAX_ITERATIONS, np.inf
+        for iteration in range(1, MAX_ITERATIONS + 1):
+            singular = False
+            for i in range(s):
+                for k in range(n):
+                    work[k] = z[k] + W[i, k]
+                if hamilton(t + _GAUSS_C[s - 1, i] * h, work, p, fw, x, a):
+                    singular = True
+                    break
+                for k in range(n):
+                    FZ[i, k] = fw[k]
+            if singular:
+                status, iterations, correction = SINGULAR, iteration, np.inf
+                break
+            stats[NFEV] += s
+            for i in range(s):
+                for k in range(n):
+                    value = -W[i, k]
+                    for j in range(s):
+                        value += h * _GAUSS_A[s - 1, i, j] * FZ[j, k]
+                    g[i * n + k] = value
+            # g = m^-1 g with the LU factors of `_newton_matrix` (their row exchanges in `pivots`)
+            for k in range(unknowns):
+                g[k], g[pivots[k]] = g[pivots[k]], g[k]
+            for i in range(unknowns):
+                for j in range(i):
+                    g[i] -= m[i, j] * g[j]
+            for i in range(unknowns - 1, -1, -1):
+                for j in range(i + 1, unknowns):
+                    g[i] -= m[i, j] * g[j]
+                g[i] /= m[i, i]
+            change = 0.0
+            for i in range(s):
+                for k in range(n):
+                    W[i, k] += g[i * n + k]
+                    step_change = abs(g[i * n + k])
+                    if step_change > 0.0:
+                        change = max(change, step_change / (sizes[k] if sizes[k] > 0.0 else 1.0))
+            if not np.isfinite(change):
+                status, iterations, correction = NONFINITE, iteration, change
+                break
+            if change <= ROUNDOFF:  # FZ was evaluated at stage values within an ulp of the solution
+                status, iterations, correction = DONE, iteration, change
+                break
+            if iteration > 1 and change >= previous:  # the corrections stopped decreasing: round-off, or no convergence
+                status, iterations, correction = (DONE if change <= STAGNATION else NO_CONVERGENCE), iteration, change
+                break
+            if iteration > 1:
+                slowest = max(slowest, change / previous)
+            previous = change
+            correction = previous
         if status == NO_CONVERGENCE and not refreshed:
             fresh = False  # a Jacobian from an earlier step: refresh it and try again
             state[NEWTON] = 0.0
@@ -730,7 +756,10 @@ def gauss_run(s, z, state, control, ts, zs, p, stats, sizes, memory, pivots, ham
             delta = h * value + compensation[k]
             z_new[k] = z[k] + delta
             lost[k] = (z[k] - z_new[k]) + delta  # what the rounding of z + delta lost
-        if not _finite(z_new):
+        finite = True
+        for k in range(n):
+            finite = finite and np.isfinite(z_new[k])
+        if not finite:
             return NONFINITE
         done += 1
         t_new = t_end if done >= steps else t0 + done * h

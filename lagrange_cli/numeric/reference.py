@@ -19,7 +19,7 @@ import numpy as np
 
 from lagrange_cli.errors import LagrangeError
 from lagrange_cli.model import Model
-from lagrange_cli.numeric import compile, diagnostics, integrators, policy
+from lagrange_cli.numeric import compile, diagnostics, integrators, memo, policy
 from lagrange_cli.numeric.runs import ATOL_RATIO, REFERENCE_STEPS, Candidate, Setup, component_scale, over_step_budget, run, scaled_errors, start_of, tol_text
 from lagrange_cli.numeric.settings import Settings
 from lagrange_cli.numeric.simulate import Trajectory, integrate, state_text
@@ -175,7 +175,31 @@ def _implicit_budget(model: Model, setup: Setup) -> int:
     return min(setup.reference_steps, max(IMPLICIT_STEPS, math.ceil(IMPLICIT_MARGIN * expected)))
 
 
+def reference_key(setup: Setup, tolerance: float, *more: object) -> tuple[object, ...]:
+    """What a reference run depends on (the system aside: the memo lives on the model): the window
+    and samples, the parameters and initial values, the reference step budget and the tolerance.
+    Not the time limit (reference runs have none) nor a measured run's budget."""
+    return (setup.t_end, setup.times, tuple(sorted(setup.parameters.items())), tuple(sorted(setup.initial.items())), setup.reference_steps, tolerance, *more)
+
+
 def computed_reference(model: Model, setup: Setup, tolerance: float, hint: str = ", looser --tolerances", implicit: tuple[float, ...] | None = None) -> Reference:
+    """`_computed_reference`, once per model and (setup, tolerance, implicit rtols): `stress` asks
+    again for the same reference from regimes that share their window and state, and a Python
+    session from one `accuracy` study to the next (a failure is remembered and raised again too)."""
+
+    def compute() -> Reference | ReferenceFailed:
+        try:
+            return _computed_reference(model, setup, tolerance, hint, implicit)
+        except ReferenceFailed as failure:
+            return failure
+
+    found = memo.once(model, ("reference", *reference_key(setup, tolerance, implicit, hint)), compute)
+    if isinstance(found, ReferenceFailed):
+        raise found
+    return found
+
+
+def _computed_reference(model: Model, setup: Setup, tolerance: float, hint: str, implicit: tuple[float, ...] | None) -> Reference:
     """The primary reference run confirmed by the second; where the primary (explicit) run cannot
     go - it fails, or runs out of its step budget, as on a stiff system - or where the system is
     stiff at the start (`reference_candidates`), Radau confirmed by LSODA (else BDF), their largest
@@ -252,7 +276,11 @@ def dense(model: Model, reference: Reference) -> Callable[[float, np.ndarray, fl
 
 def horizon(model: Model, setup: Setup, tolerance: float) -> Horizon | None:
     """Two primary reference runs started delta = tolerance apart (every component moved by
-    delta times its size): whether they part exponentially, and when."""
+    delta times its size): whether they part exponentially, and when (once per model and setup)."""
+    return memo.once(model, ("horizon", *reference_key(setup, tolerance)), lambda: _horizon(model, setup, tolerance))
+
+
+def _horizon(model: Model, setup: Setup, tolerance: float) -> Horizon | None:
     primary, _ = reference_candidates(model, setup, tolerance)
     if primary.method in IMPLICIT:
         return None  # stiff (dissipative) at the start: two more tight implicit runs would cost more than the whole study

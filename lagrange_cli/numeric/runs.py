@@ -281,10 +281,10 @@ def _repeats(first: float, repeats: int) -> int:
 
 
 def measure(model: Model, candidate: Candidate, tolerance: float, setup: Setup, reference: Reference, scale: np.ndarray, repeats: int = 3) -> Point:
-    """Run one point (warm-up, then timed repeats) and compare it with the reference."""
+    """Run one point (warm-up, then timed repeats) and compare it with the reference. The
+    symplectic method's step is the one `policy.decide` chooses for `simulate` (its pilot run at
+    this tolerance), so a study measures the method as `simulate` runs it."""
     step = None
-    if candidate.method == "symplectic":
-        step = policy.symplectic_step(policy.initial_rate(model, start_of(model, setup)), setup.t_end, tolerance)
     empty = Point(candidate.label, candidate.label, tolerance, step, "", "", math.nan, math.nan, math.nan, None, math.nan, 0, 0.0, 0, 0, 0, candidate=candidate)
     try:
         first = run(model, candidate, tolerance, setup, step=step)

@@ -190,17 +190,17 @@ def integrate(model: Model, settings: Settings, progress: Progress | None = None
     load = python.import_seconds + (before.load if before else 0.0)
     budget = integrators.MAX_STEPS[settings.backend] if max_steps is None else _budget(max_steps)
     problem = Problem(settings.t0, settings.t_end, np.array(settings.y0, dtype=float), np.array(settings.t_eval, dtype=float), np.array(settings.p, dtype=float), settings.event is not None, budget)
+    solver: integrators.Solver
     if settings.backend == "compiled":
         numba = compile.build(model, "numba", event=settings.event)
         generate, load = generate + numba.generate_seconds, load + numba.import_seconds
-
-        def runner(part: Problem, report: Progress | None) -> Run:
-            return _run_compiled(numba, python, part, settings, report)
-
+        solver = solver_for(settings, python, numba)
     else:
+        solver = solver_for(settings, python)
 
-        def runner(part: Problem, report: Progress | None) -> Run:
-            return integrators.run_scipy(python, part, settings.method, settings.rtol, settings.atol, settings.max_step, report)
+    def runner(part: Problem, report: Progress | None) -> Run:
+        run = solver.run(part, report)
+        return _verified_event(python, part, run) if settings.backend == "compiled" else run
 
     notes: tuple[str, ...] = ()
     if settings.projection and model.constraints:
@@ -308,19 +308,18 @@ def _budget(max_steps: object) -> int:
     return max_steps
 
 
-def _run_compiled(numba: compile.Functions, python: compile.Functions, problem: Problem, settings: Settings, progress: Progress | None) -> Run:
+def solver_for(settings: Settings, python: compile.Functions, numba: compile.Functions | None = None) -> integrators.Solver:
+    """The solver of decided `settings` (method and backend resolved by `policy.decide`): `numba`
+    the system compiled, for the compiled backend."""
+    if settings.backend != "compiled":
+        return integrators.Scipy(python, settings.method, settings.rtol, settings.atol, settings.max_step)
+    if numba is None:
+        raise ValueError("the compiled backend needs the compiled functions")
     if settings.method == "symplectic":
-        try:
-            momenta = integrators.evaluate(python.module._canonical, problem.t0, problem.y0.tolist(), problem.p.tolist(), "the momenta at the initial state")
-        except integrators.EvaluationError as problem_found:
-            empty = np.empty((0, len(problem.y0)))
-            return Run(problem.ts[:0], empty, integrators.NONFINITE, problem.t0, problem.y0.copy(), integrators.Stats(0, 0, 0, 0, None, None, None), 0.0, 0.0, problem_found)
-        z0 = np.concatenate([problem.y0[: len(problem.y0) // 2], np.array(momenta, dtype=float)])
-        assert settings.step is not None
-        run = integrators.run_gauss(numba, problem, z0, settings.stages, settings.step, progress)
-    else:
-        run = integrators.run_erk(numba, problem, settings.method, settings.rtol, settings.atol, settings.max_step, progress)
-    return _verified_event(python, problem, run)
+        if settings.step is None:
+            raise ValueError("the symplectic method needs its step (policy.decide chooses it)")
+        return integrators.Gauss(numba, python, settings.stages, settings.step)
+    return integrators.ExplicitRK(numba, settings.method, settings.rtol, settings.atol, settings.max_step)
 
 
 def _verified_event(python: compile.Functions, problem: Problem, run: Run) -> Run:
