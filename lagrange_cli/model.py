@@ -217,7 +217,10 @@ class Model:
     def ignorable(self, i: int) -> bool:
         """q_i is ignorable when dL/dq_i = 0 and nothing else acts along it, so that its
         momentum p_i = dL/dq_dot_i is conserved (Eqs. 6.37-6.38)."""
-        return sp.diff(self.lagrangian, self.q[i]) == 0 and sp.diff(self.dissipation, self.qd[i]) == 0 and self.generalized_forces[i] == 0 and all(c.jacobian[i] == 0 for c in self.constraints)
+        slope = sp.diff(self.lagrangian, self.q[i])
+        # oriented bodies give L unsimplified (a symmetric rotor's spin angle enters only through sin^2 + cos^2)
+        flat = slope == 0 or sp.simplify(sp.expand_trig(slope)) == 0
+        return flat and sp.diff(self.dissipation, self.qd[i]) == 0 and self.generalized_forces[i] == 0 and all(c.jacobian[i] == 0 for c in self.constraints)
 
     @property
     def energy_conserved(self) -> bool:
