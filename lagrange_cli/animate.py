@@ -86,12 +86,32 @@ def scene(spec: SystemSpec, model: Model) -> Scene:
     drawing = spec.draw
     segments = tuple((index(a.label, a.position), index(b.label, b.position)) for a, b in drawing.segments) if drawing else ()
     trails = tuple(index(p.label, p.position) for p in drawing.trails) if drawing else ()
+    segments += tuple(pair for body in spec.bodies for pair in body_axes(body, index))
     if not points:
         raise LagrangeError(f"{model.source}: nothing to draw: the system has no particles, bodies or `draw` block; animate draws the positions of particles and bodies")
     undefined = sorted({str(f.func) for p in points for x in p for f in x.atoms(sp.core.function.AppliedUndef)})
     if undefined:
         raise LagrangeError(f"{model.source}: drawing needs every function defined, but {', '.join(undefined)} left undefined; give each a `definition`")
     return Scene(tuple(points), tuple(labels), dots, segments, trails, max(len(p) for p in points))
+
+
+AXIS_LENGTH = sp.Rational(1, 5)
+"""The length of a body's drawn axes when it has no point to size them by (system units)."""
+
+
+def body_axes(body: Any, index: Callable[[str, Sequence[sp.Expr]], int]) -> list[tuple[int, int]]:
+    """Segments from the centre of a body with an `orientation` along its axes (the columns of R): as long as half
+    the distance to its first point (or pivot-side reference), else `AXIS_LENGTH`."""
+    rotation = getattr(body, "rotation", None)
+    if rotation is None:
+        return []
+    centre = tuple(body.position)
+    far = next(iter(body.points.values()), None)
+    size = sp.sqrt(sp.Add(*((a - b) ** 2 for a, b in zip(far, centre, strict=True)))) / 2 if far is not None else sp.S.Zero
+    if size == 0:
+        size = AXIS_LENGTH
+    origin = index(body.name, centre)
+    return [(origin, index(f"{body.name} {'xyz'[k]} axis", tuple(c + size * rotation[i][k] for i, c in enumerate(centre)))) for k in range(len(rotation))]
 
 
 def position_function(scene: Scene, model: Model) -> Callable[[float, Sequence[float], Sequence[float]], list[float]]:

@@ -44,15 +44,19 @@ Vector = list[se.Basic]
 ZERO = se.Integer(0)
 
 
-def derive(spec: SystemSpec) -> Model:
+def derive(spec: SystemSpec, shared: bool = False) -> Model:
     """File to equations: eliminate constraints, build L and R, apply Lagrange's equation, and
-    validate the result (`validate.validate`), so that every later stage sees a sound model."""
+    validate the result (`validate.validate`), so that every later stage sees a sound model.
+
+    `shared`: the caller prints the equations with their common subexpressions shared (generated code),
+    so equations that are too long only when written out in full (a spatial chain with `relative_to`)
+    are accepted; their sympy fields then refuse to be read (`Model.from_symengine`'s `refuse`)."""
     check_size(spec, input_work(spec), MAX_INPUT_WORK, "the file's expressions, each times the number of coordinates and velocities in it,")
     try:
         spec = eliminate(spec)
         check_masses(spec)
         try:
-            model, cleared = _derive(spec)
+            model, cleared = _derive(spec, shared)
         finally:
             _CONVERTED.clear()
     except TypeError as exc:
@@ -64,7 +68,7 @@ def derive(spec: SystemSpec) -> Model:
     return model
 
 
-def _derive(spec: SystemSpec) -> tuple[Model, bool]:
+def _derive(spec: SystemSpec, shared: bool = False) -> tuple[Model, bool]:
     """The model and whether `validate.survey` cleared its symengine forms."""
     q, qd, t = _se(spec.q), _se(spec.qd), _to_se(spec.t)
     qdd = _se(spec.qdd)
@@ -120,9 +124,9 @@ def _derive(spec: SystemSpec) -> tuple[Model, bool]:
         refuse = fail(
             None,
             f"{spec.path}: the equations of motion, written out without sharing, amount to more than {MAX_EQUATION_TREE} terms and factors",
-            "a smaller system; or a command that shares common subexpressions: `derive --to python` (or `--to c`, `--to octave`, `--to jax`), `simulate`",
+            "a smaller system; or `derive --to python`, whose code shares common subexpressions",
         )
-        if not cleared:
+        if not cleared or not shared:
             raise refuse
     forms, given = (forms, {}) if cleared else _kinks(forms, spec)
     model = Model.from_symengine(

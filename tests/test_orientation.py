@@ -341,3 +341,22 @@ def test_planar_orientation_matches_the_written_out_double_pendulum() -> None:
     spec = parse(PLANAR, "planar.yaml")
     assert spec.draw is not None and [p.label for p in spec.draw.trails] == ["b"]
     assert sp.simplify(spec.draw.segments[0][1].position[0] - sp.sympify("l*sin(th)")) == 0
+
+
+def test_animate_draws_the_axes_of_oriented_bodies() -> None:
+    """`lagrange animate` draws each oriented body's axes from its centre: half as long as the distance to its
+    first point (`AXIS_LENGTH` without one), along the columns of R (the planar rod 'a' turned by th: its x axis
+    is (cos th, sin th))."""
+    from lagrange_cli.animate import AXIS_LENGTH, scene
+
+    spec = parse(PLANAR, "planar.yaml")
+    drawn = scene(spec, derive(spec))
+    assert len(drawn.segments) == 2 + 2 * 2  # the draw block's, and two axes per planar body
+    labels = [drawn.labels[b] for _, b in drawn.segments[2:]]
+    assert labels == ["a x axis", "a y axis", "b x axis", "b y axis"]
+    a, x_end = drawn.segments[2]
+    th, length = sp.Symbol("th"), sp.Symbol("l")
+    offset = [sp.simplify((e - c).subs(length, 1)) for e, c in zip(drawn.points[x_end], drawn.points[a], strict=True)]
+    assert offset == [sp.cos(th) / 4, sp.sin(th) / 4]  # the centre is l/2 from the tip: axes l/4 long
+    b, _ = drawn.segments[4]
+    assert sp.simplify(drawn.points[drawn.segments[4][1]][0] - drawn.points[b][0] - AXIS_LENGTH * sp.cos(th + sp.Symbol("ph"))) == 0

@@ -38,10 +38,15 @@ def chain_yaml(masses: list[float], lengths: list[float], g: float = 9.81) -> st
     return "\n".join(lines) + "\n"
 
 
-def chain(n: int, seed: int) -> tuple[Model, list[float], list[float]]:
+def chain_values(n: int, seed: int) -> tuple[list[float], list[float]]:
     rng = random.Random(seed)
     masses = [round(rng.uniform(0.5, 3.0), 3) for _ in range(n)]
     lengths = [round(rng.uniform(0.3, 2.0), 3) for _ in range(n)]
+    return masses, lengths
+
+
+def chain(n: int, seed: int) -> tuple[Model, list[float], list[float]]:
+    masses, lengths = chain_values(n, seed)
     return derive.derive(spec.parse(chain_yaml(masses, lengths), f"chain{n}.yaml")), masses, lengths
 
 
@@ -292,7 +297,10 @@ def test_equations_too_large_written_out_are_refused_though_they_share_parts(mon
     size, tree, _ = validate.survey(validate.forms_parts(model.symengine))
     assert size < tree
     monkeypatch.setattr(derive, "MAX_EQUATION_TREE", tree - 1)
-    shared, _, _ = chain(3, seed=2)  # usable where common subexpressions are shared (symengine forms)
+    with pytest.raises(spec.SpecError, match="written out without sharing, amount to more than"):
+        chain(3, seed=2)
+    masses, lengths = chain_values(3, seed=2)
+    shared = derive.derive(spec.parse(chain_yaml(masses, lengths), "chain3.yaml"), shared=True)  # for generated code, which shares them
     assert shared.symengine.mass == model.symengine.mass
     with pytest.raises(spec.SpecError, match="written out without sharing, amount to more than"):
         _ = shared.mass_matrix  # not converted to sympy

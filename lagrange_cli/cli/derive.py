@@ -75,7 +75,7 @@ def derive(
         from lagrange_cli import derive as core
         from lagrange_cli import spec
 
-        model = core.derive(spec.load(spec.resolve(file)))
+        model = core.derive(spec.load(spec.resolve(file)), shared=target == "python" and form is not Form.hamilton)
         if form is Form.hamilton:
             output(_hamilton(model, target, numba, standalone), output_path)
             return
