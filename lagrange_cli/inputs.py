@@ -30,8 +30,8 @@ if TYPE_CHECKING:
     from lagrange_cli.spec import Body, Particle, SystemSpec
 
 INPUT_KEYS = ("value", "description")
-LOAD_FIELDS = ("force", "torque")
-"""Fields of a particle or body that may hold inputs (loads enter through the virtual power)."""
+LOAD_FIELDS = ("force", "torque", "forces", "torques", "frame_forces")
+"""Fields of a particle or body that may hold inputs (loads enter through the virtual power): a particle's `force`, an oriented body's `forces`, `torques` and `frame_forces`."""
 WHERE = "forces, torques, generalized forces, the potential, the dissipation and Lagrangian terms"
 U_DOT = (
     "the tool treats inputs as given functions of time but does not differentiate them: an input may not appear where the equations "

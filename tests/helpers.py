@@ -22,7 +22,7 @@ def model_from(path: Path) -> Model:
 
 
 def random_point(model: Model, seed: int) -> dict[sp.Symbol, float]:
-    """Parameters at their defaults (or random positive), coordinates and velocities at random."""
+    """Parameters and inputs at their defaults (or random positive), coordinates and velocities at random."""
     rng = random.Random(seed)
     point: dict[sp.Symbol, float] = {}
     for p in model.parameters:
@@ -32,6 +32,8 @@ def random_point(model: Model, seed: int) -> dict[sp.Symbol, float]:
     for v in model.qd:
         point[v] = rng.uniform(-1.0, 1.0)
     point[model.t] = rng.uniform(0.0, 2.0)
+    for i in model.inputs:  # at their defaults, as the generated code's INPUTS has them
+        point[i.symbol] = float(i.value)
     return point
 
 
