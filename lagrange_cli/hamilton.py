@@ -11,7 +11,7 @@ q_dot = q_dot(q, p): the same function, without differentiating the inverse.
 
 Two routes, chosen by a bounded size test (never an unbounded symbolic inverse):
 
-- symbolic (`Hamilton.symbolic`): at most `MAX_SYMBOLIC` coordinates, or a diagonal mass matrix
+- symbolic (`Hamilton.symbolic`): at most `MAX_SYMBOLIC` coordinates and `MAX_SYMBOLIC_OPS` operations in M, or a diagonal mass matrix
   (then M^-1 is the reciprocal of its diagonal): H, q_dot(q, p) and p_dot(q, p) as expressions;
 - numeric: beyond that, generated code solves M q_dot = p - b numerically at each call and
   evaluates H = p . q_dot - L and p_dot from q_dot; the text and LaTeX forms state the
@@ -32,6 +32,10 @@ from lagrange_cli.model import Model
 
 MAX_SYMBOLIC = 3
 """Largest number of coordinates whose (non-diagonal) mass matrix is inverted symbolically."""
+MAX_SYMBOLIC_OPS = 200
+"""Largest size (operations summed over its entries) of a non-diagonal mass matrix inverted
+symbolically: a 3 x 3 matrix of long entries (a top with products of inertia) has an adjugate of
+thousands of operations, which no page holds; it takes the numeric route instead."""
 SIMPLIFY_MAX_OPS = 200
 """Largest determinant that is trig-simplified (a bounded step, for readability only)."""
 
@@ -110,7 +114,7 @@ def hamilton(model: Model, symbolic: bool = True) -> Hamilton:
     qd = model.qd
     in_velocities = rates_in_velocities(model)
     n = model.n
-    if not symbolic or (n > MAX_SYMBOLIC and not mass.is_diagonal()):
+    if not symbolic or (not mass.is_diagonal() and (n > MAX_SYMBOLIC or sum(sp.count_ops(e) for e in mass) > MAX_SYMBOLIC_OPS)):
         return Hamilton(model, p, pd, False, None, (), in_velocities, mass, bias, rest)
     adjugate, det = _inverse(mass, where)
     shifted = sp.Matrix([p[i] - bias[i] for i in range(n)])

@@ -110,6 +110,7 @@ def harness(cases: list[Case]) -> str:
     lines = ["#include <stdio.h>", *(f'#include "{case.prefix}.h"' for case in cases), "", "int main(void)", "{", "    int k, j;"]
     for i, case in enumerate(cases):
         n, count, np_ = case.model.n, len(case.states), max(1, len(case.model.parameters))
+        u = f", {case.prefix}_default_inputs" if case.model.inputs else ""  # the inputs' defaults, as the Python module's `u=INPUTS`
         ys = ", ".join(literal(y) for _, y, _ in case.states)
         ps = ", ".join(literal([p[q.name] for q in case.model.parameters]) for _, _, p in case.states)
         lines += [
@@ -119,21 +120,21 @@ def harness(cases: list[Case]) -> str:
             f"        static const double p[{count}][{np_}] = {{{ps}}};",
             f"        for (k = 0; k < {count}; ++k) {{",
             f"            double d[{2 * n}];",
-            f"            const int status = {case.prefix}_rhs(t[k], y[k], p[k], d);",
+            f"            const int status = {case.prefix}_rhs(t[k], y[k], p[k]{u}, d);",
             f'            printf("{i} %d %d", k, status);',
             f'            for (j = 0; j < {2 * n}; ++j) printf(" %.17g", d[j]);',
             *(
                 [
                     "            {",
                     f"                double x[{n + len(case.model.constraints)}];",
-                    f"                {case.prefix}_accelerations(t[k], y[k], p[k], x);",
+                    f"                {case.prefix}_accelerations(t[k], y[k], p[k]{u}, x);",
                     f'                for (j = {n}; j < {n + len(case.model.constraints)}; ++j) printf(" %.17g", x[j]);',
                     "            }",
                 ]
                 if case.model.constraints
                 else []
             ),
-            f'            printf(" %.17g\\n", {case.prefix}_energy(t[k], y[k], p[k]));',
+            f'            printf(" %.17g\\n", {case.prefix}_energy(t[k], y[k], p[k]{u}));',
             "        }",
             "    }",
         ]

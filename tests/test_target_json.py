@@ -76,6 +76,10 @@ def same(parsed: sp.Expr, original: sp.Expr) -> bool:
 @pytest.mark.parametrize("path", SYSTEMS, ids=lambda p: p.stem)
 def test_every_bundled_system_is_valid_and_reads_back_into_the_same_model(path: Path) -> None:
     model = model_from(path)
+    if model.inputs:  # the JSON model does not take inputs yet: refused with the README's message
+        with pytest.raises(DerivationError, match="the JSON model does not take inputs yet"):
+            jsonmodel.emit(model)
+        return
     data = document(model)
     VALIDATOR.validate(data)
     reader = Reader(data)
