@@ -238,3 +238,20 @@ def test_hamiltonian_has_no_fraction_inside_a_fraction(name: str, models: dict[s
     assert not _nested_fractions(tex), _nested_fractions(tex)
     hamiltonian = info(model).hamiltonian
     assert hamiltonian is not None and sp.simplify(tidy(hamiltonian) - hamiltonian) == 0
+
+
+def test_a_product_of_several_long_sums_is_broken_in_each_and_signs_combine() -> None:
+    """A product of three long sums (what oriented bodies give, unexpanded) breaks inside every
+    sum, not only the widest, so no line is wider than an article; and a term whose own factors
+    print a minus never shows `- -`."""
+    from lagrange_cli.emit import layout
+
+    a, b, c = (sp.symbols(f"{name}_alpha0:9") for name in ("x", "y", "z"))
+    theta = sp.Symbol("theta")
+    product = sp.Mul(sp.Add(*(s * sp.cos(theta) for s in a)), sp.Add(*(s * sp.sin(theta) for s in b)), sp.Add(*(s**2 for s in c)), evaluate=False)
+    for expr in (product, -product, sp.Symbol("m") - product * sp.Symbol("w")):
+        parts = layout.pieces(expr, sp.latex, layout.LINE_WIDTH)
+        text = layout.lines(parts, layout.LINE_WIDTH, layout.LINE_WIDTH - layout.QUAD)
+        assert len(text) > 2
+        assert all(layout.width(line) <= 345.0 / layout.UNIT_PT for line in text), [round(layout.width(line)) for line in text]  # an article's \\linewidth
+        assert not any("- -" in line or "+ -" in line for line in text)

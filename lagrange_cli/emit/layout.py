@@ -354,6 +354,9 @@ def terms(summands: Sequence[Any], doprint: Printer, room: float) -> list[Piece]
         inner = pieces(-term if negative else term, doprint, room)
         sign = "- " if negative else "+ " if out else ""
         first = inner[0]
+        if first.tex.startswith("- "):  # a piece that carries its own minus (a product whose other factors print negative): the signs combine
+            first = Piece(first.tex[2:], first.width - _UNARY)
+            sign = "+ " if negative and out else "" if negative else "- "
         if sign:  # measured alone its operator is unary (a sign in front of a text adds exactly that); between terms it is binary, wider
             first = Piece(sign + first.tex, first.width + _UNARY + (_BINARY["+"] - _UNARY if out else 0.0))
         out += [first, *inner[1:]]
@@ -435,13 +438,17 @@ def _term(expr: Any, doprint: Printer, room: float) -> list[Piece] | None:
     factors = list(expr.args)
     widest = max(range(len(factors)), key=lambda k: len(doprint(factors[k])) if factors[k].is_Add or factors[k].is_Pow else -1)
     target = factors[widest]
+    if not (target.is_Add or _power_of_sum(target)):
+        return None
     rest = _product(factors[:widest] + factors[widest + 1 :], expr)
+    before: list[Piece] = []
     prefix = "" if rest == 1 else "- " if rest == -1 else doprint(rest) + " "
+    if width(prefix) > room / 2:  # the other factors hold sums of their own (a product of several long sums): broken too
+        before = pieces(rest, doprint, room)
+        prefix, before = before[-1].tex + " ", before[:-1]
     if target.is_Add:
-        return _wrap(_sum(target, doprint, room), prefix, "")
-    if _power_of_sum(target):
-        return _wrap(_sum(target.args[0], doprint, room), prefix, f"^{{{doprint(target.args[1])}}}")
-    return None
+        return [*before, *_wrap(_sum(target, doprint, room), prefix, "")]
+    return [*before, *_wrap(_sum(target.args[0], doprint, room), prefix, f"^{{{doprint(target.args[1])}}}")]
 
 
 def _wrap(inner: list[Piece], prefix: str, suffix: str) -> list[Piece]:
@@ -452,7 +459,11 @@ def _wrap(inner: list[Piece], prefix: str, suffix: str) -> list[Piece]:
     after = _PARENTHESIS + width(suffix)
     if len(inner) == 1:
         return [Piece(rf"{prefix}\left({inner[0].tex}\right){suffix}", before + inner[0].width + after)]
-    return [Piece(prefix + r"\left(" + inner[0].tex, before + inner[0].width), *inner[1:-1], Piece(inner[-1].tex + rf"\right){suffix}", inner[-1].width + after)]
+    if before + inner[0].width > LINE_WIDTH / 2:  # nested products would pile their factors onto one first piece: the opening stands apart
+        opening = [Piece(prefix + r"\left(", before), inner[0]]
+    else:
+        opening = [Piece(prefix + r"\left(" + inner[0].tex, before + inner[0].width)]
+    return [*opening, *inner[1:-1], Piece(inner[-1].tex + rf"\right){suffix}", inner[-1].width + after)]
 
 
 def lines(parts: Sequence[Piece], first: float, rest: float) -> list[str]:

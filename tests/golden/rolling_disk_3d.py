@@ -369,6 +369,24 @@ def multipliers(t, y, p=PARAMETERS):
     return accelerations(t, y, p)[5:]
 
 
+def constraint_forces(t, y, p=PARAMETERS):
+    """Each kept constraint's force by name: lambda, the generalized force lambda * d(lhs - rhs)/dq and, on each particle/body, the force (and torque about its centre) that does the same virtual work (the part along the motions the coordinates allow (minimum norm): the coordinates constrain the particles or bodies too). N = lambda * |force / lambda| is positive along the gradient of lhs - rhs."""
+    _lam0, _lam1 = multipliers(t, y, p)
+    R = p["R"]
+    _, _, psi, theta, phi, x_dot, y_dot, psi_dot, theta_dot, phi_dot = y.tolist() if hasattr(y, "tolist") else y
+    _f0 = R*cos(psi)
+    _f1 = R*sin(psi)
+    _f2 = sin(theta)
+    _f3 = cos(theta)
+    _f4 = sin(phi)
+    _f5 = cos(phi)
+    import numpy
+    _J = numpy.array([[1, 0, _f0*_f2, _f1*_f3, 0], [0, 1, _f1*_f2, -_f0*_f3, 0], [0, 0, 0, -R*_f2, 0], [0, 0, -_f4*_f3, _f5, 0], [0, 0, _f2, 0, 1], [0, 0, _f5*_f3, _f4, 0]], dtype=float).reshape(6, 5)
+    _A = numpy.array([[1, 0, 0, 0, -_f0], [0, 1, 0, 0, -_f1]], dtype=float).reshape(2, 5)
+    _W = numpy.linalg.lstsq(_J.T, _A.T, rcond=None)[0].tolist()
+    return {"roll_x": {"lambda": _lam0, "generalized": [_lam0, 0, 0, 0, -_f0*_lam0], "on": {"coin": {"force": [_lam0 * _W[0][0], _lam0 * _W[1][0], _lam0 * _W[2][0]], "N": (1.0 if _lam0 >= 0 else -1.0) * sum(_v * _v for _v in [_lam0 * _W[0][0], _lam0 * _W[1][0], _lam0 * _W[2][0]]) ** 0.5, "torque": [_lam0 * _W[3][0], _lam0 * _W[4][0], _lam0 * _W[5][0]]}}}, "roll_y": {"lambda": _lam1, "generalized": [0, _lam1, 0, 0, -_f1*_lam1], "on": {"coin": {"force": [_lam1 * _W[0][1], _lam1 * _W[1][1], _lam1 * _W[2][1]], "N": (1.0 if _lam1 >= 0 else -1.0) * sum(_v * _v for _v in [_lam1 * _W[0][1], _lam1 * _W[1][1], _lam1 * _W[2][1]]) ** 0.5, "torque": [_lam1 * _W[3][1], _lam1 * _W[4][1], _lam1 * _W[5][1]]}}}}
+
+
 def _solve(a, b):
     """Solve a x = b by Gaussian elimination with partial pivoting (a, b are overwritten), each
     row first divided by its largest entry so that rows in different units compare fairly;
