@@ -459,10 +459,9 @@ def _wrap(inner: list[Piece], prefix: str, suffix: str) -> list[Piece]:
     after = _PARENTHESIS + width(suffix)
     if len(inner) == 1:
         return [Piece(rf"{prefix}\left({inner[0].tex}\right){suffix}", before + inner[0].width + after)]
-    if before + inner[0].width > LINE_WIDTH / 2:  # nested products would pile their factors onto one first piece: the opening stands apart
-        opening = [Piece(prefix + r"\left(", before), inner[0]]
-    else:
-        opening = [Piece(prefix + r"\left(" + inner[0].tex, before + inner[0].width)]
+    # nested products would pile their factors onto one first piece: a wide opening stands apart
+    apart = before + inner[0].width > LINE_WIDTH / 2
+    opening = [Piece(prefix + r"\left(", before), inner[0]] if apart else [Piece(prefix + r"\left(" + inner[0].tex, before + inner[0].width)]
     return [*opening, *inner[1:-1], Piece(inner[-1].tex + rf"\right){suffix}", inner[-1].width + after)]
 
 
