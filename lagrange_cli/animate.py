@@ -61,6 +61,8 @@ class Scene:
     segments: tuple[tuple[int, int], ...]
     trails: tuple[int, ...]
     dimension: int
+    axes: tuple[int, ...] = ()
+    """For each of the last `len(axes)` segments, a body's axis it draws (0 x, 1 y, 2 z): drawn thin, in AXIS_COLOURS."""
 
 
 def scene(spec: SystemSpec, model: Model) -> Scene:
@@ -86,32 +88,33 @@ def scene(spec: SystemSpec, model: Model) -> Scene:
     drawing = spec.draw
     segments = tuple((index(a.label, a.position), index(b.label, b.position)) for a, b in drawing.segments) if drawing else ()
     trails = tuple(index(p.label, p.position) for p in drawing.trails) if drawing else ()
-    segments += tuple(pair for body in spec.bodies for pair in body_axes(body, index))
+    frames = [pair for body in spec.bodies for pair in body_axes(body, index)]
+    segments += tuple(frames)
     if not points:
         raise LagrangeError(f"{model.source}: nothing to draw: the system has no particles, bodies or `draw` block; animate draws the positions of particles and bodies")
     undefined = sorted({str(f.func) for p in points for x in p for f in x.atoms(sp.core.function.AppliedUndef)})
     if undefined:
         raise LagrangeError(f"{model.source}: drawing needs every function defined, but {', '.join(undefined)} left undefined; give each a `definition`")
-    return Scene(tuple(points), tuple(labels), dots, segments, trails, max(len(p) for p in points))
+    axes = tuple(k for body in spec.bodies for k in range(len(getattr(body, "rotation", None) or ())))
+    assert len(axes) == len(frames)
+    return Scene(tuple(points), tuple(labels), dots, segments, trails, max(len(p) for p in points), axes)
 
 
-AXIS_LENGTH = sp.Rational(1, 5)
-"""The length of a body's drawn axes when it has no point to size them by (system units)."""
+AXIS_COLOURS = ("tab:red", "tab:green", "tab:blue")
+"""A body's x, y and z axes (the usual red, green, blue), thinner than the `draw` segments."""
+AXIS_SHARE = 0.25
+"""The length of a body's drawn axes, as a share of the half-width of the view."""
 
 
 def body_axes(body: Any, index: Callable[[str, Sequence[sp.Expr]], int]) -> list[tuple[int, int]]:
-    """Segments from the centre of a body with an `orientation` along its axes (the columns of R): as long as half
-    the distance to its first point (or pivot-side reference), else `AXIS_LENGTH`."""
+    """Segments from the centre of a body with an `orientation` along its axes (the columns of R), of unit
+    length here; the animation draws them `AXIS_SHARE` of its view long, whatever the system's size."""
     rotation = getattr(body, "rotation", None)
     if rotation is None:
         return []
     centre = tuple(body.position)
-    far = next(iter(body.points.values()), None)
-    size = sp.sqrt(sp.Add(*((a - b) ** 2 for a, b in zip(far, centre, strict=True)))) / 2 if far is not None else sp.S.Zero
-    if size == 0:
-        size = AXIS_LENGTH
     origin = index(body.name, centre)
-    return [(origin, index(f"{body.name} {'xyz'[k]} axis", tuple(c + size * rotation[i][k] for i, c in enumerate(centre)))) for k in range(len(rotation))]
+    return [(origin, index(f"{body.name} {'xyz'[k]} axis", tuple(c + rotation[i][k] for i, c in enumerate(centre)))) for k in range(len(rotation))]
 
 
 def position_function(scene: Scene, model: Model) -> Callable[[float, Sequence[float], Sequence[float]], list[float]]:
@@ -258,13 +261,16 @@ class Animation:
             FigureCanvasAgg(figure)
             three = self.view == "3d"
             axes: Any = figure.add_subplot(projection="3d") if three else figure.add_subplot()
-            every = self.positions.reshape(-1, self.positions.shape[2])
+            tips = {b for _, b in self.scene.segments[len(self.scene.segments) - len(self.scene.axes) :]}  # axes' ends: sized to the view, not sizing it
+            kept = [i for i in range(self.positions.shape[1]) if i not in tips]
+            every = self.positions[:, kept, :].reshape(-1, self.positions.shape[2])
             finite = every[np.all(np.isfinite(every), axis=1)]
             names = ("x", "y", "z")
             used = (0, 1, 2) if three else _axes_of(self.view) if self.view != "plane" else (0, 1)
             low = finite.min(axis=0) if len(finite) else np.zeros(every.shape[1])
             high = finite.max(axis=0) if len(finite) else np.ones(every.shape[1])
             centre, half = (low + high) / 2, max(float(np.max(high[list(used)] - low[list(used)])) / 2 * 1.1, 1e-3)
+            self.axis_length = AXIS_SHARE * half
             setters = (axes.set_xlim, axes.set_ylim, getattr(axes, "set_zlim", None))
             for k, c in enumerate(used):
                 setter = setters[k]
@@ -281,7 +287,9 @@ class Animation:
                 axes.set_ylabel(names[used[1]] if self.scene.dimension > 1 else "")
                 axes.grid(True, alpha=0.3)
             figure_title(figure, plot_text(self.title))
-            segments = [axes.plot(*([[0.0, 0.0]] * len(used)), "-", color="0.25", linewidth=3, solid_capstyle="round", zorder=2)[0] for _ in self.scene.segments]
+            drawn = len(self.scene.segments) - len(self.scene.axes)
+            styles: list[dict[str, Any]] = [{"color": "0.25", "linewidth": 3, "zorder": 2}] * drawn + [{"color": AXIS_COLOURS[k], "linewidth": 2, "zorder": 2.5} for k in self.scene.axes]
+            segments = [axes.plot(*([[0.0, 0.0]] * len(used)), "-", solid_capstyle="round", **style)[0] for style in styles]
             trails = [axes.plot(*([[0.0]] * len(used)), "-", linewidth=1, alpha=0.6, zorder=1)[0] for _ in self.scene.trails]
             dots = {}
             for i in self.scene.dots:
@@ -291,6 +299,9 @@ class Animation:
             place = (lambda x, y, s: axes.text2D(x, y, s, transform=axes.transAxes)) if three else (lambda x, y, s: axes.text(x, y, s, transform=axes.transAxes))
             stamp = place(0.02, 0.95, "")
             stamp.set_parse_math(False)
+            if self.scene.axes:
+                shown = sorted(set(self.scene.axes))
+                place(0.02, 0.91, "body axes: " + ", ".join(f"{'xyz'[k]} {AXIS_COLOURS[k].removeprefix('tab:')}" for k in shown)).set_parse_math(False)
         return figure, axes, dots, segments, trails, stamp
 
     def update(self, k: int) -> list[Any]:
@@ -307,8 +318,11 @@ class Animation:
 
         for i, dot in zip(self.scene.dots, self.dots.values(), strict=True):
             put(dot, self._coordinates(k, i))
-        for (a, b), line in zip(self.scene.segments, self.segments, strict=True):
+        drawn = len(self.scene.segments) - len(self.scene.axes)
+        for j, ((a, b), line) in enumerate(zip(self.scene.segments, self.segments, strict=True)):
             first, second = self._coordinates(k, a), self._coordinates(k, b)
+            if j >= drawn:  # a body's axis: a unit vector from its centre, drawn AXIS_SHARE of the view long
+                second = [u + self.axis_length * (v - u) for u, v in zip(first, second, strict=True)]
             put(line, [np.array([u, v]) for u, v in zip(first, second, strict=True)])
         start = 0
         if self.trail is not None:

@@ -344,19 +344,31 @@ def test_planar_orientation_matches_the_written_out_double_pendulum() -> None:
 
 
 def test_animate_draws_the_axes_of_oriented_bodies() -> None:
-    """`lagrange animate` draws each oriented body's axes from its centre: half as long as the distance to its
-    first point (`AXIS_LENGTH` without one), along the columns of R (the planar rod 'a' turned by th: its x axis
-    is (cos th, sin th))."""
-    from lagrange_cli.animate import AXIS_LENGTH, scene
+    """`lagrange animate` draws each oriented body's axes from its centre along the columns of R (the planar
+    rod 'a' turned by th: its x axis is (cos th, sin th)), in red, green (and blue), `AXIS_SHARE` of the view
+    long whatever the system's size, and the axes' ends do not size the view."""
+    import numpy as np
+
+    from lagrange_cli.animate import AXIS_COLOURS, AXIS_SHARE, animation, scene, simulate_for
 
     spec = parse(PLANAR, "planar.yaml")
-    drawn = scene(spec, derive(spec))
+    model = derive(spec)
+    drawn = scene(spec, model)
     assert len(drawn.segments) == 2 + 2 * 2  # the draw block's, and two axes per planar body
+    assert drawn.axes == (0, 1, 0, 1)
     labels = [drawn.labels[b] for _, b in drawn.segments[2:]]
     assert labels == ["a x axis", "a y axis", "b x axis", "b y axis"]
     a, x_end = drawn.segments[2]
-    th, length = sp.Symbol("th"), sp.Symbol("l")
-    offset = [sp.simplify((e - c).subs(length, 1)) for e, c in zip(drawn.points[x_end], drawn.points[a], strict=True)]
-    assert offset == [sp.cos(th) / 4, sp.sin(th) / 4]  # the centre is l/2 from the tip: axes l/4 long
+    th = sp.Symbol("th")
+    offset = [sp.simplify(e - c) for e, c in zip(drawn.points[x_end], drawn.points[a], strict=True)]
+    assert offset == [sp.cos(th), sp.sin(th)]
     b, _ = drawn.segments[4]
-    assert sp.simplify(drawn.points[drawn.segments[4][1]][0] - drawn.points[b][0] - AXIS_LENGTH * sp.cos(th + sp.Symbol("ph"))) == 0
+    assert sp.simplify(drawn.points[drawn.segments[4][1]][0] - drawn.points[b][0] - sp.cos(th + sp.Symbol("ph"))) == 0
+    movie = animation(spec, model, simulate_for(model, fps=4, t_end=0.5), fps=4)
+    lines = movie.segments[2:]
+    assert [line.get_color() for line in lines] == [AXIS_COLOURS[k] for k in drawn.axes]
+    movie.update(1)
+    half = (movie.axes.get_xlim()[1] - movie.axes.get_xlim()[0]) / 2
+    for line in lines:
+        xs, ys = line.get_data()
+        assert np.hypot(xs[1] - xs[0], ys[1] - ys[0]) == pytest.approx(AXIS_SHARE * half)
