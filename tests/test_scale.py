@@ -165,7 +165,7 @@ def test_symengine_forms_equal_the_sympy_fields(path: Path) -> None:
     model = derive.derive(spec.load(path))
     converted = dataclasses.replace(model, title="copy").symengine
     rng = random.Random(path.stem)
-    point = {s: rng.uniform(0.3, 1.2) for s in (*model.q, *model.qd, model.t, *(p.symbol for p in model.parameters))}
+    point = {s: rng.uniform(0.3, 1.2) for s in (*model.q, *model.qd, model.t, *(p.symbol for p in model.parameters), *(i.symbol for i in model.inputs))}
     for (name, native, field), (_, other, _) in zip(fields(model, model.symengine), fields(model, converted), strict=True):
         want = number(field, point)
         assert number(sp.sympify(native), point) == pytest.approx(want, rel=1e-9, abs=1e-9), (path.name, name)
@@ -239,7 +239,7 @@ def test_the_structured_derivation_agrees_with_the_textbook_one(path: Path | Non
     mass, force = reference_equations(s)
     rng = random.Random(11)
     for _ in range(2):
-        point = {str(x): rng.uniform(0.3, 1.2) for x in (*model.q, *model.qd, model.t, *(p.symbol for p in model.parameters))}
+        point = {str(x): rng.uniform(0.3, 1.2) for x in (*model.q, *model.qd, model.t, *(p.symbol for p in model.parameters), *(i.symbol for i in model.inputs))}
         point |= {p.name: p.value for p in model.parameters if p.value is not None}
         forms = model.symengine
         assert [se_value(x, point) for row in forms.mass for x in row] == pytest.approx([se_value(x, point) for x in mass], rel=1e-9, abs=1e-9)

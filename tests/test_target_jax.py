@@ -47,6 +47,10 @@ def call_python(function: Callable[..., Any], t: float, *args: Any) -> Any:
 @pytest.mark.parametrize("path", SYSTEMS, ids=lambda p: p.stem)
 def test_every_bundled_system_agrees_with_the_python_module(path: Path, tmp_path: Path) -> None:
     model = model_from(path)
+    if model.inputs:  # the README's refusal: the JAX module does not take inputs yet
+        with pytest.raises(DerivationError, match="does not take inputs yet"):
+            jax_target.emit(model)
+        return
     try:
         python.emit(model)
     except DerivationError:

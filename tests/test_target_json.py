@@ -74,7 +74,9 @@ def same(parsed: sp.Expr, original: sp.Expr) -> bool:
 
 
 @pytest.mark.parametrize("path", SYSTEMS, ids=lambda p: p.stem)
-def test_every_bundled_system_is_valid_and_reads_back_into_the_same_model(path: Path) -> None:
+def test_every_bundled_system_is_valid_and_reads_back_into_the_same_model(path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    for limit in ("MAX_LENGTH", "MAX_NODES"):  # a spatial body's unexpanded forcing is longer than a system file's expression may be
+        monkeypatch.setattr(f"lagrange_cli.expr.{limit}", 10**6)
     model = model_from(path)
     if model.inputs:  # the JSON model does not take inputs yet: refused with the README's message
         with pytest.raises(DerivationError, match="the JSON model does not take inputs yet"):
@@ -169,9 +171,12 @@ def test_every_latex_string_compiles_in_pdflatex(tmp_path: Path) -> None:
     strings: list[str] = []
     for path in [*SYSTEMS, *HOSTILE_FILES]:
         try:
-            strings += latex_strings(document(model_from(path)))
+            model = model_from(path)
         except Exception:  # a hostile file that is refused before it has a model
             assert path in HOSTILE_FILES
+            continue
+        if not model.inputs:  # the README's refusal: the JSON model does not take inputs yet
+            strings += latex_strings(document(model))
     assert len(strings) > 500
     body = "\n".join(f"\\noindent$\\displaystyle {s}$\\par" for s in dict.fromkeys(strings))
     (tmp_path / "all.tex").write_text("\\documentclass{article}\n\\usepackage{amsmath}\n\\begin{document}\n" + body + "\n\\end{document}\n")
@@ -227,6 +232,10 @@ def test_hamilton_documents_are_valid_and_read_back(path: Path, monkeypatch: pyt
     from lagrange_cli.hamilton import hamilton, rates_in_velocities
 
     model = model_from(path)
+    if model.inputs:  # the README's refusal: the JSON model does not take inputs yet
+        with pytest.raises(LagrangeError, match="does not take inputs yet"):
+            jsonmodel.emit_hamilton(model)
+        return
     try:
         ham = hamilton(model)
     except LagrangeError:
