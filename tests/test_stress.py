@@ -232,7 +232,8 @@ def test_a_stiff_spring_written_in_its_length_gets_an_implicit_reference_and_a_t
     second, and scipy's implicit methods are round-off-limited below about 1e-8 here. The reference
     is Radau confirmed by LSODA, and the recommendation truly meets 1e-6 (checked against BDF)."""
     model = model_from(AUDIT / "stiff_elastic_pendulum_r.yaml")
-    report = stress.stress(model, scales=[("k", [1e10])], target=1e-6, candidates=[Candidate("Radau"), Candidate("DOP853")], t_end=0.2)
+    # max_steps 20000: the explicit reference attempt gives up after 10 x that many steps (not the default 2e6: minutes of CPU)
+    report = stress.stress(model, scales=[("k", [1e10])], target=1e-6, candidates=[Candidate("Radau"), Candidate("DOP853")], t_end=0.2, max_steps=20_000)
     (outcome,) = report.outcomes
     assert "Radau" in outcome.reference and "implicit" in outcome.reference and outcome.reference_error < 1e-6
     assert not any(f.kind.startswith(("blow-up", "no reference")) for f in outcome.diagnosis.findings)
