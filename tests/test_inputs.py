@@ -222,7 +222,7 @@ def test_octave_target_takes_u_after_p() -> None:
     assert plain.split("\n")[0].endswith("eom(t, y, p)") and "nargin < 4" not in plain
 
 
-@pytest.mark.parametrize("args", [["--to", "jax"], ["--to", "json"], ["--python", "--form", "hamilton"]])
+@pytest.mark.parametrize("args", [["--python", "--form", "hamilton"]])
 def test_targets_without_inputs_refuse_plainly(tmp_path: Path, args: list[str]) -> None:
     path = tmp_path / "cart.yaml"
     path.write_text(CART_POLE)
