@@ -345,6 +345,7 @@ def test_a_diagonal_mass_matrix_costs_one_division_per_coordinate() -> None:
 HAMILTON_SYSTEMS = [
     *("double_pendulum", "kepler", "chain_3", "charged_particle_magnetic", "damped_oscillator_rayleigh", "kapitza_pendulum"),
     *("heavy_top", "rotating_hoop_bead", "cart_pole", "rolling_coin", "central_potential"),
+    *INPUT_SYSTEMS,
 ]
 """A velocity-dependent b, dissipation, time dependence, a 3 x 3 M, and refusals (kept constraints, an
 undefined function); tests/test_target_c.py and test_target_octave.py take every bundled system."""
@@ -372,20 +373,25 @@ def test_hamilton_agrees_with_the_python_hamilton_module_and_the_lagrange_form(s
         point = random_point(model, seed)
         p = {parameter.name: point[parameter.symbol] for parameter in model.parameters}
         t = point[model.t]
+        u = random_inputs(model, seed)  # inputs: given values, u after p as in the Python module
         q, qd = [point[s] for s in model.q], [point[s] for s in model.qd]
-        momenta = np.asarray(target.momenta(t, q, qd, p))
-        np.testing.assert_allclose(momenta, np.asarray(reference.momenta(t, q, qd, p), dtype=float), rtol=1e-10, atol=1e-12)
+        momenta = np.asarray(with_u(target.momenta, t, q, qd, p, u=u))
+        np.testing.assert_allclose(momenta, np.asarray(with_u(reference.momenta, t, q, qd, p, u=u), dtype=float), rtol=1e-10, atol=1e-12)
         y = [*q, *momenta.tolist()]
-        expected = np.asarray(reference.rhs(t, y, p), dtype=float)
-        got = target.rhs(t, jnp.asarray(y), p)
+        expected = np.asarray(with_u(reference.rhs, t, y, p, u=u), dtype=float)
+        got = with_u(target.rhs, t, jnp.asarray(y), p, u=u)
         assert got.dtype == jnp.float64 and got.shape == (2 * n,)
         np.testing.assert_allclose(np.asarray(got), expected, rtol=1e-9, atol=1e-11)
-        np.testing.assert_allclose(np.asarray(target.velocities(t, y, p)), qd, rtol=1e-9, atol=1e-11)
-        assert float(target.hamiltonian(t, y, p)) == pytest.approx(reference.hamiltonian(t, y, p), rel=1e-9, abs=1e-11)
-        assert float(target.hamiltonian(t, y, p)) == pytest.approx(float(lagrange.energy(t, q, qd, p)), rel=1e-9, abs=1e-11)
+        if u is not None:
+            assert "u" in inspect.signature(target.rhs).parameters and not np.allclose(np.asarray(target.rhs(t, y, p)), expected)  # the inputs matter
+        np.testing.assert_allclose(np.asarray(with_u(target.velocities, t, y, p, u=u)), qd, rtol=1e-9, atol=1e-11)
+        assert float(with_u(target.hamiltonian, t, y, p, u=u)) == pytest.approx(with_u(reference.hamiltonian, t, y, p, u=u), rel=1e-9, abs=1e-11)
+        assert float(with_u(target.hamiltonian, t, y, p, u=u)) == pytest.approx(float(with_u(lagrange.energy, t, q, qd, p, u=u)), rel=1e-9, abs=1e-11)
         # Hamilton's equations against the Lagrange form: p_dot = d/dt momenta(t, q(t), q_dot(t))
-        qdd = np.asarray(lagrange.rhs(t, jnp.asarray([*q, *qd]), p))[n:]
-        _, rate = jax.jvp(lambda tt, qq, vv, p=p: target.momenta(tt, qq, vv, p), (jnp.asarray(t), jnp.asarray(q), jnp.asarray(qd)), (jnp.asarray(1.0), jnp.asarray(qd), jnp.asarray(qdd)))
+        qdd = np.asarray(with_u(lagrange.rhs, t, jnp.asarray([*q, *qd]), p, u=u))[n:]
+        _, rate = jax.jvp(
+            lambda tt, qq, vv, p=p, u=u: with_u(target.momenta, tt, qq, vv, p, u=u), (jnp.asarray(t), jnp.asarray(q), jnp.asarray(qd)), (jnp.asarray(1.0), jnp.asarray(qd), jnp.asarray(qdd))
+        )
         np.testing.assert_allclose(np.asarray(got)[n:], np.asarray(rate), rtol=1e-8, atol=1e-10)
 
 
