@@ -263,6 +263,23 @@ particles:
     assert module.rhs(0.0, [0.0, 0.0])[1] == pytest.approx(15.0 / 2.0)
     assert module.rhs(0.0, [0.0, 0.0], u={"u": 0.0, "INPUTS": 0.0, "p": 0.0, "outputs": 2.0})[1] == pytest.approx(1.0)
     assert module.outputs(0.0, [1.0, 0.0]) == pytest.approx([2.0, 4.0])
+    # the same names in the JAX module, the Python Hamilton module and the JAX Hamilton module (y = [x, p_x], p_x = m x_dot)
+    import numpy as np
+
+    from lagrange_cli.emit import hamiltonian, jax
+
+    pytest.importorskip("jax")
+    given = {"u": 0.0, "INPUTS": 0.0, "p": 0.0, "outputs": 2.0}
+    target = load_module(jax.emit(model_of(text)), tmp_path / "hostile_jax.py")
+    assert target.INPUTS == module.INPUTS and target.INPUT_NAMES == ("u", "INPUTS", "p", "outputs")
+    assert float(target.rhs(0.0, [0.0, 0.0])[1]) == pytest.approx(15.0 / 2.0) and float(target.rhs(0.0, [0.0, 0.0], None, given)[1]) == pytest.approx(1.0)
+    assert float(target.rhs(0.0, [0.0, 0.0], None, np.asarray([0.0, 0.0, 0.0, 2.0]))[1]) == pytest.approx(1.0)
+    np.testing.assert_allclose(np.asarray(target.outputs(0.0, [1.0, 0.0])), [2.0, 4.0])
+    for code, name in ((hamiltonian.python(model_of(text)), "hostile_ham.py"), (jax.emit_hamilton(model_of(text)), "hostile_jax_ham.py")):
+        ham = load_module(code, tmp_path / name)
+        assert ham.INPUTS == module.INPUTS
+        assert [float(v) for v in ham.rhs(0.0, [0.0, 0.0])] == pytest.approx([0.0, 15.0])
+        assert [float(v) for v in ham.rhs(0.0, [0.0, 0.0], None if "jax" in name else ham.PARAMETERS, given)] == pytest.approx([0.0, 2.0])
 
 
 def test_outputs_follow_an_eliminated_coordinate() -> None:
