@@ -77,9 +77,9 @@ def clashes(coordinates: tuple[str, ...], names: list[str]) -> list[str]:
 
 
 def declared(model: Model) -> list[str]:
-    """Every name the file declares: coordinates and their velocities, parameters, functions."""
+    """Every name the file declares: coordinates and their velocities, parameters, inputs, functions."""
     functions = {str(f.func) for e in (model.lagrangian, *model.generalized_forces, model.dissipation) for f in e.atoms(sp.core.function.AppliedUndef)}
-    return [*model.coordinates, *(str(v) for v in model.qd), *(p.name for p in model.parameters), *sorted(functions | set(model.definitions))]
+    return [*model.coordinates, *(str(v) for v in model.qd), *(p.name for p in model.parameters), *(i.name for i in model.inputs), *sorted(functions | set(model.definitions))]
 
 
 def hamilton(model: Model, symbolic: bool = True) -> Hamilton:

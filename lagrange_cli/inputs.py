@@ -293,14 +293,3 @@ def _exact_number(text: str, number: float) -> sp.Expr:
         return value if value.is_number else sp.Float(number)
     except Exception:
         return sp.Float(number)
-
-
-def refuse(model: Model, what: str) -> None:
-    """A `DerivationError` (exit 2) for a target that does not take inputs yet."""
-    if model.inputs:
-        from lagrange_cli.errors import DerivationError
-
-        names = ", ".join(i.name for i in model.inputs)
-        raise DerivationError(
-            f"{model.source}: {what} does not take inputs yet (the file declares {names}); use the Python module (`derive --python`: `u=INPUTS`) or the C or Octave target (`u` after `p`)"
-        )

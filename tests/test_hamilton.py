@@ -4,6 +4,8 @@ for large systems, the refusals, and `check`'s `hamiltonian` and `hamilton_equat
 
 from __future__ import annotations
 
+import inspect
+import random
 from pathlib import Path
 
 import pytest
@@ -43,10 +45,16 @@ def _lagrange_side(model: Model, point: dict[sp.Symbol, float]) -> tuple[list[fl
     return momenta, rates
 
 
+def _with_inputs(model: Model, point: dict[sp.Symbol, float], seed: int) -> dict[sp.Symbol, float]:
+    """`point` with random values for the model's inputs (given values at time t)."""
+    rng = random.Random(100 + seed)
+    return {**point, **{i.symbol: rng.uniform(-2.0, 2.0) for i in model.inputs}}
+
+
 def _agree(model: Model, seeds: range) -> None:
     ham = hamilton(model)
     for seed in seeds:
-        point = random_point(model, seed)
+        point = _with_inputs(model, random_point(model, seed), seed)
         momenta, rates = _lagrange_side(model, point)
         state = {**point, **dict(zip(ham.p, momenta, strict=True))}
         if ham.symbolic:
@@ -113,6 +121,48 @@ def test_generated_module_in_q_and_p_agrees_with_the_library(source: str, tmp_pa
         y = [*q, *momenta]
         assert module.rhs(point[model.t], y, parameters) == pytest.approx([*qd, *rates], rel=1e-8, abs=1e-8)
         assert module.hamiltonian(point[model.t], y, parameters) == pytest.approx(float(model.energy.xreplace(point)), rel=1e-9)
+
+
+CHAIN_4_DRIVEN = CHAIN_4.replace("dissipation:", "inputs: {tau: {value: 0.5}, f: {value: -1.0}}\npotential: -tau*a1 - f*a4*a2\ndissipation:")
+"""The numeric route (a full 4 x 4 M) with inputs in the potential."""
+
+
+@pytest.mark.parametrize("source", ["cart_pole_state_space", "quadrotor", "arm_3dof", "chain"])
+def test_generated_module_with_inputs_takes_u_after_p_and_agrees(source: str, tmp_path: Path) -> None:
+    """Hamilton's equations treat inputs as given values: the module has INPUTS and takes `u=INPUTS` after p on
+    every function whose result depends on one; at random states and random inputs rhs, velocities and H agree
+    with the Python module of the Lagrange form (q_dot, its energy) and with p_dot = d/dt dL/dq_dot, for
+    both routes (symbolic, and numeric for the 4-link chain)."""
+    from lagrange_cli.emit import hamiltonian, python
+
+    model = model_of(CHAIN_4_DRIVEN, "chain_4_driven.yaml") if source == "chain" else model_from(Path("systems") / f"{source}.yaml")
+    module = load_module(hamiltonian.python(model), tmp_path / f"ham_{source}.py")
+    lagrange = load_module(python.emit(model), tmp_path / f"lag_{source}.py")
+    assert module.INPUTS == lagrange.INPUTS and list(module.INPUTS) == [i.name for i in model.inputs]
+    assert list(inspect.signature(module.rhs).parameters) == ["t", "y", "p", "u"]
+    assert inspect.signature(module.rhs).parameters["u"].default == module.INPUTS
+    assert hamilton(model).symbolic == (source in ("cart_pole_state_space", "arm_3dof"))  # quadrotor and the chain: the numeric route
+    parameters = dict(module.PARAMETERS)
+    for seed in range(2):
+        point = _with_inputs(model, random_point(model, seed), seed)
+        u = {i.name: point[i.symbol] for i in model.inputs}
+        t = point[model.t]
+        q, qd = [point[s] for s in model.q], [point[s] for s in model.qd]
+        momenta, rates = _lagrange_side(model, point)
+        assert module.momenta(t, q, qd, parameters) == pytest.approx(momenta, rel=1e-9)
+        y = [*q, *momenta]
+        got = module.rhs(t, y, parameters, u)
+        assert got == pytest.approx([*qd, *rates], rel=1e-8, abs=1e-8)
+        assert got != pytest.approx(module.rhs(t, y, parameters), rel=1e-6)  # the inputs matter (the defaults differ)
+        accelerations = lagrange.rhs(t, [*q, *qd], parameters, u)[model.n :]
+        lagrange_rates = [float(time_derivative(p, model.q, model.qd, model.qdd, model.t).xreplace({**point, **dict(zip(model.qdd, accelerations, strict=True))})) for p in model.momenta]
+        assert got[model.n :] == pytest.approx(lagrange_rates, rel=1e-8, abs=1e-8)
+        assert module.velocities(t, y, parameters, **({"u": u} if "u" in inspect.signature(module.velocities).parameters else {})) == pytest.approx(qd, rel=1e-9, abs=1e-9)
+        energy = lagrange.energy(
+            *([t] if "t" in inspect.signature(lagrange.energy).parameters else []), q, qd, parameters, **({"u": u} if "u" in inspect.signature(lagrange.energy).parameters else {})
+        )
+        h = module.hamiltonian(t, y, parameters, **({"u": u} if "u" in inspect.signature(module.hamiltonian).parameters else {}))
+        assert h == pytest.approx(float(energy), rel=1e-9, abs=1e-9)
 
 
 def _run(*args: str) -> tuple[int, str, str]:

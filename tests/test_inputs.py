@@ -222,12 +222,25 @@ def test_octave_target_takes_u_after_p() -> None:
     assert plain.split("\n")[0].endswith("eom(t, y, p)") and "nargin < 4" not in plain
 
 
-@pytest.mark.parametrize("args", [["--to", "jax"], ["--to", "json"], ["--python", "--form", "hamilton"]])
-def test_targets_without_inputs_refuse_plainly(tmp_path: Path, args: list[str]) -> None:
+TARGETS_WITH_U = {
+    ("--to", "jax"): "def rhs(t, y, p=None, u=None):",
+    ("--to", "json"): '"inputs": [',
+    ("--python", "--form", "hamilton"): "def rhs(t, y, p=PARAMETERS, u=INPUTS):",
+    ("--to", "c", "--form", "hamilton"): "eom_rhs(double t, const double *y, const double *p, const double *u, double *dydt)",
+    ("--to", "octave", "--form", "hamilton"): "function [dydt, H, qdot] = eom(t, y, p, u)",
+    ("--to", "jax", "--form", "hamilton"): "def rhs(t, y, p=None, u=None):",
+    ("--to", "json", "--form", "hamilton"): '"inputs": [',
+}
+"""Every code target and form takes inputs (no target refuses a file with `inputs`): what each writes."""
+
+
+@pytest.mark.parametrize("args", list(TARGETS_WITH_U), ids=" ".join)
+def test_every_target_takes_inputs(tmp_path: Path, args: tuple[str, ...]) -> None:
     path = tmp_path / "cart.yaml"
     path.write_text(CART_POLE)
     result = runner.invoke(app, ["derive", str(path), *args])
-    assert result.exit_code == 2 and "does not take inputs yet (the file declares F)" in result.output
+    assert result.exit_code == 0, result.output
+    assert TARGETS_WITH_U[args] in result.output
 
 
 def test_a_time_derivative_of_an_input_is_refused_at_its_place() -> None:
@@ -250,6 +263,23 @@ particles:
     assert module.rhs(0.0, [0.0, 0.0])[1] == pytest.approx(15.0 / 2.0)
     assert module.rhs(0.0, [0.0, 0.0], u={"u": 0.0, "INPUTS": 0.0, "p": 0.0, "outputs": 2.0})[1] == pytest.approx(1.0)
     assert module.outputs(0.0, [1.0, 0.0]) == pytest.approx([2.0, 4.0])
+    # the same names in the JAX module, the Python Hamilton module and the JAX Hamilton module (y = [x, p_x], p_x = m x_dot)
+    import numpy as np
+
+    from lagrange_cli.emit import hamiltonian, jax
+
+    pytest.importorskip("jax")
+    given = {"u": 0.0, "INPUTS": 0.0, "p": 0.0, "outputs": 2.0}
+    target = load_module(jax.emit(model_of(text)), tmp_path / "hostile_jax.py")
+    assert target.INPUTS == module.INPUTS and target.INPUT_NAMES == ("u", "INPUTS", "p", "outputs")
+    assert float(target.rhs(0.0, [0.0, 0.0])[1]) == pytest.approx(15.0 / 2.0) and float(target.rhs(0.0, [0.0, 0.0], None, given)[1]) == pytest.approx(1.0)
+    assert float(target.rhs(0.0, [0.0, 0.0], None, np.asarray([0.0, 0.0, 0.0, 2.0]))[1]) == pytest.approx(1.0)
+    np.testing.assert_allclose(np.asarray(target.outputs(0.0, [1.0, 0.0])), [2.0, 4.0])
+    for code, name in ((hamiltonian.python(model_of(text)), "hostile_ham.py"), (jax.emit_hamilton(model_of(text)), "hostile_jax_ham.py")):
+        ham = load_module(code, tmp_path / name)
+        assert ham.INPUTS == module.INPUTS
+        assert [float(v) for v in ham.rhs(0.0, [0.0, 0.0])] == pytest.approx([0.0, 15.0])
+        assert [float(v) for v in ham.rhs(0.0, [0.0, 0.0], None if "jax" in name else ham.PARAMETERS, given)] == pytest.approx([0.0, 2.0])
 
 
 def test_outputs_follow_an_eliminated_coordinate() -> None:

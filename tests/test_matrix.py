@@ -62,9 +62,9 @@ SHOWS = {
     ("info", "routh"): "V_eff = ",
     ("derive", "c"): "static inline int eom_rhs(double t, const double *y, const double *p, ",  # then `const double *u, ` with inputs
     ("derive", "octave"): "function [dydt, h, lambda] = eom(t, y, p",  # then `, u` with inputs
-    ("derive", "c-hamilton"): "static inline int eom_velocities(double t, const double *y, const double *p, double *out)",
-    ("derive", "octave-hamilton"): "function [dydt, H, qdot] = eom(t, y, p)",
-    ("derive", "jax-hamilton"): "def velocities(t, y, p=None):",
+    ("derive", "c-hamilton"): "static inline int eom_velocities(double t, const double *y, const double *p, ",  # then `const double *u, ` with inputs
+    ("derive", "octave-hamilton"): "function [dydt, H, qdot] = eom(t, y, p",  # then `, u` with inputs
+    ("derive", "jax-hamilton"): "def velocities(t, y, p=None",  # then `, u=None` where q_dot depends on an input
     ("derive", "json-hamilton"): '"momentum_rates"',
     **{("derive", f"latex-{form}-standalone"): "\\end{document}" for form in ("lagrange", "matrix", "solved")},
     ("info", "json"): '"hamiltonian"',

@@ -99,6 +99,18 @@ def states(model: Model, seed: int, count: int = STATES) -> list[tuple[float, li
     return out
 
 
+def given_inputs(model: Model, t: float, y: Sequence[float]) -> dict[str, float]:
+    """Random input values at the state (t, y), the same for every target's test (seeded by the state):
+    what the Python module's `u=` and the C and Octave `u` get ({} for a model without inputs)."""
+    rng = random.Random(repr((t, [float(v) for v in y])))
+    return {i.name: rng.uniform(-2.0, 2.0) for i in model.inputs}
+
+
+def with_inputs(function: Any, *args: Any, u: dict[str, float]) -> Any:
+    """Call a Python-module function with `u` when it takes inputs."""
+    return function(*args, u=u) if u and "u" in inspect.signature(function).parameters else function(*args)
+
+
 def literal(values: Sequence[float]) -> str:
     return "{" + ", ".join(repr(float(v)) for v in values) + "}" if values else "{0.0}"
 
@@ -110,14 +122,16 @@ def harness(cases: list[Case]) -> str:
     lines = ["#include <stdio.h>", *(f'#include "{case.prefix}.h"' for case in cases), "", "int main(void)", "{", "    int k, j;"]
     for i, case in enumerate(cases):
         n, count, np_ = case.model.n, len(case.states), max(1, len(case.model.parameters))
-        u = f", {case.prefix}_default_inputs" if case.model.inputs else ""  # the inputs' defaults, as the Python module's `u=INPUTS`
+        u = ", u[k]" if case.model.inputs else ""  # random inputs at each state (given_inputs), as the Python module's `u=`
         ys = ", ".join(literal(y) for _, y, _ in case.states)
         ps = ", ".join(literal([p[q.name] for q in case.model.parameters]) for _, _, p in case.states)
+        us = ", ".join(literal(list(given_inputs(case.model, t, y).values())) for t, y, _ in case.states)
         lines += [
             "    {",
             f"        static const double t[{count}] = {literal([t for t, _, _ in case.states])};",
             f"        static const double y[{count}][{2 * n}] = {{{ys}}};",
             f"        static const double p[{count}][{np_}] = {{{ps}}};",
+            *([f"        static const double u[{count}][{len(case.model.inputs)}] = {{{us}}};"] if case.model.inputs else []),
             f"        for (k = 0; k < {count}; ++k) {{",
             f"            double d[{2 * n}];",
             f"            const int status = {case.prefix}_rhs(t[k], y[k], p[k]{u}, d);",
@@ -162,14 +176,15 @@ def build_and_run(cases: list[Case], folder: Path, compiler: list[str]) -> dict[
 
 def python_values(module: Any, model: Model, t: float, y: list[float], p: dict[str, float]) -> tuple[list[float] | None, float | None]:
     """rhs (followed by the multipliers, with kept constraints) and energy from the Python module
-    (None where it raises: a singular matrix or a domain error)."""
+    (None where it raises: a singular matrix or a domain error), at the inputs `given_inputs(model, t, y)`."""
     n = model.n
+    u = given_inputs(model, t, y)
     arguments: list[Any] = [y[:n], y[n:], p]
     if "t" in inspect.signature(module.energy).parameters:
         arguments.insert(0, t)
     values: list[Any] = []
-    multipliers = (lambda: list(module.multipliers(t, y, p))) if model.constraints else list
-    for call in (lambda: [float(v) for v in [*module.rhs(t, y, p), *multipliers()]], lambda: float(module.energy(*arguments))):
+    multipliers = (lambda: list(with_inputs(module.multipliers, t, y, p, u=u))) if model.constraints else list
+    for call in (lambda: [float(v) for v in [*with_inputs(module.rhs, t, y, p, u=u), *multipliers()]], lambda: float(with_inputs(module.energy, *arguments, u=u))):
         try:
             values.append(call())
         except (ZeroDivisionError, ValueError, OverflowError):
@@ -204,7 +219,7 @@ def bundled() -> list[Case]:
     """Every bundled system and every matrix feature C can express (all but undefined functions)."""
     cases = []
     for seed, path in enumerate([*SYSTEMS, *FEATURES]):
-        if path.stem.startswith(("functions_undefined", "inputs_")):  # inputs: tests/test_inputs.py runs their C with u
+        if path.stem.startswith("functions_undefined"):
             continue
         model = model_from(path)
         cases.append(Case(path.name, model, f"s{seed}", states(model, seed)))
@@ -408,6 +423,7 @@ class HamiltonPoint:
     rhs: list[float]
     hamiltonian: float
     energy: float
+    u: dict[str, float]
 
 
 @functools.lru_cache(maxsize=1)
@@ -433,9 +449,11 @@ def hamilton_points(model: Model, folder: Path, seed: int, count: int = 2) -> li
     found = []
     for t, state, p in states(model, seed, count):
         q, qd = state[:n], state[n:]
-        y = [*q, *(float(v) for v in reference.momenta(t, q, qd, p))]
-        energy = lagrange.energy(*(([t] if "t" in inspect.signature(lagrange.energy).parameters else []) + [q, qd, p]))
-        found.append(HamiltonPoint(t, y, p, qd, [float(v) for v in reference.rhs(t, y, p)], float(reference.hamiltonian(t, y, p)), float(energy)))
+        u = given_inputs(model, t, state)
+        y = [*q, *(float(v) for v in with_inputs(reference.momenta, t, q, qd, p, u=u))]
+        energy = with_inputs(lagrange.energy, *(([t] if "t" in inspect.signature(lagrange.energy).parameters else []) + [q, qd, p]), u=u)
+        rhs = [float(v) for v in with_inputs(reference.rhs, t, y, p, u=u)]
+        found.append(HamiltonPoint(t, y, p, qd, rhs, float(with_inputs(reference.hamiltonian, t, y, p, u=u)), float(energy), u))
     return found
 
 
@@ -459,6 +477,7 @@ def test_hamilton_headers_compile_and_agree_with_the_python_hamilton_module(comp
     lines = ["#include <stdio.h>", *(f'#include "{prefix}.h"' for _, prefix, _, _ in cases), "", "int main(void)", "{", "    int j;"]
     for i, (_, prefix, model, points) in enumerate(cases):
         n, np_ = model.n, max(1, len(model.parameters))
+        u = ", u" if model.inputs else ""
         for k, point in enumerate(points):
             lagrange_state = [*point.y[:n], *point.velocities]
             lines += [
@@ -466,15 +485,16 @@ def test_hamilton_headers_compile_and_agree_with_the_python_hamilton_module(comp
                 f"        const double y[{2 * n}] = {literal(point.y)};",
                 f"        const double s[{2 * n}] = {literal(lagrange_state)};",
                 f"        const double p[{np_}] = {literal([point.p[q.name] for q in model.parameters])};",
+                *([f"        const double u[{len(model.inputs)}] = {literal(list(point.u.values()))};"] if model.inputs else []),
                 f"        double d[{2 * n}], v[{n}], m[{n}];",
-                f"        const int status = {prefix}_rhs({point.t!r}, y, p, d);",
-                f"        {prefix}_velocities({point.t!r}, y, p, v);",
-                f"        {prefix}_momenta({point.t!r}, s, p, m);",
+                f"        const int status = {prefix}_rhs({point.t!r}, y, p{u}, d);",
+                f"        {prefix}_velocities({point.t!r}, y, p{u}, v);",
+                f"        {prefix}_momenta({point.t!r}, s, p{u}, m);",
                 f'        printf("{i} {k} %d", status);',
                 f'        for (j = 0; j < {2 * n}; ++j) printf(" %.17g", d[j]);',
                 f'        for (j = 0; j < {n}; ++j) printf(" %.17g", v[j]);',
                 f'        for (j = 0; j < {n}; ++j) printf(" %.17g", m[j]);',
-                f'        printf(" %.17g\\n", {prefix}_hamiltonian({point.t!r}, y, p));',
+                f'        printf(" %.17g\\n", {prefix}_hamiltonian({point.t!r}, y, p{u}));',
                 "    }",
             ]
     (tmp_path / "harness.c").write_text("\n".join([*lines, "    return 0;", "}", ""]), encoding="ascii")

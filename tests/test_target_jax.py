@@ -39,18 +39,26 @@ def modules(model: Model, folder: Path) -> tuple[ModuleType, ModuleType]:
     return load_module(python.emit(model), folder / "reference.py"), load_module(jax_target.emit(model), folder / "target.py")
 
 
-def call_python(function: Callable[..., Any], t: float, *args: Any) -> Any:
-    """Call a Python-module function, which takes `t` only when it depends on time."""
-    return function(t, *args) if "t" in inspect.signature(function).parameters else function(*args)
+def call_python(function: Callable[..., Any], t: float, *args: Any, u: Any = None) -> Any:
+    """Call a Python-module function, which takes `t` only when it depends on time (and `u` only when it depends on an input)."""
+    given = {"u": u} if u is not None and "u" in inspect.signature(function).parameters else {}
+    return function(t, *args, **given) if "t" in inspect.signature(function).parameters else function(*args, **given)
+
+
+def with_u(function: Callable[..., Any], *args: Any, u: Any = None) -> Any:
+    """Call a generated function with `u` when it takes inputs (and `u` is given)."""
+    return function(*args, u=u) if u is not None and "u" in inspect.signature(function).parameters else function(*args)
+
+
+def random_inputs(model: Model, seed: int) -> dict[str, float] | None:
+    """Random values for the model's inputs (None without inputs)."""
+    rng = random.Random(1000 + seed)
+    return {i.name: rng.uniform(-2.0, 2.0) for i in model.inputs} or None
 
 
 @pytest.mark.parametrize("path", SYSTEMS, ids=lambda p: p.stem)
 def test_every_bundled_system_agrees_with_the_python_module(path: Path, tmp_path: Path) -> None:
     model = model_from(path)
-    if model.inputs:  # the README's refusal: the JAX module does not take inputs yet
-        with pytest.raises(DerivationError, match="does not take inputs yet"):
-            jax_target.emit(model)
-        return
     try:
         python.emit(model)
     except DerivationError:
@@ -66,17 +74,20 @@ def test_every_bundled_system_agrees_with_the_python_module(path: Path, tmp_path
         p = {parameter.name: point[parameter.symbol] for parameter in model.parameters}
         y = [point[s] for s in (*model.q, *model.qd)]
         t = point[model.t]
-        expected = np.asarray(reference.rhs(t, y, p), dtype=float)
-        got = target.rhs(t, jnp.asarray(y), p)
+        u = random_inputs(model, seed)
+        expected = np.asarray(with_u(reference.rhs, t, y, p, u=u), dtype=float)
+        got = with_u(target.rhs, t, jnp.asarray(y), p, u=u)
         assert got.dtype == jnp.float64 and got.shape == (2 * n,)
         np.testing.assert_allclose(np.asarray(got), expected, rtol=1e-10, atol=1e-12)
         vector = target.default_parameters() if all(v.value is not None for v in model.parameters) else None
         if vector is not None and all(p[name] == value for name, value in target.PARAMETERS.items()):
-            np.testing.assert_allclose(np.asarray(target.rhs(t, y, vector)), expected, rtol=1e-10, atol=1e-12)
+            np.testing.assert_allclose(np.asarray(with_u(target.rhs, t, y, vector, u=u)), expected, rtol=1e-10, atol=1e-12)
         q, qd = y[:n], y[n:]
-        np.testing.assert_allclose(np.asarray(target.mass_matrix(t, q, p)), np.asarray(call_python(reference.mass_matrix, t, q, p), dtype=float), rtol=1e-10, atol=1e-12)
-        np.testing.assert_allclose(np.asarray(target.forcing(t, q, qd, p)), np.asarray(call_python(reference.forcing, t, q, qd, p), dtype=float), rtol=1e-10, atol=1e-12)
-        assert float(target.energy(t, q, qd, p)) == pytest.approx(call_python(reference.energy, t, q, qd, p), rel=1e-10, abs=1e-12)
+        np.testing.assert_allclose(np.asarray(with_u(target.mass_matrix, t, q, p, u=u)), np.asarray(call_python(reference.mass_matrix, t, q, p, u=u), dtype=float), rtol=1e-10, atol=1e-12)
+        np.testing.assert_allclose(np.asarray(with_u(target.forcing, t, q, qd, p, u=u)), np.asarray(call_python(reference.forcing, t, q, qd, p, u=u), dtype=float), rtol=1e-10, atol=1e-12)
+        assert float(with_u(target.energy, t, q, qd, p, u=u)) == pytest.approx(call_python(reference.energy, t, q, qd, p, u=u), rel=1e-10, abs=1e-12)
+        if model.outputs:
+            np.testing.assert_allclose(np.asarray(with_u(target.outputs, t, y, p, u=u)), np.asarray(call_python(reference.outputs, t, y, p, u=u), dtype=float), rtol=1e-10, atol=1e-12)
         if model.constraints:
             np.testing.assert_allclose(np.asarray(target.multipliers(t, y, p)), np.asarray(reference.multipliers(t, y, p), dtype=float), rtol=1e-9, atol=1e-12)
             np.testing.assert_allclose(np.asarray(target.constraint_residuals(t, q, qd, p)), np.asarray(reference.constraint_residuals(q, qd, p), dtype=float), rtol=1e-10, atol=1e-12)
@@ -93,6 +104,67 @@ def test_p_is_optional_a_dict_by_name_or_an_array(tmp_path: Path) -> None:
     np.testing.assert_allclose(np.asarray(target.rhs(0.0, y, {"g": 3.5})), np.asarray(reference.rhs(0.0, y, changed), dtype=float), rtol=1e-12)
     with pytest.raises(KeyError):
         load_module(jax_target.emit(model_of("coordinates: [x]\nparameters: [k]\nkinetic: x_dot**2/2\npotential: k*x**2\n")), tmp_path / "nodefault.py").rhs(0.0, [1.0, 0.0])
+
+
+INPUT_SYSTEMS = ["cart_pole_state_space", "quadrotor", "arm_3dof"]
+"""The bundled systems with inputs (and outputs)."""
+
+
+@pytest.mark.parametrize("stem", INPUT_SYSTEMS)
+def test_inputs_are_u_after_p_as_none_a_dict_or_an_array(stem: str, tmp_path: Path) -> None:
+    """u after p on every function that depends on an input, as the Python module's `u=INPUTS`: at random
+    states and random inputs the JAX module agrees with it for u a dict, a partial dict, an array and None
+    (the defaults); jax.jit and jax.vmap over inputs, and jax.grad of rhs with respect to u agrees with
+    central differences of the Python module."""
+    model = model_from(ROOT / "systems" / f"{stem}.yaml")
+    reference, target = modules(model, tmp_path)
+    names = [i.name for i in model.inputs]
+    assert tuple(names) == target.INPUT_NAMES and target.INPUTS == reference.INPUTS and len(names) == target.NU
+    np.testing.assert_allclose(np.asarray(target.default_inputs()), [reference.INPUTS[k] for k in names])
+    assert "u" in inspect.signature(target.rhs).parameters and "u" not in inspect.signature(target.mass_matrix).parameters
+    assert list(inspect.signature(target.outputs).parameters) == ["t", "y", "p", "u"]
+    n = model.n
+    for seed in range(2):
+        point = random_point(model, seed)
+        p = {parameter.name: point[parameter.symbol] for parameter in model.parameters}
+        y = [point[s] for s in (*model.q, *model.qd)]
+        t = point[model.t]
+        u = random_inputs(model, seed)
+        assert u is not None
+        expected = np.asarray(reference.rhs(t, y, p, u), dtype=float)
+        assert not np.allclose(expected, np.asarray(reference.rhs(t, y, p), dtype=float))  # the inputs matter
+        for given in (u, [u[k] for k in names], jnp.asarray([u[k] for k in names])):
+            np.testing.assert_allclose(np.asarray(target.rhs(t, y, p, given)), expected, rtol=1e-10, atol=1e-12)
+            np.testing.assert_allclose(np.asarray(target.outputs(t, y, p, given)), np.asarray(reference.outputs(t, y, p, u), dtype=float), rtol=1e-10, atol=1e-12)
+        partial = {names[0]: u[names[0]]}
+        np.testing.assert_allclose(np.asarray(target.rhs(t, y, p, partial)), np.asarray(reference.rhs(t, y, p, {**reference.INPUTS, **partial}), dtype=float), rtol=1e-10, atol=1e-12)
+        np.testing.assert_allclose(np.asarray(target.rhs(t, y, p)), np.asarray(reference.rhs(t, y, p), dtype=float), rtol=1e-10, atol=1e-12)
+        np.testing.assert_allclose(np.asarray(target.forcing(t, y[:n], y[n:], p, u)), np.asarray(call_python(reference.forcing, t, y[:n], y[n:], p, u=u), dtype=float), rtol=1e-10, atol=1e-12)
+    # jit and vmap over a batch of inputs; grad with respect to u
+    rng = np.random.default_rng(7)
+    batch = rng.uniform(-2.0, 2.0, size=(50, len(names)))
+    y0 = jnp.asarray([0.3] * n + [0.1] * n)
+    fast = jax.jit(jax.vmap(lambda uu: target.rhs(0.0, y0, None, uu)))(jnp.asarray(batch))
+    loop = np.asarray([reference.rhs(0.0, y0.tolist(), reference.PARAMETERS, dict(zip(names, row.tolist(), strict=True))) for row in batch], dtype=float)
+    np.testing.assert_allclose(np.asarray(fast), loop, rtol=1e-10, atol=1e-12)
+    u0 = jnp.asarray(batch[0])
+    jacobian = np.asarray(jax.jacobian(lambda uu: target.rhs(0.0, y0, None, uu))(u0))
+    step = 1e-6
+    for k, name in enumerate(names):
+        plus = dict(zip(names, batch[0].tolist(), strict=True))
+        minus = dict(plus)
+        plus[name] += step
+        minus[name] -= step
+        difference = (np.asarray(reference.rhs(0.0, y0.tolist(), reference.PARAMETERS, plus), dtype=float) - np.asarray(reference.rhs(0.0, y0.tolist(), reference.PARAMETERS, minus), dtype=float)) / (
+            2 * step
+        )
+        np.testing.assert_allclose(jacobian[:, k], difference, rtol=1e-6, atol=1e-7)
+
+
+def test_a_file_without_inputs_reserves_no_input_names() -> None:
+    """`u`, `INPUTS` and `outputs` stay the user's names in a file without inputs or outputs (its module is what it was)."""
+    code = jax_target.emit(model_of("coordinates: [u]\nparameters: {INPUTS: 2.0}\nkinetic: u_dot**2/2\npotential: INPUTS*u**2/2\n"))
+    assert "u = jnp.asarray" not in code and "INPUT_NAMES" not in code and "_inputs" not in code and "u, = q[0]," in code
 
 
 # -- jit, vmap, grad ------------------------------------------------------------------------------------
@@ -273,6 +345,7 @@ def test_a_diagonal_mass_matrix_costs_one_division_per_coordinate() -> None:
 HAMILTON_SYSTEMS = [
     *("double_pendulum", "kepler", "chain_3", "charged_particle_magnetic", "damped_oscillator_rayleigh", "kapitza_pendulum"),
     *("heavy_top", "rotating_hoop_bead", "cart_pole", "rolling_coin", "central_potential"),
+    *INPUT_SYSTEMS,
 ]
 """A velocity-dependent b, dissipation, time dependence, a 3 x 3 M, and refusals (kept constraints, an
 undefined function); tests/test_target_c.py and test_target_octave.py take every bundled system."""
@@ -300,20 +373,25 @@ def test_hamilton_agrees_with_the_python_hamilton_module_and_the_lagrange_form(s
         point = random_point(model, seed)
         p = {parameter.name: point[parameter.symbol] for parameter in model.parameters}
         t = point[model.t]
+        u = random_inputs(model, seed)  # inputs: given values, u after p as in the Python module
         q, qd = [point[s] for s in model.q], [point[s] for s in model.qd]
-        momenta = np.asarray(target.momenta(t, q, qd, p))
-        np.testing.assert_allclose(momenta, np.asarray(reference.momenta(t, q, qd, p), dtype=float), rtol=1e-10, atol=1e-12)
+        momenta = np.asarray(with_u(target.momenta, t, q, qd, p, u=u))
+        np.testing.assert_allclose(momenta, np.asarray(with_u(reference.momenta, t, q, qd, p, u=u), dtype=float), rtol=1e-10, atol=1e-12)
         y = [*q, *momenta.tolist()]
-        expected = np.asarray(reference.rhs(t, y, p), dtype=float)
-        got = target.rhs(t, jnp.asarray(y), p)
+        expected = np.asarray(with_u(reference.rhs, t, y, p, u=u), dtype=float)
+        got = with_u(target.rhs, t, jnp.asarray(y), p, u=u)
         assert got.dtype == jnp.float64 and got.shape == (2 * n,)
         np.testing.assert_allclose(np.asarray(got), expected, rtol=1e-9, atol=1e-11)
-        np.testing.assert_allclose(np.asarray(target.velocities(t, y, p)), qd, rtol=1e-9, atol=1e-11)
-        assert float(target.hamiltonian(t, y, p)) == pytest.approx(reference.hamiltonian(t, y, p), rel=1e-9, abs=1e-11)
-        assert float(target.hamiltonian(t, y, p)) == pytest.approx(float(lagrange.energy(t, q, qd, p)), rel=1e-9, abs=1e-11)
+        if u is not None:
+            assert "u" in inspect.signature(target.rhs).parameters and not np.allclose(np.asarray(target.rhs(t, y, p)), expected)  # the inputs matter
+        np.testing.assert_allclose(np.asarray(with_u(target.velocities, t, y, p, u=u)), qd, rtol=1e-9, atol=1e-11)
+        assert float(with_u(target.hamiltonian, t, y, p, u=u)) == pytest.approx(with_u(reference.hamiltonian, t, y, p, u=u), rel=1e-9, abs=1e-11)
+        assert float(with_u(target.hamiltonian, t, y, p, u=u)) == pytest.approx(float(with_u(lagrange.energy, t, q, qd, p, u=u)), rel=1e-9, abs=1e-11)
         # Hamilton's equations against the Lagrange form: p_dot = d/dt momenta(t, q(t), q_dot(t))
-        qdd = np.asarray(lagrange.rhs(t, jnp.asarray([*q, *qd]), p))[n:]
-        _, rate = jax.jvp(lambda tt, qq, vv, p=p: target.momenta(tt, qq, vv, p), (jnp.asarray(t), jnp.asarray(q), jnp.asarray(qd)), (jnp.asarray(1.0), jnp.asarray(qd), jnp.asarray(qdd)))
+        qdd = np.asarray(with_u(lagrange.rhs, t, jnp.asarray([*q, *qd]), p, u=u))[n:]
+        _, rate = jax.jvp(
+            lambda tt, qq, vv, p=p, u=u: with_u(target.momenta, tt, qq, vv, p, u=u), (jnp.asarray(t), jnp.asarray(q), jnp.asarray(qd)), (jnp.asarray(1.0), jnp.asarray(qd), jnp.asarray(qdd))
+        )
         np.testing.assert_allclose(np.asarray(got)[n:], np.asarray(rate), rtol=1e-8, atol=1e-10)
 
 

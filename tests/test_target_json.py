@@ -4,6 +4,7 @@ own parser into the model's expression, LaTeX strings that pdflatex compiles, an
 from __future__ import annotations
 
 import dataclasses
+import inspect
 import json
 import random
 import shutil
@@ -53,7 +54,7 @@ class Reader:
 
     def __init__(self, data: dict[str, Any]) -> None:
         self.time = sp.Symbol(data["time"]["name"])
-        names = [c["name"] for c in data["coordinates"]] + [c["velocity"] for c in data["coordinates"]] + [p["name"] for p in data["parameters"]]
+        names = [c["name"] for c in data["coordinates"]] + [c["velocity"] for c in data["coordinates"]] + [p["name"] for p in data["parameters"]] + [i["name"] for i in data.get("inputs", [])]
         self.symbols = {name: sp.Symbol(name) for name in names}
         self.functions = {f["name"]: sp.Function(f["name"]) for f in data["functions"]}
         self.parameters = {p["name"]: sp.Symbol(p["name"]) for p in data["parameters"]}
@@ -75,14 +76,10 @@ def same(parsed: sp.Expr, original: sp.Expr) -> bool:
 
 @pytest.mark.parametrize("path", SYSTEMS, ids=lambda p: p.stem)
 def test_every_bundled_system_is_valid_and_reads_back_into_the_same_model(path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    for limit in ("MAX_LENGTH", "MAX_NODES"):  # a spatial body's unexpanded forcing is longer than a system file's expression may be
-        monkeypatch.setattr(f"lagrange_cli.expr.{limit}", 10**6)
     model = model_from(path)
-    if model.inputs:  # the JSON model does not take inputs yet: refused with the README's message
-        with pytest.raises(DerivationError, match="the JSON model does not take inputs yet"):
-            jsonmodel.emit(model)
-        return
     data = document(model)
+    for limit in ("MAX_LENGTH", "MAX_NODES"):  # derived expressions (a rolling disk's F) may be longer than a file's own may be
+        monkeypatch.setattr(f"lagrange_cli.expr.{limit}", 10**6)
     VALIDATOR.validate(data)
     reader = Reader(data)
     n = model.n
@@ -99,6 +96,10 @@ def test_every_bundled_system_is_valid_and_reads_back_into_the_same_model(path: 
         pairs += [(row["residual"], constraint.expr), (row["b"], constraint.bias), (row["c"], constraint.acceleration_bias)]
         pairs += list(zip(row["A"], constraint.jacobian, strict=True))
     pairs += [(item["expression"], expr) for item, (_, expr) in zip(data["eliminated"], model.eliminated, strict=True)]
+    assert [(i["name"], i["default"], i["description"]) for i in data.get("inputs", [])] == [(i.name, i.value, i.description) for i in model.inputs]
+    assert ("inputs" in data) == bool(model.inputs) and ("outputs" in data) == bool(model.outputs)
+    assert [o["name"] for o in data.get("outputs", [])] == [name for name, _ in model.outputs]
+    pairs += [(item["expression"], expr) for item, (_, expr) in zip(data.get("outputs", []), model.outputs, strict=True)]
     for expression, original in pairs:
         assert same(reader.read(expression), original), (expression["text"], original)
     for function in data["functions"]:
@@ -175,8 +176,7 @@ def test_every_latex_string_compiles_in_pdflatex(tmp_path: Path) -> None:
         except Exception:  # a hostile file that is refused before it has a model
             assert path in HOSTILE_FILES
             continue
-        if not model.inputs:  # the README's refusal: the JSON model does not take inputs yet
-            strings += latex_strings(document(model))
+        strings += latex_strings(document(model))
     assert len(strings) > 500
     body = "\n".join(f"\\noindent$\\displaystyle {s}$\\par" for s in dict.fromkeys(strings))
     (tmp_path / "all.tex").write_text("\\documentclass{article}\n\\usepackage{amsmath}\n\\begin{document}\n" + body + "\n\\end{document}\n")
@@ -216,8 +216,38 @@ def test_hostile_files_give_valid_documents(path: Path) -> None:
 
 def test_every_key_of_the_schema_is_documented() -> None:
     documentation = (ROOT / "docs" / "json.md").read_text()
-    for key in SCHEMA["required"]:
+    for key in [*SCHEMA["required"], *SCHEMA["properties"]]:
         assert f"`{key}`" in documentation, key
+
+
+def test_inputs_and_outputs_read_back_and_evaluate_as_the_python_module(tmp_path: Path) -> None:
+    """A file with inputs: the document lists them (name, default, description) and the outputs (name, expression);
+    F and the outputs read back from the document equal the Python module's `forcing` and `outputs` at random
+    states and random inputs. A file without them has neither key."""
+    from lagrange_cli.emit import python
+
+    from .helpers import load_module
+
+    model = model_from(ROOT / "systems" / "quadrotor.yaml")
+    data = document(model)
+    VALIDATOR.validate(data)
+    assert [i["name"] for i in data["inputs"]] == [i.name for i in model.inputs] and all(i["description"] for i in data["inputs"])
+    reference = load_module(python.emit(model), tmp_path / "reference.py")
+    reader = Reader(data)
+    rng = random.Random(3)
+    for _ in range(2):
+        q = [rng.uniform(0.2, 1.3) for _ in model.q]
+        qd = [rng.uniform(-1.0, 1.0) for _ in model.qd]
+        u = {i.name: rng.uniform(-2.0, 2.0) for i in model.inputs}
+        p = dict(reference.PARAMETERS)
+        point = {sp.Symbol(k): v for k, v in (*zip(model.coordinates, q, strict=True), *zip(map(str, model.qd), qd, strict=True), *p.items(), *u.items())} | {reader.time: 0.0}
+        got = [float(reader.read(e["expression"]).xreplace(point)) for e in data["outputs"]]
+        assert got == pytest.approx([float(v) for v in reference.outputs(0.0, [*q, *qd], p, u)], rel=1e-12, abs=1e-12)
+        forcing = [float(reader.read(e).xreplace(point)) for e in data["forcing"]]
+        expected = reference.forcing(*([0.0] if "t" in inspect.signature(reference.forcing).parameters else []), q, qd, p, u)
+        assert forcing == pytest.approx([float(v) for v in expected], rel=1e-10, abs=1e-12)
+    plain = document(model_from(ROOT / "systems" / "double_pendulum.yaml"))
+    assert "inputs" not in plain and "outputs" not in plain
 
 
 # -- --form hamilton ------------------------------------------------------------------------------------
@@ -232,10 +262,6 @@ def test_hamilton_documents_are_valid_and_read_back(path: Path, monkeypatch: pyt
     from lagrange_cli.hamilton import hamilton, rates_in_velocities
 
     model = model_from(path)
-    if model.inputs:  # the README's refusal: the JSON model does not take inputs yet
-        with pytest.raises(LagrangeError, match="does not take inputs yet"):
-            jsonmodel.emit_hamilton(model)
-        return
     try:
         ham = hamilton(model)
     except LagrangeError:
@@ -266,7 +292,7 @@ def test_hamilton_documents_are_valid_and_read_back(path: Path, monkeypatch: pyt
     undefined = any(e.atoms(AppliedUndef) for e in rates_in_velocities(model))
     if ham.symbolic and not undefined:  # (a function left undefined has no value at a point)
         rng = random.Random(4)
-        point = {s: rng.uniform(0.5, 1.5) for s in [*model.q, *ham.p, *(p.symbol for p in model.parameters)]} | {model.t: 0.4}
+        point = {s: rng.uniform(0.5, 1.5) for s in [*model.q, *ham.p, *(p.symbol for p in model.parameters), *(i.symbol for i in model.inputs)]} | {model.t: 0.4}
         velocities = {v: float(e.xreplace(point)) for v, e in zip(model.qd, ham.velocities, strict=True)}
         for in_velocities, in_momenta in zip(section["rates"], section["momentum_rates"], strict=True):
             a = float(reader.read(in_velocities, momenta).xreplace(point | velocities))

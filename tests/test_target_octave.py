@@ -24,7 +24,7 @@ from lagrange_cli.model import Model
 
 from .conftest import ROOT
 from .helpers import model_from, model_of
-from .test_target_c import C_HOSTILE, HOSTILE, PENDULUM, Case, hamilton_cases, python_values, readme_block, states
+from .test_target_c import C_HOSTILE, HOSTILE, PENDULUM, Case, given_inputs, hamilton_cases, python_values, readme_block, states
 
 RTOL = 1e-9
 T_END = 2.0
@@ -32,7 +32,7 @@ ODE_TOL = 1e-6
 """ode45 (RelTol 1e-10, AbsTol 1e-12) and simulate (rtol 1e-10, atol 1e-12) agree this closely at T_END."""
 
 SYSTEMS = ["double_pendulum", "pendulum_multiplier", "rolling_disk_pendulum_multiplier", "kapitza_pendulum", "chain_3", "heavy_top", "knife_edge_incline"]
-FEATURES = sorted(p.stem for p in (ROOT / "tests" / "matrix").glob("*.yaml") if not p.stem.startswith(("functions_undefined", "inputs_")))  # inputs: tests/test_inputs.py
+FEATURES = sorted(p.stem for p in (ROOT / "tests" / "matrix").glob("*.yaml") if not p.stem.startswith("functions_undefined"))
 """Every feature of the matrix that code can express (undefined functions are refused, see test_an_undefined_function_is_refused)."""
 NAMES = """title: "MATLAB names: end, function, pi, e, i, sqrt, realpow, dydt, lambda, M, x as user names %{ ... '"
 coordinates: [x, end_, M]
@@ -91,9 +91,10 @@ def run(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
         (folder / f"{case.prefix}.m").write_text(octave.emit(case.model, name=case.prefix), encoding="ascii")
         for k, (t, y, p) in enumerate(case.states):
             values = [p[q.name] for q in case.model.parameters]
+            given = f", {matrix(list(given_inputs(case.model, t, y).values()), False)}" if case.model.inputs else ""  # as python_values gives the Python module
             script += [
                 "try",
-                f"  [d, h, lam] = {case.prefix}({t!r}, {matrix(y, True)}, {matrix(values, False)});",
+                f"  [d, h, lam] = {case.prefix}({t!r}, {matrix(y, True)}, {matrix(values, False)}{given});",
                 f"  printf('value {i} {k}'); printf(' %.17g', d); printf(' %.17g', lam); printf(' %.17g\\n', h);",
                 "catch err",
                 f"  printf('failed {i} {k} %s\\n', err.identifier);",
@@ -186,7 +187,7 @@ def test_the_file_is_a_matlab_function_file(run: dict[str, Any]) -> None:
     """The function is named as its file, blocks close with `end`, and file text stays in comments."""
     for case in cases():
         text = (run["folder"] / f"{case.prefix}.m").read_text()
-        assert text.startswith(f"function [dydt, h, lambda] = {case.prefix}(t, y, p)\n")
+        assert text.startswith(f"function [dydt, h, lambda] = {case.prefix}(t, y, p{', u' if case.model.inputs else ''})\n")
         assert all(ch == "\n" or " " <= ch <= "~" for ch in text), case.label
         code = [line for line in text.splitlines() if not line.lstrip().startswith("%")]
         opened = sum(1 for line in code if re.match(r"\s*(function|if|for|while|try)\b", line))
@@ -277,8 +278,9 @@ def test_hamilton_agrees_with_the_python_hamilton_module_and_the_lagrange_form(t
         (tmp_path / f"{prefix}.m").write_text(octave.emit_hamilton(model, name=prefix), encoding="ascii")
         for k, point in enumerate(points):
             values = [point.p[q.name] for q in model.parameters]
+            given = f", {matrix(list(point.u.values()), False)}" if model.inputs else ""
             script += [
-                f"[d, H, v] = {prefix}({point.t!r}, {matrix(point.y, True)}, {matrix(values, False)});",
+                f"[d, H, v] = {prefix}({point.t!r}, {matrix(point.y, True)}, {matrix(values, False)}{given});",
                 f"printf('value {len(cases)} {k}'); printf(' %.17g', d); printf(' %.17g', v); printf(' %.17g\\n', H);",
             ]
         cases.append((stem, model, points))

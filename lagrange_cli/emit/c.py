@@ -409,9 +409,6 @@ def emit_hamilton(model: Model, *, name: str = "eom") -> str:
     form), never by a symbolic inverse; `NAME_rhs` gives [q_dot, p_dot] with p_dot = dL/dq + Q - dR/dq_dot
     at that q_dot; `NAME_hamiltonian` H = p . q_dot - L; `NAME_momenta` maps [q, q_dot] to p."""
     from lagrange_cli.hamilton import hamilton
-    from lagrange_cli.inputs import refuse
-
-    refuse(model, "the C header of --form hamilton")
 
     if not re.fullmatch(r"[A-Za-z][A-Za-z0-9_]*", name):
         raise DerivationError(f"the C prefix '{printable(name)}' is not a C identifier")
@@ -430,6 +427,8 @@ class _HamiltonWriter(_Writer):
         self.lagrange_index = self.index
         self.index = {str(s): f"y[{i}]" for i, s in enumerate((*model.q, *momenta))}
         self.index |= {p.name: f"p[{i}]" for i, p in enumerate(model.parameters)}
+        self.index |= {i.name: f"u[{k}]" for k, i in enumerate(model.inputs)}  # inputs: given values, `const double *u` after p
+        self.given = "u, " if model.inputs else ""
         self.shifted = [to_symengine(m - b) for m, b in zip(momenta, bias, strict=True)]
         self.rates = [to_symengine(r) for r in rates]
         self.momentum_exprs = [to_symengine(sum((model.mass_matrix[i, j] * model.qd[j] for j in range(model.n)), b)) for i, b in enumerate(bias)]
@@ -477,14 +476,14 @@ class _HamiltonWriter(_Writer):
         n = self.model.n
         used: set[str] = set()
         lines, results = self.block([self.hamiltonian], used)
-        head = [f"double _v[{n}];", f"if ({self.prefix}_velocities(t, y, p, _v) == 1) return NAN;", *self.bind_velocities(lines, results, "_v")]
+        head = [f"double _v[{n}];", f"if ({self.prefix}_velocities(t, y, p, {self.given}_v) == 1) return NAN;", *self.bind_velocities(lines, results, "_v")]
         return self.function("double", "hamiltonian", "H = p . q_dot - L at y = [q, p] (NAN where M is singular).", [*head, *lines, f"return {results[0]};"], {str(self.model.t), *self.index}, out="")
 
     def rhs(self) -> str:
         n = self.model.n
         used: set[str] = set()
         lines, results = self.block(self.rates, used)
-        head = ["int _i;", f"double _v[{n}];", f"int _status = {self.prefix}_velocities(t, y, p, _v);", *self.bind_velocities(lines, results, "_v")]
+        head = ["int _i;", f"double _v[{n}];", f"int _status = {self.prefix}_velocities(t, y, p, {self.given}_v);", *self.bind_velocities(lines, results, "_v")]
         body = [*head, *lines]
         body += [f"dydt[{i}] = _v[{i}];" for i in range(n)]
         body += [f"dydt[{n + i}] = _status ? NAN : {r};" for i, r in enumerate(results)]
@@ -509,6 +508,10 @@ class _HamiltonWriter(_Writer):
                 lines.append(f"  p[{i}] = {p.name} ({default})")
         else:
             lines.append(f"No parameters ({self.upper}_NP = 0; p is not read).")
+        if model.inputs:
+            lines.append(f"Inputs u ({self.upper}_NU = {len(model.inputs)}, in the file's order, after p in every function; defaults in {self.prefix}_default_inputs):")
+            lines += [f"  u[{i}] = {u.name} (default {u.value!r})" for i, u in enumerate(model.inputs)]
+            lines.append("Hamilton's equations treat the inputs as given functions of time: pass their values at t.")
         if self.definitions:
             lines.append(
                 "Functions written out from their definitions in the file: " + "; ".join(f"{k}({', '.join(map(str, f.variables))}) = {f.expr}" for k, f in sorted(self.definitions.items())) + "."
@@ -518,7 +521,7 @@ class _HamiltonWriter(_Writer):
             lines.append("Names changed to C identifiers: " + ", ".join(f"{c} -> {v}" for c, v in names.items()) + ".")
         lines += [
             "",
-            f"int {self.prefix}_rhs(double t, const double *y, const double *p, double *dydt) returns 0 on success,",
+            f"int {self.prefix}_rhs(double t, const double *y, const double *p, {'const double *u, ' if self.signals else ''}double *dydt) returns 0 on success,",
             "1 when the mass matrix is singular at y, 2 when a result is not finite.",
         ]
         return "/*\n" + "\n".join((" * " + comment(line.rstrip())).rstrip() for line in lines) + "\n */"
@@ -533,6 +536,7 @@ class _HamiltonWriter(_Writer):
             f"#ifndef {guard}\n#define {guard}\n\n#include <math.h>",
             f"#define {self.upper}_NQ {n}\n#define {self.upper}_NP {np_}\n#define {self.upper}_NC 0",
             f"/* The parameters' defaults, in the file's order (see above). */\nstatic const double {self.prefix}_default_parameters[{max(np_, 1)}] = {{{defaults}}};",
+            *self.inputs_block(),
             SOLVE.replace("eom_", f"{self.prefix}_"),
             *([ldlt(self.prefix, n)] if n <= LDLT_SIZE else []),
             self.momenta_function(),

@@ -99,19 +99,19 @@ GENERATED = frozenset({"velocities", "hamiltonian", "momenta", "MOMENTA", "y_dot
 
 def python(model: Model, numba: bool = False) -> str:
     """A module with COORDINATES, MOMENTA, PARAMETERS, momenta(q, q_dot), velocities(y),
-    hamiltonian(y) and rhs(t, y, p) for y = [q..., p...]."""
+    hamiltonian(y) and rhs(t, y, p) for y = [q..., p...]; with inputs also INPUTS, and `u=INPUTS`
+    after p on every function whose result depends on an input (as the Lagrange module)."""
     from lagrange_cli.emit.python import RESERVED, PythonPrinter, define, docstring, literal, mangle
 
     if numba:
         raise fail(None, "--numba is not available with --form hamilton", "--python --form hamilton without --numba")
-    from lagrange_cli.inputs import refuse
-
-    refuse(model, "the Python module of --form hamilton")
     require_defined(model, "Python code")
     numeric = model.with_definitions()
     ham = hamilton(numeric)
-    symbols = [*numeric.q, *numeric.qd, *(p.symbol for p in numeric.parameters), *ham.p]
-    names = mangle([str(s) for s in symbols], RESERVED | GENERATED)
+    symbols = [*numeric.q, *numeric.qd, *(p.symbol for p in numeric.parameters), *(i.symbol for i in numeric.inputs), *ham.p]
+    signals = frozenset({"u", "INPUTS"}) if numeric.inputs else frozenset()  # only then: a file without inputs keeps its names
+    names = mangle([str(s) for s in symbols], RESERVED | GENERATED | signals)
+    inputs = {i.name for i in numeric.inputs}
     names[str(numeric.t)] = "t"
     used_math: set[str] = set()
     uses_numpy = False
@@ -124,8 +124,13 @@ def python(model: Model, numba: bool = False) -> str:
         free = {str(s) for e in converted for s in e.free_symbols}
         return [f"{name} = {code}" for name, code in temporaries], results, free
 
+    def signature(free: set[str], state: str = "y") -> str:
+        """`t, <state>, p=PARAMETERS`, then `u=INPUTS` when the function uses an input (as the Lagrange module)."""
+        return f"t, {state}, p=PARAMETERS" + (", u=INPUTS" if free & inputs else "")
+
     def unpack(free: set[str], state: Sequence[sp.Symbol], source: str) -> list[str]:
         lines = [f"{names[p.name]} = p[{literal(p.name)}]" for p in numeric.parameters if p.name in free]
+        lines += [f"{names[i.name]} = u[{literal(i.name)}]" for i in numeric.inputs if i.name in free]
         targets = [names[str(s)] if str(s) in free else "_" for s in state]
         if any(t != "_" for t in targets):
             lines.append(f"{', '.join(targets)}{',' * (len(targets) == 1)} = {source}")
@@ -137,18 +142,19 @@ def python(model: Model, numba: bool = False) -> str:
     # momenta(q, q_dot): p = M q_dot + b, to map a state (q, q_dot) to (q, p)
     momenta_exprs = [sum((ham.mass[i, j] * numeric.qd[j] for j in range(n)), ham.bias[i]) for i in range(n)]
     lines, results, free = block(momenta_exprs, "_c", set())
-    body = unpack(free, numeric.q, "q") + unpack(free - {p.name for p in numeric.parameters}, numeric.qd, "q_dot") + lines + ["return [" + ", ".join(results) + "]"]
-    functions.append(define("momenta", "t, q, q_dot, p=PARAMETERS", "The momenta p = dL/dq_dot = M q_dot + b of the state (q, q_dot): the map to this module's state.", body))
+    body = unpack(free, numeric.q, "q") + unpack(free - {p.name for p in numeric.parameters} - inputs, numeric.qd, "q_dot") + lines + ["return [" + ", ".join(results) + "]"]
+    functions.append(define("momenta", signature(free, "q, q_dot"), "The momenta p = dL/dq_dot = M q_dot + b of the state (q, q_dot): the map to this module's state.", body))
     if ham.symbolic:
         assert ham.hamiltonian is not None
         lines, results, free = block(ham.velocities, "_c", set())
         body = unpack(free, ham.state, y_source) + lines + ["return [" + ", ".join(results) + "]"]
-        functions.append(define("velocities", "t, y, p=PARAMETERS", "q_dot = dH/dp at y = [q..., p...].", body))
+        functions.append(define("velocities", signature(free), "q_dot = dH/dp at y = [q..., p...].", body))
         lines, results, free = block([ham.hamiltonian], "_c", set())
         body = unpack(free, ham.state, y_source) + lines + [f"return {results[0]}"]
-        functions.append(define("hamiltonian", "t, y, p=PARAMETERS", "H(q, p) at y = [q..., p...].", body))
+        functions.append(define("hamiltonian", signature(free), "H(q, p) at y = [q..., p...].", body))
         lines, results, free = block([*ham.velocities, *ham.rates], "_c", set())
         body = unpack(free, ham.state, y_source) + lines + ["return [" + ", ".join(results) + "]"]
+        rhs_free = free
     else:
         uses_numpy = True
         matrix = [ham.mass[i, j] for i in range(n) for j in range(n)]
@@ -164,11 +170,12 @@ def python(model: Model, numba: bool = False) -> str:
         solve = f"_v = numpy.linalg.solve(numpy.array({rows}, dtype=float), numpy.array({vector}, dtype=float)).tolist()"
         bind = f"{', '.join(names[str(v)] for v in numeric.qd)}{',' * (n == 1)} = _v"
         head = unpack(everything, ham.state, y_source) + lines + [solve]
-        functions.append(define("velocities", "t, y, p=PARAMETERS", "q_dot = M^-1 (p - b), solved numerically, at y = [q..., p...].", [*head, "return _v"]))
+        functions.append(define("velocities", signature(everything), "q_dot = M^-1 (p - b), solved numerically, at y = [q..., p...].", [*head, "return _v"]))
         body = [*head, bind, *h_lines, f"return {h_results[0]}"]
-        functions.append(define("hamiltonian", "t, y, p=PARAMETERS", "H = p . q_dot - L at y = [q..., p...], q_dot solved numerically.", body))
+        functions.append(define("hamiltonian", signature(everything), "H = p . q_dot - L at y = [q..., p...], q_dot solved numerically.", body))
         body = [*head, bind, *r_lines, "return [*_v, " + ", ".join(r_results) + "]"]
-    functions.append(define("rhs", "t, y, p=PARAMETERS", f"dy/dt = [dH/dp, -dH/dq + Q] for y = [{', '.join(map(str, ham.state))}] (for scipy.integrate.solve_ivp).", body))
+        rhs_free = everything
+    functions.append(define("rhs", signature(rhs_free), f"dy/dt = [dH/dp, -dH/dq + Q] for y = [{', '.join(map(str, ham.state))}] (for scipy.integrate.solve_ivp).", body))
     parameters = ", ".join(f"{literal(p.name)}: {float(p.value)!r}" for p in model.parameters if p.value is not None)
     header = [
         f"{model.title}: Hamilton's equations generated by lagrange {__version__} from {Path(model.source).name}.",
@@ -184,6 +191,9 @@ def python(model: Model, numba: bool = False) -> str:
     missing = [p.name for p in model.parameters if p.value is None]
     if missing:
         header.append(f"Parameters without a default, to be given in p: {', '.join(missing)}.")
+    if model.inputs:
+        header.append(f"Inputs u = [{', '.join(i.name for i in model.inputs)}] are given values at time t (Hamilton's equations treat them as given functions of time):")
+        header.append("every function whose result depends on one takes u=INPUTS (a dict by name, the defaults in INPUTS) after p.")
     imports = []
     math_names = sorted(used_math)
     if math_names:
@@ -194,4 +204,6 @@ def python(model: Model, numba: bool = False) -> str:
     coordinates = ", ".join(literal(c) for c in model.coordinates)
     momenta_names = ", ".join(literal(str(p)) for p in ham.p)
     parts.append(f"COORDINATES = ({coordinates}{',' * (n == 1)})\nMOMENTA = ({momenta_names}{',' * (n == 1)})\nPARAMETERS = {{{parameters}}}")
+    if model.inputs:
+        parts[-1] += "\nINPUTS = {" + ", ".join(f"{literal(i.name)}: {float(i.value)!r}" for i in model.inputs) + "}"
     return "\n\n".join(parts) + "\n\n\n" + "\n\n\n".join(functions) + "\n"

@@ -12,6 +12,11 @@ elementwise operations over the batch, and by `jnp.linalg.solve` above. `emit_ha
 Hamilton's equations (`derive --to jax --form hamilton`). `p` is optional everywhere: None means the file's
 defaults, a dict gives values by name (missing ones take their defaults), and an array gives
 them all in PARAMETER_NAMES order (what `jax.grad` with respect to the parameters takes).
+A file with `inputs` gives INPUT_NAMES, INPUTS (defaults), NU and `default_inputs()`, and every function
+whose result depends on an input takes `u=None` after `p`, read as `p` is: None for the defaults, a dict by
+name, or an array in INPUT_NAMES order (so `jax.jit`, `jax.vmap` and `jax.grad` apply with respect to u
+too); a file with `outputs` gives `outputs(t, y, p, u)`, an array in the file's order. A file without
+either generates what it did (the names `u`, `INPUTS`, ... are reserved only then).
 
 Float64 is the user's choice, stated in the generated docstring: JAX computes in float32 unless
 `jax.config.update("jax_enable_x64", True)` runs first; the module never changes that setting.
@@ -74,9 +79,6 @@ class JaxPrinter(Printer):
 def emit(model: Model, *, name: str = "eom") -> str:
     """The module's source (`name` is not used: a module is named by its file). The file's function
     definitions are written out (`Model.with_definitions`); undefined functions are refused."""
-    from lagrange_cli.inputs import refuse
-
-    refuse(model, "JAX code")
     definitions = model.definitions
     require_defined(model, "JAX code")
     model = model.with_definitions()
@@ -84,10 +86,21 @@ def emit(model: Model, *, name: str = "eom") -> str:
     return _Writer(model, definitions).module()
 
 
-def jax_names(model: Model) -> dict[str, str]:
-    """Identifiers for the coordinates, velocities and parameters (`mangle` against `RESERVED`), and `t`."""
-    symbols = [str(s) for s in (*model.q, *model.qd, *(p.symbol for p in model.parameters))]
-    return {**mangle(symbols, RESERVED), str(model.t): "t"}
+INPUT_GENERATED = frozenset({"u", "INPUT_NAMES", "INPUTS", "NU", "default_inputs", "outputs"})
+"""The names a module of a file with inputs or outputs also uses or defines (reserved only then: a file
+without them keeps its names and its module byte for byte)."""
+
+
+def jax_names(model: Model, extra: Sequence[str] = (), reserved: frozenset[str] = frozenset()) -> dict[str, str]:
+    """Identifiers for the coordinates, velocities, parameters and inputs (`mangle` against `RESERVED`), and `t`."""
+    symbols = [str(s) for s in (*model.q, *model.qd, *(p.symbol for p in model.parameters), *(i.symbol for i in model.inputs))] + list(extra)
+    signals = INPUT_GENERATED if model.inputs or model.outputs else frozenset()
+    return {**mangle(symbols, RESERVED | reserved | signals), str(model.t): "t"}
+
+
+def _free_names(exprs: Sequence[Any]) -> set[str]:
+    """The names of the free symbols of symengine expressions."""
+    return {str(s) for e in exprs for s in getattr(e, "free_symbols", ())}
 
 
 class _Writer:
@@ -95,6 +108,7 @@ class _Writer:
         self.model = model
         self.definitions = definitions
         self.names = jax_names(model)
+        self.signals = frozenset(i.name for i in model.inputs)
         n = model.n
         self.upper = [(i, j) for i in range(n) for j in range(i, n)]
         forms = model.symengine
@@ -108,13 +122,30 @@ class _Writer:
     def printer(self) -> JaxPrinter:
         return JaxPrinter(self.names)
 
-    def unpack(self, state: str) -> list[str]:
-        """Lines binding the parameters and the state (`y`, or `q` and `q_dot`) to the user's names."""
+    def uses_inputs(self, exprs: Sequence[Any]) -> bool:
+        """Whether `exprs` (symengine) hold an input: then their function takes `u=None` after `p`."""
+        return bool(self.signals and self.signals & _free_names(exprs))
+
+    def arguments(self, state: str, exprs: Sequence[Any]) -> str:
+        """`t, <state>, p=None`, and `u=None` when `exprs` hold an input."""
+        return f"t, {', '.join(state.split(','))}, p=None" + (", u=None" if self.uses_inputs(exprs) else "")
+
+    def unpack_parameters(self, inputs: bool = False) -> list[str]:
+        """Lines binding the parameters (and, when `inputs`, the inputs) to the user's names."""
         model = self.model
         lines = []
         if model.parameters:
             targets = [self.names[p.name] for p in model.parameters]
             lines.append(f"{', '.join(targets)}{',' * (len(targets) == 1)} = _parameters(p)")
+        if inputs and model.inputs:
+            targets = [self.names[i.name] for i in model.inputs]
+            lines.append(f"{', '.join(targets)}{',' * (len(targets) == 1)} = _inputs(u)")
+        return lines
+
+    def unpack(self, state: str, inputs: bool = False) -> list[str]:
+        """Lines binding the parameters (the inputs too when `inputs`) and the state (`y`, or `q` and `q_dot`) to the user's names."""
+        model = self.model
+        lines = self.unpack_parameters(inputs)
         groups = [("y", [*model.q, *model.qd])] if state == "y" else [(g, v) for g, v in (("q", model.q), ("q_dot", model.qd)) if g in state.split(",")]
         for group, variables in groups:
             lines.append(f"{group} = jnp.asarray({group})")
@@ -138,7 +169,7 @@ class _Writer:
 
     def function(self, name: str, doc: str, exprs: Sequence[Any], state: str, shape: str) -> str:
         lines, results = self.block(exprs)
-        body = [*self.unpack(state), *lines]
+        body = [*self.unpack(state, self.uses_inputs(exprs)), *lines]
         if shape == "matrix":
             n = self.model.n
             cell = dict(zip(self.upper, results, strict=True))
@@ -147,17 +178,18 @@ class _Writer:
             body.append("return _array([" + ", ".join(results) + "])")
         else:
             body.append(f"return _array({results[0]})")
-        return define(name, f"t, {', '.join(state.split(','))}, p=None", doc, body)
+        return define(name, self.arguments(state, exprs), doc, body)
 
     def accelerations(self) -> list[str]:
         """The body lines computing `_x`, the solution of the (augmented) linear system."""
         n, k = self.model.n, len(self.model.constraints)
-        lines, results = self.block([*self.mass, *self.forcing, *self.jacobian, *self.bias])
+        exprs = [*self.mass, *self.forcing, *self.jacobian, *self.bias]
+        lines, results = self.block(exprs)
         m = dict(zip(self.upper, results[: len(self.mass)], strict=True))
         f = results[len(self.mass) : len(self.mass) + n]
         a = results[len(self.mass) + n : len(self.mass) + n + n * k]
         c = results[len(self.mass) + n + n * k :]
-        body = [*self.unpack("y"), *lines]
+        body = [*self.unpack("y", self.uses_inputs(exprs)), *lines]
         zero = {ij for ij, expr in zip(self.upper, self.mass, strict=True) if expr == 0}
         if n + k <= UNROLLED_MAX:
             mass = {ij: (None if ij in zero else code) for ij, code in m.items()}
@@ -179,18 +211,20 @@ class _Writer:
         model, n = self.model, self.model.n
         state = ", ".join(map(str, (*model.q, *model.qd)))
         doc = f"dy/dt for y = [{state}]: an array of {2 * n} values (jit-, vmap- and grad-compatible)."
+        arguments = self.arguments("y", [*self.mass, *self.forcing, *self.jacobian, *self.bias])
+        values = "t, y, p, u" if arguments.endswith("u=None") else "t, y, p"
         if not model.constraints:
             body = [*self.accelerations(), f"return jnp.concatenate([y[{n}:], _x])"]
-            return [define("rhs", "t, y, p=None", doc, body)]
+            return [define("rhs", arguments, doc, body)]
         names = ", ".join(str(x) for x in model.multipliers)
         accelerations = define(
             "accelerations",
-            "t, y, p=None",
+            arguments,
             f"[{', '.join(map(str, model.qdd))}, {names}] from [[M, -A^T], [A, 0]] x = [F, -c] (index-1 form).",
             [*self.accelerations(), "return _x"],
         )
-        rhs = define("rhs", "t, y, p=None", doc, ["y = jnp.asarray(y)", f"return jnp.concatenate([y[{n}:], accelerations(t, y, p)[:{n}]])"])
-        multipliers = define("multipliers", "t, y, p=None", f"The multipliers [{names}]; A^T lambda is the generalized constraint force.", [f"return accelerations(t, y, p)[{n}:]"])
+        rhs = define("rhs", arguments, doc, ["y = jnp.asarray(y)", f"return jnp.concatenate([y[{n}:], accelerations({values})[:{n}]])"])
+        multipliers = define("multipliers", arguments, f"The multipliers [{names}]; A^T lambda is the generalized constraint force.", [f"return accelerations({values})[{n}:]"])
         residuals = self.function("constraint_residuals", "Each constraint's residual: f(q, t) for holonomic ones, a . q_dot + b for velocity ones.", self.residuals, "q,q_dot", "vector")
         return [residuals, accelerations, rhs, multipliers]
 
@@ -202,6 +236,8 @@ class _Writer:
             self.function("energy", "The energy function h = sum p_i q_dot_i - L, a scalar.", [model.symengine.energy], "q,q_dot", "scalar"),
             *self.rhs(),
         ]
+        if model.outputs:
+            functions.append(self.outputs())
         missing = [p.name for p in model.parameters if p.value is None]
         defaults = ", ".join(f"{literal(p.name)}: {_number(p.value)}" for p in model.parameters if p.value is not None)
         parameter_names = ", ".join(literal(p.name) for p in model.parameters) + ("," if len(model.parameters) == 1 else "")
@@ -228,18 +264,54 @@ class _Writer:
             header += ["", f"Functions written out from their definitions in the file: {written}."]
         if missing:
             header += ["", f"Parameters without a default, to be given in p: {', '.join(missing)}."]
+        header += input_header(model)
         constants = [
             f"COORDINATES = ({coordinates})",
             f"PARAMETER_NAMES = ({parameter_names})",
             f"PARAMETERS = {{{defaults}}}",
             f"NQ = {model.n}",
             f"NP = {len(model.parameters)}",
+            *input_constants(model),
         ]
         head = docstring("\n".join([*header, ""])) + "\n\nimport jax.numpy as jnp\n\n" + "\n".join(constants)
-        return head + "\n\n\n" + "\n\n\n".join([*_helpers(), *functions]) + "\n"
+        return head + "\n\n\n" + "\n\n\n".join([*_helpers(model), *functions]) + "\n"
+
+    def outputs(self) -> str:
+        """`outputs(t, y, p=None, u=None)`: the file's outputs in its order, an array (FORMAT.md version 2)."""
+        model = self.model
+        exprs = [to_symengine(e) for _, e in model.outputs]
+        lines, results = self.block(exprs, "o")
+        body = [*self.unpack("y", bool(model.inputs)), *lines, "return _array([" + ", ".join(results) + "])"]
+        names = ", ".join(name for name, _ in model.outputs)
+        return define("outputs", "t, y, p=None" + (", u=None" if model.inputs else ""), f"The outputs [{names}] at time t and state y, an array.", body)
 
 
-def _helpers() -> list[str]:
+def input_header(model: Model) -> list[str]:
+    """The docstring's paragraph on the inputs and outputs (nothing for a file without them)."""
+    lines = []
+    if model.inputs:
+        lines += [
+            "",
+            f"Inputs u = [{', '.join(i.name for i in model.inputs)}] (given values at time t): every function whose result depends on an input takes",
+            "u after p, as p: None (the file's defaults, INPUTS), a dict by name (missing names take their defaults) or an",
+            "array of NU values in INPUT_NAMES order (default_inputs() gives the defaults so; what jax.grad or jax.vmap",
+            "with respect to the inputs takes).",
+        ]
+    if model.outputs:
+        lines += ["", f"outputs(t, y, p{', u' if model.inputs else ''}) gives the outputs [{', '.join(name for name, _ in model.outputs)}] in the file's order."]
+    return lines
+
+
+def input_constants(model: Model) -> list[str]:
+    """INPUT_NAMES, INPUTS (the defaults) and NU (nothing for a file without inputs)."""
+    if not model.inputs:
+        return []
+    names = ", ".join(literal(i.name) for i in model.inputs) + ("," if len(model.inputs) == 1 else "")
+    defaults = ", ".join(f"{literal(i.name)}: {_number(i.value)}" for i in model.inputs)
+    return [f"INPUT_NAMES = ({names})", f"INPUTS = {{{defaults}}}", f"NU = {len(model.inputs)}"]
+
+
+def _helpers(model: Model) -> list[str]:
     """default_parameters, _parameters and _array, as every module defines them."""
     return [
         define(
@@ -267,6 +339,34 @@ def _helpers() -> list[str]:
             ],
         ),
         define("_array", "values", "A float array of `values` (nested lists of numbers and traced scalars).", ["return jnp.asarray(values, dtype=jnp.result_type(float))"]),
+        *_input_helpers(model),
+    ]
+
+
+def _input_helpers(model: Model) -> list[str]:
+    """default_inputs and _inputs, for a file with inputs."""
+    if not model.inputs:
+        return []
+    return [
+        define(
+            "default_inputs",
+            "",
+            "The inputs' defaults as an array in INPUT_NAMES order.",
+            ["return jnp.asarray([INPUTS[_name] for _name in INPUT_NAMES], dtype=jnp.result_type(float))"],
+        ),
+        define(
+            "_inputs",
+            "u",
+            "The input values in INPUT_NAMES order, from None, a dict by name, or an array.",
+            [
+                "if u is None:",
+                "    u = INPUTS",
+                "if isinstance(u, dict):",
+                "    return tuple(u[_name] if _name in u else INPUTS[_name] for _name in INPUT_NAMES)",
+                "u = jnp.asarray(u)",
+                "return tuple(u[_i] for _i in range(NU))",
+            ],
+        ),
     ]
 
 
@@ -283,9 +383,6 @@ def emit_hamilton(model: Model, *, name: str = "eom") -> str:
     at each call (the unrolled L D L^T up to `UNROLLED_MAX` coordinates, `jnp.linalg.solve` above),
     never inverted symbolically; then p_dot = dL/dq + Q - dR/dq_dot at that q_dot and H = p . q_dot - L."""
     from lagrange_cli.hamilton import hamilton
-    from lagrange_cli.inputs import refuse
-
-    refuse(model, "the JAX module of --form hamilton")
 
     definitions = model.definitions
     require_defined(model, "JAX code")
@@ -298,33 +395,29 @@ def emit_hamilton(model: Model, *, name: str = "eom") -> str:
 class _HamiltonWriter(_Writer):
     def __init__(self, model: Model, definitions: Any, momenta: Sequence[sp.Symbol], bias: Sequence[sp.Expr], rates: Sequence[sp.Expr]) -> None:
         super().__init__(model, definitions)
-        symbols = [str(s) for s in (*model.q, *model.qd, *(p.symbol for p in model.parameters), *momenta)]
-        self.names = {**mangle(symbols, RESERVED | HAMILTON_GENERATED), str(model.t): "t"}
+        self.names = jax_names(model, [str(s) for s in momenta], HAMILTON_GENERATED)
         self.momenta = list(momenta)
         self.shifted = [to_symengine(m - b) for m, b in zip(momenta, bias, strict=True)]
         self.momentum_exprs = [to_symengine(sum((model.mass_matrix[i, j] * model.qd[j] for j in range(model.n)), b)) for i, b in enumerate(bias)]
         self.rates = [to_symengine(r) for r in rates]
         self.energy = to_symengine(sum((m * v for m, v in zip(momenta, model.qd, strict=True)), -model.lagrangian))
 
-    def unpack_state(self) -> list[str]:
-        """Lines binding the parameters and y = [q..., p...] to the user's names and the momenta."""
+    def unpack_state(self, inputs: bool = False) -> list[str]:
+        """Lines binding the parameters (the inputs too when `inputs`) and y = [q..., p...] to the user's names and the momenta."""
         model = self.model
-        lines = []
-        if model.parameters:
-            targets = [self.names[p.name] for p in model.parameters]
-            lines.append(f"{', '.join(targets)}{',' * (len(targets) == 1)} = _parameters(p)")
+        lines = self.unpack_parameters(inputs)
         state = [*model.q, *self.momenta]
         lines.append("y = jnp.asarray(y)")
         lines.append(", ".join(self.names[str(v)] for v in state) + " = " + ", ".join(f"y[{i}]" for i in range(len(state))))
         return lines
 
-    def velocity_lines(self) -> list[str]:
-        """The body lines binding the velocities' names to M^-1 (p - b)."""
+    def velocity_lines(self, inputs: bool = False) -> list[str]:
+        """The body lines binding the velocities' names to M^-1 (p - b) (and the inputs' names when `inputs`)."""
         n = self.model.n
         lines, results = self.block([*self.mass, *self.shifted], "m")
         m = dict(zip(self.upper, results[: len(self.mass)], strict=True))
         velocities = [self.names[str(v)] for v in self.model.qd]
-        body = [*self.unpack_state(), *lines]
+        body = [*self.unpack_state(inputs), *lines]
         if n <= UNROLLED_MAX:
             zero = {ij for ij, expr in zip(self.upper, self.mass, strict=True) if expr == 0}
             mass = {ij: (None if ij in zero else code) for ij, code in m.items()}
@@ -341,15 +434,26 @@ class _HamiltonWriter(_Writer):
         state = ", ".join(map(str, (*model.q, *self.momenta)))
         rate_lines, rates = self.block(self.rates, "r")
         energy_lines, energy = self.block([self.energy], "h")
+        speeds = [*self.mass, *self.shifted]
         functions = [
             self.function("momenta", "The momenta p = dL/dq_dot = M q_dot + b of the state (q, q_dot): the map to this module's state.", self.momentum_exprs, "q,q_dot", "vector"),
-            define("velocities", "t, y, p=None", "q_dot = M^-1 (p - b), solved numerically, at y = [q..., p...].", [*self.velocity_lines(), f"return _array([{qd}])"]),
-            define("hamiltonian", "t, y, p=None", "H = p . q_dot - L at y = [q..., p...], q_dot solved numerically.", [*self.velocity_lines(), *energy_lines, f"return _array({energy[0]})"]),
+            define(
+                "velocities",
+                self.arguments("y", speeds),
+                "q_dot = M^-1 (p - b), solved numerically, at y = [q..., p...].",
+                [*self.velocity_lines(self.uses_inputs(speeds)), f"return _array([{qd}])"],
+            ),
+            define(
+                "hamiltonian",
+                self.arguments("y", [*speeds, self.energy]),
+                "H = p . q_dot - L at y = [q..., p...], q_dot solved numerically.",
+                [*self.velocity_lines(self.uses_inputs([*speeds, self.energy])), *energy_lines, f"return _array({energy[0]})"],
+            ),
             define(
                 "rhs",
-                "t, y, p=None",
+                self.arguments("y", [*speeds, *self.rates]),
                 f"dy/dt = [dH/dp, -dH/dq + Q] for y = [{state}]: an array of {2 * model.n} values (jit-, vmap- and grad-compatible).",
-                [*self.velocity_lines(), *rate_lines, f"return _array([{qd}, {', '.join(rates)}])"],
+                [*self.velocity_lines(self.uses_inputs([*speeds, *self.rates])), *rate_lines, f"return _array([{qd}, {', '.join(rates)}])"],
             ),
         ]
         missing = [p.name for p in model.parameters if p.value is None]
@@ -376,6 +480,13 @@ class _HamiltonWriter(_Writer):
             header += ["", f"Functions written out from their definitions in the file: {written}."]
         if missing:
             header += ["", f"Parameters without a default, to be given in p: {', '.join(missing)}."]
+        if model.inputs:
+            header += [
+                "",
+                f"Inputs u = [{', '.join(i.name for i in model.inputs)}] are given values at time t (Hamilton's equations treat them as given",
+                "functions of time): every function whose result depends on one takes u after p, as p: None (INPUTS, the",
+                "defaults), a dict by name or an array of NU values in INPUT_NAMES order (default_inputs()).",
+            ]
         constants = [
             f"COORDINATES = ({coordinates})",
             f"MOMENTA = ({momenta})",
@@ -383,9 +494,10 @@ class _HamiltonWriter(_Writer):
             f"PARAMETERS = {{{defaults}}}",
             f"NQ = {model.n}",
             f"NP = {len(model.parameters)}",
+            *input_constants(model),
         ]
         head = docstring("\n".join([*header, ""])) + "\n\nimport jax.numpy as jnp\n\n" + "\n".join(constants)
-        return head + "\n\n\n" + "\n\n\n".join([*_helpers(), *functions]) + "\n"
+        return head + "\n\n\n" + "\n\n\n".join([*_helpers(model), *functions]) + "\n"
 
 
 UNROLLED_MAX = 12

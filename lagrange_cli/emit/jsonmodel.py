@@ -4,7 +4,8 @@ One JSON object (schema `docs/model.schema.json`, documented in `docs/json.md`) 
 coordinates, the parameters and their defaults, the file's functions, and the equations
 `M(q, t) q_ddot = F(q, q_dot, t) + A^T lambda` with `A q_ddot + c = 0`: M, F, the constraint
 rows (A, b, c and the residual), the energy function, the momenta, the Lagrangian and its
-parts. Every expression is an object `{"text": ..., "latex": ...}`: `text` in the system-file
+parts, and with `inputs` or `outputs` in the file the inputs (name, default, description) and the
+outputs (name, expression). Every expression is an object `{"text": ..., "latex": ...}`: `text` in the system-file
 syntax, which lagrange's own parser (`lagrange_cli.expr.parse_expression`) reads back into the
 same expression, and `latex` from the LaTeX emitter's printer and symbol names.
 
@@ -41,18 +42,12 @@ SCHEMA_VERSION = 1
 
 def emit(model: Model, *, name: str = "eom") -> str:
     """The model as a JSON document (`name` is not used: JSON has no names of its own)."""
-    from lagrange_cli.inputs import refuse
-
-    refuse(model, "the JSON model")
     return json.dumps(document(model), indent=2, ensure_ascii=True, allow_nan=False) + "\n"
 
 
 def emit_hamilton(model: Model, *, name: str = "eom") -> str:
     """`derive --to json --form hamilton`: the model's document with the key `hamilton` added
     (Hamilton's equations, lagrange_cli/hamilton.py; its refusals are its own)."""
-    from lagrange_cli.inputs import refuse
-
-    refuse(model, "the JSON model of --form hamilton")
     return json.dumps(document(model, hamilton=True), indent=2, ensure_ascii=True, allow_nan=False) + "\n"
 
 
@@ -74,6 +69,19 @@ def document(model: Model, hamilton: bool = False) -> dict[str, Any]:
 
     symbols = namer.symbols
     n = model.n
+    signals: dict[str, Any] = {}
+    if model.inputs:  # only then: a file without inputs or outputs gives the document it did
+        signals["inputs"] = [
+            {
+                "name": i.name,
+                "default": _finite(i.value, f"the default of input '{i.name}'"),
+                "description": i.description,
+                "latex": symbols.get(i.symbol, latex.symbol_tex(i.name)),
+            }
+            for i in model.inputs
+        ]
+    if model.outputs:
+        signals["outputs"] = [{"name": name, "expression": expression(expr)} for name, expr in model.outputs]
     initial = {key: _finite(value, f"the initial value of '{key}'") for key, value in model.initial.items()}
     extra: dict[str, Any] = {}
     if ham is not None:
@@ -86,79 +94,83 @@ def document(model: Model, hamilton: bool = False) -> dict[str, Any]:
             "velocities": expressions(ham.velocities) if ham.symbolic else None,
             "momentum_rates": expressions(ham.rates) if ham.symbolic else None,
         }
-    return {
-        "format": FORMAT,
-        "schema_version": SCHEMA_VERSION,
-        "generator": f"lagrange {__version__}",
-        "title": model.title,
-        "description": model.description,
-        "source": Path(model.source).name,
-        "time": {"name": str(model.t), "latex": symbols[model.t]},
-        "autonomous": model.autonomous,
-        "coordinates": [
-            {
-                "name": name,
-                "velocity": str(qd),
-                "acceleration": str(qdd),
-                "latex": symbols[q],
-                "velocity_latex": symbols[qd],
-                "acceleration_latex": symbols[qdd],
-            }
-            for name, q, qd, qdd in zip(model.coordinates, model.q, model.qd, model.qdd, strict=True)
-        ],
-        "parameters": [
-            {
-                "name": p.name,
-                "default": None if p.value is None else _finite(p.value, f"the default of '{p.name}'"),
-                "real": p.real,
-                "description": p.description,
-                "latex": symbols[p.symbol],
-            }
-            for p in model.parameters
-        ],
-        "functions": [
-            {
-                "name": function,
-                "latex": namer.functions.get(function, latex.symbol_tex(function)),
-                "arguments": [str(a) for a in model.definitions[function].variables] if function in model.definitions else None,
-                "definition": expression(model.definitions[function].expr) if function in model.definitions else None,
-            }
-            for function in functions
-        ],
-        "mass_matrix": [expressions(model.mass_matrix[i, j] for j in range(n)) for i in range(n)],
-        "forcing": expressions(model.forcing),
-        "constraints": [
-            {
-                "name": c.name,
-                "multiplier": {"name": str(c.multiplier), "latex": symbols[c.multiplier]},
-                "holonomic": c.holonomic,
-                "residual": expression(c.expr),
-                "A": expressions(c.jacobian),
-                "b": expression(c.bias),
-                "c": expression(c.acceleration_bias),
-            }
-            for c in model.constraints
-        ],
-        "energy": expression(model.energy),
-        "momenta": expressions(model.momenta),
-        "lagrangian": expression(model.lagrangian),
-        "kinetic": expression(model.kinetic),
-        "potential": expression(model.potential),
-        "dissipation": expression(model.dissipation),
-        "generalized_forces": expressions(model.generalized_forces),
-        "eliminated": [{"coordinate": coordinate, "expression": expression(expr)} for coordinate, expr in model.eliminated],
-        "initial": {
-            "q": [initial.get(c, 0.0) for c in model.coordinates],
-            "q_dot": [initial.get(f"{c}_dot", 0.0) for c in model.coordinates],
-        },
-    } | extra
+    return (
+        {
+            "format": FORMAT,
+            "schema_version": SCHEMA_VERSION,
+            "generator": f"lagrange {__version__}",
+            "title": model.title,
+            "description": model.description,
+            "source": Path(model.source).name,
+            "time": {"name": str(model.t), "latex": symbols[model.t]},
+            "autonomous": model.autonomous,
+            "coordinates": [
+                {
+                    "name": name,
+                    "velocity": str(qd),
+                    "acceleration": str(qdd),
+                    "latex": symbols[q],
+                    "velocity_latex": symbols[qd],
+                    "acceleration_latex": symbols[qdd],
+                }
+                for name, q, qd, qdd in zip(model.coordinates, model.q, model.qd, model.qdd, strict=True)
+            ],
+            "parameters": [
+                {
+                    "name": p.name,
+                    "default": None if p.value is None else _finite(p.value, f"the default of '{p.name}'"),
+                    "real": p.real,
+                    "description": p.description,
+                    "latex": symbols[p.symbol],
+                }
+                for p in model.parameters
+            ],
+            "functions": [
+                {
+                    "name": function,
+                    "latex": namer.functions.get(function, latex.symbol_tex(function)),
+                    "arguments": [str(a) for a in model.definitions[function].variables] if function in model.definitions else None,
+                    "definition": expression(model.definitions[function].expr) if function in model.definitions else None,
+                }
+                for function in functions
+            ],
+            "mass_matrix": [expressions(model.mass_matrix[i, j] for j in range(n)) for i in range(n)],
+            "forcing": expressions(model.forcing),
+            "constraints": [
+                {
+                    "name": c.name,
+                    "multiplier": {"name": str(c.multiplier), "latex": symbols[c.multiplier]},
+                    "holonomic": c.holonomic,
+                    "residual": expression(c.expr),
+                    "A": expressions(c.jacobian),
+                    "b": expression(c.bias),
+                    "c": expression(c.acceleration_bias),
+                }
+                for c in model.constraints
+            ],
+            "energy": expression(model.energy),
+            "momenta": expressions(model.momenta),
+            "lagrangian": expression(model.lagrangian),
+            "kinetic": expression(model.kinetic),
+            "potential": expression(model.potential),
+            "dissipation": expression(model.dissipation),
+            "generalized_forces": expressions(model.generalized_forces),
+            "eliminated": [{"coordinate": coordinate, "expression": expression(expr)} for coordinate, expr in model.eliminated],
+            "initial": {
+                "q": [initial.get(c, 0.0) for c in model.coordinates],
+                "q_dot": [initial.get(f"{c}_dot", 0.0) for c in model.coordinates],
+            },
+        }
+        | signals
+        | extra
+    )
 
 
 def _functions(model: Model) -> list[str]:
     """The names of the file's functions that the model uses or defines, sorted."""
     exprs: list[sp.Expr] = [*model.mass_matrix, *model.forcing, model.energy, model.lagrangian, model.kinetic, model.potential, model.dissipation]
     exprs += [*model.momenta, *model.generalized_forces, *(e for c in model.constraints for e in (c.expr, *c.jacobian, c.bias, c.acceleration_bias))]
-    exprs += [e for _, e in model.eliminated]
+    exprs += [e for _, e in model.eliminated] + [e for _, e in model.outputs]
     used = {str(f.func) for e in exprs for f in e.atoms(AppliedUndef)}
     return sorted(used | set(model.definitions))
 

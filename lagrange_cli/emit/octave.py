@@ -231,15 +231,12 @@ HAMILTON_LOCALS = ("t", "y", "p", "dydt", "H", "qdot", "M", "b", "r")
 
 
 def emit_hamilton(model: Model, *, name: str = "eom") -> str:
-    """`derive --to octave --form hamilton`: `function [dydt, H, qdot] = NAME(t, y, p)` for y = [q; p]
+    """`derive --to octave --form hamilton`: `function [dydt, H, qdot] = NAME(t, y, p)` (`NAME(t, y, p, u)` with inputs) for y = [q; p]
     (coordinates and momenta p = M q_dot + b), dydt = [dH/dp; -dH/dq + Q] (lagrange_cli/hamilton.py;
     its refusals are its own). q_dot = M \\ (p - b) is solved numerically at each call (never a symbolic
     inverse), with the same singularity check as the Lagrange form; p_dot = dL/dq + Q - dR/dq_dot at that
     q_dot; H = p . q_dot - L on request."""
     from lagrange_cli.hamilton import hamilton
-    from lagrange_cli.inputs import refuse
-
-    refuse(model, "the Octave function of --form hamilton")
 
     if not IDENTIFIER.fullmatch(name) or name in KEYWORDS:
         raise DerivationError(f"'{printable(name)}' is not a MATLAB function name")
@@ -258,6 +255,7 @@ class _HamiltonWriter(_Writer):
         self.momenta = list(momenta)
         self.index = {str(s): f"y({i + 1})" for i, s in enumerate((*model.q, *momenta))}
         self.index |= {p.name: f"p({i + 1})" for i, p in enumerate(model.parameters)}
+        self.index |= {u.name: f"u({i + 1})" for i, u in enumerate(model.inputs)}  # inputs: given values, an argument u after p
         self.shifted = [to_symengine(m - b) for m, b in zip(momenta, bias, strict=True)]
         self.rates = [to_symengine(r) for r in rates]
         self.energy = to_symengine(sum((m * v for m, v in zip(momenta, model.qd, strict=True)), -model.lagrangian))
@@ -320,8 +318,15 @@ class _HamiltonWriter(_Writer):
         renamed = {c: v for c, v in self.names.items() if c != v and c != str(model.t)}
         if renamed:
             help_lines.append("  Names changed to MATLAB identifiers: " + ", ".join(f"{c} -> {v}" for c, v in renamed.items()) + ".")
-        lines = [f"function [dydt, H, qdot] = {self.name}(t, y, p)", *(f"% {comment(line)}".rstrip() for line in help_lines)]
-        lines += ["  if nargin < 3", f"    p = [{defaults}];", "  end"]
+        if model.inputs:
+            help_lines.append(
+                f"  Inputs u = [{', '.join(i.name for i in model.inputs)}] after p, given values at t: {self.name}(t, y, p, u) (default [{', '.join(_number(i.value) for i in model.inputs)}])."
+            )
+        arguments = "t, y, p, u" if model.inputs else "t, y, p"
+        lines = [f"function [dydt, H, qdot] = {self.name}({arguments})", *(f"% {comment(line)}".rstrip() for line in help_lines)]
+        lines += ["  if nargin < 3 || isempty(p)", f"    p = [{defaults}];", "  end"] if model.inputs else ["  if nargin < 3", f"    p = [{defaults}];", "  end"]
+        if model.inputs:
+            lines += ["  if nargin < 4", f"    u = [{', '.join(_number(i.value) for i in model.inputs)}];", "  end"]
         lines += [f"  {line}" for line in self.body()]
         lines.append("end")
         return "\n".join(lines) + "\n"
