@@ -58,7 +58,7 @@ def test_show() -> None:
 def test_bundled_systems_have_consistent_units(path: Path) -> None:
     system = spec.load(path)
     if system.units is None:
-        pytest.skip(f"{path.name} has no units")  # (systems added later may not have them yet: see the count below)
+        assert system.units is not None, f"{path.name} has no units"
     from lagrange_cli.units import check_answer, check_file
 
     energy = check_file(system)
@@ -71,9 +71,9 @@ def test_bundled_systems_have_consistent_units(path: Path) -> None:
         assert check_answer(system, expr, "acceleration", energy, q) == ""
 
 
-def test_most_bundled_systems_have_units() -> None:
+def test_every_bundled_system_has_units() -> None:
     with_units = [p.stem for p in SYSTEMS if "\nunits:" in p.read_text()]
-    assert len(with_units) >= 31, with_units
+    assert with_units == [p.stem for p in SYSTEMS], sorted({p.stem for p in SYSTEMS} - set(with_units))
 
 
 def _mutated(tmp_path: Path, name: str, old: str, new: str) -> tuple[Path, int]:
