@@ -348,10 +348,16 @@ class _FileCheck:
         lines = [f"'{f}' as defined at line {span.line}" for f in used if (span := self.spec.sources.get(f"functions.{f}")) is not None]
         return f" (with {', '.join(lines)})" if lines else ""
 
-    def vector(self, what: str, span: Span | None, components: Iterable[Any]) -> Dim | None:
-        parts = [(c, self.of(what, span, c)) for c in components if c != 0]
+    def vector(self, what: str, span: Span | None, components: Iterable[Any], dims: Dimensions | None = None) -> Dim | None:
+        before = len(self.problems)
+        parts = []
+        for c in components:
+            if c != 0:
+                parts.append((c, self.of(what, span, c, dims)))
+            if len(self.problems) > before:
+                return None  # one report per vector, and no one dimension to compare it with
         try:
-            return self.dims.same(parts, what, what="component")
+            return (dims or self.dims).same(parts, what, what="component")
         except Mismatch as exc:
             self.problems.append(Diagnostic(span, f"{what}: {exc.message}", "Cartesian components in one dimension"))
             return None
@@ -360,7 +366,9 @@ class _FileCheck:
         """A particle's or body's kinetic energy 1/2 m v^2 (+ 1/2 I w^2), weight m g.x, damping and force."""
         kind, name, spans = ("body" if hasattr(item, "inertia") else "particle"), item.name, item.spans
         mass = self.of(f"the mass of {kind} '{name}'", spans.get("mass"), item.mass)
-        length = self.vector(f"the position of {kind} '{name}'", spans.get("position"), item.position)
+        placed = spans.get("center") or spans.get("pivot") or spans.get("position")  # a body's centre: pivot + R center
+        what = f"the position of {kind} '{name}'" if "center" not in spans else f"the centre of mass of {kind} '{name}' (pivot + rotated center)"
+        length = self.vector(what, placed, item.position)
         speed = None if length is None else mul(length, SECOND, -1)
         if mass is not None and length is not None and speed is not None:
             self.entries.append(_Entry(f"the kinetic energy of {kind} '{name}'", spans.get("mass"), [("m*v**2/2", mul(mass, power(speed, 2)))]))
@@ -378,11 +386,53 @@ class _FileCheck:
                 if f is not None:
                     self.entries.append(_Entry(f"the force on particle '{name}'", spans.get("force"), [("f.dx", mul(f, length))]))
             return
-        for i, w in zip(item.inertia, item.angular_velocity, strict=False):
-            di = self.of(f"the inertia of body '{name}'", spans.get("inertia"), i)
-            dw = self.of(f"the angular velocity of body '{name}'", spans.get("angular_velocity"), w)
-            if di is not None and dw is not None and i != 0 and w != 0:
-                self.entries.append(_Entry(f"the rotational energy of body '{name}'", spans.get("inertia"), [(f"`{i * w**2 / 2}`", mul(di, power(dw, 2)))]))
+        self.body(item, length)
+
+    def body(self, item: Body, length: Dim | None) -> None:
+        """A body's rotational energy (each inertia entry times omega^2), its orientation (dimensionless
+        entries: angles, and an axis in any one dimension), its points (in the dimension of its position)
+        and its loads: a force times a length and a torque times an angle are energies."""
+        name, spans = item.name, item.spans
+        before = len(self.problems)
+        for entry in (e for row in item.local or () for e in row):  # the rotation relative to the parent, as written
+            d = self.of(f"the orientation of body '{name}'", spans.get("orientation"), entry)
+            if d is not None and d != NONE:
+                why = f"the orientation of body '{name}': the rotation entry `{entry}` has dimension {show(d)}"
+                self.problems.append(Diagnostic(spans.get("orientation"), why, "dimensionless angles (rad), an axis in one dimension"))
+            if len(self.problems) > before:
+                break  # one report per orientation (its angular velocity would repeat it)
+        rate = spans.get("orientation") or spans.get("angular_velocity")
+        omega = self.vector(f"the angular velocity of body '{name}'", rate, item.angular_velocity) if len(self.problems) == before else None
+        if omega is not None:
+            terms = []
+            paired = len(item.inertia) == len(item.angular_velocity)  # principal moments: I_k w_k**2/2; a full tensor: I_jk w_j w_k/2
+            for k, i in enumerate(item.inertia):
+                di = self.of(f"the inertia of body '{name}'", spans.get("inertia"), i)
+                w = item.angular_velocity[k] if paired else 0
+                if di is not None and i != 0:
+                    terms.append((f"`{i * w**2 / 2}`" if w != 0 else f"the inertia entry `{i}` times w**2/2", mul(di, power(omega, 2))))
+            self.entries.append(_Entry(f"the rotational energy of body '{name}'", spans.get("inertia"), terms))
+        for point, where in item.points.items():
+            d = self.vector(f"point '{point}' of body '{name}'", spans.get("points"), where)
+            if d is not None and length is not None and d != length:
+                self.problems.append(
+                    Diagnostic(
+                        spans.get("points"),
+                        f"point '{point}' of body '{name}' has dimension {show(d)}, but the body's position has {show(length)}{self.dims.hint(d, length)}",
+                        "points in the units of the positions",
+                    )
+                )
+        if length is not None:
+            loads = [f for f, _ in (*item.forces, *item.frame_forces)]
+            for f in loads:
+                df = self.vector(f"the force on body '{name}'", spans.get("force"), f)
+                if df is not None:
+                    self.entries.append(_Entry(f"the force on body '{name}'", spans.get("force"), [(f"the force `{list(f)}` times a displacement", mul(df, length))]))
+        if omega is not None:
+            for torque in item.torques:
+                dt = self.vector(f"the torque on body '{name}'", spans.get("torque"), torque)
+                if dt is not None:
+                    self.entries.append(_Entry(f"the torque on body '{name}'", spans.get("torque"), [(f"the torque `{list(torque)}` times an angle", mul(dt, mul(omega, SECOND)))]))
 
     def energy(self) -> Dim:
         """Every energy-like term (times its entry's scale) in one dimension: the one most terms have
@@ -428,6 +478,8 @@ def check_file(spec: SystemSpec) -> Dim | None:
             run.problems.append(
                 Diagnostic(where, f"the exact solution for '{name}' has dimension {show(got)}, but '{name}' is in {show(want)}", f"an expression in {units.text.get(name, show(want))}")
             )
+    for name, output in spec.outputs:
+        run.of(f"output '{name}'", spec.sources.get(f"outputs.{name}"), output)
     energy = run.energy()
     if run.problems:
         raise SpecError(sorted(run.problems, key=lambda d: (d.span.line, d.span.column) if d.span else (0, 0)))
