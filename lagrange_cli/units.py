@@ -28,7 +28,12 @@ The rules (`Dimensions.of`):
   dimension, that of energy: the one most of them have (ties: kg*m^2/s^2 if it is among
   them, else the first in file order);
   a dissipation function has energy/s, a generalized force on q energy/unit(q), a Cartesian
-  force energy/length of its particle's position.
+  force energy/length of its particle's position;
+- bodies (version 2): each inertia entry times omega^2 is an energy; the rotation an
+  orientation gives is dimensionless entry by entry (angles, an axis in one dimension);
+  the centre of mass (pivot + R center) and each point share the position's dimension;
+  a force load times that length and a torque load times an angle are energies;
+- each output is one consistent expression (any dimension).
 """
 
 from __future__ import annotations
