@@ -33,7 +33,8 @@ The rules (`Dimensions.of`):
   orientation gives is dimensionless entry by entry (angles, an axis in one dimension);
   the centre of mass (pivot + R center) and each point share the position's dimension;
   a force load times that length and a torque load times an angle are energies;
-- each output is one consistent expression (any dimension).
+- each output is one consistent expression (any dimension);
+- a symmetry's changes delta q / unit(q) and delta t / s share one dimension (epsilon's).
 """
 
 from __future__ import annotations
@@ -439,6 +440,33 @@ class _FileCheck:
                 if dt is not None:
                     self.entries.append(_Entry(f"the torque on body '{name}'", spans.get("torque"), [(f"the torque `{list(torque)}` times an angle", mul(dt, mul(omega, SECOND)))]))
 
+    def symmetry(self, symmetry: Any) -> None:
+        """A symmetry's changes are one parameter epsilon times each: delta q / unit(q) (and delta t / s)
+        share one dimension, that of epsilon."""
+        what = f"symmetry '{symmetry.name}'"
+        changes = [(f"delta {q} = `{e}`", e, span, self.spec.units.dims.get(q) if self.spec.units else None) for q, e, span in symmetry.coordinates]
+        if symmetry.time is not None:
+            changes.append((f"delta t = `{symmetry.time}`", symmetry.time, symmetry.time_span or symmetry.span, SECOND))
+        ratios: list[tuple[str, Dim, Span | None]] = []
+        for text, e, span, unit in changes:
+            d = self.of(what, span, e)
+            if d is not None and unit is not None and not e.is_Number:  # a number (`time: 1`) is in whatever unit epsilon needs
+                ratios.append((text, mul(d, unit, -1), span))
+        if not ratios:
+            return
+        counts = Counter(d for _, d, _ in ratios)
+        right = next(d for _, d, _ in ratios if counts[d] == max(counts.values()))
+        for text, d, span in ratios:
+            if d != right:
+                self.problems.append(
+                    Diagnostic(
+                        span,
+                        f"{what}: {text} is epsilon times {show(d)} of its unit, the other changes epsilon times {show(right)}{self.dims.hint(d, right)}",
+                        "each change in the unit of its coordinate (delta t in s) times one parameter epsilon",
+                    )
+                )
+                break
+
     def energy(self) -> Dim:
         """Every energy-like term (times its entry's scale) in one dimension: the one most terms have
         (ties: kg*m^2/s^2 if it is among them, else the first in file order); each that differs is
@@ -483,6 +511,8 @@ def check_file(spec: SystemSpec) -> Dim | None:
             run.problems.append(
                 Diagnostic(where, f"the exact solution for '{name}' has dimension {show(got)}, but '{name}' is in {show(want)}", f"an expression in {units.text.get(name, show(want))}")
             )
+    for symmetry in spec.symmetries:
+        run.symmetry(symmetry)
     for name, output in spec.outputs:
         run.of(f"output '{name}'", spec.sources.get(f"outputs.{name}"), output)
     energy = run.energy()

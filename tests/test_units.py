@@ -117,6 +117,7 @@ MUTATIONS = [
     ("quadrotor", "{vector: [0, 0, f1], axes: body", "{vector: [0, 0, f1*L], axes: body", ["the force on body 'frame'", "`[0, 0, L*f1]` times a displacement has dimension kg*m^3/s^2"]),
     ("gyroscope_gimbals", "{axis: [1, 0, 0], angle: beta,", "{axis: [1, 0, 0], angle: beta*J,", ["the orientation of body 'inner'", "`J*beta`", "must be dimensionless"]),
     ("gyroscope_gimbals", "{axis: [1, 0, 0], angle: beta,", "{axis: [M_i, 0, J], angle: beta,", ["the orientation of body 'inner'", "term `M_i**2` of `J**2 + M_i**2`"]),
+    ("central_force_cartesian", "rotation_z: {coordinates: {x: -y, y: x}}", "rotation_z: {coordinates: {x: -y, y: x*m}}", ["symmetry 'rotation_z'", "delta y = `m*x`", "one m too many?"]),
     ("gyroscope_gimbals", "{axis: [1, 0, 0], angle: beta,", "{axis: [M_i, 0, 0.5], angle: beta,", ["the orientation of body 'inner'", "term `M_i**2` of `M_i**2 + 0.25`"]),
 ]
 
@@ -148,6 +149,20 @@ def test_introduced_dimensional_errors_are_caught(tmp_path: Path, name: str, old
 def test_v2_bodies_without_false_errors(tmp_path: Path, old: str, new: str) -> None:
     path, _ = _mutated(tmp_path, "gyroscope_gimbals", old, new)
     derive.derive(spec.load(path))
+
+
+@pytest.mark.parametrize(
+    "new",
+    [
+        "time_shift: {time: 1, coordinates: {x: 1}}",  # numbers are in whatever unit epsilon needs
+        "time_shift: {time: t, coordinates: {x: x, y: y, z: z}}",  # a scaling: epsilon dimensionless in all four
+    ],
+)
+def test_symmetries_without_false_errors(tmp_path: Path, new: str) -> None:
+    path, _ = _mutated(tmp_path, "central_force_cartesian", "time_shift: {time: 1}", new)
+    from lagrange_cli.units import check_file
+
+    assert check_file(spec.load(path)) == ENERGY
 
 
 def test_the_unmutated_file_passes(tmp_path: Path) -> None:
