@@ -28,7 +28,13 @@ The rules (`Dimensions.of`):
   dimension, that of energy: the one most of them have (ties: kg*m^2/s^2 if it is among
   them, else the first in file order);
   a dissipation function has energy/s, a generalized force on q energy/unit(q), a Cartesian
-  force energy/length of its particle's position.
+  force energy/length of its particle's position;
+- bodies (version 2): each inertia entry times omega^2 is an energy; the rotation an
+  orientation gives is dimensionless entry by entry (angles, an axis in one dimension);
+  the centre of mass (pivot + R center) and each point share the position's dimension;
+  a force load times that length and a torque load times an angle are energies;
+- each output is one consistent expression (any dimension);
+- a symmetry's changes delta q / unit(q) and delta t / s share one dimension (epsilon's).
 """
 
 from __future__ import annotations
@@ -348,10 +354,16 @@ class _FileCheck:
         lines = [f"'{f}' as defined at line {span.line}" for f in used if (span := self.spec.sources.get(f"functions.{f}")) is not None]
         return f" (with {', '.join(lines)})" if lines else ""
 
-    def vector(self, what: str, span: Span | None, components: Iterable[Any]) -> Dim | None:
-        parts = [(c, self.of(what, span, c)) for c in components if c != 0]
+    def vector(self, what: str, span: Span | None, components: Iterable[Any], dims: Dimensions | None = None) -> Dim | None:
+        before = len(self.problems)
+        parts = []
+        for c in components:
+            if c != 0:
+                parts.append((c, self.of(what, span, c, dims)))
+            if len(self.problems) > before:
+                return None  # one report per vector, and no one dimension to compare it with
         try:
-            return self.dims.same(parts, what, what="component")
+            return (dims or self.dims).same(parts, what, what="component")
         except Mismatch as exc:
             self.problems.append(Diagnostic(span, f"{what}: {exc.message}", "Cartesian components in one dimension"))
             return None
@@ -360,7 +372,9 @@ class _FileCheck:
         """A particle's or body's kinetic energy 1/2 m v^2 (+ 1/2 I w^2), weight m g.x, damping and force."""
         kind, name, spans = ("body" if hasattr(item, "inertia") else "particle"), item.name, item.spans
         mass = self.of(f"the mass of {kind} '{name}'", spans.get("mass"), item.mass)
-        length = self.vector(f"the position of {kind} '{name}'", spans.get("position"), item.position)
+        placed = spans.get("center") or spans.get("pivot") or spans.get("position")  # a body's centre: pivot + R center
+        what = f"the position of {kind} '{name}'" if "center" not in spans else f"the centre of mass of {kind} '{name}' (pivot + rotated center)"
+        length = self.vector(what, placed, item.position)
         speed = None if length is None else mul(length, SECOND, -1)
         if mass is not None and length is not None and speed is not None:
             self.entries.append(_Entry(f"the kinetic energy of {kind} '{name}'", spans.get("mass"), [("m*v**2/2", mul(mass, power(speed, 2)))]))
@@ -378,11 +392,80 @@ class _FileCheck:
                 if f is not None:
                     self.entries.append(_Entry(f"the force on particle '{name}'", spans.get("force"), [("f.dx", mul(f, length))]))
             return
-        for i, w in zip(item.inertia, item.angular_velocity, strict=False):
-            di = self.of(f"the inertia of body '{name}'", spans.get("inertia"), i)
-            dw = self.of(f"the angular velocity of body '{name}'", spans.get("angular_velocity"), w)
-            if di is not None and dw is not None and i != 0 and w != 0:
-                self.entries.append(_Entry(f"the rotational energy of body '{name}'", spans.get("inertia"), [(f"`{i * w**2 / 2}`", mul(di, power(dw, 2)))]))
+        self.body(item, length)
+
+    def body(self, item: Body, length: Dim | None) -> None:
+        """A body's rotational energy (each inertia entry times omega^2), its orientation (dimensionless
+        entries: angles, and an axis in any one dimension), its points (in the dimension of its position)
+        and its loads: a force times a length and a torque times an angle are energies."""
+        name, spans = item.name, item.spans
+        before = len(self.problems)
+        for entry in (e for row in item.local or () for e in row):  # the rotation relative to the parent, as written
+            d = self.of(f"the orientation of body '{name}'", spans.get("orientation"), entry)
+            if d is not None and d != NONE:
+                why = f"the orientation of body '{name}': the rotation entry `{entry}` has dimension {show(d)}"
+                self.problems.append(Diagnostic(spans.get("orientation"), why, "dimensionless angles (rad), an axis in one dimension"))
+            if len(self.problems) > before:
+                break  # one report per orientation (its angular velocity would repeat it)
+        rate = spans.get("orientation") or spans.get("angular_velocity")
+        omega = self.vector(f"the angular velocity of body '{name}'", rate, item.angular_velocity) if len(self.problems) == before else None
+        if omega is not None:
+            terms = []
+            paired = len(item.inertia) == len(item.angular_velocity)  # principal moments: I_k w_k**2/2; a full tensor: I_jk w_j w_k/2
+            for k, i in enumerate(item.inertia):
+                di = self.of(f"the inertia of body '{name}'", spans.get("inertia"), i)
+                w = item.angular_velocity[k] if paired else 0
+                if di is not None and i != 0:
+                    terms.append((f"`{i * w**2 / 2}`" if w != 0 else f"the inertia entry `{i}` times w**2/2", mul(di, power(omega, 2))))
+            self.entries.append(_Entry(f"the rotational energy of body '{name}'", spans.get("inertia"), terms))
+        for point, where in item.points.items():
+            d = self.vector(f"point '{point}' of body '{name}'", spans.get("points"), where)
+            if d is not None and length is not None and d != length:
+                self.problems.append(
+                    Diagnostic(
+                        spans.get("points"),
+                        f"point '{point}' of body '{name}' has dimension {show(d)}, but the body's position has {show(length)}{self.dims.hint(d, length)}",
+                        "points in the units of the positions",
+                    )
+                )
+        if length is not None:
+            loads = [f for f, _ in (*item.forces, *item.frame_forces)]
+            for f in loads:
+                df = self.vector(f"the force on body '{name}'", spans.get("force"), f)
+                if df is not None:
+                    self.entries.append(_Entry(f"the force on body '{name}'", spans.get("force"), [(f"the force `{list(f)}` times a displacement", mul(df, length))]))
+        if omega is not None:
+            for torque in item.torques:
+                dt = self.vector(f"the torque on body '{name}'", spans.get("torque"), torque)
+                if dt is not None:
+                    self.entries.append(_Entry(f"the torque on body '{name}'", spans.get("torque"), [(f"the torque `{list(torque)}` times an angle", mul(dt, mul(omega, SECOND)))]))
+
+    def symmetry(self, symmetry: Any) -> None:
+        """A symmetry's changes are one parameter epsilon times each: delta q / unit(q) (and delta t / s)
+        share one dimension, that of epsilon."""
+        what = f"symmetry '{symmetry.name}'"
+        changes = [(f"delta {q} = `{e}`", e, span, self.spec.units.dims.get(q) if self.spec.units else None) for q, e, span in symmetry.coordinates]
+        if symmetry.time is not None:
+            changes.append((f"delta t = `{symmetry.time}`", symmetry.time, symmetry.time_span or symmetry.span, SECOND))
+        ratios: list[tuple[str, Dim, Span | None]] = []
+        for text, e, span, unit in changes:
+            d = self.of(what, span, e)
+            if d is not None and unit is not None and not e.is_Number:  # a number (`time: 1`) is in whatever unit epsilon needs
+                ratios.append((text, mul(d, unit, -1), span))
+        if not ratios:
+            return
+        counts = Counter(d for _, d, _ in ratios)
+        right = next(d for _, d, _ in ratios if counts[d] == max(counts.values()))
+        for text, d, span in ratios:
+            if d != right:
+                self.problems.append(
+                    Diagnostic(
+                        span,
+                        f"{what}: {text} is epsilon times {show(d)} of its unit, the other changes epsilon times {show(right)}{self.dims.hint(d, right)}",
+                        "each change in the unit of its coordinate (delta t in s) times one parameter epsilon",
+                    )
+                )
+                break
 
     def energy(self) -> Dim:
         """Every energy-like term (times its entry's scale) in one dimension: the one most terms have
@@ -428,6 +511,10 @@ def check_file(spec: SystemSpec) -> Dim | None:
             run.problems.append(
                 Diagnostic(where, f"the exact solution for '{name}' has dimension {show(got)}, but '{name}' is in {show(want)}", f"an expression in {units.text.get(name, show(want))}")
             )
+    for symmetry in spec.symmetries:
+        run.symmetry(symmetry)
+    for name, output in spec.outputs:
+        run.of(f"output '{name}'", spec.sources.get(f"outputs.{name}"), output)
     energy = run.energy()
     if run.problems:
         raise SpecError(sorted(run.problems, key=lambda d: (d.span.line, d.span.column) if d.span else (0, 0)))

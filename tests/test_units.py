@@ -57,8 +57,7 @@ def test_show() -> None:
 @pytest.mark.parametrize("path", SYSTEMS, ids=[p.stem for p in SYSTEMS])
 def test_bundled_systems_have_consistent_units(path: Path) -> None:
     system = spec.load(path)
-    if system.units is None:
-        pytest.skip(f"{path.name} has no units")  # (systems added later may not have them yet: see the count below)
+    assert system.units is not None, f"{path.name} has no units"
     from lagrange_cli.units import check_answer, check_file
 
     energy = check_file(system)
@@ -71,9 +70,9 @@ def test_bundled_systems_have_consistent_units(path: Path) -> None:
         assert check_answer(system, expr, "acceleration", energy, q) == ""
 
 
-def test_most_bundled_systems_have_units() -> None:
+def test_every_bundled_system_has_units() -> None:
     with_units = [p.stem for p in SYSTEMS if "\nunits:" in p.read_text()]
-    assert len(with_units) >= 31, with_units
+    assert with_units == [p.stem for p in SYSTEMS], sorted({p.stem for p in SYSTEMS} - set(with_units))
 
 
 def _mutated(tmp_path: Path, name: str, old: str, new: str) -> tuple[Path, int]:
@@ -105,6 +104,21 @@ MUTATIONS = [
     ("stiff_spring_pendulum_damped", "zeta*sqrt(k*m)*x_dot**2", "zeta*k*m*x_dot**2", ["dissipation", "term `k*m*x_dot**2*zeta`", "energy per s"]),
     ("central_potential", "definition: -k/s", "definition: -k/s**2", ["potential", "term `U(r)` (with 'U' as defined at line 24) has dimension kg*m/s^2", "missing r?"]),
     ("charged_particle_magnetic", "qc: C", "qc: A", ["lagrangian", "has dimension kg*m^2/s^3,"]),
+    # version 2 bodies (orientation, full inertia tensors, pivot/center/points, force and torque loads) and outputs
+    ("quadrotor", "[0, 0, k*(f1 - f2 + f3 - f4)]", "[0, 0, f1 - f2 + f3 - f4]", ["the torque on body 'frame'", "`[0, 0, f1 - f2 + f3 - f4]`", "has dimension kg*m/s^2, the others kg*m^2/s^2"]),
+    ("arm_3dof", "tau3: N*m}", "tau3: N}", ["the torque on body 'upper'", "the torque on body 'fore'", "`[0, tau3, 0]` times an angle has dimension kg*m/s^2"]),
+    ("arm_3dof", "[[m0*h**2/12, 0, 0]", "[[m0*h/12, 0, 0]", ["rotational energy of body 'base'", "inertia entry `h*m0/12`", "has dimension kg*m/s^2, the others kg*m^2/s^2; missing h"]),
+    ("heavy_top_offaxis_disk", "m*r**2/4*cos(beta)**2 +", "m*r/4*cos(beta)**2 +", ["the inertia of body 'top'", "term `m*r*cos(beta)**2/4`", "has dimension kg*m, the other kg*m^2"]),
+    ("heavy_top_offaxis_disk", "center: [e, 0, l]", "center: [e, 0, m]", ["centre of mass of body 'top'", "term `m*sin(phi)*sin(theta)`", "has dimension kg, the other m"]),
+    ("cart_pole_state_space", "center: [l, 0]", "center: [M, 0]", ["centre of mass of body 'pole'", "term `M*sin(theta)` of `M*sin(theta) + x` has dimension kg, the other m"]),
+    ("rolling_disk_3d", "rim_c: [0, 0, R]", "rim_c: [0, 0, m]", ["point 'rim_c' of body 'coin'", "has dimension kg, the others m"]),
+    ("quadrotor", "altitude: z", "altitude: z + psi", ["output 'altitude'", "term `z` of `psi + z` has dimension m, the other 1"]),
+    ("arm_3dof", "tip_reach: l1*cos(q2)", "tip_reach: l1*cos(q2*l1)", ["output 'tip_reach'", "the argument of cos, `l1*q2`, has dimension m"]),
+    ("quadrotor", "{vector: [0, 0, f1], axes: body", "{vector: [0, 0, f1*L], axes: body", ["the force on body 'frame'", "`[0, 0, L*f1]` times a displacement has dimension kg*m^3/s^2"]),
+    ("gyroscope_gimbals", "{axis: [1, 0, 0], angle: beta,", "{axis: [1, 0, 0], angle: beta*J,", ["the orientation of body 'inner'", "`J*beta`", "must be dimensionless"]),
+    ("gyroscope_gimbals", "{axis: [1, 0, 0], angle: beta,", "{axis: [M_i, 0, J], angle: beta,", ["the orientation of body 'inner'", "term `M_i**2` of `J**2 + M_i**2`"]),
+    ("central_force_cartesian", "rotation_z: {coordinates: {x: -y, y: x}}", "rotation_z: {coordinates: {x: -y, y: x*m}}", ["symmetry 'rotation_z'", "delta y = `m*x`", "one m too many?"]),
+    ("gyroscope_gimbals", "{axis: [1, 0, 0], angle: beta,", "{axis: [M_i, 0, 0.5], angle: beta,", ["the orientation of body 'inner'", "term `M_i**2` of `M_i**2 + 0.25`"]),
 ]
 
 
@@ -119,8 +133,36 @@ def test_introduced_dimensional_errors_are_caught(tmp_path: Path, name: str, old
         assert word in message, message
     first = caught.value.diagnostics[0]
     assert first.span is not None and first.span.file == str(path)
-    if not old.startswith(("g: ", "u: ", "qc: ", "gravity", "definition")):  # (a unit's error is where it is used; a definition's where it is called)
+    # (a unit's error is where it is used; a definition's where it is called; a block-style inertia matrix is reported at its first row)
+    if not old.startswith(("g: ", "u: ", "qc: ", "tau3: ", "gravity", "definition", "m*r**2/4")):
         assert first.span.line == line, message  # the error is at the mutated line
+
+
+@pytest.mark.parametrize(
+    ("old", "new"),
+    [
+        ("{axis: [1, 0, 0], angle: beta,", "{axis: [0.6, 0.8, 0], angle: beta,"),  # numbers in an axis
+        ("{axis: [1, 0, 0], angle: beta,", "{axis: [M_i, 0, M_i], angle: beta,"),  # an axis in kg: any one dimension
+        ("pivot: [0, 0, 0]\n    inertia: [[B1", "pivot: [0, 0, 0*M_i]\n    inertia: [[B1"),  # 0 has every dimension
+    ],
+)
+def test_v2_bodies_without_false_errors(tmp_path: Path, old: str, new: str) -> None:
+    path, _ = _mutated(tmp_path, "gyroscope_gimbals", old, new)
+    derive.derive(spec.load(path))
+
+
+@pytest.mark.parametrize(
+    "new",
+    [
+        "time_shift: {time: 1, coordinates: {x: 1}}",  # numbers are in whatever unit epsilon needs
+        "time_shift: {time: t, coordinates: {x: x, y: y, z: z}}",  # a scaling: epsilon dimensionless in all four
+    ],
+)
+def test_symmetries_without_false_errors(tmp_path: Path, new: str) -> None:
+    path, _ = _mutated(tmp_path, "central_force_cartesian", "time_shift: {time: 1}", new)
+    from lagrange_cli.units import check_file
+
+    assert check_file(spec.load(path)) == ENERGY
 
 
 def test_the_unmutated_file_passes(tmp_path: Path) -> None:
