@@ -86,7 +86,7 @@ def check(spec: SystemSpec, model: Model) -> list[Result]:
     for name, span in spec.expect.conserved:
         results.append(_conserved(model, name, span))
     if spec.expect.conserved_expressions or spec.symmetries:
-        results += _conserved_expressions(spec, model)
+        results += [wrong.get(result.entry) or result for result in _conserved_expressions(spec, model)]
     if spec.expect.hamiltonian is not None:
         results.append(wrong.get("hamiltonian") or _hamiltonian(model, *spec.expect.hamiltonian, points))
     if spec.expect.hamilton_equations:

@@ -680,4 +680,8 @@ def answer_problems(spec: SystemSpec) -> dict[str, tuple[str, Span]]:
         why = check_answer(spec, spec.expect.hamiltonian[0], "hamiltonian", energy)
         if why:
             wrong["hamiltonian"] = (f"the answer is {why}", spec.expect.hamiltonian[1])
+    for text, expr, span in spec.expect.conserved_expressions:  # an expression (not a symmetry's name): its terms agree
+        why = check_answer(spec, expr, "equation", energy) if expr is not None else ""
+        if why:
+            wrong[f"conserved.{text}"] = (f"the answer is {why}", span)
     return wrong

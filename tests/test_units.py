@@ -211,6 +211,22 @@ def test_hamiltonian_answer_dimension(tmp_path: Path) -> None:
     assert "the answer is not dimensionally consistent: term `k*x` has dimension kg*m/s^2, but a Hamiltonian (an energy) has kg*m^2/s^2; missing x?" in report.results[0].detail
 
 
+def test_conserved_expression_answers_are_dimension_checked(tmp_path: Path) -> None:
+    """An `expect.conserved` expression is a quantity of its own dimension, but its terms must agree:
+    `m*(x*y_dot - y)` (a length where a length times a speed belongs) fails with the term named,
+    while the angular momentum passes."""
+    path = tmp_path / "c.yaml"
+    path.write_text(
+        "coordinates: [x, y]\nparameters: {m: 1.0, k: 1.0}\nunits: {x: m, y: m, m: kg, k: kg*m**3/s**2}\nparticles: {p: {mass: m, position: [x, y]}}\n"
+        "potential: -k/sqrt(x**2 + y**2)\nexpect:\n  conserved: [m*(x*y_dot - y*x_dot), m*(x*y_dot - y)]\n"
+    )
+    report = check.check_file(str(path))
+    verdicts = {r.entry: r for r in report.results}
+    assert verdicts["conserved.m*(x*y_dot - y*x_dot)"].passed
+    wrong = verdicts["conserved.m*(x*y_dot - y)"]
+    assert not wrong.passed and "not dimensionally consistent: term `x*y_dot` of `x*y_dot - y` has dimension m^2/s, the other m" in wrong.detail
+
+
 BAD = [
     ("units: {x: m}\n", "'units' has no unit for 'm', 'k'", 4, 1),
     ("units: {x: m, m: kg, k: N/m, y: m}\n", "'units' gives a unit for 'y', which is not a coordinate, parameter or input", 4, 30),
