@@ -83,13 +83,7 @@ def latex(model: Model, standalone: bool = False) -> str:
     body = tex.align([tex.Row(lhs, layout.pieces(expr, doprint, space)) for lhs, expr in items])
     route = "" if ham.symbolic else "; q_dot = M^-1 (p - b) is solved numerically (no symbolic inverse for this many coordinates)"
     header = tex.comment(f"{model.title}: Hamilton's equations in the state (q, p){route}, from {Path(model.source).name}")
-    if not standalone:
-        return header + body
-    return (
-        f"{header}\\documentclass{{article}}\n\\usepackage{{amsmath}}\n\\usepackage[margin=2cm]{{geometry}}\n\\allowdisplaybreaks\n\\begin{{document}}\n\\section*{{{tex.escape_text(model.title)}}}\n"
-        + body
-        + "\\end{document}\n"
-    )
+    return tex.document(model.title, header, body) if standalone else header + body
 
 
 # -- Python ---------------------------------------------------------------------------------------

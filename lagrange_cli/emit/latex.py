@@ -71,10 +71,14 @@ def emit(model: Model, form: str = "lagrange", standalone: bool = False) -> str:
         from lagrange_cli.forces import CONVENTION
 
         header += comment(f"constraint forces F (torques tau) on each particle/body: {CONVENTION}")
-    if not standalone:
-        return header + body
+    return document(model.title, header, body) if standalone else header + body
+
+
+def document(title: str, header: str, body: str) -> str:
+    """`body` as a whole article under a section named by `title` (escaped as text), `header`'s comments first:
+    what `--standalone` writes for every form."""
     return (
-        f"{header}\\documentclass{{article}}\n\\usepackage{{amsmath}}\n\\usepackage[margin=2cm]{{geometry}}\n\\allowdisplaybreaks\n\\begin{{document}}\n\\section*{{{escape_text(model.title)}}}\n"
+        f"{header}\\documentclass{{article}}\n\\usepackage{{amsmath}}\n\\usepackage[margin=2cm]{{geometry}}\n\\allowdisplaybreaks\n\\begin{{document}}\n\\section*{{{escape_text(title)}}}\n"
         + body
         + "\\end{document}\n"
     )

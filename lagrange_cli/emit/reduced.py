@@ -64,13 +64,7 @@ def latex(model: Model, standalone: bool = False) -> str:
     rows += [tex.Row("", layout.pieces(eq, doprint, tex.room()), zero=True) for eq in red.equations()]
     body = tex.align(rows)
     header = tex.comment(f"{model.title}: reduced (Maggi) form, multipliers eliminated, from {Path(model.source).name}; {red.summary()}")
-    if not standalone:
-        return header + body
-    return (
-        f"{header}\\documentclass{{article}}\n\\usepackage{{amsmath}}\n\\usepackage[margin=2cm]{{geometry}}\n\\allowdisplaybreaks\n\\begin{{document}}\n\\section*{{{tex.escape_text(model.title)}}}\n"
-        + body
-        + "\\end{document}\n"
-    )
+    return tex.document(model.title, header, body) if standalone else header + body
 
 
 # -- Python ---------------------------------------------------------------------------------------
