@@ -336,6 +336,16 @@ class _Writer:
             f"M(q{t}) q_ddot = F(q, q_dot{t})" + (" + A^T lambda, with A q_ddot + c = 0 for the kept constraints" if model.constraints else "") + ".",
             f"State y = [q, q_dot] ({2 * n} values): {coordinates}, and their velocities y[{n}] ... y[{2 * n - 1}].",
         ]
+        notes = []
+        if model.constraints:
+            notes.append("Kept constraints (their multipliers follow q_ddot in " + f"{self.prefix}_accelerations): " + ", ".join(c.name for c in model.constraints) + ".")
+        return self.comment_block(lines, notes)
+
+    def comment_block(self, opening: list[str], notes: list[str]) -> str:
+        """The header comment: `opening` (what the form computes), the parameters and inputs, `notes`, the functions
+        written out, the names changed, and what `<prefix>_rhs` returns."""
+        model = self.model
+        lines = list(opening)
         if model.parameters:
             lines.append(f"Parameters p ({self.upper}_NP = {len(model.parameters)}, in the file's order, defaults in {self.prefix}_default_parameters):")
             for i, p in enumerate(model.parameters):
@@ -346,8 +356,7 @@ class _Writer:
         if model.inputs:
             lines.append(f"Inputs u ({self.upper}_NU = {len(model.inputs)}, in the file's order, after p in every function; defaults in {self.prefix}_default_inputs):")
             lines += [f"  u[{i}] = {u.name} (default {u.value!r})" for i, u in enumerate(model.inputs)]
-        if model.constraints:
-            lines.append("Kept constraints (their multipliers follow q_ddot in " + f"{self.prefix}_accelerations): " + ", ".join(c.name for c in model.constraints) + ".")
+        lines += notes
         if self.definitions:
             lines.append(
                 "Functions written out from their definitions in the file: " + "; ".join(f"{k}({', '.join(map(str, f.variables))}) = {f.expr}" for k, f in sorted(self.definitions.items())) + "."
@@ -501,30 +510,8 @@ class _HamiltonWriter(_Writer):
             f"{self.prefix}_rhs gives dy/dt = [dH/dp, -dH/dq + Q]; {self.prefix}_velocities q_dot = M^-1 (p - b), solved numerically at each call",
             f"(no symbolic inverse); {self.prefix}_hamiltonian H = p . q_dot - L; {self.prefix}_momenta maps [q, q_dot] to p.",
         ]
-        if model.parameters:
-            lines.append(f"Parameters p ({self.upper}_NP = {len(model.parameters)}, in the file's order, defaults in {self.prefix}_default_parameters):")
-            for i, p in enumerate(model.parameters):
-                default = "no default: give it in p" if p.value is None else f"default {p.value!r}"
-                lines.append(f"  p[{i}] = {p.name} ({default})")
-        else:
-            lines.append(f"No parameters ({self.upper}_NP = 0; p is not read).")
-        if model.inputs:
-            lines.append(f"Inputs u ({self.upper}_NU = {len(model.inputs)}, in the file's order, after p in every function; defaults in {self.prefix}_default_inputs):")
-            lines += [f"  u[{i}] = {u.name} (default {u.value!r})" for i, u in enumerate(model.inputs)]
-            lines.append("Hamilton's equations treat the inputs as given functions of time: pass their values at t.")
-        if self.definitions:
-            lines.append(
-                "Functions written out from their definitions in the file: " + "; ".join(f"{k}({', '.join(map(str, f.variables))}) = {f.expr}" for k, f in sorted(self.definitions.items())) + "."
-            )
-        names = {c: v for c, v in self.names.items() if c != v and c != str(model.t)}
-        if names:
-            lines.append("Names changed to C identifiers: " + ", ".join(f"{c} -> {v}" for c, v in names.items()) + ".")
-        lines += [
-            "",
-            f"int {self.prefix}_rhs(double t, const double *y, const double *p, {'const double *u, ' if self.signals else ''}double *dydt) returns 0 on success,",
-            "1 when the mass matrix is singular at y, 2 when a result is not finite.",
-        ]
-        return "/*\n" + "\n".join((" * " + comment(line.rstrip())).rstrip() for line in lines) + "\n */"
+        notes = ["Hamilton's equations treat the inputs as given functions of time: pass their values at t."] if model.inputs else []
+        return self.comment_block(lines, notes)
 
     def file(self) -> str:
         model = self.model
