@@ -122,6 +122,20 @@ class _Writer:
         self.index |= {p.name: f"p({i + 1})" for i, p in enumerate(model.parameters)}
         self.index |= {u.name: f"u({i + 1})" for i, u in enumerate(model.inputs)}  # inputs: an argument u after p (FORMAT.md version 2)
 
+    def notes(self) -> list[str]:
+        """The help text's lines on parameters without defaults, functions written out and names changed."""
+        model, lines = self.model, []
+        missing = [p.name for p in model.parameters if p.value is None]
+        if missing:
+            lines.append(f"  Parameters without a default (NaN unless given in p): {', '.join(missing)}.")
+        if self.definitions:
+            written = "; ".join(f"{k}({', '.join(map(str, f.variables))}) = {f.expr}" for k, f in sorted(self.definitions.items()))
+            lines.append(f"  Functions written out from their definitions in the file: {written}.")
+        renamed = {c: v for c, v in self.names.items() if c != v and c != str(model.t)}
+        if renamed:
+            lines.append("  Names changed to MATLAB identifiers: " + ", ".join(f"{c} -> {v}" for c, v in renamed.items()) + ".")
+        return lines
+
     def block(self, exprs: list[Any], prefix: str) -> tuple[list[str], list[str]]:
         """Assignments computing `exprs` and their result codes: the printer core's restructuring
         (sin/cos of each angle once, differences as products, collected coefficients) and CSE,
@@ -203,15 +217,7 @@ class _Writer:
             + (f" ({', '.join(map(str, model.multipliers))})." if model.constraints else " (none here: no kept constraints)."),
             f"  Example: [tt, yy] = ode45(@{self.name}, [0 10], y0, odeset('RelTol', 1e-8, 'AbsTol', 1e-10));",
         ]
-        missing = [p.name for p in model.parameters if p.value is None]
-        if missing:
-            help_lines.append(f"  Parameters without a default (NaN unless given in p): {', '.join(missing)}.")
-        if self.definitions:
-            written = "; ".join(f"{k}({', '.join(map(str, f.variables))}) = {f.expr}" for k, f in sorted(self.definitions.items()))
-            help_lines.append(f"  Functions written out from their definitions in the file: {written}.")
-        renamed = {c: v for c, v in self.names.items() if c != v and c != str(model.t)}
-        if renamed:
-            help_lines.append("  Names changed to MATLAB identifiers: " + ", ".join(f"{c} -> {v}" for c, v in renamed.items()) + ".")
+        help_lines += self.notes()
         arguments = "t, y, p, u" if model.inputs else "t, y, p"
         if model.inputs:
             help_lines.append(f"  Inputs u = [{', '.join(i.name for i in model.inputs)}] after p: {self.name}(t, y, p, u) (default [{', '.join(_number(i.value) for i in model.inputs)}]).")
@@ -309,15 +315,7 @@ class _HamiltonWriter(_Writer):
             "  q_dot = M \\ (p - b) is solved numerically at each call (no symbolic inverse).",
             f"  Example: [tt, yy] = ode45(@{self.name}, [0 10], y0, odeset('RelTol', 1e-8, 'AbsTol', 1e-10));",
         ]
-        missing = [p.name for p in model.parameters if p.value is None]
-        if missing:
-            help_lines.append(f"  Parameters without a default (NaN unless given in p): {', '.join(missing)}.")
-        if self.definitions:
-            written = "; ".join(f"{k}({', '.join(map(str, f.variables))}) = {f.expr}" for k, f in sorted(self.definitions.items()))
-            help_lines.append(f"  Functions written out from their definitions in the file: {written}.")
-        renamed = {c: v for c, v in self.names.items() if c != v and c != str(model.t)}
-        if renamed:
-            help_lines.append("  Names changed to MATLAB identifiers: " + ", ".join(f"{c} -> {v}" for c, v in renamed.items()) + ".")
+        help_lines += self.notes()
         if model.inputs:
             help_lines.append(
                 f"  Inputs u = [{', '.join(i.name for i in model.inputs)}] after p, given values at t: {self.name}(t, y, p, u) (default [{', '.join(_number(i.value) for i in model.inputs)}])."
