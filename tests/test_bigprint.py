@@ -19,6 +19,7 @@ from lagrange_cli.model import Model
 
 from .conftest import SYSTEMS
 from .helpers import model_from, model_of
+from .limits import DEADLOCK
 from .test_latex_layout import PDFLATEX, needs_pdflatex, overflows
 
 
@@ -229,7 +230,7 @@ def test_an_equation_taller_than_a_page_breaks_across_pages(chains: dict[int, Mo
     document = "\\documentclass{article}\n\\usepackage{amsmath}\n\\usepackage[textheight=4cm,paperheight=8cm]{geometry}\n\\begin{document}\n\\input{tall.tex}\n\\end{document}\n"
     (tmp_path / "main.tex").write_text(document)
     assert PDFLATEX
-    result = subprocess.run([PDFLATEX, "-interaction=nonstopmode", "-halt-on-error", "main.tex"], cwd=tmp_path, capture_output=True, text=True, timeout=120)
+    result = subprocess.run([PDFLATEX, "-interaction=nonstopmode", "-halt-on-error", "main.tex"], cwd=tmp_path, capture_output=True, text=True, timeout=DEADLOCK)
     assert result.returncode == 0, result.stdout[-3000:]
     log = (tmp_path / "main.log").read_text(errors="replace")
     assert "Overfull \\vbox" not in log and not [w for w in re.findall(r"Overfull \\hbox \((\d+\.\d+)pt", log) if float(w) > 1.0]
