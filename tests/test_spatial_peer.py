@@ -311,3 +311,86 @@ def test_state_space_with_a_kept_constraint_matches_sympy_mechanics(tmp_path: Pa
     arrays = api.from_text(system.yaml()).state_space({"x": x0, "th": th0, **u0})
     for key in "ABCD":
         assert close(arrays[key], found[key], rtol=1e-12), key
+
+
+# -- bad input: exit 2 at the file, line and column ----------------------------------------------
+
+BASE = """coordinates: [a, b]
+parameters: {m: 1.0, l: 1.0, g: 9.81}
+gravity: [0, 0, -g]
+particles:
+  p: {mass: m, position: [l*sin(a), 0, 0]}
+bodies:
+  A:
+    mass: m
+    orientation: {sequence: ZXZ, angles: [a, b, 0]}
+    pivot: [0, 0, 0]
+    center: [0, 0, l]
+    inertia: [[1, 0, 0], [0, 1, 0], [0, 0, 1]]
+    points: {tip: [0, 0, l]}
+"""
+ORIENTATION = "orientation: {sequence: ZXZ, angles: [a, b, 0]}"
+INERTIA = "[[1, 0, 0], [0, 1, 0], [0, 0, 1]]"
+POINTS = "    points: {tip: [0, 0, l]}"
+WITH_U = BASE.replace("gravity:", "inputs: [u]\ngravity:")
+OTHER = "  B:\n    mass: m\n    orientation: {axis: [0, 0, 1], angle: b, relative_to: A}\n    pivot: [0, 0, 0]\n    inertia: [1, 1, 1]\n"
+BAD = {
+    # the issue's list
+    "not_orthonormal": (BASE.replace(ORIENTATION, "orientation: {matrix: [[1, 0, 0], [0, 1, 0], [0, 0.5, 1]]}"), "9:27", "is not a rotation"),
+    "reflection": (BASE.replace(ORIENTATION, "orientation: {matrix: [[-1, 0, 0], [0, 1, 0], [0, 0, 1]]}"), "9:27", "a reflection"),
+    "unknown_sequence": (BASE.replace("ZXZ", "ZZX"), "9:29", "unknown sequence 'ZZX'"),
+    "relative_to_cycle": (BASE.replace("angles: [a, b, 0]}", "angles: [a, b, 0], relative_to: B}") + OTHER, "16:59", "cycle: A -> B -> A"),
+    "missing_body": (BASE.replace("pivot: [0, 0, 0]", "pivot: Z.tip"), "10:12", "there is no body 'Z'"),
+    "missing_point": (BASE.replace("position: [l*sin(a), 0, 0]", "position: A.top"), "5:26", "has no point 'top'"),
+    "not_symmetric": (BASE.replace(INERTIA, "[[1, 0.1, 0], [0, 1, 0], [0, 0, 1]]"), "12:29", "is not symmetric"),
+    "not_psd": (BASE.replace(INERTIA, "[[1, 2, 0], [2, 1, 0], [0, 0, 1]]"), "12:14", "not positive semi-definite"),
+    "input_unused": (WITH_U, "3:10", "input 'u' is used nowhere"),
+    "angular_velocity_too": (BASE.replace(POINTS, POINTS + "\n    angular_velocity: [a, b, 0]"), "14:23", "gives both 'angular_velocity' and 'orientation'"),
+    # variants
+    "relative_to_itself": (BASE.replace("angles: [a, b, 0]}", "angles: [a, b, 0], relative_to: A}"), "9:66", "cycle: A -> A"),
+    "two_letter_sequence": (BASE.replace("ZXZ", "ZX"), "9:29", "unknown sequence 'ZX'"),
+    "matrix_two_rows": (BASE.replace(ORIENTATION, "orientation: {matrix: [[1, 0, 0], [0, 1, 0]]}"), "9:27", "has 2 rows"),
+    "matrix_short_row": (BASE.replace(ORIENTATION, "orientation: {matrix: [[1, 0, 0], [0, 1], [0, 0, 1]]}"), "9:39", "has 2 components"),
+    "matrix_flat": (BASE.replace(ORIENTATION, "orientation: {matrix: [1, 0, 0, 0, 1, 0, 0, 0, 1]}"), "9:27", "has 9 rows"),
+    "matrix_name": (BASE.replace(ORIENTATION, "orientation: {matrix: [[1, 0, 0], [0, foo, 0], [0, 0, 1]]}"), "9:43", "unknown name 'foo'"),
+    "matrix_boolean": (BASE.replace(ORIENTATION, "orientation: {matrix: [[true, 0, 0], [0, 1, 0], [0, 0, 1]]}"), "9:29", "boolean"),
+    "inertia_two_rows": (BASE.replace(INERTIA, "[[1, 0, 0], [0, 1, 0]]"), "12:14", "has 2 rows"),
+    "inertia_four_entries": (BASE.replace(INERTIA, "[1, 1, 1, 1]"), "12:14", "has 4 components"),
+    "three_dots": (BASE.replace("position: [l*sin(a), 0, 0]", "position: A.tip.x"), "5:26", "unknown point 'A.tip.x'"),
+    "point_of_a_particle": (BASE.replace("pivot: [0, 0, 0]", "pivot: p.x"), "10:12", "unknown point 'p.x'"),
+    "body_named_like_a_particle": (BASE.replace("  A:\n", "  p:\n"), "7:3", "body 'p' has the name of a particle"),
+    "at_another_body": (BASE.replace(POINTS, POINTS + "\n    force: {vector: [1, 0, 0], at: Q.tip}"), "14:36", "not a point of 'A'"),
+    "at_a_particle": (BASE.replace(POINTS, POINTS + "\n    force: {vector: [1, 0, 0], at: p}"), "14:36", "has no point 'p'"),
+    "input_named_like_a_parameter": (BASE.replace("gravity:", "inputs: [m]\ngravity:"), "3:10", "'m' is already declared as a parameter"),
+    # an input where the angular velocity or a reference point's velocity would need u_dot
+    "input_in_angles": (WITH_U.replace("angles: [a, b, 0]", "angles: [a, b, u]"), "10:42", "input 'u' appears in the angles of 'A'"),
+    "input_in_angle": (WITH_U.replace(ORIENTATION, "orientation: {axis: [0, 0, 1], angle: a*u}"), "10:43", "input 'u' appears in the angle of 'A'"),
+    "input_in_matrix": (WITH_U.replace(ORIENTATION, "orientation: {matrix: [[cos(u), -sin(u), 0], [sin(u), cos(u), 0], [0, 0, 1]]}"), "10:27", "input 'u' appears in the orientation matrix of 'A'"),
+    "input_in_pivot": (WITH_U.replace("pivot: [0, 0, 0]", "pivot: [u, 0, 0]"), "11:12", "input 'u' appears in the position of the reference point of 'A'"),
+    "input_in_referenced_particle": (
+        WITH_U.replace("position: [l*sin(a), 0, 0]", "position: [l*sin(a), u, 0], force: [u, 0, 0]").replace("pivot: [0, 0, 0]", "pivot: p"),
+        "11:12",
+        "input 'u' appears in the position of the reference point",
+    ),
+}
+
+
+@pytest.mark.parametrize("case", sorted(BAD))
+def test_bad_spatial_input_is_reported_at_its_line_and_column(case: str) -> None:
+    from lagrange_cli.errors import LagrangeError
+
+    text, where, message = BAD[case]
+    with pytest.raises(LagrangeError) as raised:
+        _ = api.from_text(text, f"{case}.yaml").model
+    shown = str(raised.value)
+    assert f"{case}.yaml:{where}: error: " in shown and message in shown, shown
+    assert "Traceback" not in shown
+
+
+@pytest.mark.parametrize("case", ["input_in_angles", "body_named_like_a_particle"])
+def test_bad_spatial_input_exits_2_through_the_command_line(case: str, tmp_path: Path) -> None:
+    path = tmp_path / f"{case}.yaml"
+    text, where, message = BAD[case]
+    path.write_text(text)
+    done = subprocess.run([sys.executable, "-m", "lagrange_cli", "derive", str(path)], capture_output=True, text=True, timeout=DEADLOCK, cwd=tmp_path)
+    assert done.returncode == 2 and f"{case}.yaml:{where}: error: " in done.stderr and message in done.stderr and "Traceback" not in done.stderr, done.stderr
