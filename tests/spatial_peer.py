@@ -82,6 +82,7 @@ class System:
     outputs: dict[str, str] = field(default_factory=dict)
     constraints: dict[str, str] = field(default_factory=dict)  # name -> expression (= 0)
     potential: str | None = None
+    generalized: dict[str, str] = field(default_factory=dict)  # coordinate -> generalized force (`forces: {generalized: ...}`)
 
     # -- the file ------------------------------------------------------------------------------
 
@@ -97,6 +98,8 @@ class System:
             lines.append(f"gravity: {_list(self.gravity)}")
         if self.potential:
             lines.append(f"potential: {_q(self.potential)}")
+        if self.generalized:
+            lines.append("forces: {generalized: {" + ", ".join(f"{k}: {_q(v)}" for k, v in self.generalized.items()) + "}}")
         if self.constraints:
             lines.append("constraints:")
             lines += [f"  {k}: {_q(v)}" for k, v in self.constraints.items()]
@@ -176,17 +179,17 @@ class Peer:
 
     def numeric(self) -> Any:
         if self._fn is None:
-            args = (self.q_symbols, self.qd_symbols, self.params, self.inputs)
+            args = (self.q_symbols, self.qd_symbols, self.params, self.inputs, T)
             self._fn = (sp.lambdify(args, self.mass_full, cse=True), sp.lambdify(args, self.forcing_full, cse=True))
         return self._fn
 
-    def solve(self, q: list[float], qd: list[float], p: dict[str, float], u: dict[str, float]) -> tuple[np.ndarray, np.ndarray]:
-        """(q_ddot, lambda) at a state."""
+    def solve(self, q: list[float], qd: list[float], p: dict[str, float], u: dict[str, float], t: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+        """(q_ddot, lambda) at a state and time."""
         mass, forcing = self.numeric()
         pv = [p[str(s)] for s in self.params]
         uv = [u[str(s)] for s in self.inputs]
-        m = np.array(mass(q, qd, pv, uv), dtype=float)
-        f = np.array(forcing(q, qd, pv, uv), dtype=float).ravel()
+        m = np.array(mass(q, qd, pv, uv, t), dtype=float)
+        f = np.array(forcing(q, qd, pv, uv, t), dtype=float).ravel()
         x = np.linalg.solve(m, f)
         n = len(q)
         return x[n : 2 * n], x[2 * n : 2 * n + self.n_lambda]
@@ -201,7 +204,7 @@ def build_peer(system: System) -> Peer:
     velocities = {f"{c}_dot": q.diff(T) for c, q in zip(system.coordinates, qs, strict=True)}
 
     def ex(text: str) -> sp.Expr:
-        return sp.sympify(text, locals={**names, **velocities})
+        return sp.sympify(text, locals={**names, **velocities, "t": T})
 
     n_frame = me.ReferenceFrame("N")
     origin = me.Point("O")
@@ -315,6 +318,7 @@ def build_peer(system: System) -> Peer:
     if system.potential:
         raise NotImplementedError("potential: use loads")
     if cons:
+        assert not system.generalized, "generalized forces: Kane's form only"
         lagrangian = me.Lagrangian(n_frame, *bodies)
         method = me.LagrangesMethod(lagrangian, qs, forcelist=loads, frame=n_frame, hol_coneqs=cons)
         method.form_lagranges_equations()
@@ -328,6 +332,10 @@ def build_peer(system: System) -> Peer:
         swap = {**{u: s for u, s in zip(ud, us, strict=True)}, **{q: sp.Symbol(c) for q, c in zip(qs, system.coordinates, strict=True)}}
         mass_full = me.msubs(method.mass_matrix_full, swap)
         forcing_full = me.msubs(method.forcing_full, swap)
+        if system.generalized:  # Kane's dynamic rows are in the order of u = q_dot: add Q_i to row n + i
+            n = len(qs)
+            extra = [me.msubs(ex(system.generalized.get(c, "0")), table) for c in system.coordinates]
+            forcing_full = forcing_full + sp.Matrix([*([0] * n), *extra])
     peer = Peer(qs, us, plain_q, list(params.values()), list(inputs.values()), mass_full, forcing_full, len(cons), outputs, rows, method)
     peer.wrench = {"centres": centres, "frames": frames, "points": points, "origin": origin, "N": n_frame, "table": table, "ex": ex}
     return peer
@@ -349,13 +357,13 @@ def call(module: Any, name: str, t: float, y: list[float], p: dict[str, float], 
     return fn(t, y, p)
 
 
-def lagrange_solve(module: Any, q: list[float], qd: list[float], p: dict[str, float], u: dict[str, float], n_lambda: int) -> tuple[np.ndarray, np.ndarray]:
+def lagrange_solve(module: Any, q: list[float], qd: list[float], p: dict[str, float], u: dict[str, float], n_lambda: int, t: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
     n = len(q)
     y = [*q, *qd]
     if n_lambda:
-        x = np.asarray(call(module, "accelerations", 0.0, y, p, u), dtype=float)
+        x = np.asarray(call(module, "accelerations", t, y, p, u), dtype=float)
         return x[:n], x[n:]
-    return np.asarray(call(module, "rhs", 0.0, y, p, u), dtype=float)[n:], np.zeros(0)
+    return np.asarray(call(module, "rhs", t, y, p, u), dtype=float)[n:], np.zeros(0)
 
 
 def close(got: Any, expected: Any, rtol: float = 1e-8) -> bool:
