@@ -28,6 +28,7 @@ import tempfile
 import time
 import traceback
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import sympy as sp
@@ -37,7 +38,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from lagrange_cli import api
 from lagrange_cli.kinematics import SEQUENCES
-from tests.spatial_peer import BodyDesc, Load, Orient, ParticleDesc, System, constrained_state, lagrange_module, lagrange_solve, perturbed, random_state
+from tests.spatial_peer import BodyDesc, Load, Orient, ParticleDesc, System, call, constrained_state, lagrange_module, lagrange_solve, perturbed, random_state
 from tests.test_spatial_peer import peer_state_space
 
 RTOL = 1e-8
@@ -166,21 +167,62 @@ def add_constraint(system: System, rng: random.Random) -> bool:
     point = rng.choice(list(body.points))
     peer = system.peer()
     where = peer.wrench["points"][f"{body.name}.{point}"].pos_from(peer.wrench["origin"]).to_matrix(peer.wrench["N"])[2]
-    if where.has(me.dynamicsymbols._t) and any(a.has(sp.Symbol("t")) for a in [where]):
-        return False
     plain = me.msubs(where, peer.wrench["table"])
     if plain.has(sp.Symbol("t")) or not plain.free_symbols & set(peer.q_symbols):
         return False
     q0 = {s: rng.uniform(-1, 1) for s in peer.q_symbols}
     height = float(plain.xreplace({**q0, **{sp.Symbol(k): v for k, v in system.parameters.items()}}))
     system.constraints = {"level": f"{sp.sstr(plain, full_prec=False)} - ({height!r})"}
+    system.level = (body.name, point)  # type: ignore[attr-defined]
     return True
 
 
-def run_case(k: int, rng: random.Random, max_bodies: int, folder: Path) -> dict[str, object]:
+def projected_force_difference(system: System, peer: Any, module: Any, q: list[float], qd: list[float], p: dict[str, float], u: dict[str, float], lam: float) -> float:
+    """The named force of the constraint "level" (a point's height) against the peer's physical one:
+    lambda e_z at the point, with its moment about the body's centre (body axes), projected on the
+    motions the coordinates allow (the range of J: the carriers' position rows d r/dq and angular
+    rows d omega/d q_dot from the peer's points and frames), as docs/format.md defines `on`."""
+    w = peer.wrench
+    body_name, point = system.level  # type: ignore[attr-defined]
+    values = {**dict(zip(peer.q_symbols, q, strict=True)), **dict(zip(peer.qd_symbols, qd, strict=True)), **{sp.Symbol(k): v for k, v in p.items()}}
+    table = w["table"]
+    rows: list[list[float]] = []
+    physical: list[float] = []
+    layout: list[tuple[str, str]] = []
+    carriers = [(pd.name, w["particles"][pd.name], None) for pd in system.particles] + [(b.name, w["centres"][b.name], w["frames"][b.name]) for b in system.bodies]
+    for name, centre, frame in carriers:
+        position = me.msubs(centre.pos_from(w["origin"]).to_matrix(w["N"]), table)
+        for i in range(3):
+            rows.append([float(sp.diff(position[i], s).xreplace(values)) for s in peer.q_symbols])
+        force = [0.0, 0.0, 1.0] if name == body_name else [0.0, 0.0, 0.0]
+        physical += force
+        layout.append((name, "force"))
+        if frame is not None:
+            omega = me.msubs(frame.ang_vel_in(w["N"]).to_matrix(frame), table)
+            for i in range(3):
+                rows.append([float(sp.diff(omega[i], s).xreplace(values)) for s in peer.qd_symbols])
+            if name == body_name:
+                arm = w["points"][f"{body_name}.{point}"].pos_from(centre)
+                moment = me.msubs(arm.cross(w["N"].z).to_matrix(frame), table)
+                physical += [float(x.xreplace(values)) for x in moment]
+            else:
+                physical += [0.0, 0.0, 0.0]
+            layout.append((name, "torque"))
+    j = np.array(rows)
+    expected = lam * (j @ np.linalg.pinv(j) @ np.array(physical))
+    found = call(module, "constraint_forces", 0.0, [*q, *qd], p, u)["level"]
+    got: list[float] = []
+    for name, kind in layout:
+        got += list(found["on"][name][kind])
+    scale = max(1.0, float(np.abs(expected).max()))
+    return float(np.abs(np.array(got) - expected).max()) / scale
+
+
+def run_case(k: int, rng: random.Random, max_bodies: int, folder: Path, only: str | None = None) -> dict[str, object]:
     from lagrange_cli.errors import SpecError
 
     kind = rng.choice(["plain", "plain", "time", "constraint", "state_space"])
+    kind = only or kind
     for _ in range(50):  # draw until every coordinate moves something with inertia (else the file is rightly refused)
         system = random_system(rng, max_bodies, time_ok=kind == "time", with_generalized=kind == "state_space")
         if kind == "constraint" and not add_constraint(system, rng):
@@ -197,7 +239,7 @@ def run_case(k: int, rng: random.Random, max_bodies: int, folder: Path) -> dict[
     started = time.process_time()
     peer = system.peer()
     peer_cpu = time.process_time() - started
-    worst = {"acc": 0.0, "lambda": 0.0, "ss": 0.0}
+    worst = {"acc": 0.0, "lambda": 0.0, "force": 0.0, "ss": 0.0}
     compared = 0
     for s in range(3):
         p = system.parameters if s == 0 else perturbed(system.parameters, rng)
@@ -211,6 +253,8 @@ def run_case(k: int, rng: random.Random, max_bodies: int, folder: Path) -> dict[
         if peer.n_lambda:
             worst["lambda"] = max(worst["lambda"], float(np.abs(lam - lam_peer).max()) / max(1.0, float(np.abs(lam_peer).max())))
         compared += 1
+    if peer.n_lambda:
+        worst["force"] = projected_force_difference(system, peer, module, q, qd, p, u, lam_peer[0])
     if kind == "state_space":
         p = system.parameters
         q0 = [rng.uniform(-1, 1) for _ in system.coordinates]
@@ -238,6 +282,7 @@ def main() -> int:
     parser.add_argument("--cases", type=int, default=30)
     parser.add_argument("--seed", type=int, default=1)
     parser.add_argument("--max-bodies", type=int, default=3)
+    parser.add_argument("--kind", choices=["plain", "time", "constraint", "state_space"], help="only cases of this kind")
     args = parser.parse_args()
     rng = random.Random(args.seed)
     agree = disagree = errors = 0
@@ -247,7 +292,7 @@ def main() -> int:
         for k in range(args.cases):
             case_rng = random.Random(rng.getrandbits(32))
             try:
-                result = run_case(k, case_rng, args.max_bodies, Path(folder))
+                result = run_case(k, case_rng, args.max_bodies, Path(folder), args.kind)
             except Exception:  # a case that could not be compared is counted and shown, never hidden
                 errors += 1
                 print(f"case {k}: ERROR\n{traceback.format_exc()}", flush=True)
@@ -261,7 +306,7 @@ def main() -> int:
             disagree += not ok
             kinds[str(result["kind"])] = kinds.get(str(result["kind"]), 0) + 1
             print(
-                f"case {k}: {result['kind']:<11} bodies {result['bodies']} coordinates {result['coordinates']}  max rel. diff: acc {worst['acc']:.1e} lambda {worst['lambda']:.1e} state-space {worst['ss']:.1e}  {'ok' if ok else 'DISAGREE'}  (peer {result['peer_cpu']:.1f} s CPU)",
+                f"case {k}: {result['kind']:<11} bodies {result['bodies']} coordinates {result['coordinates']}  max rel. diff: acc {worst['acc']:.1e} lambda {worst['lambda']:.1e} force {worst['force']:.1e} state-space {worst['ss']:.1e}  {'ok' if ok else 'DISAGREE'}  (peer {result['peer_cpu']:.1f} s CPU)",
                 flush=True,
             )
             if not ok:

@@ -337,7 +337,7 @@ def build_peer(system: System) -> Peer:
             extra = [me.msubs(ex(system.generalized.get(c, "0")), table) for c in system.coordinates]
             forcing_full = forcing_full + sp.Matrix([*([0] * n), *extra])
     peer = Peer(qs, us, plain_q, list(params.values()), list(inputs.values()), mass_full, forcing_full, len(cons), outputs, rows, method)
-    peer.wrench = {"centres": centres, "frames": frames, "points": points, "origin": origin, "N": n_frame, "table": table, "ex": ex}
+    peer.wrench = {"centres": centres, "frames": frames, "points": points, "particles": particle_points, "origin": origin, "N": n_frame, "table": table, "ex": ex}
     return peer
 
 
@@ -383,9 +383,9 @@ def random_state(n: int, rng: random.Random) -> tuple[list[float], list[float]]:
 
 
 def constrained_state(system: System, peer: Peer, rng: random.Random, p: dict[str, float]) -> tuple[list[float], list[float]]:
-    """A random state on the kept constraints: the dependent coordinates (the last ones, one per
-    constraint) solved by Newton's method, the velocities projected on the constraints' null space."""
-    n, m = len(system.coordinates), peer.n_lambda
+    """A random state on the kept constraints: a random configuration moved onto them by Gauss-Newton
+    steps (the smallest change of the coordinates), the velocities projected on the constraints' null space."""
+    n = len(system.coordinates)
     cons = sp.Matrix([me.msubs(sp.sympify(c, locals={**{k: sp.Symbol(k) for k in system.coordinates}, **{k: sp.Symbol(k) for k in p}}), {}) for c in system.constraints.values()])
     args = (peer.q_symbols, [sp.Symbol(k) for k in p])
     f = sp.lambdify(args, cons)
@@ -397,9 +397,8 @@ def constrained_state(system: System, peer: Peer, rng: random.Random, p: dict[st
             r = np.array(f(q, pv), dtype=float).ravel()
             if np.abs(r).max() < 1e-14:
                 break
-            j = np.array(jac(q, pv), dtype=float)[:, n - m :]
-            step = np.linalg.solve(j, -r)
-            q = [*q[: n - m], *(np.array(q[n - m :]) + step).tolist()]
+            j = np.array(jac(q, pv), dtype=float)
+            q = (np.array(q) + np.linalg.lstsq(j, -r, rcond=None)[0]).tolist()  # Gauss-Newton, the smallest step
         r = np.array(f(q, pv), dtype=float).ravel()
         if np.abs(r).max() < 1e-13 and all(math.isfinite(x) for x in q):
             a = np.array(jac(q, pv), dtype=float)

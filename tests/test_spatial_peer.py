@@ -286,6 +286,14 @@ def test_constraint_at_a_body_point_multipliers_and_force_match_sympy_mechanics(
         assert close(on["force"], [lam, 0.0, 0.0]), on
         assert close(on["torque"], np.array(torque.evalf(), dtype=float).ravel()), (on, torque)
         assert close([on["N"]], [lam])  # along the gradient of x_tip: N = lambda
+        # the API's symbolic directions (System.constraint_forces): exact here, the same force and torque
+        fm = api.from_text(system.yaml()).constraint_forces
+        assert fm.status == "exact"
+        table = {**{sp.Symbol(c): v for c, v in zip(system.coordinates, [*q], strict=True)}, **{sp.Symbol(k): v for k, v in p.items()}}
+        for (carrier, kind), ws in fm.on(0).items():
+            assert carrier == "B"
+            value = [lam * float(sp.sympify(w).xreplace(table)) for w in ws]
+            assert close(value, on[kind]), (kind, value, on[kind])
 
 
 def test_state_space_with_a_kept_constraint_matches_sympy_mechanics(tmp_path: Path) -> None:
