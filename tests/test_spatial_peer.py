@@ -234,6 +234,27 @@ def test_state_space_at_a_nonzero_input_matches_sympy_mechanics(tmp_path: Path) 
     arrays = api.from_text(system.yaml()).state_space({"q1": q0[0], "q2": q0[1], "tau": tau0})
     for key in "ABCD":
         assert close(arrays[key], expected[key]), (key, arrays[key], expected[key])
+        symbolic = arrays["symbolic"][key]  # the symbolic matrices, at the parameters' values, are the numeric ones
+        table = {sp.Symbol(k): v for k, v in p.items()}
+        assert symbolic is not None and close(np.array(symbolic.xreplace(table).evalf(), dtype=float).reshape(expected[key].shape), expected[key]), key
+
+
+def test_state_space_with_perturbed_parameters_matches_sympy_mechanics() -> None:
+    """The same at other parameter values (written as the file's defaults) and another pitch, held by
+    the torque input (nothing holds the yaw against the force input, so F0 = 0)."""
+    rng = random.Random(29)
+    system = input_system()
+    system.parameters = perturbed(system.parameters, rng)
+    p = system.parameters
+    q0 = [0.0, -0.7]
+    probe = system.peer()
+    values = {**dict(zip(probe.q_symbols, q0, strict=True)), **dict.fromkeys(probe.qd_symbols, 0.0), **{sp.Symbol(k): v for k, v in p.items()}, sp.Symbol("F"): 0.0}
+    tau0 = float(sp.solve(sp.Matrix(probe.forcing_full).xreplace(values)[3], sp.Symbol("tau"))[0])
+    u0 = {"tau": tau0, "F": 0.0}
+    expected = peer_state_space(system, q0, u0, p)
+    arrays = api.from_text(system.yaml()).state_space({"q1": q0[0], "q2": q0[1], "tau": tau0})
+    for key in "ABCD":
+        assert close(arrays[key], expected[key]), (key, arrays[key], expected[key])
 
 
 def wall_system() -> System:
