@@ -207,7 +207,8 @@ def lines(model: Model, printer: Callable[[sp.Expr], str]) -> list[str]:
 
 
 def python_function(model: Model, printer: Any, unpack: Callable[[list[Any], str], list[str]]) -> str:
-    """The generated module's `constraint_forces(t, y, p)` (emit/python.py passes its printer and
+    """The generated module's `constraint_forces(t, y, p)` (`u=INPUTS` after `p` when the multipliers
+    depend on an input: with the inputs' values they are the forces; emit/python.py passes its printer and
     its `unpack`): for each kept constraint, by name, its multiplier, the generalized force
     lambda * a and the force (and torque) on each particle and body, with the signed size N.
     Solved numerically at each call (numpy lstsq: the unique solution, or the minimum-norm or
@@ -227,7 +228,9 @@ def python_function(model: Model, printer: Any, unpack: Callable[[list[Any], str
     exprs += [e for row in fm.rows for e in row.entries] + [a for c in model.constraints for a in c.jacobian]
     converted = [to_symengine(sp.sympify(e).xreplace(swap)) for e in exprs]
     temporaries, results = printer.block(converted, "_f", set())
-    body = [f"{', '.join(map(str, lams))}{',' * (k == 1)} = multipliers(t, y, p)", *unpack(converted, "y"), *(f"{name} = {code}" for name, code in temporaries)]
+    signals = takes_inputs(model)  # then `multipliers` takes the inputs, and so does this function (they set lambda)
+    call = "multipliers(t, y, p, u)" if signals else "multipliers(t, y, p)"
+    body = [f"{', '.join(map(str, lams))}{',' * (k == 1)} = {call}", *unpack(converted, "y"), *(f"{name} = {code}" for name, code in temporaries)]
     n = model.n
     out = iter(results)
     entries: list[tuple[str, int, list[tuple[str, str, str]]]] = []
@@ -260,7 +263,14 @@ def python_function(model: Model, printer: Any, unpack: Callable[[list[Any], str
         f"Each kept constraint's force by name: lambda, the generalized force lambda * d(lhs - rhs)/dq and, on each particle/body, the force (and torque about its centre) that does the same virtual work ({DESCRIPTIONS[fm.status]})."
         " N = lambda * |force / lambda| is positive along the gradient of lhs - rhs."
     )
-    return define("constraint_forces", "t, y, p=PARAMETERS", doc, body)
+    return define("constraint_forces", "t, y, p=PARAMETERS" + (", u=INPUTS" if signals else ""), doc, body)
+
+
+def takes_inputs(model: Model) -> bool:
+    """Whether the generated `multipliers` (the `rhs` family) takes `u=INPUTS`: an input in the forcing
+    (inputs never enter the mass matrix or the constraints), read from the symengine forms."""
+    names = {i.name for i in model.inputs}
+    return bool(names) and any(str(s) in names for f in model.symengine.forcing for s in f.free_symbols)
 
 
 def latex_items(model: Model, escape_text: Callable[[str], str]) -> list[tuple[str, sp.Expr]]:

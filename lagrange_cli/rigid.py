@@ -48,9 +48,16 @@ class Places:
                     position = next((v for k, v in value.value if isinstance(k, yaml.ScalarNode) and k.value == "position"), None)
                     if position is not None:
                         self.particle_nodes.setdefault(str(key.value), position)
+        particle_names = {str(k.value) for k, _ in particles.value if isinstance(k, yaml.ScalarNode)} if isinstance(particles, yaml.MappingNode) else set()
         if isinstance(bodies, yaml.MappingNode):
             for key, value in bodies.value:
                 if isinstance(key, yaml.ScalarNode):
+                    if str(key.value) in particle_names:  # `BODY` and a particle's name are both point references, and both name a carrier
+                        reader.problem(
+                            key,
+                            f"body '{key.value}' has the name of a particle",
+                            "a name used by one particle or body only (point references, constraint forces and drawings name particles and bodies alike)",
+                        )
                     self.body_nodes.setdefault(str(key.value), value)
         self.positions: dict[str, Vec | None] = {}
         self.bodies: dict[str, Body | None] = {}
@@ -129,6 +136,19 @@ class Places:
         self.reader.problem(node, f"unknown point '{text}'{where}", (f"did you mean '{hint}'? " if hint else "") + expected)
         return None
 
+    def holds_input(self, exprs: Any, node: yaml.Node, what: str) -> bool:
+        """Whether `exprs`, which this module is about to differentiate (angles, matrices, the positions of
+        reference points), hold an input; if so the problem is recorded at `node`: every derivative taken
+        here is guarded by this, so an input where the equations would need its u_dot is reported at its
+        line and column, not as a bare error from inside the derivative."""
+        from lagrange_cli.inputs import U_DOT, WHERE
+
+        free = set().union(*(sp.sympify(e).free_symbols for e in exprs)) if exprs else set()
+        signals = sorted(str(s) for s in free if self.constants.elsewhere.get(str(s)) == "an input")
+        if signals:
+            self.reader.problem(node, f"input '{signals[0]}' appears in {what}, whose time derivative the equations would need", f"inputs in {WHERE} only; {U_DOT}")
+        return bool(signals)
+
     # -- a body -------------------------------------------------------------------------------
 
     def read_body(self, name: str, value: yaml.Node) -> Body | None:
@@ -195,7 +215,9 @@ class Places:
                 return None
             reference = position = tuple(list(anchor))  # its own object: `frames` keys points by identity
         assert anchor is not None and center is not None
-        moving = self.reference_velocity(anchor, rotation, local, parent)
+        moving = self.reference_velocity(anchor, rotation, local, parent, fields["pivot" if "pivot" in fields else "position"], name)
+        if moving is None:
+            return None
         velocity = _add(moving, _cross(omega, center))
         self.frames[id(position)] = (name, velocity)
         points: dict[str, Vec] = {}
@@ -211,7 +233,7 @@ class Places:
         self.point_velocities[name] = point_velocities
         return self.loads(body, fields)
 
-    def reference_velocity(self, reference: Vec, rotation: kin.Matrix, local: kin.Matrix, parent: str | None) -> Vec:
+    def reference_velocity(self, reference: Vec, rotation: kin.Matrix, local: kin.Matrix, parent: str | None, node: yaml.Node, name: str) -> Vec | None:
         """The velocity of a body's reference point in its own axes: carried over from the body whose point
         it is (through the rotation relative to that body when it is the parent), else R^T dx/dt of the world position."""
         zero = sp.Integer(0)
@@ -223,6 +245,8 @@ class Places:
             owner_body = self.bodies.get(owner)
             if owner_body is not None and owner_body.rotation is not None:
                 return kin.matvec(kin.transpose(rotation), kin.matvec(owner_body.rotation, velocity))
+        if self.holds_input(reference, node, f"the position of the reference point of '{name}'"):
+            return None
         rate = tuple(self.config.time_derivative(x) for x in reference)
         if all(v == 0 for v in rate):
             return (zero,) * len(reference)
@@ -316,6 +340,8 @@ class Places:
             angle = r.expression(fields["angle"], f"the angle of '{name}'", self.config)
             if angle is None:
                 return None
+            if self.holds_input([angle], fields["angle"], f"the angle of '{name}'"):
+                return None
             local, rate = kin.planar(angle), (self.config.time_derivative(angle),)
         else:
             if len(forms) != 1:
@@ -384,6 +410,8 @@ class Places:
             return None
         length = sp.sqrt(squared)
         unit = tuple(a / length for a in axis)
+        if self.holds_input([angle], fields["angle"], f"the angle of '{name}'"):
+            return None
         rate = self.config.time_derivative(angle)
         return kin.rodrigues(unit, angle), tuple(u * rate for u in unit)
 
@@ -417,6 +445,8 @@ class Places:
         angles = r.vector(fields["angles"], f"the angles of '{name}'", self.config, (3,))
         if angles is None:
             return None
+        if self.holds_input(angles, fields["angles"], f"the angles of '{name}'"):
+            return None
         pairs = kin.factors(sequence, angles, kind)
         rates = [self.config.time_derivative(a) for _, a in pairs]
         return kin.product(pairs), kin.product_omega(pairs, rates)
@@ -438,6 +468,8 @@ class Places:
         if any(row is None for row in parsed):
             return None
         matrix = tuple(tuple(row) for row in parsed if row is not None)
+        if self.holds_input([e for row in matrix for e in row], rows_node, f"the orientation matrix of '{name}'"):
+            return None
         problem = self.not_rotation(matrix)
         if problem:
             r.problem(rows_node, f"the orientation matrix of '{name}' is not a rotation: {problem}", "a rotation matrix (orthonormal columns, the body axes in parent coordinates, determinant +1)")
