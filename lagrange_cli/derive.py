@@ -36,6 +36,7 @@ from lagrange_cli._symengine import se, to_symengine
 from lagrange_cli.algebra import combine_trig, expand_bounded, expandable
 from lagrange_cli.errors import Span, fail
 from lagrange_cli.expr import numeric_value, real_derivative
+from lagrange_cli.kinematics import Rate
 from lagrange_cli.model import Carrier, ConstraintRow, Model, SymengineForms
 from lagrange_cli.spec import Body, Constraint, Particle, SystemSpec, time_derivative
 from lagrange_cli.validate import Source, first_refusal, forms_parts, refusal, survey, validate
@@ -545,9 +546,11 @@ def oriented_bodies(spec: SystemSpec, quad: PointMasses, q: Sequence[se.Basic], 
             local_gravity[body.name] = [se.Add(*(local[k][i] * outer[k] for k in range(len(outer)))) for i in range(len(outer))]
         return local_gravity[body.name]
 
+    time_rate = Rate(q, qd, t)
+
     def rate(vector: Vector) -> Vector:
-        """d/dt without the accelerations: sum_k dx/dq_k q_dot_k + dx/dt."""
-        return [se.Add(*(se.diff(x, q[k]) * qd[k] for k in range(n) if q[k] in x.free_symbols), se.diff(x, t) if t in x.free_symbols else ZERO) for x in vector]
+        """d/dt without the accelerations: sum_k dx/dq_k q_dot_k + dx/dt (`kinematics.Rate`: each shared part once)."""
+        return [time_rate(x) for x in vector]
 
     entries: dict[tuple[int, int], list[se.Basic]] = {}
     for body in spec.bodies:
