@@ -576,11 +576,11 @@ def oriented_bodies(spec: SystemSpec, quad: PointMasses, q: Sequence[se.Basic], 
         if len(omega) == 3:  # a planar body's omega x I omega is 0
             torque = _plus(torque, _cross(omega, spin))
         g_body = down(body) if gravity is not None else None
-        parts[body.name] = Part(m, inertia, {i: (w.get(i, zero_w), v.get(i, zero_v)) for i in keys}, velocity, spin, acceleration, torque, g_body)
+        parts[body.name] = Part(m, inertia, {i: (w.get(i, zero_w), v.get(i, zero_v)) for i in keys}, velocity, spin, acceleration, torque, g_body, omega)
         kinetic.append((m * _dot(velocity, velocity) + _dot(omega, spin)) / 2)
         if gravity is not None:
             quad.gravity_potential = quad.gravity_potential - m * _dot(gravity, _se(body.position))
-    trees = Trees(spec, parts, q, composite)
+    trees = Trees(spec, parts, q, qd, t, composite)
     for name, part in parts.items():
         if name in trees.tree:
             continue
@@ -598,6 +598,8 @@ def oriented_bodies(spec: SystemSpec, quad: PointMasses, q: Sequence[se.Basic], 
         for i, (wi, vi) in part.columns.items():
             momenta[i] = momenta[i] + part.mass * _dot(vi, part.velocity) + _dot(wi, part.spin)
     # in trees, each body's load once, carried up to where each coordinate's column is (recursive Newton-Euler)
+    if trees.hinges:
+        parts = trees.accelerations(rate)
     inertial = trees.project(
         {name: (part.torque, [part.mass * (a - g) for a, g in zip(part.acceleration, part.weight or [ZERO] * 3, strict=True)]) for name, part in parts.items() if name in trees.tree}
     )
@@ -628,6 +630,7 @@ class Part:
     acceleration: Vector
     torque: Vector
     weight: Vector | None
+    omega: Vector
 
 
 class Trees:
@@ -651,8 +654,8 @@ class Trees:
 
     A body in no tree is left to the caller (body by body, Kane's form)."""
 
-    def __init__(self, spec: SystemSpec, parts: Mapping[str, Part], q: Sequence[se.Basic], composite: bool = True) -> None:
-        self.parts = parts
+    def __init__(self, spec: SystemSpec, parts: Mapping[str, Part], q: Sequence[se.Basic], qd: Sequence[se.Basic], t: se.Basic, composite: bool = True) -> None:
+        self.parts, self.qd = parts, qd
         self.hinges: dict[str, tuple[str, list[list[se.Basic]], Vector, Vector]] = {}  # parent, L, this centre from P, P from the parent's centre
         for body in spec.bodies if composite else ():
             part = parts.get(body.name)
@@ -664,6 +667,8 @@ class Trees:
                 continue
             local = [_se(row) for row in body.local]
             moved = {k for k, qk in enumerate(q) if any(qk in e.free_symbols for row in local for e in row)}
+            if t in set().union(*(e.free_symbols for row in local for e in row)):
+                continue  # a rotation relative to the parent given in time: its relative angular velocity is not all in its columns
             if moved & set(above.columns) or not set(above.columns) <= set(part.columns) or not set(part.columns) - set(above.columns) <= moved:
                 continue  # the parent's motion has a coordinate of the relative rotation: J = X J_parent + S does not hold
             self.hinges[body.name] = (parent, local, _se(center), _se(offset))
@@ -671,6 +676,37 @@ class Trees:
         self.tree = {name for name in parts if name in self.hinges or name in parents}
         self.introduced = {name: sorted(set(parts[name].columns) - set(parts[self.hinges[name][0]].columns)) if name in self.hinges else sorted(parts[name].columns) for name in self.tree}
         self.order = sorted(self.tree, key=self.depth, reverse=True)  # children before their parents
+
+    def accelerations(self, rate: Callable[[Vector], Vector]) -> dict[str, Part]:
+        """The parts with each hinged body's acceleration and torque (without the accelerations q_ddot) carried
+        down from its parent's (Newton-Euler), not by differentiating its nested velocity: with omega_b =
+        L^T omega_p + omega_rel (omega_rel = sum of its own columns times their rates),
+
+            alpha_b = L^T alpha_p + (L^T omega_p) x omega_rel + d(omega_rel)/dt
+            a_b = L^T (a_p + alpha_p x d + omega_p x (omega_p x d)) + alpha_b x c + omega_b x (omega_b x c)
+
+        (d the pivot from the parent's centre, c the centre from the pivot), torque = I alpha_b + omega_b x I omega_b."""
+        found = dict(self.parts)
+        bias: dict[str, tuple[Vector, Vector]] = {}
+        for name in sorted(self.tree, key=self.depth):  # parents first
+            part = self.parts[name]
+            if name not in self.hinges:
+                bias[name] = (rate(part.omega), part.acceleration)
+                continue
+            parent, local, center, offset = self.hinges[name]
+            alpha_p, acc_p = bias[parent]
+            omega_p = self.parts[parent].omega
+            turn = [[local[j][i] for j in range(3)] for i in range(3)]  # L^T
+            rel = [se.Add(*(self.parts[name].columns[k][0][i] * self.qd[k] for k in self.introduced[name])) for i in range(3)]
+            carried = [_dot(row, omega_p) for row in turn]
+            alpha = _plus(_plus([_dot(row, alpha_p) for row in turn], _cross(carried, rel)), rate(rel))
+            at_pivot = _plus(_plus(acc_p, _cross(alpha_p, offset)), _cross(omega_p, _cross(omega_p, offset)))
+            omega = part.omega
+            acc = _plus(_plus([_dot(row, at_pivot) for row in turn], _cross(alpha, center)), _cross(omega, _cross(omega, center)))
+            torque = _plus([_dot(row, alpha) for row in part.inertia], _cross(omega, part.spin))
+            bias[name] = (alpha, acc)
+            found[name] = dataclasses.replace(part, acceleration=acc, torque=torque)
+        return found
 
     def depth(self, name: str) -> int:
         return 1 + self.depth(self.hinges[name][0]) if name in self.hinges else 0

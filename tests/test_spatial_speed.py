@@ -82,7 +82,7 @@ def test_rate_differentiates_a_shared_nested_chain_once() -> None:
 
 
 TREE = """
-title: A floating base with two hinged arms, one with a forearm, and a tag turned by a base angle
+title: A floating base with two hinged arms, one with a forearm, a tag turned by a base angle and a spinner driven in time
 coordinates: [x, y, a, b, p1, p2, r1, r2, s1]
 parameters: {g: 9.81, M: 3.0, m1: 1.2, m2: 0.8, m3: 0.5, L: 0.7}
 gravity: [0, -g, -g/2]
@@ -118,6 +118,12 @@ bodies:
     pivot: forearm
     center: [0.05, 0, 0]
     inertia: [[0.001, 0, 0], [0, 0.001, 0], [0, 0, 0.001]]
+  spinner:
+    mass: 0.2
+    orientation: {axis: [0, 1, 0], angle: 3*t + s1, relative_to: arm2}
+    pivot: arm2
+    center: [0, 0, 0.1]
+    inertia: [[0.002, 0, 0], [0, 0.003, 0], [0, 0, 0.001]]
 """
 
 
@@ -136,7 +142,7 @@ def test_composite_bodies_give_the_body_by_body_equations() -> None:
     a, b = ours.symengine, plain.symengine
     assert a.mass != b.mass and a.forcing != b.forcing  # the composite sums are in use
     by_name = {body.name: body for body in system.bodies}
-    assert all(by_name[name].anchor is not None for name in ("arm1", "arm2", "forearm", "tag"))
+    assert all(by_name[name].anchor is not None for name in ("arm1", "arm2", "forearm", "tag", "spinner"))
     pairs = [
         *zip([e for row in a.mass for e in row], [e for row in b.mass for e in row], strict=True),
         *zip(a.forcing, b.forcing, strict=True),
@@ -145,7 +151,7 @@ def test_composite_bodies_give_the_body_by_body_equations() -> None:
     ]
     rng = random.Random(13)
     for _ in range(3):
-        point = {v: rng.uniform(-1.0, 1.0) for v in (*a.q, *a.qd)}
+        point = {v: rng.uniform(-1.0, 1.0) for v in (*a.q, *a.qd, a.t)}
         point.update({se.Symbol(p.name): p.value * rng.uniform(0.8, 1.2) for p in ours.parameters})
         for x, y in pairs:
             assert abs(float(x.subs(point)) - float(y.subs(point))) < 1e-11 * max(1.0, abs(float(y.subs(point))))
