@@ -685,13 +685,16 @@ class Trees:
             alpha_b = L^T alpha_p + (L^T omega_p) x omega_rel + d(omega_rel)/dt
             a_b = L^T (a_p + alpha_p x d + omega_p x (omega_p x d)) + alpha_b x c + omega_b x (omega_b x c)
 
-        (d the pivot from the parent's centre, c the centre from the pivot), torque = I alpha_b + omega_b x I omega_b."""
+        (d the pivot from the parent's centre, c the centre from the pivot), torque = I alpha_b + omega_b x I omega_b.
+        Gravity joins as the root's acceleration a - g (Luh, Walker and Paul's trick): each body's weight is then in its a."""
         found = dict(self.parts)
         bias: dict[str, tuple[Vector, Vector]] = {}
         for name in sorted(self.tree, key=self.depth):  # parents first
             part = self.parts[name]
-            if name not in self.hinges:
-                bias[name] = (rate(part.omega), part.acceleration)
+            if name not in self.hinges:  # gravity as an acceleration of the root: carried down with the rest
+                acc = part.acceleration if part.weight is None else [a - g for a, g in zip(part.acceleration, part.weight, strict=True)]
+                bias[name] = (rate(part.omega), acc)
+                found[name] = dataclasses.replace(part, acceleration=acc, weight=None)
                 continue
             parent, local, center, offset = self.hinges[name]
             alpha_p, acc_p = bias[parent]
@@ -705,7 +708,7 @@ class Trees:
             acc = _plus(_plus([_dot(row, at_pivot) for row in turn], _cross(alpha, center)), _cross(omega, _cross(omega, center)))
             torque = _plus([_dot(row, alpha) for row in part.inertia], _cross(omega, part.spin))
             bias[name] = (alpha, acc)
-            found[name] = dataclasses.replace(part, acceleration=acc, torque=torque)
+            found[name] = dataclasses.replace(part, acceleration=acc, torque=torque, weight=None)
         return found
 
     def depth(self, name: str) -> int:
@@ -755,7 +758,7 @@ class Trees:
                 continue
             parent, local, _, offset = self.hinges[name]
             m, h, inertia = composite[name]
-            turned = [[_dot(local[i], [_dot(inertia[k], local[j]) for k in range(3)]) for j in range(3)] for i in range(3)]  # L I L^T
+            turned = _similar(local, inertia)
             pm, ph, pi = composite[parent]
             cm, ch, ci = _moved(m, [_dot(row, h) for row in local], turned, _plus(offset, self.center(parent)))
             composite[parent] = (pm + cm, _plus(ph, ch), [_plus(pi[i], ci[i]) for i in range(3)])
@@ -778,13 +781,25 @@ class Trees:
                     at, torque, force = self.up(at, torque, force)
 
 
+def _symmetric(entry: Callable[[int, int], se.Basic]) -> list[list[se.Basic]]:
+    """The symmetric 3x3 matrix with these entries, each pair i < j formed once."""
+    upper = {(i, j): entry(i, j) for i in range(3) for j in range(i, 3)}
+    return [[upper[(min(i, j), max(i, j))] for j in range(3)] for i in range(3)]
+
+
+def _similar(local: list[list[se.Basic]], inertia: list[list[se.Basic]]) -> list[list[se.Basic]]:
+    """L I L^T of a symmetric I."""
+    columns = [[_dot(inertia[k], local[j]) for k in range(3)] for j in range(3)]  # I L^T, by column
+    return _symmetric(lambda i, j: _dot(local[i], columns[j]))
+
+
 def _moved(m: se.Basic, h: Vector, inertia: list[list[se.Basic]], r: Vector) -> tuple[se.Basic, Vector, list[list[se.Basic]]]:
     """Mass, first moment and inertia about a point O (h = m (centre - O)) carried to O' = O - r:
     h' = h + m r, I' = I + m (r.r 1 - r r^T) + 2 (r.h) 1 - r h^T - h r^T (parallel axes, O not the centre)."""
     if all(x == ZERO for x in r):
         return m, h, inertia
     rr, rh = _dot(r, r), _dot(r, h)
-    moved = [[inertia[i][j] - m * r[i] * r[j] - r[i] * h[j] - h[i] * r[j] + ((m * rr + 2 * rh) if i == j else ZERO) for j in range(3)] for i in range(3)]
+    moved = _symmetric(lambda i, j: inertia[i][j] - m * r[i] * r[j] - r[i] * h[j] - h[i] * r[j] + ((m * rr + 2 * rh) if i == j else ZERO))
     return m, _plus(h, [m * x for x in r]), moved
 
 
