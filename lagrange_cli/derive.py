@@ -639,7 +639,8 @@ class Trees:
     A body hinged to its `relative_to` parent (`Body.anchor`: its pivot a point of the parent, both spatial) moves
     with its parent but for the coordinates of its rotation L relative to the parent (which the parent's motion
     must not have): its Jacobian is the parent's carried over to it, plus its own columns, pure turns about its
-    pivot. Each body of a tree has a reference point P, its pivot (hinged) or its centre (the root), and a column
+    pivot. Each body of a tree has a reference point P, its pivot (hinged, or a root turning about a fixed pivot) or
+    its centre (any other root), and a column
     is introduced where its coordinate first moves a body (its own coordinates; at a root, all its columns).
     Then sums over the bodies below a column (Featherstone's composite-rigid-body and recursive Newton-Euler
     algorithms) are carried up the tree once, not taken body by body:
@@ -657,11 +658,15 @@ class Trees:
     def __init__(self, spec: SystemSpec, parts: Mapping[str, Part], q: Sequence[se.Basic], qd: Sequence[se.Basic], t: se.Basic, composite: bool = True) -> None:
         self.parts, self.qd = parts, qd
         self.hinges: dict[str, tuple[str, list[list[se.Basic]], Vector, Vector]] = {}  # parent, L, this centre from P, P from the parent's centre
+        self.fixed: dict[str, Vector] = {}  # a root turning about a fixed pivot: its centre from the pivot
         for body in spec.bodies if composite else ():
             part = parts.get(body.name)
             if part is None or body.anchor is None or body.local is None or len(part.inertia) != 3:
                 continue
             parent, offset, center = body.anchor
+            if parent is None:  # its velocity is omega x c: each column a turn about the pivot
+                self.fixed[body.name] = _se(center)
+                continue
             above = parts.get(parent)
             if above is None or len(above.inertia) != 3:
                 continue
@@ -716,7 +721,13 @@ class Trees:
 
     def center(self, name: str) -> Vector:
         """The centre from P, in the body's axes."""
-        return self.hinges[name][2] if name in self.hinges else [ZERO] * 3
+        if name in self.hinges:
+            return self.hinges[name][2]
+        return self.fixed.get(name, [ZERO] * 3)
+
+    def turns(self, name: str) -> bool:
+        """Whether the columns introduced at `name` are turns about its P (hinged, or a root about a fixed pivot)."""
+        return name in self.hinges or name in self.fixed
 
     def up(self, name: str, torque: Vector, force: Vector) -> tuple[str, Vector, Vector]:
         """A force (torque about P, force; body axes) carried to the parent's P and axes: (parent, torque, force)."""
@@ -725,9 +736,9 @@ class Trees:
         return parent, _plus([_dot(row, torque) for row in local], _cross(_plus(offset, self.center(parent)), force)), force
 
     def dot(self, name: str, k: int, torque: Vector, force: Vector) -> se.Basic:
-        """S_k . (torque about P, force) for a column introduced at `name` (a hinged body's: a turn about P)."""
+        """S_k . (torque about P, force) for a column introduced at `name` (`turns`: w_k . torque)."""
         w, v = self.parts[name].columns[k]
-        return _dot(w, torque) if name in self.hinges else _dot(w, torque) + _dot(v, force)
+        return _dot(w, torque) if self.turns(name) else _dot(w, torque) + _dot(v, force)
 
     def project(self, loads: Mapping[str, tuple[Vector, Vector]]) -> dict[int, se.Basic]:
         """sum_b J_bk . (torque_b, force_b) over the bodies of the trees (each load about its body's centre, body axes), by k."""
@@ -766,7 +777,7 @@ class Trees:
             m, h, inertia = composite[name]
             for col in self.introduced[name]:
                 w, v = self.parts[name].columns[col]
-                if name in self.hinges:  # a turn about P: v at P is 0
+                if self.turns(name):  # a turn about P: v at P is 0
                     torque, force = [_dot(row, w) for row in inertia], [-c for c in _cross(h, w)]  # I w, -h x w
                 else:  # the root: P is its centre
                     torque = _plus([_dot(row, w) for row in inertia], _cross(h, v))  # I w + h x v

@@ -212,7 +212,11 @@ class Places:
                     self.frames[id(points[point])] = (name, point_velocities[point])
                     self.offsets[id(points[point])] = (name, tuple(o - c for o, c in zip(offset, center, strict=True)))
         attached = self.offsets.get(id(anchor)) if "pivot" in fields else None
-        hinge = (parent, attached[1], center) if attached is not None and parent is not None and attached[0] == parent else None
+        hinge: tuple[str | None, Vec, Vec] | None = None
+        if attached is not None and parent is not None and attached[0] == parent:
+            hinge = (parent, attached[1], center)
+        elif "pivot" in fields and parent is None and id(anchor) not in self.frames and all(self.config.time_derivative(x) == 0 for x in anchor):
+            hinge = (None, (sp.Integer(0),) * dim, center)  # a fixed pivot
         body = Body(name, mass, position, inertia, omega, spans, rotation=rotation, points=points, local=local, parent=parent, velocity=velocity, anchor=hinge)
         self.point_velocities[name] = point_velocities
         return self.loads(body, fields)
