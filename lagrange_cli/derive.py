@@ -605,10 +605,10 @@ def oriented_bodies(spec: SystemSpec, quad: PointMasses, q: Sequence[se.Basic], 
     )
     for i, value in inertial.items():
         forcing[i] = forcing[i] - value
-    trees.mass(entries)
+    nested = trees.mass(entries)
     for (i, j), terms in entries.items():
         entry = se.Add(*terms)
-        if se.count_ops(entry) <= MAX_COMBINED:
+        if se.count_ops(entry) <= MAX_COMBINED and (i, j) not in nested:  # a composite entry shares its parts with the others'; combined, it would not
             entry = combine_trig(entry)
         mass[i][j] = mass[j][i] = entry
     total = se.Add(*kinetic) if kinetic else ZERO
@@ -761,8 +761,9 @@ class Trees:
                 found.setdefault(k, []).append(self.dot(name, k, *total[name]))
         return {k: se.Add(*terms) for k, terms in found.items()}
 
-    def mass(self, entries: dict[tuple[int, int], list[se.Basic]]) -> None:
-        """The trees' share of M, as terms of `entries` (keyed by (i, j), i <= j)."""
+    def mass(self, entries: dict[tuple[int, int], list[se.Basic]]) -> set[tuple[int, int]]:
+        """The trees' share of M, as terms of `entries` (keyed by (i, j), i <= j); the keys it added to."""
+        added: set[tuple[int, int]] = set()
         composite = {name: _moved(self.parts[name].mass, [ZERO] * 3, self.parts[name].inertia, self.center(name)) for name in self.tree}
         for name in self.order:
             if name not in self.hinges:
@@ -787,9 +788,11 @@ class Trees:
                     for k in self.introduced[at]:
                         if at != name or k <= col:
                             entries.setdefault((min(k, col), max(k, col)), []).append(self.dot(at, k, torque, force))
+                            added.add((min(k, col), max(k, col)))
                     if at not in self.hinges:
                         break
                     at, torque, force = self.up(at, torque, force)
+        return added
 
 
 def _symmetric(entry: Callable[[int, int], se.Basic]) -> list[list[se.Basic]]:
