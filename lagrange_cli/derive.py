@@ -36,6 +36,7 @@ from lagrange_cli._symengine import se, to_symengine
 from lagrange_cli.algebra import combine_trig, expand_bounded, expandable
 from lagrange_cli.errors import Span, fail
 from lagrange_cli.expr import numeric_value, real_derivative
+from lagrange_cli.kinematics import Rate
 from lagrange_cli.model import Carrier, ConstraintRow, Model, SymengineForms
 from lagrange_cli.spec import Body, Constraint, Particle, SystemSpec, time_derivative
 from lagrange_cli.validate import Source, first_refusal, forms_parts, refusal, survey, validate
@@ -75,15 +76,16 @@ def derive(spec: SystemSpec, shared: bool = False) -> Model:
     return model
 
 
-def _derive(spec: SystemSpec, shared: bool = False) -> tuple[Model, bool]:
-    """The model and whether `validate.survey` cleared its symengine forms."""
+def _derive(spec: SystemSpec, shared: bool = False, composite: bool = True) -> tuple[Model, bool]:
+    """The model and whether `validate.survey` cleared its symengine forms. `composite`: hinged oriented bodies
+    summed as composite bodies (`Trees`: far fewer operations, but longer written out in full)."""
     q, qd, t = _se(spec.q), _se(spec.qd), _to_se(spec.t)
     qdd = _se(spec.qdd)
     free = [item for item in _masses(spec) if not (isinstance(item, Body) and item.rotation is not None)]  # oriented bodies: `oriented_bodies`
     points = [item for item in free if _structured(item, qd, qdd)]
     others = [item for item in free if not _structured(item, qd, qdd)]
     quad = point_masses(points, q, qd, t, _se(spec.gravity) if spec.gravity is not None else None)
-    rigid = oriented_bodies(spec, quad, q, t)  # Kane's form for bodies with an orientation; their weight joins `quad`
+    rigid = oriented_bodies(spec, quad, q, t, composite)  # Kane's form for bodies with an orientation; their weight joins `quad`
     potential = potential_energy(spec, others) + quad.gravity_potential
     # everything but the point masses' quadratic kinetic energy and gravity: differentiated as written
     rest_kinetic = combine_trig(quad.linear + quad.constant + kinetic_energy(spec, others) + rotational_energy(spec) + _to_se(spec.kinetic))
@@ -134,6 +136,8 @@ def _derive(spec: SystemSpec, shared: bool = False) -> tuple[Model, bool]:
             "a smaller system; or `derive --to python`, whose code shares common subexpressions",
         )
         if not cleared or not shared:
+            if rigid.composite:  # body by body, the equations are shorter written out
+                return _derive(spec, shared, composite=False)
             raise refuse
     forms, given = (forms, {}) if cleared else _kinks(forms, spec)
     model = Model.from_symengine(
@@ -513,9 +517,11 @@ class Rigid:
     kinetic: se.Basic
     momenta: Vector
     energy: se.Basic
+    composite: bool = False
+    """Whether some bodies were summed as composite bodies (`Trees`)."""
 
 
-def oriented_bodies(spec: SystemSpec, quad: PointMasses, q: Sequence[se.Basic], t: se.Basic) -> Rigid:
+def oriented_bodies(spec: SystemSpec, quad: PointMasses, q: Sequence[se.Basic], t: se.Basic, composite: bool = True) -> Rigid:
     """Bodies with an `orientation`, in Kane's form with every vector in body axes, where it is short. With the
     centre's velocity v = sum_i v_i q_dot_i + v_0 and omega = sum_i w_i q_dot_i + w_0 (body axes; `rigid.Places`
     builds both down the references without differentiating a composed rotation):
@@ -545,11 +551,14 @@ def oriented_bodies(spec: SystemSpec, quad: PointMasses, q: Sequence[se.Basic], 
             local_gravity[body.name] = [se.Add(*(local[k][i] * outer[k] for k in range(len(outer)))) for i in range(len(outer))]
         return local_gravity[body.name]
 
+    time_rate = Rate(q, qd, t)
+
     def rate(vector: Vector) -> Vector:
-        """d/dt without the accelerations: sum_k dx/dq_k q_dot_k + dx/dt."""
-        return [se.Add(*(se.diff(x, q[k]) * qd[k] for k in range(n) if q[k] in x.free_symbols), se.diff(x, t) if t in x.free_symbols else ZERO) for x in vector]
+        """d/dt without the accelerations: sum_k dx/dq_k q_dot_k + dx/dt (`kinematics.Rate`: each shared part once)."""
+        return [time_rate(x) for x in vector]
 
     entries: dict[tuple[int, int], list[se.Basic]] = {}
+    parts: dict[str, Part] = {}
     for body in spec.bodies:
         if body.rotation is None or body.velocity is None:
             continue
@@ -562,31 +571,250 @@ def oriented_bodies(spec: SystemSpec, quad: PointMasses, q: Sequence[se.Basic], 
         keys = sorted(set(w) | set(v))
         zero_w, zero_v = [ZERO] * len(omega), [ZERO] * len(velocity)
         spin = [_dot(row, omega) for row in inertia]  # I omega
-        moments = {i: [_dot(row, w.get(i, zero_w)) for row in inertia] for i in keys}  # I w_i
-        for k, i in enumerate(keys):
-            for j in keys[k:]:
-                entries.setdefault((i, j), []).append(m * _dot(v.get(i, zero_v), v.get(j, zero_v)) + _dot(w.get(j, zero_w), moments[i]))
         acceleration = _plus(rate(velocity), _cross(omega, velocity))
         torque = [_dot(row, rate(omega)) for row in inertia]
         if len(omega) == 3:  # a planar body's omega x I omega is 0
             torque = _plus(torque, _cross(omega, spin))
-        for i in keys:
-            forcing[i] = forcing[i] - m * _dot(v.get(i, zero_v), acceleration) - _dot(w.get(i, zero_w), torque)
-            momenta[i] = momenta[i] + m * _dot(v.get(i, zero_v), velocity) + _dot(w.get(i, zero_w), spin)
+        g_body = down(body) if gravity is not None else None
+        parts[body.name] = Part(m, inertia, {i: (w.get(i, zero_w), v.get(i, zero_v)) for i in keys}, velocity, spin, acceleration, torque, g_body, omega)
         kinetic.append((m * _dot(velocity, velocity) + _dot(omega, spin)) / 2)
         if gravity is not None:
-            g_body = down(body)
-            for i, vi in v.items():
-                quad.gravity[i] = quad.gravity[i] + m * _dot(g_body, vi)
             quad.gravity_potential = quad.gravity_potential - m * _dot(gravity, _se(body.position))
+    trees = Trees(spec, parts, q, qd, t, composite)
+    for name, part in parts.items():
+        if name in trees.tree:
+            continue
+        m = part.mass
+        keys = sorted(part.columns)
+        moments = {i: [_dot(row, part.columns[i][0]) for row in part.inertia] for i in keys}  # I w_i
+        for k, i in enumerate(keys):
+            for j in keys[k:]:
+                entries.setdefault((i, j), []).append(m * _dot(part.columns[i][1], part.columns[j][1]) + _dot(part.columns[j][0], moments[i]))
+        for i, (wi, vi) in part.columns.items():  # Kane's form body by body
+            forcing[i] = forcing[i] - m * _dot(vi, part.acceleration) - _dot(wi, part.torque)
+            if part.weight is not None:
+                quad.gravity[i] = quad.gravity[i] + m * _dot(part.weight, vi)
+    for part in parts.values():  # the momenta body by body (read by energy and momenta, not by rhs): shorter written out
+        for i, (wi, vi) in part.columns.items():
+            momenta[i] = momenta[i] + part.mass * _dot(vi, part.velocity) + _dot(wi, part.spin)
+    # in trees, each body's load once, carried up to where each coordinate's column is (recursive Newton-Euler)
+    if trees.hinges:
+        parts = trees.accelerations(rate)
+    inertial = trees.project(
+        {name: (part.torque, [part.mass * (a - g) for a, g in zip(part.acceleration, part.weight or [ZERO] * 3, strict=True)]) for name, part in parts.items() if name in trees.tree}
+    )
+    for i, value in inertial.items():
+        forcing[i] = forcing[i] - value
+    nested = trees.mass(entries)
     for (i, j), terms in entries.items():
         entry = se.Add(*terms)
-        if se.count_ops(entry) <= MAX_COMBINED:
+        if se.count_ops(entry) <= MAX_COMBINED and (i, j) not in nested:  # a composite entry shares its parts with the others'; combined, it would not
             entry = combine_trig(entry)
         mass[i][j] = mass[j][i] = entry
     total = se.Add(*kinetic) if kinetic else ZERO
     energy = se.Add(*(momenta[i] * qd[i] for i in range(n) if momenta[i] != ZERO)) - total
-    return Rigid(mass, forcing, total, momenta, energy)
+    return Rigid(mass, forcing, total, momenta, energy, bool(trees.tree))
+
+
+@dataclass
+class Part:
+    """An oriented body: its mass, inertia tensor, by coordinate its partial angular velocity and partial velocity of
+    the centre (its column of the Jacobian J; J^T diag(m, I) J is its share of M), its velocity, I omega, the
+    acceleration of its centre and I alpha + omega x I omega without the accelerations, and gravity, all in its axes."""
+
+    mass: se.Basic
+    inertia: list[list[se.Basic]]
+    columns: dict[int, tuple[Vector, Vector]]
+    velocity: Vector
+    spin: Vector
+    acceleration: Vector
+    torque: Vector
+    weight: Vector | None
+    omega: Vector
+
+
+class Trees:
+    """Oriented bodies hinged to their parents, summed by composite bodies.
+
+    A body hinged to its `relative_to` parent (`Body.anchor`: its pivot a point of the parent, both spatial) moves
+    with its parent but for the coordinates of its rotation L relative to the parent (which the parent's motion
+    must not have): its Jacobian is the parent's carried over to it, plus its own columns, pure turns about its
+    pivot. Each body of a tree has a reference point P, its pivot (hinged, or a root turning about a fixed pivot) or
+    its centre (any other root), and a column
+    is introduced where its coordinate first moves a body (its own coordinates; at a root, all its columns).
+    Then sums over the bodies below a column (Featherstone's composite-rigid-body and recursive Newton-Euler
+    algorithms) are carried up the tree once, not taken body by body:
+
+    - M (`mass`): K_b, the composite inertia of b and the bodies below it (mass, first moment h and inertia I
+      about P, in b's axes), is D_b moved to P plus each child's K carried over (rotated by L, moved by rho, the
+      child's P from this P in this body's axes). A column S_l introduced at body a gives the force K_a S_l,
+      carried up the ancestors (f -> L f, tau -> L tau + rho x L f), and M_kl = S_k . (force) for each column
+      S_k introduced there: one dot product per entry, not one per body below it (O(N^2) for a chain, not O(N^3)).
+    - F and the momenta (`project`): a load per body (torque about the centre, force), summed up the tree the
+      same way, and S_k . (sum) for each column: O(N) for a chain, not O(N^2).
+
+    A body in no tree is left to the caller (body by body, Kane's form)."""
+
+    def __init__(self, spec: SystemSpec, parts: Mapping[str, Part], q: Sequence[se.Basic], qd: Sequence[se.Basic], t: se.Basic, composite: bool = True) -> None:
+        self.parts, self.qd = parts, qd
+        self.hinges: dict[str, tuple[str, list[list[se.Basic]], Vector, Vector]] = {}  # parent, L, this centre from P, P from the parent's centre
+        self.fixed: dict[str, Vector] = {}  # a root turning about a fixed pivot: its centre from the pivot
+        for body in spec.bodies if composite else ():
+            part = parts.get(body.name)
+            if part is None or body.anchor is None or body.local is None or len(part.inertia) != 3:
+                continue
+            parent, offset, center = body.anchor
+            if parent is None:  # its velocity is omega x c: each column a turn about the pivot
+                self.fixed[body.name] = _se(center)
+                continue
+            above = parts.get(parent)
+            if above is None or len(above.inertia) != 3:
+                continue
+            local = [_se(row) for row in body.local]
+            moved = {k for k, qk in enumerate(q) if any(qk in e.free_symbols for row in local for e in row)}
+            if t in set().union(*(e.free_symbols for row in local for e in row)):
+                continue  # a rotation relative to the parent given in time: its relative angular velocity is not all in its columns
+            if moved & set(above.columns) or not set(above.columns) <= set(part.columns) or not set(part.columns) - set(above.columns) <= moved:
+                continue  # the parent's motion has a coordinate of the relative rotation: J = X J_parent + S does not hold
+            self.hinges[body.name] = (parent, local, _se(center), _se(offset))
+        parents = {hinge[0] for hinge in self.hinges.values()}
+        self.tree = {name for name in parts if name in self.hinges or name in parents}
+        self.introduced = {name: sorted(set(parts[name].columns) - set(parts[self.hinges[name][0]].columns)) if name in self.hinges else sorted(parts[name].columns) for name in self.tree}
+        self.order = sorted(self.tree, key=self.depth, reverse=True)  # children before their parents
+
+    def accelerations(self, rate: Callable[[Vector], Vector]) -> dict[str, Part]:
+        """The parts with each hinged body's acceleration and torque (without the accelerations q_ddot) carried
+        down from its parent's (Newton-Euler), not by differentiating its nested velocity: with omega_b =
+        L^T omega_p + omega_rel (omega_rel = sum of its own columns times their rates),
+
+            alpha_b = L^T alpha_p + (L^T omega_p) x omega_rel + d(omega_rel)/dt
+            a_b = L^T (a_p + alpha_p x d + omega_p x (omega_p x d)) + alpha_b x c + omega_b x (omega_b x c)
+
+        (d the pivot from the parent's centre, c the centre from the pivot), torque = I alpha_b + omega_b x I omega_b.
+        Gravity joins as the root's acceleration a - g (Luh, Walker and Paul's trick): each body's weight is then in its a."""
+        found = dict(self.parts)
+        bias: dict[str, tuple[Vector, Vector]] = {}
+        for name in sorted(self.tree, key=self.depth):  # parents first
+            part = self.parts[name]
+            if name not in self.hinges:  # gravity as an acceleration of the root: carried down with the rest
+                acc = part.acceleration if part.weight is None else [a - g for a, g in zip(part.acceleration, part.weight, strict=True)]
+                bias[name] = (rate(part.omega), acc)
+                found[name] = dataclasses.replace(part, acceleration=acc, weight=None)
+                continue
+            parent, local, center, offset = self.hinges[name]
+            alpha_p, acc_p = bias[parent]
+            omega_p = self.parts[parent].omega
+            turn = [[local[j][i] for j in range(3)] for i in range(3)]  # L^T
+            rel = [se.Add(*(self.parts[name].columns[k][0][i] * self.qd[k] for k in self.introduced[name])) for i in range(3)]
+            carried = [_dot(row, omega_p) for row in turn]
+            alpha = _plus(_plus([_dot(row, alpha_p) for row in turn], _cross(carried, rel)), rate(rel))
+            at_pivot = _plus(_plus(acc_p, _cross(alpha_p, offset)), _cross(omega_p, _cross(omega_p, offset)))
+            omega = part.omega
+            acc = _plus(_plus([_dot(row, at_pivot) for row in turn], _cross(alpha, center)), _cross(omega, _cross(omega, center)))
+            torque = _plus([_dot(row, alpha) for row in part.inertia], _cross(omega, part.spin))
+            bias[name] = (alpha, acc)
+            found[name] = dataclasses.replace(part, acceleration=acc, torque=torque, weight=None)
+        return found
+
+    def depth(self, name: str) -> int:
+        return 1 + self.depth(self.hinges[name][0]) if name in self.hinges else 0
+
+    def center(self, name: str) -> Vector:
+        """The centre from P, in the body's axes."""
+        if name in self.hinges:
+            return self.hinges[name][2]
+        return self.fixed.get(name, [ZERO] * 3)
+
+    def turns(self, name: str) -> bool:
+        """Whether the columns introduced at `name` are turns about its P (hinged, or a root about a fixed pivot)."""
+        return name in self.hinges or name in self.fixed
+
+    def up(self, name: str, torque: Vector, force: Vector) -> tuple[str, Vector, Vector]:
+        """A force (torque about P, force; body axes) carried to the parent's P and axes: (parent, torque, force)."""
+        parent, local, _, offset = self.hinges[name]
+        force = [_dot(row, force) for row in local]
+        return parent, _plus([_dot(row, torque) for row in local], _cross(_plus(offset, self.center(parent)), force)), force
+
+    def dot(self, name: str, k: int, torque: Vector, force: Vector) -> se.Basic:
+        """S_k . (torque about P, force) for a column introduced at `name` (`turns`: w_k . torque)."""
+        w, v = self.parts[name].columns[k]
+        return _dot(w, torque) if self.turns(name) else _dot(w, torque) + _dot(v, force)
+
+    def project(self, loads: Mapping[str, tuple[Vector, Vector]]) -> dict[int, se.Basic]:
+        """sum_b J_bk . (torque_b, force_b) over the bodies of the trees (each load about its body's centre, body axes), by k."""
+        total: dict[str, tuple[Vector, Vector]] = {}
+        for name in self.order:
+            torque, force = loads[name]
+            torque = _plus(torque, _cross(self.center(name), force))  # about P
+            if name in total:
+                below = total[name]
+                torque, force = _plus(torque, below[0]), _plus(force, below[1])
+            total[name] = (torque, force)
+            if name in self.hinges:
+                parent, up_torque, up_force = self.up(name, torque, force)
+                if parent in total:
+                    up_torque, up_force = _plus(up_torque, total[parent][0]), _plus(up_force, total[parent][1])
+                total[parent] = (up_torque, up_force)
+        found: dict[int, list[se.Basic]] = {}
+        for name in self.order:
+            for k in self.introduced[name]:
+                found.setdefault(k, []).append(self.dot(name, k, *total[name]))
+        return {k: se.Add(*terms) for k, terms in found.items()}
+
+    def mass(self, entries: dict[tuple[int, int], list[se.Basic]]) -> set[tuple[int, int]]:
+        """The trees' share of M, as terms of `entries` (keyed by (i, j), i <= j); the keys it added to."""
+        added: set[tuple[int, int]] = set()
+        composite = {name: _moved(self.parts[name].mass, [ZERO] * 3, self.parts[name].inertia, self.center(name)) for name in self.tree}
+        for name in self.order:
+            if name not in self.hinges:
+                continue
+            parent, local, _, offset = self.hinges[name]
+            m, h, inertia = composite[name]
+            turned = _similar(local, inertia)
+            pm, ph, pi = composite[parent]
+            cm, ch, ci = _moved(m, [_dot(row, h) for row in local], turned, _plus(offset, self.center(parent)))
+            composite[parent] = (pm + cm, _plus(ph, ch), [_plus(pi[i], ci[i]) for i in range(3)])
+        for name in self.order:
+            m, h, inertia = composite[name]
+            for col in self.introduced[name]:
+                w, v = self.parts[name].columns[col]
+                if self.turns(name):  # a turn about P: v at P is 0
+                    torque, force = [_dot(row, w) for row in inertia], [-c for c in _cross(h, w)]  # I w, -h x w
+                else:  # the root: P is its centre
+                    torque = _plus([_dot(row, w) for row in inertia], _cross(h, v))  # I w + h x v
+                    force = [m * v[i] - c for i, c in enumerate(_cross(h, w))]  # m v - h x w
+                at = name
+                while True:
+                    for k in self.introduced[at]:
+                        if at != name or k <= col:
+                            entries.setdefault((min(k, col), max(k, col)), []).append(self.dot(at, k, torque, force))
+                            added.add((min(k, col), max(k, col)))
+                    if at not in self.hinges:
+                        break
+                    at, torque, force = self.up(at, torque, force)
+        return added
+
+
+def _symmetric(entry: Callable[[int, int], se.Basic]) -> list[list[se.Basic]]:
+    """The symmetric 3x3 matrix with these entries, each pair i < j formed once."""
+    upper = {(i, j): entry(i, j) for i in range(3) for j in range(i, 3)}
+    return [[upper[(min(i, j), max(i, j))] for j in range(3)] for i in range(3)]
+
+
+def _similar(local: list[list[se.Basic]], inertia: list[list[se.Basic]]) -> list[list[se.Basic]]:
+    """L I L^T of a symmetric I."""
+    columns = [[_dot(inertia[k], local[j]) for k in range(3)] for j in range(3)]  # I L^T, by column
+    return _symmetric(lambda i, j: _dot(local[i], columns[j]))
+
+
+def _moved(m: se.Basic, h: Vector, inertia: list[list[se.Basic]], r: Vector) -> tuple[se.Basic, Vector, list[list[se.Basic]]]:
+    """Mass, first moment and inertia about a point O (h = m (centre - O)) carried to O' = O - r:
+    h' = h + m r, I' = I + m (r.r 1 - r r^T) + 2 (r.h) 1 - r h^T - h r^T (parallel axes, O not the centre)."""
+    if all(x == ZERO for x in r):
+        return m, h, inertia
+    rr, rh = _dot(r, r), _dot(r, h)
+    moved = _symmetric(lambda i, j: inertia[i][j] - m * r[i] * r[j] - r[i] * h[j] - h[i] * r[j] + ((m * rr + 2 * rh) if i == j else ZERO))
+    return m, _plus(h, [m * x for x in r]), moved
 
 
 def _cross(a: Vector, b: Vector) -> Vector:

@@ -11,9 +11,8 @@ for an axis and angle n a_dot, and down a `relative_to` chain omega = L^T omega_
 where L is the rotation relative to the parent (its world rotation is R_parent L). Only for an
 explicit matrix is omega the axial vector of L^T dL/dt, computed from its entries.
 
-The derivation side (`partials`, `quadratic_form`) works in symengine: the partial angular velocities
-w_i = d omega/d q_dot_i (omega is linear in the velocities) and the inertia's mass-matrix entries
-w_i^T I w_j, which join the point masses' quadratic form.
+The derivation side (derive.py's `oriented_bodies`) works in symengine; `Rate` is its time derivative
+(without the accelerations) of the nested velocities, each shared part differentiated once.
 """
 
 from __future__ import annotations
@@ -122,3 +121,58 @@ def _sum(terms: Any) -> Any:
     for item in items[1:]:
         total = total + item
     return total
+
+
+class Rate:
+    """The time derivative without the accelerations, sum_k dx/dq_k q_dot_k + dx/dt, of symengine expressions,
+    taken node by node down the expression (forward mode) and remembered per distinct sub-expression.
+
+    A body's velocity and angular velocity down a `relative_to` chain are nested (omega = L^T omega_parent +
+    omega_rel), and bodies share their parents' parts: differentiating by each coordinate in turn
+    (`se.diff(x, q_k)` for every k) writes out the chain once per coordinate, where this visits each shared part
+    once and its derivative reuses the parts it was built from (d(L^T v) = dL^T v + L^T dv). Sums, products,
+    integer and constant powers, sin and cos go node by node; anything else (rare: another function of the
+    coordinates) by `se.diff` by each coordinate and t, which is what the whole would have cost."""
+
+    def __init__(self, q: Sequence[Any], qd: Sequence[Any], t: Any) -> None:
+        from lagrange_cli._symengine import se  # the frontend (rigid.py) uses this module without symengine
+
+        self.se = se
+        self.zero, self.one = se.Integer(0), se.Integer(1)
+        self.q, self.qd, self.t = list(q), list(qd), t
+        self.rates = dict(zip(self.q, self.qd, strict=True))
+        self.memo: dict[Any, Any] = {}
+
+    def __call__(self, expr: Any) -> Any:
+        found = self.memo.get(expr)
+        if found is None:
+            found = self.memo[expr] = self._rate(expr)
+        return found
+
+    def _rate(self, e: Any) -> Any:
+        se, zero = self.se, self.zero
+        if e.is_Number:
+            return zero
+        if isinstance(e, se.Symbol) and not isinstance(e, se.FunctionSymbol):
+            return self.rates.get(e, self.one if e == self.t else zero)
+        if isinstance(e, se.Add):
+            return se.Add(*(d for d in map(self, e.args) if d != zero))
+        if isinstance(e, se.Mul):
+            args = e.args
+            terms = []
+            for i, a in enumerate(args):
+                d = self(a)
+                if d != zero:
+                    terms.append(se.Mul(*args[:i], d, *args[i + 1 :]))
+            return se.Add(*terms)
+        if isinstance(e, se.Pow) and e.args[1].is_Number:
+            base, exponent = e.args
+            d = self(base)
+            return zero if d == zero else exponent * base ** (exponent - 1) * d
+        if isinstance(e, se.sin):
+            d = self(e.args[0])
+            return zero if d == zero else se.cos(e.args[0]) * d
+        if isinstance(e, se.cos):
+            d = self(e.args[0])
+            return zero if d == zero else -se.sin(e.args[0]) * d
+        return se.Add(*(se.diff(e, qk) * self.rates[qk] for qk in self.q), se.diff(e, self.t))

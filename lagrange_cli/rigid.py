@@ -65,6 +65,8 @@ class Places:
         self.frames: dict[int, tuple[str, Vec]] = {}
         """By the identity of a body's centre or point (a world position): the body and the point's velocity in its axes."""
         self.point_velocities: dict[str, dict[str, Vec]] = {}
+        self.offsets: dict[int, tuple[str, Vec]] = {}
+        """By the identity of a body's centre or point: the body and the point from its centre of mass, in its axes."""
 
     # -- names --------------------------------------------------------------------------------
 
@@ -220,6 +222,7 @@ class Places:
             return None
         velocity = _add(moving, _cross(omega, center))
         self.frames[id(position)] = (name, velocity)
+        self.offsets[id(position)] = (name, (sp.Integer(0),) * dim)
         points: dict[str, Vec] = {}
         point_velocities: dict[str, Vec] = {}
         if "points" in fields:
@@ -229,7 +232,14 @@ class Places:
                     points[point] = _add(reference, kin.matvec(rotation, offset))
                     point_velocities[point] = _add(moving, _cross(omega, offset))
                     self.frames[id(points[point])] = (name, point_velocities[point])
-        body = Body(name, mass, position, inertia, omega, spans, rotation=rotation, points=points, local=local, parent=parent, velocity=velocity)
+                    self.offsets[id(points[point])] = (name, tuple(o - c for o, c in zip(offset, center, strict=True)))
+        attached = self.offsets.get(id(anchor)) if "pivot" in fields else None
+        hinge: tuple[str | None, Vec, Vec] | None = None
+        if attached is not None and parent is not None and attached[0] == parent:
+            hinge = (parent, attached[1], center)
+        elif "pivot" in fields and parent is None and id(anchor) not in self.frames and all(self.config.time_derivative(x) == 0 for x in anchor):
+            hinge = (None, (sp.Integer(0),) * dim, center)  # a fixed pivot
+        body = Body(name, mass, position, inertia, omega, spans, rotation=rotation, points=points, local=local, parent=parent, velocity=velocity, anchor=hinge)
         self.point_velocities[name] = point_velocities
         return self.loads(body, fields)
 

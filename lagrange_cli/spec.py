@@ -105,6 +105,11 @@ class Body:
     """With `orientation`: the velocity of the centre of mass in body axes."""
     frame_forces: tuple[tuple[tuple[sp.Expr, ...], tuple[sp.Expr, ...]], ...] = ()
     """With `orientation`, each `force` load as (the force in body axes, the velocity of the point where it acts in body axes)."""
+    anchor: tuple[str | None, tuple[sp.Expr, ...], tuple[sp.Expr, ...]] | None = None
+    """With `orientation` and a `pivot` that is a point (or the centre) of the `relative_to` parent: (the parent, the
+    pivot from the parent's centre of mass in the parent's axes, this body's centre from its pivot in its own axes),
+    all constant: the body is then rigidly hinged to its parent (derive.py's composite bodies). Without
+    `relative_to`, a pivot fixed in the world: (None, zeros, the centre from the pivot)."""
 
 
 @dataclass(frozen=True)
