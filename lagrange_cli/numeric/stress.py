@@ -366,7 +366,8 @@ def _order(model: Model, setup: Setup, candidates: Sequence[Candidate]) -> list[
     candidates before scipy's: so that a cheap method meeting the accuracy is found first and caps
     what the others may spend (a stiff system's explicit runs are then capped, not run to their budget)."""
     picked = policy.decide(model, replace(start_of(model, setup), method="auto", backend="auto")).method
-    return sorted(candidates, key=lambda c: (c != AUTO, c.method != picked, backend_for(c) != "compiled"))
+    stiff = picked in IMPLICIT  # then scipy's implicit methods before its explicit ones, which a stiff system keeps at their stability limit
+    return sorted(candidates, key=lambda c: (c != AUTO, c.method != picked, backend_for(c) != "compiled", stiff and c.method not in IMPLICIT))
 
 
 def _regime(model: Model, regime: Regime, target: float, candidates: Sequence[Candidate], budget: Setup, say: Callable[[str], None] | None) -> Outcome:
