@@ -70,3 +70,20 @@ def test_stiff_reference_is_confirmed_within_the_accuracy() -> None:
     found = reference.computed_reference(model, _setup(2.0), 2.5e-14, implicit=reference.implicit_tolerances(1e-10, 1e-7))
     assert found.settings is not None and found.settings.method == "Radau"
     assert found.own_error < 1e-7
+
+
+def test_a_fixed_step_over_the_budget_is_not_run() -> None:
+    """The symplectic method's step count is known before it runs (t_end / h): a run whose count
+    is above its budget is reported over budget without spending it (the damped k = 1e10 pendulum's
+    symplectic step 3e-8 burnt 6e6 steps, 3-4 s per regime, to learn that)."""
+    from lagrange_cli.numeric import compile
+    from lagrange_cli.numeric.runs import PointStatus, measure
+
+    if not compile.numba_available():
+        pytest.skip("the symplectic method needs numba")
+    model = _model(AUDIT / "kepler_e09.yaml")
+    setup = Setup(10.0, (0.0, 5.0, 10.0), max_steps=1)  # 100 compiled steps
+    point = measure(model, Candidate("symplectic"), 1e-6, setup, None, np.ones(4), repeats=0)  # type: ignore[arg-type]
+    assert point.status == PointStatus.OVER_BUDGET
+    assert point.steps == 0 and point.nfev == 0
+    assert "not run" in point.reason

@@ -438,7 +438,7 @@ def _capped(model: Model, candidate: Candidate, tolerance: float, setup: Setup, 
     """`measure`, within the step budget `_cap` leaves it once `best` meets the accuracy."""
     cap = _cap(candidate, best, last, setup)
     point = measure(model, candidate, tolerance, replace(setup, max_steps=cap) if cap < setup.steps else setup, reference, scale, repeats=0)
-    if cap < setup.steps and point.failure == Failure.BUDGET and best is not None:
+    if cap < setup.steps and point.failure == Failure.BUDGET and best is not None and point.steps:
         done = point.reason.rpartition(" at ")[2]
         reason = f"stopped after {point.steps} steps at {done}: it already took {work(point) / max(work(best), 1e-300):.0f} x the work of {best.method} ({best.setting}), which meets the accuracy"
         point = replace(point, reason=reason)
