@@ -20,7 +20,7 @@ import numpy as np
 from lagrange_cli.errors import LagrangeError
 from lagrange_cli.model import Model
 from lagrange_cli.numeric import compile, diagnostics, integrators, memo, policy
-from lagrange_cli.numeric.runs import ATOL_RATIO, REFERENCE_STEPS, Candidate, Setup, component_scale, over_step_budget, run, scaled_errors, start_of, tol_text
+from lagrange_cli.numeric.runs import ATOL_RATIO, REFERENCE_STEPS, TIGHTEST, Candidate, Setup, component_scale, over_step_budget, run, scaled_errors, start_of, tol_text
 from lagrange_cli.numeric.settings import Settings
 from lagrange_cli.numeric.simulate import Trajectory, integrate, state_text
 from lagrange_cli.numeric.status import Status
@@ -115,15 +115,35 @@ IMPLICIT = ("Radau", "BDF", "LSODA")
 def reference_candidates(model: Model, setup: Setup, tolerance: float) -> tuple[Candidate, Candidate]:
     """The primary reference method and a different second one: compiled DOP853 confirmed by
     compiled RK45 when numba is there (fast even when mildly stiff: stability only costs steps),
-    unless the linearisation at the start is stiff enough that `auto` picks Radau (an explicit
-    run would spend its whole step budget on stability): then Radau confirmed by BDF; without
-    numba, what `auto` picks (Radau when stiff, else DOP853) confirmed by LSODA, whose high-order
-    Adams and BDF formulas stay affordable at tight tolerances where scipy's Radau and RK45,
-    stepping in Python, do not."""
+    unless the system is stiff (`stiff_start`): then Radau confirmed by BDF; without numba, what
+    `auto` picks (Radau when stiff, else DOP853) confirmed by LSODA, whose high-order Adams and BDF
+    formulas stay affordable at tight tolerances where scipy's Radau and RK45, stepping in Python,
+    do not."""
+    if stiff_start(model, setup):
+        return Candidate("Radau"), Candidate("BDF") if compile.numba_available() else Candidate("LSODA")
     s = policy.decide(model, replace(start_of(model, setup), method="auto", backend="auto", rtol=tolerance))
     if compile.numba_available():
-        return (Candidate("Radau"), Candidate("BDF")) if s.method == "Radau" else (Candidate("DOP853", "compiled"), Candidate("RK45", "compiled"))
-    return Candidate(s.method), Candidate("LSODA")
+        return (Candidate("Radau"), Candidate("BDF")) if s.method in IMPLICIT else (Candidate("DOP853", "compiled"), Candidate("RK45", "compiled"))
+    return (Candidate("Radau"), Candidate("LSODA")) if s.method in IMPLICIT else (Candidate(s.method), Candidate("LSODA"))
+
+
+def stiff_start(model: Model, setup: Setup) -> bool:
+    """Whether a stiff decay (`diagnostics.stiff`) shows anywhere along `auto`'s pilot run
+    (`policy.pilot`, at a moderate rtol: the pilot measures the system, not the tolerance). An
+    explicit reference is then no choice even where `auto` would take compiled DOP853 for a
+    user's run ("mildly stiff"): at a reference's tolerance the stiff components' round-off
+    noise drives its error estimate, and DOP853 takes many times its stability-limited steps,
+    most of them rejected, or never finishes (a spring of k = 1e10 written in its length: 1e6
+    steps for 0.65 s at rtol 1e-13)."""
+    s = replace(start_of(model, setup), method="auto", backend="auto")
+    measured = policy.pilot(model, replace(s, rtol=PILOT_RTOL, atol=PILOT_RTOL * ATOL_RATIO))
+    if measured is None:
+        return False
+    return diagnostics.stiff(measured.worst, setup.t_end)
+
+
+PILOT_RTOL = 1e-6
+"""The rtol of the pilot run that says whether a reference must be implicit (`stiff_start`)."""
 
 
 IMPLICIT_TIGHTEST = 1e-12
@@ -175,6 +195,41 @@ def _implicit_budget(model: Model, setup: Setup) -> int:
     return min(setup.reference_steps, max(IMPLICIT_STEPS, math.ceil(IMPLICIT_MARGIN * expected)))
 
 
+PROBE_SPAN = 0.1
+"""An implicit reference attempt first runs over this fraction of the window (`_doomed`) ..."""
+PROBE_SHARE = 0.1
+"""... with this fraction of the attempt's budget (at least PROBE_STEPS): an attempt that cannot
+cover the first 10% of the window with 10% of its budget is round-off-limited at that rtol, and
+the next, looser one is tried at once instead of after the whole budget (scipy's Radau on a spring
+of k = 1e10 written in its length: 12000 steps, 10 s, to reach t = 2e-4 at rtol 1e-8; 500 steps
+to t_end at 1e-7)."""
+PROBE_STEPS = 300
+EXPLICIT_CONFIRMATION = 1.0
+"""An implicit reference is confirmed first by compiled DOP853 at this times the loosest implicit rtol
+(0.1 x the accuracy asked): on a stiff system an explicit method's stability limit
+keeps its steps far below what accuracy needs at a moderate tolerance, so its error is tiny, and
+it is not round-off-limited there as it is at a reference's 1e-14 (the damped spring of k = 1e10
+in r: 3e5 compiled steps, 0.3 s, at rtol 1e-6, error 3e-8)."""
+
+
+def _doomed(model: Model, setup: Setup, rtol: float) -> str:
+    """Why an implicit reference attempt at `rtol` within `setup`'s reference budget cannot finish,
+    judged cheaply ("" when it may): `auto`'s LSODA pilot at that rtol already extrapolates to more
+    steps than the budget, or a probe of Radau over the first PROBE_SPAN of the window runs out of
+    PROBE_SHARE of the budget."""
+    budget = setup.reference_steps
+    s = replace(start_of(model, setup), method="auto", backend="auto", rtol=rtol, atol=rtol * ATOL_RATIO)
+    measured = policy.pilot(model, s)
+    if measured is not None and not measured.finished and measured.implicit_steps(setup.t_end) > budget:
+        return f"at rtol {tol_text(rtol)} a pilot run extrapolates to {measured.implicit_steps(setup.t_end):.3g} steps, above the budget of {budget}"
+    span = PROBE_SPAN * setup.t_end
+    probe = replace(setup, t_end=span, times=(0.0, span), reference_max_steps=max(PROBE_STEPS, math.ceil(PROBE_SHARE * budget)))
+    found = run(model, Candidate("Radau"), rtol, probe, reference=True)
+    if over_step_budget(found):
+        return f"at rtol {tol_text(rtol)} Radau took {found.stats.steps} steps to reach t = {found.t_last:.3g} of the first {span:.3g}"
+    return ""
+
+
 def reference_key(setup: Setup, tolerance: float, *more: object) -> tuple[object, ...]:
     """What a reference run depends on (the system aside: the memo lives on the model): the window
     and samples, the parameters and initial values, the reference step budget and the tolerance.
@@ -203,7 +258,9 @@ def _computed_reference(model: Model, setup: Setup, tolerance: float, hint: str,
     """The primary reference run confirmed by the second; where the primary (explicit) run cannot
     go - it fails, or runs out of its step budget, as on a stiff system - or where the system is
     stiff at the start (`reference_candidates`), Radau confirmed by LSODA (else BDF), their largest
-    disagreement the reference's own error, at the first of the rtols `implicit` (default
+    disagreement the reference's own error (LSODA runs first at 1/100 and 1/10 of Radau's rtol where it
+    can: a confirmation at a looser tolerance than it could reach would report its own error, not
+    Radau's), at the first of the rtols `implicit` (default
     `implicit_tolerances(tolerance, 1e3 x tolerance)`, tightest first) at which Radau finishes
     within its budget; where the explicit pair's second run cannot go, Radau confirms the first.
     Raises ReferenceFailed when no reference can be made (`hint`: the option that loosens the
@@ -222,11 +279,19 @@ def _computed_reference(model: Model, setup: Setup, tolerance: float, hint: str,
     attempt = replace(setup, reference_max_steps=_implicit_budget(model, setup))
     why = reasons[0] if reasons else "stiff at the start, where an explicit reference would be stability-limited"
     radau: Trajectory | None = None
-    for rtol in rtols:
+    skipped: list[str] = []
+    for k, rtol in enumerate(rtols):
+        doomed = _doomed(model, attempt, rtol) if k < len(rtols) - 1 else ""  # the loosest is always run: its failure is the one reported
+        if doomed:
+            skipped.append(doomed)
+            continue
         radau = run(model, Candidate("Radau"), rtol, attempt, reference=True)
         if not radau.failed:
-            found = _confirmed(model, attempt, radau, rtol, [(Candidate("LSODA"), rtol), (Candidate("BDF"), rtol)], time.perf_counter() - began)
-            return replace(found, description=f"{found.description} (implicit: {why})")
+            explicit = [(Candidate("DOP853", "compiled"), max(rtols[-1] * EXPLICIT_CONFIRMATION, TIGHTEST))] if compile.numba_available() else []
+            confirmations = explicit + [(Candidate("LSODA"), r) for r in (rtol / 100, rtol / 10, rtol) if r >= TIGHTEST] + [(Candidate("BDF"), rtol)]
+            found = _confirmed(model, attempt, radau, rtol, confirmations, time.perf_counter() - began)
+            tighter = f"; tighter rtols are round-off-limited here ({'; '.join(skipped)})" if skipped else ""
+            return replace(found, description=f"{found.description} (implicit: {why}{tighter})")
         if radau.outcome != Status.BUDGET:
             break  # a failure, not round-off: a looser tolerance will not pass it
     assert radau is not None

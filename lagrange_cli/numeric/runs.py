@@ -280,6 +280,13 @@ def _repeats(first: float, repeats: int) -> int:
     return max(1, min(repeats, int(2.0 / first)))
 
 
+def fixed_steps(settings: Settings) -> float:
+    """The steps a fixed-step (symplectic) run takes to t_end (0 for an adaptive method)."""
+    if settings.method != "symplectic" or not settings.step:
+        return 0.0
+    return abs(settings.t_end - settings.t0) / settings.step
+
+
 def measure(model: Model, candidate: Candidate, tolerance: float, setup: Setup, reference: Reference, scale: np.ndarray, repeats: int = 3) -> Point:
     """Run one point (warm-up, then timed repeats) and compare it with the reference. The
     symplectic method's step is the one `policy.decide` chooses for `simulate` (its pilot run at
@@ -287,7 +294,13 @@ def measure(model: Model, candidate: Candidate, tolerance: float, setup: Setup, 
     step = None
     empty = Point(candidate.label, candidate.label, tolerance, step, "", "", math.nan, math.nan, math.nan, None, math.nan, 0, 0.0, 0, 0, 0, candidate=candidate)
     try:
-        first = run(model, candidate, tolerance, setup, step=step)
+        decided = settings_for(model, candidate, tolerance, setup, step)
+        needed = fixed_steps(decided)
+        if needed > run_steps(decided, setup.steps):  # a fixed step's count is known before the run: no need to spend the budget to learn it
+            ran = Ran(decided.method, decided.backend)
+            reason = f"its fixed step {decided.step:.3g} needs {needed:.3g} steps to t_end, above the step budget ({run_steps(decided, setup.steps)}); not run"
+            return replace(empty, resolved=str(ran), ran=ran, settings=decided, step=decided.step, status=PointStatus.OVER_BUDGET, reason=reason, failure=Failure.BUDGET)
+        first = run(model, candidate, tolerance, setup, step=step, settings=decided)
     except TimeLimit as over:
         reason = f"stopped by the time limit ({setup.time_limit:g} s, --budget) at {100 * over.fraction:.0f}% of the time span"
         return replace(empty, status=PointStatus.UNDECIDED, reason=reason, failure=Failure.TIME_LIMIT)

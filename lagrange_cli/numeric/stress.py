@@ -366,7 +366,8 @@ def _order(model: Model, setup: Setup, candidates: Sequence[Candidate]) -> list[
     candidates before scipy's: so that a cheap method meeting the accuracy is found first and caps
     what the others may spend (a stiff system's explicit runs are then capped, not run to their budget)."""
     picked = policy.decide(model, replace(start_of(model, setup), method="auto", backend="auto")).method
-    return sorted(candidates, key=lambda c: (c != AUTO, c.method != picked, backend_for(c) != "compiled"))
+    stiff = picked in IMPLICIT  # then scipy's implicit methods before its explicit ones, which a stiff system keeps at their stability limit
+    return sorted(candidates, key=lambda c: (c != AUTO, c.method != picked, backend_for(c) != "compiled", stiff and c.method not in IMPLICIT))
 
 
 def _regime(model: Model, regime: Regime, target: float, candidates: Sequence[Candidate], budget: Setup, say: Callable[[str], None] | None) -> Outcome:
@@ -437,7 +438,7 @@ def _capped(model: Model, candidate: Candidate, tolerance: float, setup: Setup, 
     """`measure`, within the step budget `_cap` leaves it once `best` meets the accuracy."""
     cap = _cap(candidate, best, last, setup)
     point = measure(model, candidate, tolerance, replace(setup, max_steps=cap) if cap < setup.steps else setup, reference, scale, repeats=0)
-    if cap < setup.steps and point.failure == Failure.BUDGET and best is not None:
+    if cap < setup.steps and point.failure == Failure.BUDGET and best is not None and point.steps:
         done = point.reason.rpartition(" at ")[2]
         reason = f"stopped after {point.steps} steps at {done}: it already took {work(point) / max(work(best), 1e-300):.0f} x the work of {best.method} ({best.setting}), which meets the accuracy"
         point = replace(point, reason=reason)

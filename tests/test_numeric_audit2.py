@@ -1,0 +1,89 @@
+"""Issue 15, the audit on unseen systems (tests/numeric_audit2/): the fast parts, counted, never timed.
+
+The full audit (independent scipy references, CPU times) is benchmarks/numeric_audit2.py."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from lagrange_cli import api
+from lagrange_cli.numeric import reference
+from lagrange_cli.numeric.runs import Candidate, Setup
+
+HERE = Path(__file__).parent
+AUDIT = HERE / "numeric_audit2"
+PILOT = HERE / "numeric_audit_pilot"
+
+
+def _model(path: Path):  # type: ignore[no-untyped-def]
+    return api.load(path).model.with_definitions()
+
+
+def _setup(t_end: float, samples: int = 21) -> Setup:
+    return Setup(t_end, tuple(np.linspace(0.0, t_end, samples).tolist()), max_steps=60_000)
+
+
+def test_audit_files_load() -> None:
+    files = sorted(AUDIT.glob("*.yaml"))
+    assert len(files) >= 6
+    for path in files:
+        assert _model(path).n >= 1
+
+
+@pytest.mark.parametrize("name", ["elastic_pendulum_r_k1e8.yaml", "elastic_pendulum_r_k1e11.yaml", "cart_pendulum_fast_damping_long.yaml"])
+def test_stiff_systems_get_an_implicit_reference(name: str) -> None:
+    """A system stiff along auto's pilot gets Radau as its reference, never compiled DOP853 at
+    1e-14 (round-off-limited there: it spent its whole budget, minutes, and failed). Before the
+    fix the choice compared auto's method with "Radau", which auto no longer picks (LSODA)."""
+    model = _model(AUDIT / name)
+    primary, second = reference.reference_candidates(model, _setup(1.0), 2.5e-14)
+    assert primary == Candidate("Radau")
+    assert second.method in reference.IMPLICIT
+
+
+def test_non_stiff_systems_keep_the_explicit_reference() -> None:
+    model = _model(AUDIT / "kepler_e09.yaml")
+    primary, _ = reference.reference_candidates(model, _setup(1.0), 2.5e-14)
+    assert primary.method == "DOP853"
+
+
+def test_round_off_limited_implicit_attempts_are_skipped_cheaply() -> None:
+    """The damped spring of k = 1e10 in r: Radau cannot pass rtol 1e-8 (round-off); the attempt
+    is judged doomed by a pilot or a short probe, not run to its budget, and 1e-7 is run."""
+    model = _model(PILOT / "stiff_elastic_pendulum_r.yaml")
+    setup = _setup(2.0)
+    setup = Setup(setup.t_end, setup.times, max_steps=setup.max_steps, reference_max_steps=reference._implicit_budget(model, setup))
+    assert reference._doomed(model, setup, 1e-10)
+    assert reference._doomed(model, setup, 1e-8)
+    assert reference._doomed(model, setup, 1e-7) == ""
+
+
+def test_stiff_reference_is_confirmed_within_the_accuracy() -> None:
+    """The reference of the k = 1e10 pendulum over a short window: Radau at the first rtol that
+    is not round-off-limited, confirmed (by compiled DOP853 where numba is there, whose
+    stability-limited steps make it accurate) to well within 1e-6, so that runs can be shown to
+    meet 1e-6 (before: confirmed by LSODA at the same rtol, own error 1.4e-6, every regime undecided)."""
+    model = _model(PILOT / "stiff_elastic_pendulum_r.yaml")
+    found = reference.computed_reference(model, _setup(2.0), 2.5e-14, implicit=reference.implicit_tolerances(1e-10, 1e-7))
+    assert found.settings is not None and found.settings.method == "Radau"
+    assert found.own_error < 1e-7
+
+
+def test_a_fixed_step_over_the_budget_is_not_run() -> None:
+    """The symplectic method's step count is known before it runs (t_end / h): a run whose count
+    is above its budget is reported over budget without spending it (the damped k = 1e10 pendulum's
+    symplectic step 3e-8 burnt 6e6 steps, 3-4 s per regime, to learn that)."""
+    from lagrange_cli.numeric import compile
+    from lagrange_cli.numeric.runs import PointStatus, measure
+
+    if not compile.numba_available():
+        pytest.skip("the symplectic method needs numba")
+    model = _model(AUDIT / "kepler_e09.yaml")
+    setup = Setup(10.0, (0.0, 5.0, 10.0), max_steps=1)  # 100 compiled steps
+    point = measure(model, Candidate("symplectic"), 1e-6, setup, None, np.ones(4), repeats=0)  # type: ignore[arg-type]
+    assert point.status == PointStatus.OVER_BUDGET
+    assert point.steps == 0 and point.nfev == 0
+    assert "not run" in point.reason
