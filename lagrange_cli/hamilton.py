@@ -172,9 +172,9 @@ def _combined(expr: sp.Expr) -> sp.Expr:
     """`expr` with its quotients over a common denominator when that is cheap (bounded), the
     other terms tidied apart; else tidied term by term."""
     if _cheap(expr, 300):
-        terms = sp.Add.make_args(sp.expand(expr))
-        plain = sp.Add(*(t for t in terms if sp.fraction(t)[1] == 1))
-        quotients = sp.Add(*(t for t in terms if sp.fraction(t)[1] != 1))
+        terms = sp.Add.make_args(sp.expand(expr, multinomial=False))  # denominators (a + b)**2 stay squares
+        plain = sp.Add(*(t for t in terms if sp.fraction(t)[1].is_number))  # `g*l*m*cos(q)/2` is no quotient to combine
+        quotients = sp.Add(*(t for t in terms if not sp.fraction(t)[1].is_number))
         numerator, denominator = sp.fraction(sp.factor_terms(sp.together(quotients)))
         if _cheap(numerator, 400):
             return _tidy(plain) + _over(numerator, denominator)

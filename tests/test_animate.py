@@ -19,6 +19,7 @@ from lagrange_cli.cli import app
 from lagrange_cli.errors import LagrangeError, SpecError
 
 from .conftest import ROOT
+from .limits import DEADLOCK
 
 pytestmark = pytest.mark.usefixtures("private_cache")
 runner = CliRunner()
@@ -174,7 +175,7 @@ def test_the_mp4_has_the_frames_and_size(tmp_path: Path) -> None:
         [str(FFPROBE), "-v", "error", "-count_frames", "-select_streams", "v:0", "-show_entries", "stream=nb_read_frames,width,height", "-of", "json", str(target)],
         capture_output=True,
         text=True,
-        timeout=60,
+        timeout=DEADLOCK,
     )
     stream = json.loads(probe.stdout)["streams"][0]
     assert (int(stream["nb_read_frames"]), stream["width"], stream["height"]) == (9, 480, 480)
@@ -213,7 +214,7 @@ def test_the_html_plays_offline_in_chromium(tmp_path: Path) -> None:
         [str(CHROMIUM), *flags, f"--user-data-dir={tmp_path / 'profile'}", "--enable-logging=stderr", "--v=0", "--window-size=800,900", f"--screenshot={shot}", page.as_uri()],
         capture_output=True,
         text=True,
-        timeout=120,
+        timeout=DEADLOCK,
     )
     console = [line for line in run.stderr.splitlines() if "CONSOLE" in line]
     assert not [line for line in console if "error" in line.lower()], console

@@ -22,6 +22,7 @@ from lagrange_cli.cli import app
 from lagrange_cli.errors import LagrangeError, SpecError
 
 from .conftest import ROOT
+from .limits import DEADLOCK
 from .test_latex import PDFLATEX, needs_pdflatex
 
 pytestmark = pytest.mark.usefixtures("private_cache")
@@ -35,7 +36,7 @@ def test_import_and_load_stay_light() -> None:
         "import sys, lagrange_cli\nlight = 'sympy' not in sys.modules\nfrom lagrange_cli import load\nsystem = load('double_pendulum')\n"
         "system.equations._repr_latex_(); system.hamiltonian\nprint(light, *(name in sys.modules for name in ('numpy', 'matplotlib', 'scipy')))"
     )
-    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300, env={**os.environ, "PYTHONPATH": str(ROOT)})
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=DEADLOCK, env={**os.environ, "PYTHONPATH": str(ROOT)})
     assert result.stdout.split() == ["True", "False", "False", "False"], result.stderr
 
 

@@ -321,3 +321,13 @@ def test_api_to_with_the_hamilton_form() -> None:
     assert "\\dot{p}_{r}" in system.to("latex", form="hamilton")
     with pytest.raises(LagrangeError, match="not available for --to c"):
         system.to("c", form="hamilton")
+
+
+def test_p_dot_keeps_plain_terms_apart_and_its_denominator_a_square() -> None:
+    """-dH/dq of the double pendulum reads as gravity plus one quotient over det(M)**2 (as written by
+    hand), not everything over the expanded square of the determinant."""
+    result = CliRunner().invoke(app, ["derive", str(SYSTEMS[0].parent / "double_pendulum.yaml"), "--form", "hamilton"])
+    assert result.exit_code == 0, result.output
+    p_theta_dot = next(line for line in result.output.splitlines() if line.startswith("p_theta_dot = "))
+    assert p_theta_dot.startswith("p_theta_dot = -2*g*l*m*sin(theta) + ")
+    assert p_theta_dot.endswith("/(l**2*m*(3 - cos(2*(phi - theta)))**2)")

@@ -14,6 +14,7 @@ from lagrange_cli.errors import DerivationError
 
 from .conftest import SYSTEMS
 from .helpers import model_from
+from .limits import DEADLOCK
 
 PDFLATEX = shutil.which("pdflatex")
 needs_pdflatex = pytest.mark.skipif(PDFLATEX is None and not os.environ.get("CI"), reason="pdflatex not installed (make test installs it)")
@@ -22,7 +23,7 @@ needs_pdflatex = pytest.mark.skipif(PDFLATEX is None and not os.environ.get("CI"
 def compile_tex(folder: Path, name: str, document: str) -> None:
     assert PDFLATEX, "pdflatex is required in CI: `make latex-deps` installs texlive-latex-base"
     (folder / f"{name}.tex").write_text(document)
-    result = subprocess.run([PDFLATEX, "-interaction=nonstopmode", "-halt-on-error", f"{name}.tex"], cwd=folder, capture_output=True, text=True, timeout=120)
+    result = subprocess.run([PDFLATEX, "-interaction=nonstopmode", "-halt-on-error", f"{name}.tex"], cwd=folder, capture_output=True, text=True, timeout=DEADLOCK)
     assert result.returncode == 0, result.stdout[-3000:]
     assert (folder / f"{name}.pdf").stat().st_size > 0
 

@@ -23,6 +23,7 @@ from lagrange_cli.model import Model
 
 from .conftest import SYSTEMS
 from .helpers import model_from, model_of
+from .limits import DEADLOCK
 
 PDFLATEX = shutil.which("pdflatex")
 needs_pdflatex = pytest.mark.skipif(PDFLATEX is None, reason="pdflatex not installed (make latex-deps installs texlive-latex-base)")
@@ -71,7 +72,7 @@ def overflows(folder: Path, name: str, parts: dict[str, str], standalone: bool =
         documents = {name: "\\documentclass{article}\n\\usepackage{amsmath}\n\\begin{document}\n" + "\n".join(inputs) + "\n\\end{document}\n"}
     for doc, source in documents.items():
         (folder / f"{doc}.tex").write_text(source)
-        result = subprocess.run([PDFLATEX, "-interaction=nonstopmode", "-halt-on-error", f"{doc}.tex"], cwd=folder, capture_output=True, text=True, timeout=120)
+        result = subprocess.run([PDFLATEX, "-interaction=nonstopmode", "-halt-on-error", f"{doc}.tex"], cwd=folder, capture_output=True, text=True, timeout=DEADLOCK)
         assert result.returncode == 0, result.stdout[-3000:]
         current = doc
         for line in (folder / f"{doc}.log").read_text(errors="replace").splitlines():

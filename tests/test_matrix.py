@@ -35,6 +35,8 @@ INVOCATIONS: dict[str, dict[str, list[str]]] = {
         **{f"{fmt}-reduced": [f"--{fmt}", "--form", "reduced"] for fmt in ("text", "latex", "python")},
         "c": ["--to", "c"],
         "octave": ["--to", "octave"],
+        "jax": ["--to", "jax"],
+        "json": ["--to", "json"],
         **{f"{target}-hamilton": ["--to", target, "--form", "hamilton"] for target in ("c", "octave", "jax", "json")},
     },
     "check": {"": []},
@@ -64,6 +66,8 @@ SHOWS = {
     ("derive", "octave"): "function [dydt, h, lambda] = eom(t, y, p",  # then `, u` with inputs
     ("derive", "c-hamilton"): "static inline int eom_velocities(double t, const double *y, const double *p, ",  # then `const double *u, ` with inputs
     ("derive", "octave-hamilton"): "function [dydt, H, qdot] = eom(t, y, p",  # then `, u` with inputs
+    ("derive", "jax"): "def rhs(t, y, p=None",  # then `, u=None` with inputs
+    ("derive", "json"): '"mass_matrix"',
     ("derive", "jax-hamilton"): "def velocities(t, y, p=None",  # then `, u=None` where q_dot depends on an input
     ("derive", "json-hamilton"): '"momentum_rates"',
     **{("derive", f"latex-{form}-standalone"): "\\end{document}" for form in ("lagrange", "matrix", "solved")},
@@ -76,6 +80,7 @@ SHOWS = {
 
 ABOUT = {
     "holonomic_kept": "x=0,y=-1",
+    "inputs_constrained": "x=0,y=-1",
     "cartesian_forces": "theta=atan(0.5/9.81)",
     "generalized_forces": "x=0.25",
     "functions_defined_energy": "r=1",

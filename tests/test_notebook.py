@@ -8,6 +8,7 @@ from pathlib import Path
 import pytest
 
 from .conftest import ROOT
+from .limits import DEADLOCK
 
 NOTEBOOK = ROOT / "docs" / "tour.ipynb"
 
@@ -21,7 +22,7 @@ def test_the_tour_runs_clean(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) ->
     monkeypatch.setenv("PYDEVD_DISABLE_FILE_VALIDATION", "1")
     notebook = nbformat.read(NOTEBOOK, as_version=4)
     assert not any(cell.get("outputs") for cell in notebook.cells if cell.cell_type == "code"), "commit the notebook without outputs"
-    client = nbclient.NotebookClient(notebook, timeout=600, kernel_name="python3", resources={"metadata": {"path": str(ROOT / "docs")}})
+    client = nbclient.NotebookClient(notebook, timeout=DEADLOCK, kernel_name="python3", resources={"metadata": {"path": str(ROOT / "docs")}})
     client.execute()  # raises CellExecutionError, naming the cell, on any error
     outputs = {i: cell.outputs for i, cell in enumerate(notebook.cells) if cell.cell_type == "code"}
     kinds = [set().union(*(o.get("data", {}).keys() for o in out)) for out in outputs.values()]

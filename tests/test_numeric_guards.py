@@ -15,6 +15,7 @@ from lagrange_cli.errors import DerivationError, LagrangeError
 from lagrange_cli.numeric import integrators, simulate
 
 from .conftest import ROOT
+from .limits import DEADLOCK
 
 pytestmark = pytest.mark.usefixtures("private_cache")
 
@@ -167,7 +168,7 @@ def test_cli_failed_run_exits_1_with_time_and_state(tmp_path: Path) -> None:
     path = tmp_path / "root.yaml"
     path.write_text(particle("-sqrt(x)"))
     output = tmp_path / "out.csv"
-    result = subprocess.run([sys.executable, "-m", "lagrange_cli", "simulate", str(path), "--backend", "python", "-o", str(output)], capture_output=True, text=True, cwd=ROOT, timeout=120)
+    result = subprocess.run([sys.executable, "-m", "lagrange_cli", "simulate", str(path), "--backend", "python", "-o", str(output)], capture_output=True, text=True, cwd=ROOT, timeout=DEADLOCK)
     assert result.returncode == 1, result.stderr
     assert "Traceback" not in result.stderr
     assert "root.yaml" in result.stderr and "t = " in result.stderr and "x = " in result.stderr and "math domain error" in result.stderr

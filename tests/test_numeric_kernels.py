@@ -15,6 +15,7 @@ from lagrange_cli.numeric import compile, tableaux
 
 from .conftest import ROOT
 from .helpers import model_from
+from .limits import DEADLOCK
 
 
 def test_tableaux_are_scipys() -> None:
@@ -74,7 +75,7 @@ print(json.dumps({"numba": "numba" in sys.modules, "scipy": "scipy.integrate" in
 
 def run_script(tmp_path: Path, *args: str) -> dict[str, object]:
     env = {"LAGRANGE_CACHE_DIR": str(tmp_path), "PATH": "/usr/bin:/bin", "HOME": str(tmp_path)}
-    result = subprocess.run([sys.executable, "-c", SCRIPT, str(ROOT / "systems" / "simple_pendulum.yaml"), *args], capture_output=True, text=True, env=env, cwd=ROOT, timeout=300)
+    result = subprocess.run([sys.executable, "-c", SCRIPT, str(ROOT / "systems" / "simple_pendulum.yaml"), *args], capture_output=True, text=True, env=env, cwd=ROOT, timeout=DEADLOCK)
     assert result.returncode == 0, result.stderr
     return dict(json.loads(result.stdout))
 

@@ -23,6 +23,7 @@ from lagrange_cli.model import Model
 
 from .conftest import ROOT, SYSTEMS
 from .helpers import model_from, model_of
+from .limits import DEADLOCK
 from .test_codegen_safety import HOSTILE, PENDULUM
 
 jsonschema = pytest.importorskip("jsonschema")
@@ -180,7 +181,7 @@ def test_every_latex_string_compiles_in_pdflatex(tmp_path: Path) -> None:
     assert len(strings) > 500
     body = "\n".join(f"\\noindent$\\displaystyle {s}$\\par" for s in dict.fromkeys(strings))
     (tmp_path / "all.tex").write_text("\\documentclass{article}\n\\usepackage{amsmath}\n\\begin{document}\n" + body + "\n\\end{document}\n")
-    result = subprocess.run([PDFLATEX, "-interaction=nonstopmode", "-halt-on-error", "all.tex"], cwd=tmp_path, capture_output=True, text=True, timeout=120)
+    result = subprocess.run([PDFLATEX, "-interaction=nonstopmode", "-halt-on-error", "all.tex"], cwd=tmp_path, capture_output=True, text=True, timeout=DEADLOCK)
     assert result.returncode == 0, result.stdout[-3000:]
     log = (tmp_path / "all.log").read_text(errors="replace")
     assert "\n! " not in log and "Undefined control sequence" not in log

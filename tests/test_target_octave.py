@@ -24,6 +24,7 @@ from lagrange_cli.model import Model
 
 from .conftest import ROOT
 from .helpers import model_from, model_of
+from .limits import DEADLOCK
 from .test_target_c import C_HOSTILE, HOSTILE, PENDULUM, Case, given_inputs, hamilton_cases, python_values, readme_block, states
 
 RTOL = 1e-9
@@ -116,7 +117,7 @@ def run(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
     (folder / "readme_example.m").write_text("\n".join(line for line in readme.splitlines() if not line.startswith(("plot", "legend"))) + "\n", encoding="ascii")
     script.append("readme_example")
     (folder / "run_all.m").write_text("\n".join(script) + "\n", encoding="ascii")
-    done = subprocess.run([toolchain(), "--no-gui", "--no-window-system", "--quiet", "--no-init-file", "--eval", "run_all"], cwd=folder, capture_output=True, text=True, check=False, timeout=300)
+    done = subprocess.run([toolchain(), "--no-gui", "--no-window-system", "--quiet", "--no-init-file", "--eval", "run_all"], cwd=folder, capture_output=True, text=True, check=False, timeout=DEADLOCK)
     assert done.returncode == 0, f"octave failed:\n{done.stdout[-3000:]}\n{done.stderr[-3000:]}"
     values: dict[tuple[int, int], list[float]] = {}
     found: dict[str, Any] = {"values": values, "folder": folder, "stdout": done.stdout}
@@ -296,7 +297,9 @@ def test_hamilton_agrees_with_the_python_hamilton_module_and_the_lagrange_form(t
         "printf('ode45'); printf(' %.17g', yl(end, :)); printf(' %.17g', yh(end, 1:2)); printf(' %.17g', v); printf('\\n');",
     ]
     (tmp_path / "run_all.m").write_text("\n".join(script) + "\n", encoding="ascii")
-    done = subprocess.run([toolchain(), "--no-gui", "--no-window-system", "--quiet", "--no-init-file", "--eval", "run_all"], cwd=tmp_path, capture_output=True, text=True, check=False, timeout=300)
+    done = subprocess.run(
+        [toolchain(), "--no-gui", "--no-window-system", "--quiet", "--no-init-file", "--eval", "run_all"], cwd=tmp_path, capture_output=True, text=True, check=False, timeout=DEADLOCK
+    )
     assert done.returncode == 0, f"octave failed:\n{done.stdout[-3000:]}\n{done.stderr[-3000:]}"
     values = {}
     for line in done.stdout.splitlines():

@@ -127,7 +127,7 @@ def equation_terms(model: Model, printer: SymenginePrinter) -> list[list[Expr]]:
     state = state_symbols(model)
     rows = []
     for i in range(model.n):
-        terms = [common_factor(flat_arguments(forms.mass[i][j])) * forms.qdd[j] for j in range(model.n) if forms.mass[i][j] != 0]
+        terms = [common_factor(se.Add(*pythagorean(summands(flat_arguments(forms.mass[i][j]))))) * forms.qdd[j] for j in range(model.n) if forms.mass[i][j] != 0]
         terms += collected(-forms.forcing[i], state, printer)
         for c in model.constraints:
             if c.jacobian[i] != 0:
@@ -151,10 +151,10 @@ def collected(expr: Expr, state: frozenset[Expr], printer: SymenginePrinter) -> 
     if expr == 0:
         return []
     groups: dict[Expr, list[Expr]] = {}
-    for term in summands(expr):
+    for term in pythagorean(summands(flat_arguments(expr))):
         constant: list[Expr] = []
         varying: list[Expr] = []
-        for factor in se.Mul.make_args(flat_arguments(term)):
+        for factor in se.Mul.make_args(term):
             if not factor.free_symbols & state:
                 constant.append(factor)
             else:  # a sum with the state in it (`2*l*m + 2*m*x`) with its common factors out
@@ -162,6 +162,36 @@ def collected(expr: Expr, state: frozenset[Expr], printer: SymenginePrinter) -> 
         groups.setdefault(se.Mul(*varying), []).append(se.Mul(*constant))
     order = sorted(groups, key=lambda key: (key == 1, printer.key(key)))
     return [common_factor(se.Add(*groups[key])) * key for key in order]
+
+
+def pythagorean(terms: Sequence[Expr]) -> list[Expr]:
+    """The terms with every pair `R*sin(x)**2 + R*cos(x)**2` (the same R, coefficient included)
+    replaced by `R`, as a reader would write them: spatial bodies give such pairs (the products of
+    rotation matrices). Pairs are found by hashing each term with one sin(x)**2 or cos(x)**2
+    divided out, so a pass is linear in the number of terms and their factors. A merged term can
+    pair again (`(s1**2 + c1**2)*(s2**2 + c2**2)` written out gives 1): passes repeat while they
+    merge, each at least halving a pair, so there are at most as many passes as squared sines
+    and cosines in a term."""
+    alive = list(terms)
+    while True:
+        halves: dict[tuple[bool, Expr, Expr], int] = {}
+        used: set[int] = set()
+        merged: list[Expr] = []
+        for index, term in enumerate(alive):
+            for factor in se.Mul.make_args(term):
+                if not (factor.is_Pow and factor.args[1].is_Integer and int(factor.args[1]) >= 2 and isinstance(factor.args[0], (se.sin, se.cos))):
+                    continue
+                base = factor.args[0]
+                rest = term / base**2
+                partner = halves.get((not isinstance(base, se.sin), base.args[0], rest))
+                if partner is not None and partner not in used:
+                    used.update((partner, index))
+                    merged.append(rest)
+                    break
+                halves.setdefault((isinstance(base, se.sin), base.args[0], rest), index)
+        if not merged:
+            return alive
+        alive = [term for k, term in enumerate(alive) if k not in used] + merged
 
 
 def flat_arguments(expr: Expr) -> Expr:
