@@ -26,6 +26,7 @@ finish within X s of CPU" when it hits it. Before any time is compared the modul
     spatial_bench.py peer kane|lagrange N OUT     the peer as a whole process
     spatial_bench.py check N MODULE...            accelerations of the modules agree
     spatial_bench.py rhs SPATIAL_N SPATIAL PLANAR per-call rhs, spatial vs planar chain of 3N links
+    spatial_bench.py ops N                        operations of the generated rhs (and of M, F), same pair
 """
 
 from __future__ import annotations
@@ -288,6 +289,39 @@ def rhs(n: str, spatial: str, planar: str) -> None:
         spatial_rhs, planar_rhs, pp = modules["spatial"].rhs, modules["planar"].rhs, chain.parameters()
         # sampled in turn within each round (worker.per_call), so load drift hits both alike; each with its own y and p
         found[kind] = worker.per_call({"spatial": lambda t, y, p, f=spatial_rhs, ys=ys: f(t, ys, p_spatial), "planar": lambda t, y, p, f=planar_rhs, yp=yp, pp=pp: f(t, yp, pp)}, None, {})
+    print("RESULT " + json.dumps(found), flush=True)
+
+
+def operations(source: str) -> int:
+    """Arithmetic operations and calls in a generated module's `rhs` (its solve helper not counted)."""
+    import ast
+
+    tree = ast.parse(source)
+    function = next(node for node in tree.body if isinstance(node, ast.FunctionDef) and node.name == "rhs")
+    return sum(isinstance(node, ast.BinOp | ast.UnaryOp | ast.Call) for node in ast.walk(function))
+
+
+def ops(n: str) -> None:
+    """Operations of lagrange's generated rhs (as `derive --to python` writes it) for the spatial chain of N links
+    and the planar general chain of 3N links, and of M alone and F alone (each CSE'd by itself): where the work goes,
+    independent of machine load."""
+    import pendulum
+
+    from lagrange_cli import derive, spec
+    from lagrange_cli.emit import python
+
+    found: dict[str, dict[str, int]] = {}
+    for kind, text in (("spatial", chain_yaml(int(n))), ("planar", pendulum.Chain("general", 3 * int(n)).yaml())):
+        model = derive.derive(spec.parse(text, f"{kind}.yaml"), shared=True)
+        forms, size = model.symengine, model.n
+        constants = {p.name for p in model.parameters}
+        velocities = {str(v) for v in forms.qd}
+        counts = {"rhs": operations(python.emit(model))}
+        for part, exprs in (("M", [forms.mass[i][j] for i in range(size) for j in range(i, size)]), ("F", list(forms.forcing))):
+            lines, results = python.code_lines(python.PythonPrinter(python.symbol_names(model)), exprs, constants, velocities)
+            code = "\n".join(f"{name} = {value}" for name, value in lines) + "\n" + "\n".join(f"_ = {r}" for r in results)
+            counts[part] = operations("def rhs():\n" + "\n".join("    " + line for line in code.splitlines()))
+        found[kind] = counts
     print("RESULT " + json.dumps(found), flush=True)
 
 
@@ -650,7 +684,7 @@ def sizes_list(text: str) -> list[int]:
     return values
 
 
-TASKS = {"peer": peer, "check": check, "rhs": rhs}
+TASKS = {"peer": peer, "check": check, "rhs": rhs, "ops": ops}
 
 
 def main(argv: Sequence[str] | None = None) -> int:
