@@ -401,6 +401,15 @@ BAD = {
         "11:12",
         "input 'u' appears in the position of the reference point",
     ),
+    # a rigid body's mass, inertia, centre and points are constant: Kane's form (v = v_ref + omega x p,
+    # m v_i . a, I alpha + omega x I omega) had silently left out m_dot v, I_dot omega and the rate of p
+    "mass_with_time": (BASE.replace("    mass: m\n", "    mass: m*(2 + sin(t))\n"), "8:11", "the mass of 'A' depends on time `t`"),
+    "inertia_with_a_coordinate": (BASE.replace(INERTIA, "[[1, 0, 0], [0, 1, 0], [0, 0, a]]"), "12:14", "the inertia of 'A' depends on the coordinate 'a'"),
+    "center_with_time": (BASE.replace("center: [0, 0, l]", "center: [0, 0, l*(1 + t)]"), "11:13", "the centre of mass of 'A' depends on time `t`"),
+    "point_with_time": (BASE.replace("points: {tip: [0, 0, l]}", "points: {tip: [0, 0, t]}"), "13:19", "point 'tip' of 'A' depends on time `t`"),
+    # a '.' in a body's or point's name makes `BODY.POINT` ambiguous
+    "body_name_with_a_dot": (BASE.replace("  A:\n", "  A.x:\n"), "7:3", "'A.x' cannot name a body"),
+    "point_name_with_a_dot": (BASE.replace("points: {tip: [0, 0, l]}", "points: {ti.p: [0, 0, l]}"), "13:14", "'ti.p' cannot name a point of 'A'"),
 }
 
 
