@@ -219,7 +219,7 @@ def projected_force_difference(system: System, peer: Any, module: Any, q: list[f
 
 
 def run_case(k: int, rng: random.Random, max_bodies: int, folder: Path, only: str | None = None) -> dict[str, object]:
-    from lagrange_cli.errors import SpecError
+    from lagrange_cli.errors import LagrangeError
 
     kind = rng.choice(["plain", "plain", "time", "constraint", "state_space"])
     kind = only or kind
@@ -229,7 +229,7 @@ def run_case(k: int, rng: random.Random, max_bodies: int, folder: Path, only: st
             continue
         try:
             module = lagrange_module(system.yaml(), folder / f"case{k}.py")
-        except SpecError as error:
+        except LagrangeError as error:
             if "appears nowhere" in str(error) or "mass matrix is singular" in str(error):
                 continue
             raise

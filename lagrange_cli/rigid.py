@@ -58,6 +58,8 @@ class Places:
                             f"body '{key.value}' has the name of a particle",
                             "a name used by one particle or body only (point references, constraint forces and drawings name particles and bodies alike)",
                         )
+                    if "." in str(key.value) or not str(key.value).strip():
+                        reader.problem(key, f"'{key.value}' cannot name a body: a point reference `BODY.POINT` splits at the first '.'", "a name of letters, digits and '_' (no '.')")
                     self.body_nodes.setdefault(str(key.value), value)
         self.positions: dict[str, Vec | None] = {}
         self.bodies: dict[str, Body | None] = {}
@@ -138,6 +140,29 @@ class Places:
         self.reader.problem(node, f"unknown point '{text}'{where}", (f"did you mean '{hint}'? " if hint else "") + expected)
         return None
 
+    def fixed(self, node: yaml.Node, what: str, dim: int) -> Vec | None:
+        """A point fixed in a body (its `center` or one of its `points`), in body axes: numbers and parameters.
+        Its velocity is taken as v_reference + omega x p, so a `t` in it (a point sliding in the body) is refused."""
+        value = self.reader.vector(node, what, self.constants, (dim,))
+        if value is not None and self.varying(value):
+            self.reader.problem(
+                node,
+                f"{what} depends on time `t`, but it is fixed in the body (its velocity is that of the body's reference point plus omega x p)",
+                "numbers and parameters; a point that moves in the body is a particle with its own `position`",
+            )
+            return None
+        return value
+
+    def varying(self, value: Any) -> str:
+        """'' when `value` (an expression or a tuple of them) holds no coordinate and no time, else what it holds."""
+        if value is None:
+            return ""
+        free = set().union(*(sp.sympify(e).free_symbols for e in (value if isinstance(value, tuple) else (value,))))
+        names = sorted(str(x) for x in free if self.constants.elsewhere.get(str(x)) == "a coordinate")
+        if names:
+            return f"the coordinate '{names[0]}'"
+        return "time `t`" if self.config.time in free else ""
+
     def holds_input(self, exprs: Any, node: yaml.Node, what: str) -> bool:
         """Whether `exprs`, which this module is about to differentiate (angles, matrices, the positions of
         reference points), hold an input; if so the problem is recorded at `node`: every derivative taken
@@ -193,6 +218,16 @@ class Places:
             ok = False
         mass = r.expression(fields["mass"], f"the mass of '{name}'", self.constants)
         inertia = self.inertia(fields["inertia"], name)
+        if oriented:  # a rigid body: Kane's form (derive.oriented_bodies) takes m and I constant, as they are
+            for key, held in (("mass", mass), ("inertia", inertia)):
+                varying = self.varying(held)
+                if varying:
+                    r.problem(
+                        fields[key],
+                        f"the {key} of '{name}' depends on {varying}, but a body with an 'orientation' is rigid: its {key} is constant",
+                        "numbers and parameters; a body whose mass or inertia changes can be written with `angular_velocity` (and its kinetic energy is then differentiated as written)",
+                    )
+                    ok = False
         if not ok or mass is None or inertia is None:
             return None
         spans = {k: r.where(v) for k, v in fields.items()}
@@ -207,7 +242,7 @@ class Places:
         if "pivot" in fields:
             anchor = reference = self.place(fields["pivot"], f"the pivot of '{name}'", self.config, (dim,))
             if "center" in fields:
-                center = self.reader.vector(fields["center"], f"the centre of mass of '{name}'", self.constants, (dim,))
+                center = self.fixed(fields["center"], f"the centre of mass of '{name}'", dim)
             if reference is None or center is None:
                 return None
             position = _add(reference, kin.matvec(rotation, center))
@@ -226,9 +261,15 @@ class Places:
         points: dict[str, Vec] = {}
         point_velocities: dict[str, Vec] = {}
         if "points" in fields:
-            for point, _, node in r.mapping(fields["points"], f"'points' of body '{name}'"):
-                offset = r.vector(node, f"point '{point}' of '{name}'", self.constants, (dim,))
-                if offset is not None:
+            for point, key_node, node in r.mapping(fields["points"], f"'points' of body '{name}'"):
+                if "." in point or not point.strip():
+                    r.problem(key_node, f"'{point}' cannot name a point of '{name}': a point reference `BODY.POINT` splits at the '.'", "a name of letters, digits and '_' (no '.')")
+                    ok = False
+                    continue
+                offset = self.fixed(node, f"point '{point}' of '{name}'", dim)
+                if offset is None:
+                    ok = False
+                else:
                     points[point] = _add(reference, kin.matvec(rotation, offset))
                     point_velocities[point] = _add(moving, _cross(omega, offset))
                     self.frames[id(points[point])] = (name, point_velocities[point])
@@ -239,6 +280,8 @@ class Places:
             hinge = (parent, attached[1], center)
         elif "pivot" in fields and parent is None and id(anchor) not in self.frames and all(self.config.time_derivative(x) == 0 for x in anchor):
             hinge = (None, (sp.Integer(0),) * dim, center)  # a fixed pivot
+        if not ok:
+            return None
         body = Body(name, mass, position, inertia, omega, spans, rotation=rotation, points=points, local=local, parent=parent, velocity=velocity, anchor=hinge)
         self.point_velocities[name] = point_velocities
         return self.loads(body, fields)
