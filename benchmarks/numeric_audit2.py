@@ -191,8 +191,10 @@ def _kepler(ts: np.ndarray, e: float, a: float) -> np.ndarray:
             if abs(dE) < 1e-16:
                 break
         r = a * (1 - e * math.cos(E))
-        nu = 2 * math.atan2(math.sqrt(1 + e) * math.sin(E / 2), math.sqrt(1 - e) * math.cos(E / 2))
-        phi = nu + 2 * math.pi * math.floor((E + math.pi) / (2 * math.pi))  # unwrapped
+        turns = 2 * math.pi * math.floor((E + math.pi) / (2 * math.pi))
+        half = (E - turns) / 2  # in [-pi/2, pi/2)
+        nu = 2 * math.atan2(math.sqrt(1 + e) * math.sin(half), math.sqrt(1 - e) * math.cos(half))
+        phi = nu + turns  # unwrapped, as lagrange's theta
         Ed = n / (1 - e * math.cos(E))
         rows.append([r, phi, a * e * math.sin(E) * Ed, math.sqrt(a * (1 - e**2)) / r**2])
     return np.array(rows)

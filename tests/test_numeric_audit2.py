@@ -87,3 +87,31 @@ def test_a_fixed_step_over_the_budget_is_not_run() -> None:
     assert point.status == PointStatus.OVER_BUDGET
     assert point.steps == 0 and point.nfev == 0
     assert "not run" in point.reason
+
+
+def test_accuracy_skips_tighter_runs_of_a_method_over_its_budget() -> None:
+    """A method that ran out of its step budget at one rtol is not run at tighter ones (they take
+    more steps): the study says so without spending the budget again."""
+    from lagrange_cli.numeric import accuracy
+    from lagrange_cli.numeric.runs import PointStatus
+
+    model = _model(AUDIT / "kepler_e09.yaml")
+    found = accuracy.study(model, candidates=[Candidate("RK45", "python")], tolerances=[1e-3, 1e-4, 1e-5], t_end=2.0, samples=11, repeats=0, max_steps=3)
+    first, *rest = found.points
+    assert first.status == PointStatus.OVER_BUDGET and first.steps > 0
+    for point in rest:
+        assert point.status == PointStatus.OVER_BUDGET and point.steps == 0 and point.nfev == 0
+        assert "not run" in point.reason
+
+
+def test_accuracy_caps_a_losing_run_at_the_cheapest_runs_work() -> None:
+    """At one tolerance, a run is stopped at accuracy.LOSING x the work of the cheapest finished
+    run there (cheap runs go first), never left to spend its whole budget."""
+    from lagrange_cli.numeric import accuracy
+    from lagrange_cli.numeric.runs import work
+
+    model = _model(AUDIT / "elastic_pendulum_r_k1e8.yaml")
+    found = accuracy.study(model, candidates=[Candidate("RK45", "python"), Candidate("LSODA")], tolerances=[1e-4], t_end=0.5, samples=11, repeats=0)
+    explicit, lsoda = found.points
+    assert lsoda.ok
+    assert explicit.steps * 6 <= accuracy.LOSING * work(lsoda) * 1.5 + 12

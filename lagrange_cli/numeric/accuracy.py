@@ -43,7 +43,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -78,6 +78,7 @@ from lagrange_cli.numeric.runs import (
     Ran,
     Setup,
     backend_for,
+    capped_steps,
     check_steps,
     component_scale,
     default_candidates,
@@ -91,8 +92,11 @@ from lagrange_cli.numeric.runs import (
     scaled_errors,
     ties,
     tol_text,
+    unrun,
+    work,
 )
 from lagrange_cli.numeric.settings import validate
+from lagrange_cli.numeric.status import Failure
 
 __all__ = [
     "ATOL_RATIO",
@@ -216,6 +220,26 @@ ProgressReport = Callable[[Step], None]
 # -- the study ----------------------------------------------------------------------------------
 
 
+LOSING = 10.0
+"""A run is stopped at this many times the work (right-hand side evaluations, `runs.work`) of the
+cheapest finished run at the same tolerance: it is off the chart of error against time by a
+decade, and the budget goes where a point is still open (scipy's Radau and BDF at rtol 1e-8 on a
+stiff spring written in its length, round-off-limited, spent 30 s each of a 77 s study)."""
+
+
+def _capped(model: Model, candidate: Candidate, tolerance: float, setup: Setup, reference: Reference, scale: np.ndarray, last: Point | None, cheapest: float) -> Point:
+    """One point of the study, within LOSING x `cheapest`'s work; not run when the candidate's
+    looser run (`last`) ran out of its budget already (a tighter tolerance takes more steps)."""
+    if last is not None and last.failure == Failure.BUDGET:
+        reason = last.reason if not last.steps else f"not run: at rtol {tol_text(last.tolerance)} it ran out of its budget already ({last.reason})"
+        return unrun(candidate, tolerance, PointStatus.OVER_BUDGET, reason, Failure.BUDGET)
+    cap = capped_steps(candidate, LOSING * cheapest, last, setup)
+    point = measure(model, candidate, tolerance, replace(setup, max_steps=cap) if cap < setup.steps else setup, reference, scale, repeats=0)
+    if cap < setup.steps and point.failure == Failure.BUDGET and point.steps:
+        point = replace(point, reason=f"stopped after {point.steps} steps: {LOSING:g} x the work of the cheapest run at rtol {tol_text(tolerance)}")
+    return point
+
+
 def study(
     model: Model,
     *,
@@ -257,15 +281,20 @@ def study(
     if progress:
         progress(Step(1, total, "reference"))
     scale = component_scale(reference.y)
-    points: list[Point] = []
-    for candidate in chosen:
+    found_points: dict[tuple[Candidate, float], Point] = {}
+    cheapest: dict[float, float] = {}  # per tolerance, the least work of a finished run
+    for candidate in sorted(chosen, key=lambda c: (backend_for(c) != "compiled", c.method != "LSODA")):  # cheap runs first (compiled, then LSODA): they set the caps
+        last: Point | None = None
         for tolerance in tolerances:
             what = f"{candidate.label} {tol_text(tolerance)}"
             if progress:
-                progress(Step(len(points) + 1, total, what, what))
-            points.append(measure(model, candidate, tolerance, setup, reference, scale, repeats=0))
+                progress(Step(len(found_points) + 1, total, what, what))
+            found_points[(candidate, tolerance)] = last = _capped(model, candidate, tolerance, setup, reference, scale, last, cheapest.get(tolerance, math.inf))
+            if last.ok:
+                cheapest[tolerance] = min(cheapest.get(tolerance, math.inf), work(last))
             if progress:
-                progress(Step(len(points) + 1, total, what))
+                progress(Step(len(found_points) + 1, total, what))
+    points = [found_points[(c, t)] for c in chosen for t in tolerances]
     if repeats > 0:  # the run times, measured in turns so that a changing load slows every run alike
         if progress:
             progress(Step(total, total, "timing", "timing the runs in turns"))

@@ -20,7 +20,7 @@ import numpy as np
 from lagrange_cli.errors import LagrangeError
 from lagrange_cli.model import Model
 from lagrange_cli.numeric import compile, diagnostics, integrators, memo, policy
-from lagrange_cli.numeric.runs import ATOL_RATIO, REFERENCE_STEPS, TIGHTEST, Candidate, Setup, component_scale, over_step_budget, run, scaled_errors, start_of, tol_text
+from lagrange_cli.numeric.runs import ATOL_RATIO, COMPILED_STEPS, REFERENCE_STEPS, TIGHTEST, Candidate, Setup, component_scale, over_step_budget, run, scaled_errors, start_of, tol_text
 from lagrange_cli.numeric.settings import Settings
 from lagrange_cli.numeric.simulate import Trajectory, integrate, state_text
 from lagrange_cli.numeric.status import Status
@@ -204,6 +204,7 @@ the next, looser one is tried at once instead of after the whole budget (scipy's
 of k = 1e10 written in its length: 12000 steps, 10 s, to reach t = 2e-4 at rtol 1e-8; 500 steps
 to t_end at 1e-7)."""
 PROBE_STEPS = 300
+RADAU = Candidate("Radau")
 EXPLICIT_CONFIRMATION = 1.0
 """An implicit reference is confirmed first by compiled DOP853 at this times the loosest implicit rtol
 (0.1 x the accuracy asked): on a stiff system an explicit method's stability limit
@@ -212,21 +213,21 @@ it is not round-off-limited there as it is at a reference's 1e-14 (the damped sp
 in r: 3e5 compiled steps, 0.3 s, at rtol 1e-6, error 3e-8)."""
 
 
-def _doomed(model: Model, setup: Setup, rtol: float) -> str:
+def _doomed(model: Model, setup: Setup, rtol: float, candidate: Candidate = RADAU) -> str:
     """Why an implicit reference attempt at `rtol` within `setup`'s reference budget cannot finish,
     judged cheaply ("" when it may): `auto`'s LSODA pilot at that rtol already extrapolates to more
     steps than the budget, or a probe of Radau over the first PROBE_SPAN of the window runs out of
     PROBE_SHARE of the budget."""
     budget = setup.reference_steps
     s = replace(start_of(model, setup), method="auto", backend="auto", rtol=rtol, atol=rtol * ATOL_RATIO)
-    measured = policy.pilot(model, s)
+    measured = policy.pilot(model, s) if candidate.method in IMPLICIT else None
     if measured is not None and not measured.finished and measured.implicit_steps(setup.t_end) > budget:
         return f"at rtol {tol_text(rtol)} a pilot run extrapolates to {measured.implicit_steps(setup.t_end):.3g} steps, above the budget of {budget}"
     span = PROBE_SPAN * setup.t_end
     probe = replace(setup, t_end=span, times=(0.0, span), reference_max_steps=max(PROBE_STEPS, math.ceil(PROBE_SHARE * budget)))
-    found = run(model, Candidate("Radau"), rtol, probe, reference=True)
+    found = run(model, candidate, rtol, probe, reference=True)
     if over_step_budget(found):
-        return f"at rtol {tol_text(rtol)} Radau took {found.stats.steps} steps to reach t = {found.t_last:.3g} of the first {span:.3g}"
+        return f"at rtol {tol_text(rtol)} {candidate.method} took {found.stats.steps} steps to reach t = {found.t_last:.3g} of the first {span:.3g}"
     return ""
 
 
@@ -296,12 +297,47 @@ def _computed_reference(model: Model, setup: Setup, tolerance: float, hint: str,
             break  # a failure, not round-off: a looser tolerance will not pass it
     assert radau is not None
     reasons.append(_stopped(model, Candidate("Radau"), rtol, attempt, radau) + (f" (also at rtol {', '.join(tol_text(r) for r in rtols[:-1])})" if len(rtols) > 1 and rtol == rtols[-1] else ""))
+    if main is None and radau.outcome == Status.BUDGET and compile.numba_available():
+        fallback = _explicit_fallback(model, setup, rtols, reasons[-1], time.perf_counter() - began)
+        if fallback is not None:
+            return fallback
     main = main if main is not None else radau
     blowup = main.outcome in BLOWUP and radau.outcome in BLOWUP and abs(radau.t_last - main.t_last) <= 0.01 * max(setup.t_end, 1e-300)
     message = f"{model.source}: " + "; and ".join(reasons)
     if blowup:
         message += f"; {'both stop' if main is not radau else 'it stops'} near t = {main.t_last:.6g}: the solution itself blows up or reaches a singular configuration there"
     raise ReferenceFailed(f"{message}; give a shorter --t-end{hint} or a larger --max-steps", blowup=blowup, trajectory=main, attempts=tuple(reasons))
+
+
+EXPLICIT_MARGIN = 50.0
+"""An explicit fallback reference may take this many times the stability-limited steps `auto`'s pilot
+estimates (at least EXPLICIT_FLOOR compiled steps, at most the reference budget)."""
+EXPLICIT_FLOOR = 100_000
+
+
+def _explicit_fallback(model: Model, setup: Setup, rtols: tuple[float, ...], why: str, seconds: float) -> Reference | None:
+    """Where Radau is round-off-limited at every rtol (a stiff spring written in its length: its
+    Newton iterations and error estimate drown in the rounding of k (r - l)), compiled DOP853 at the
+    tightest of `rtols` that it can finish, confirmed by compiled RK45 (else Radau at the loosest):
+    on a stiff system an explicit method's stability limit keeps its steps short, so at these
+    moderate tolerances it is accurate, and compiled it is affordable. None when it cannot finish
+    either (the caller reports the failure)."""
+    s = replace(start_of(model, setup), method="auto", backend="auto", rtol=PILOT_RTOL, atol=PILOT_RTOL * ATOL_RATIO)
+    measured = policy.pilot(model, s)
+    stable = measured.explicit_steps(setup.t_end) if measured is not None else 0.0
+    budget = min(setup.reference_steps, max(EXPLICIT_FLOOR, math.ceil(EXPLICIT_MARGIN * stable)) // COMPILED_STEPS + 1)
+    attempt = replace(setup, reference_max_steps=budget)
+    primary = Candidate("DOP853", "compiled")
+    for k, rtol in enumerate(rtols):
+        if k < len(rtols) - 1 and _doomed(model, attempt, rtol, primary):
+            continue
+        main = run(model, primary, rtol, attempt, reference=True)
+        if not main.failed:
+            found = _confirmed(model, attempt, main, rtol, [(Candidate("RK45", "compiled"), rtol), (Candidate("Radau"), rtols[-1])], seconds)
+            return replace(found, description=f"{found.description} (explicit, stability-limited: {why})")
+        if main.outcome != Status.BUDGET:
+            return None
+    return None
 
 
 def _confirmed(model: Model, setup: Setup, main: Trajectory, tolerance: float, confirmations: list[tuple[Candidate, float]], seconds: float) -> Reference:

@@ -280,6 +280,33 @@ def _repeats(first: float, repeats: int) -> int:
     return max(1, min(repeats, int(2.0 / first)))
 
 
+def unrun(candidate: Candidate, tolerance: float, status: PointStatus = PointStatus.NOT_APPLICABLE, reason: str = "", failure: Failure | None = None) -> Point:
+    """A point that did not run (nothing measured): `status` and `reason` say why."""
+    empty = Point(candidate.label, candidate.label, tolerance, None, "", "", math.nan, math.nan, math.nan, None, math.nan, 0, 0.0, 0, 0, 0, candidate=candidate)
+    return replace(empty, status=status, reason=reason, failure=failure) if reason or failure is not None else empty
+
+
+EVALUATIONS_PER_STEP = {"RK45": 6, "DOP853": 12, "Radau": 6, "BDF": 2, "LSODA": 2, "symplectic": 8, "auto": 12}
+"""Rough right-hand side evaluations per step of each method (Radau and BDF also factorise), to turn a work cap into steps."""
+
+
+def work(point: Point) -> float:
+    """A run's work in scipy right-hand side evaluations (a compiled evaluation costs about 1/COMPILED_STEPS as much)."""
+    compiled = point.ran is not None and point.ran.backend == "compiled"
+    return (point.nfev + 2 * point.njev) / (COMPILED_STEPS if compiled else 1)
+
+
+def capped_steps(candidate: Candidate, allowed: float, last: Point | None, setup: Setup) -> int:
+    """The step budget (scipy steps, as budgets count them) of a candidate's next run when it may
+    spend `allowed` work (`work`, inf: the setup's budget); `last`, its previous run, gives its
+    evaluations per step."""
+    if not math.isfinite(allowed):
+        return setup.steps
+    per_step = last.nfev / last.steps if last is not None and last.steps else EVALUATIONS_PER_STEP.get(candidate.method, 6)
+    steps = allowed / max(per_step, 1.0)  # compiled runs get COMPILED_STEPS x this, at 1/COMPILED_STEPS the cost each
+    return max(1, min(setup.steps, math.ceil(steps)))
+
+
 def fixed_steps(settings: Settings) -> float:
     """The steps a fixed-step (symplectic) run takes to t_end (0 for an adaptive method)."""
     if settings.method != "symplectic" or not settings.step:
@@ -292,7 +319,7 @@ def measure(model: Model, candidate: Candidate, tolerance: float, setup: Setup, 
     symplectic method's step is the one `policy.decide` chooses for `simulate` (its pilot run at
     this tolerance), so a study measures the method as `simulate` runs it."""
     step = None
-    empty = Point(candidate.label, candidate.label, tolerance, step, "", "", math.nan, math.nan, math.nan, None, math.nan, 0, 0.0, 0, 0, 0, candidate=candidate)
+    empty = unrun(candidate, tolerance)
     try:
         decided = settings_for(model, candidate, tolerance, setup, step)
         needed = fixed_steps(decided)

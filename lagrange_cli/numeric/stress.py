@@ -65,7 +65,24 @@ from lagrange_cli.model import Model
 from lagrange_cli.numeric import accuracy as study
 from lagrange_cli.numeric import compile, diagnostics, policy
 from lagrange_cli.numeric.reference import HORIZON_THRESHOLD, IMPLICIT, IMPLICIT_TIGHTEST, Horizon, Reference, ReferenceFailed, dense, implicit_tolerances, prepare
-from lagrange_cli.numeric.runs import COMPILED_STEPS, TIGHTEST, Candidate, Point, PointStatus, Setup, backend_for, check_steps, component_scale, measure, retime, start_of, starting, ties, tol_text
+from lagrange_cli.numeric.runs import (
+    TIGHTEST,
+    Candidate,
+    Point,
+    PointStatus,
+    Setup,
+    backend_for,
+    capped_steps,
+    check_steps,
+    component_scale,
+    measure,
+    retime,
+    start_of,
+    starting,
+    ties,
+    tol_text,
+    work,
+)
 from lagrange_cli.numeric.settings import Settings, validate
 from lagrange_cli.numeric.status import Failure
 
@@ -342,23 +359,16 @@ def stress(
     return Report(model.title, target, tuple(outcomes))
 
 
-LOSING = 30.0
+LOSING = 10.0
 """Once a method meets the accuracy, another method's runs are stopped at this many times its work
 (right-hand side evaluations; a compiled one counting 1/COMPILED_STEPS): it cannot be the
-recommendation, so the budget is spent where the verdict is still open."""
-NAIVE_LOSING = 100.0
+recommendation (work maps to run time only roughly, but a tie needs 1.1x), so the budget is spent where the
+verdict is still open (30x and 100x before: two thirds of `stress`'s time on Kepler's orbit went to capped runs)."""
+NAIVE_LOSING = 30.0
 """... scipy's RK45, whose cost against the recommendation the report shows, at this many times."""
 RETIME_WITHIN = 3.0
 """Only runs within this factor of the fastest meeting run's first time are timed again (the
 others cannot tie with it)."""
-EVALUATIONS_PER_STEP = {"RK45": 6, "DOP853": 12, "Radau": 6, "BDF": 2, "LSODA": 2, "symplectic": 8, "auto": 12}
-"""Rough right-hand side evaluations per step of each method (Radau and BDF also factorise), to turn a work cap into steps."""
-
-
-def work(point: Point) -> float:
-    """A run's work in scipy right-hand side evaluations (a compiled evaluation costs about 1/COMPILED_STEPS as much)."""
-    compiled = point.ran is not None and point.ran.backend == "compiled"
-    return (point.nfev + 2 * point.njev) / (COMPILED_STEPS if compiled else 1)
 
 
 def _order(model: Model, setup: Setup, candidates: Sequence[Candidate]) -> list[Candidate]:
@@ -452,11 +462,7 @@ def _losing(candidate: Candidate) -> float:
 def _cap(candidate: Candidate, best: Point | None, last: Point | None, setup: Setup) -> int:
     """The step budget of a candidate's next run: the setup's, or, once `best` meets the accuracy,
     what `_losing` x its work buys this candidate (in scipy steps, as budgets count them)."""
-    if best is None:
-        return setup.steps
-    per_step = last.nfev / last.steps if last is not None and last.steps else EVALUATIONS_PER_STEP.get(candidate.method, 6)
-    steps = _losing(candidate) * work(best) / max(per_step, 1.0)  # compiled runs get COMPILED_STEPS x this, at 1/COMPILED_STEPS the cost each
-    return max(1, min(setup.steps, math.ceil(steps)))
+    return capped_steps(candidate, math.inf if best is None else _losing(candidate) * work(best), last, setup)
 
 
 def _retimed(model: Model, points: list[Point], naive_default: Point | None, setup: Setup, target: float, own: float) -> tuple[list[Point], Point | None]:
