@@ -213,7 +213,7 @@ def projected_force_difference(system: System, peer: Any, module: Any, q: list[f
     found = call(module, "constraint_forces", 0.0, [*q, *qd], p, u)["level"]
     got: list[float] = []
     for name, kind in layout:
-        got += list(found["on"][name][kind])
+        got += list(found["on"].get(name, {}).get(kind, [0.0, 0.0, 0.0]))  # a carrier the coordinates do not move is not listed
     scale = max(1.0, float(np.abs(expected).max()))
     return float(np.abs(np.array(got) - expected).max()) / scale
 
@@ -230,7 +230,7 @@ def run_case(k: int, rng: random.Random, max_bodies: int, folder: Path, only: st
         try:
             module = lagrange_module(system.yaml(), folder / f"case{k}.py")
         except LagrangeError as error:
-            if "appears nowhere" in str(error) or "mass matrix is singular" in str(error):
+            if "appears nowhere" in str(error) or "is singular" in str(error):
                 continue
             raise
         break
