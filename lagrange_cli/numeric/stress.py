@@ -394,7 +394,8 @@ def _regime(model: Model, regime: Regime, target: float, candidates: Sequence[Ca
     points: dict[Candidate, Point] = {}
     runs: dict[tuple[Candidate, float], Point] = {}
     best: Point | None = None
-    floor = 10 * reference.settings.rtol if reference.settings is not None and reference.settings.method in IMPLICIT else 0.0
+    looser = reference.settings is not None and (reference.settings.method in IMPLICIT or reference.settings.rtol > ref_tol * (1 + 1e-9))
+    floor = 10 * reference.settings.rtol if looser and reference.settings is not None else 0.0
     rungs = tuple(t for t in ladder(target) if t >= floor * (1 - 1e-9)) or (ladder(target)[0],)  # a run as tight as an implicit reference would measure the reference against itself
     for candidate in _order(model, setup, candidates):
         last: Point | None = None
