@@ -115,3 +115,14 @@ def test_accuracy_caps_a_losing_run_at_the_cheapest_runs_work() -> None:
     explicit, lsoda = found.points
     assert lsoda.ok
     assert explicit.steps * 6 <= accuracy.LOSING * work(lsoda) * 1.5 + 12
+
+
+def test_an_explicit_reference_over_its_budget_is_tried_looser() -> None:
+    """A compiled explicit reference gets EXPLICIT_REFERENCE_STEPS per attempt, then 100 x looser
+    (the top passing within 1e-5 of theta = 0 spent 155 s at rtol 2.5e-14 before)."""
+    assert reference.explicit_tolerances(2.5e-14, 1e-7) == (2.5e-14, 2.5e-12, 2.5e-10)
+    assert reference.explicit_tolerances(1e-11, 1e-8) == (1e-11, 1e-9)
+    model = _model(AUDIT / "kepler_e09.yaml")
+    setup = Setup(600.0, tuple(np.linspace(0.0, 600.0, 11).tolist()), max_steps=1)  # 10 reference steps: 1000 compiled
+    found = reference.computed_reference(model, setup, 2.5e-14, implicit=(1e-10, 1e-9, 1e-8, 1e-7))
+    assert found.settings is not None and found.settings.rtol > 2.5e-14

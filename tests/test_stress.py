@@ -199,7 +199,7 @@ def test_stress_hints_name_only_stress_options(tmp_path: Path) -> None:
     import re
 
     report = tmp_path / "report.json"
-    args = ["stress", "simple_pendulum", "--method", "RK45:python", "--max-steps", "1", "--t-end", "100", "--json", str(report)]
+    args = ["stress", "simple_pendulum", "--method", "RK45:python", "--max-steps", "1", "--t-end", "10000", "--json", str(report)]
     result = runner.invoke(app, args)
     assert result.exit_code == 0, result.output
     findings = [f for regime in json.loads(report.read_text())["regimes"] for f in regime["findings"]]

@@ -81,6 +81,7 @@ from lagrange_cli.numeric.runs import (
     starting,
     ties,
     tol_text,
+    unrun,
     work,
 )
 from lagrange_cli.numeric.settings import Settings, validate
@@ -394,9 +395,15 @@ def _regime(model: Model, regime: Regime, target: float, candidates: Sequence[Ca
     points: dict[Candidate, Point] = {}
     runs: dict[tuple[Candidate, float], Point] = {}
     best: Point | None = None
-    floor = 10 * reference.settings.rtol if reference.settings is not None and reference.settings.method in IMPLICIT else 0.0
+    looser = reference.settings is not None and (reference.settings.method in IMPLICIT or reference.settings.rtol > ref_tol * (1 + 1e-9))
+    floor = 10 * reference.settings.rtol if looser and reference.settings is not None else 0.0
     rungs = tuple(t for t in ladder(target) if t >= floor * (1 - 1e-9)) or (ladder(target)[0],)  # a run as tight as an implicit reference would measure the reference against itself
+    vouches = own < target  # else no run can be shown to meet the accuracy: the verdict is open whatever they do
     for candidate in _order(model, setup, candidates):
+        if not vouches and candidate != AUTO and backend_for(candidate) != "compiled":
+            why = "unconfirmed" if not math.isfinite(own) else f"{own:.1e}"
+            points[candidate] = unrun(candidate, rungs[0], PointStatus.UNDECIDED, f"not run: the reference's own error ({why}) cannot vouch for {tol_text(target)}, so no run could decide the verdict")
+            continue
         last: Point | None = None
         stalls = 0
         for tolerance in rungs:
