@@ -260,6 +260,29 @@ def check_invertible(model: Model, matrix: sp.Matrix | None = None) -> None:
         )
 
 
+def check_solvable(model: Model) -> None:
+    """`check_invertible` without the sympy fields for an unconstrained model: M evaluated by
+    symengine at a random point, pivots by `pivot_ratio`'s rule; only a doubtful M (a zero row, a
+    tiny pivot, no finite value) goes to `check_invertible` for its verdict and message."""
+    if model.constraints:
+        check_invertible(model)
+        return
+    import random
+
+    forms = model.symengine
+    rng = random.Random(1)
+    point = {se.Symbol(p.name): se.RealDouble(p.value if p.value else rng.uniform(0.5, 2.0)) for p in model.parameters}
+    point.update({se.Symbol(i.name): se.RealDouble(rng.uniform(0.5, 2.0)) for i in model.inputs})
+    point.update({s: se.RealDouble(rng.uniform(0.2, 1.3)) for s in (*forms.q, *forms.qd, forms.t)})
+    try:
+        rows = [[float(m.xreplace(point)) if m != 0 else 0.0 for m in row] for row in forms.mass]
+    except (RuntimeError, TypeError, ValueError, OverflowError, ZeroDivisionError):
+        check_invertible(model)
+        return
+    if not all(math.isfinite(x) for row in rows for x in row) or row_pivot_ratio(rows) < 1e-12:
+        check_invertible(model)
+
+
 def pivot_ratio(matrix: sp.Matrix, model: Model, seed: int = 1) -> float:
     """Smallest over largest pivot of A (rows scaled to unit norm) at a random point: about
     1/condition number, and at rounding level when A is singular.

@@ -133,7 +133,7 @@ def _derive(spec: SystemSpec, shared: bool = False, composite: bool = True) -> t
         refuse = fail(
             None,
             f"{spec.path}: the equations of motion, written out without sharing, amount to more than {MAX_EQUATION_TREE} terms and factors",
-            "a smaller system; or `derive --to python`, whose code shares common subexpressions",
+            "a smaller system; or a command whose code shares common subexpressions: `derive --to python|c|octave|jax`, `simulate`, `accuracy`, `stress`, `sweep`, `animate`",
         )
         if not cleared or not shared:
             if rigid.composite:  # body by body, the equations are shorter written out
@@ -161,6 +161,7 @@ def _derive(spec: SystemSpec, shared: bool = False, composite: bool = True) -> t
         exact=spec.exact,
         spans=spec.spans,
         definitions=spec.definitions,
+        functions=spec.functions,
         inputs=spec.inputs,
         outputs=spec.outputs,
     )

@@ -128,6 +128,8 @@ class Model:
     definitions: Mapping[str, sp.Lambda] = field(default_factory=dict)
     """The file's definitions of its functions, e.g. U -> Lambda(s, -k/s). The equations keep the
     general U(r); numeric code evaluates `with_definitions()`."""
+    functions: tuple[str, ...] = ()
+    """Every function the file declares (defined or not, `definitions` holds the defined ones)."""
     inputs: tuple[Input, ...] = ()
     """The file's inputs, in its order (lagrange_cli/inputs.py); numeric code evaluates `inputs.substitute(model)`."""
     outputs: tuple[tuple[str, sp.Expr], ...] = ()
@@ -236,7 +238,8 @@ class Model:
     def energy_conserved(self) -> bool:
         """h = sum p q_dot - L is conserved when L has no explicit t, nothing dissipates or is
         applied, and every constraint is scleronomic."""
-        return not self.lagrangian.has(self.t) and self.dissipation == 0 and not self.forced and all(c.bias == 0 and not c.expr.has(self.t) for c in self.constraints)
+        forms = self.symengine  # not the sympy fields, which a big spatial model cannot convert
+        return forms.t not in forms.lagrangian.free_symbols and forms.dissipation == 0 and not self.forced and all(c.bias == 0 and not c.expr.has(self.t) for c in self.constraints)
 
     @property
     def symengine(self) -> SymengineForms:

@@ -303,7 +303,7 @@ def runner_for(job: Job, model: Model | None = None) -> Runner:
             if model is None:
                 from lagrange_cli import derive, spec
 
-                model = derive.derive(spec.parse(job.text, job.filename))
+                model = derive.derive(spec.parse(job.text, job.filename), shared=True)
             _RUNNERS[job.key] = Runner(model, job)
         return _RUNNERS[job.key]
 

@@ -104,14 +104,18 @@ def test_accuracy_skips_tighter_runs_of_a_method_over_its_budget() -> None:
         assert "not run" in point.reason
 
 
-def test_accuracy_caps_a_losing_run_at_the_cheapest_runs_work() -> None:
-    """At one tolerance, a run is stopped at accuracy.LOSING x the work of the cheapest finished
-    run there (cheap runs go first), never left to spend its whole budget."""
+def test_accuracy_caps_a_losing_run_at_the_cheapest_runs_work(monkeypatch: pytest.MonkeyPatch) -> None:
+    """At one tolerance, a run of the default candidates is stopped at accuracy.LOSING x the work of
+    the cheapest finished run there (cheap runs go first), never left to spend its whole budget;
+    methods the user names are measured in full."""
     from lagrange_cli.numeric import accuracy
     from lagrange_cli.numeric.runs import work
 
     model = _model(AUDIT / "elastic_pendulum_r_k1e8.yaml")
-    found = accuracy.study(model, candidates=[Candidate("RK45", "python"), Candidate("LSODA")], tolerances=[1e-4], t_end=0.5, samples=11, repeats=0)
+    named = accuracy.study(model, candidates=[Candidate("RK45", "python"), Candidate("LSODA")], tolerances=[1e-4], t_end=0.5, samples=11, repeats=0)
+    assert all(point.ok for point in named.points)
+    monkeypatch.setattr(accuracy, "default_candidates", lambda model: (Candidate("RK45", "python"), Candidate("LSODA")))
+    found = accuracy.study(model, tolerances=[1e-4], t_end=0.5, samples=11, repeats=0)
     explicit, lsoda = found.points
     assert lsoda.ok
     assert explicit.steps * 6 <= accuracy.LOSING * work(lsoda) * 1.5 + 12

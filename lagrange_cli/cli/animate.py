@@ -38,7 +38,7 @@ def animate(
         if view is not None and view.lower() not in core.VIEWS:
             raise LagrangeError(f"--view {view!r}: unknown view\n  expected: one of {', '.join(core.VIEWS)}")
         system = spec.load(spec.resolve(file))
-        model = derive.derive(system)
+        model = derive.derive(system, shared=True)  # compiled from the symengine forms
         core.scene(system, model)  # nothing to draw: refused before the run
         parameters, values = assignments_of(model, set_ or [], "--set"), assignments_of(model, initial or [], "--initial")
         run = core.simulate_for(model, speed=speed, fps=fps, t_end=t_end, method=method, parameters=parameters, initial=values)

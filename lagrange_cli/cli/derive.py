@@ -23,6 +23,10 @@ TARGETS = {
 }
 """`--to TARGET` -> the module that emits it, imported only when asked for (each has `emit`)."""
 
+SHARED_TARGETS = frozenset({"python", "c", "octave", "jax"})
+"""Targets that print the equations with their common subexpressions shared (`derive(shared=True)`): a
+system whose equations are too long only when written out in full (a spatial chain) is accepted for them."""
+
 
 class Form(str, Enum):
     """`derive --form`: the shape of the equations."""
@@ -78,7 +82,7 @@ def derive(
         from lagrange_cli import derive as core
         from lagrange_cli import spec
 
-        model = core.derive(spec.load(spec.resolve(file)), shared=target == "python" and form is not Form.hamilton)
+        model = core.derive(spec.load(spec.resolve(file)), shared=target in SHARED_TARGETS and form is not Form.hamilton)
         if form is Form.hamilton:
             output(_hamilton(model, target, numba, standalone, name), output_path)
             return

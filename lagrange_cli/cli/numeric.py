@@ -62,7 +62,7 @@ def simulate(
             out.check_suffix(output_path, out.DATA_SUFFIXES, "output")
         if plot is not None:
             out.check_plot(plot)
-        model = core.derive(spec.load(spec.resolve(file)))
+        model = core.derive(spec.load(spec.resolve(file)), shared=True)  # compiled from the symengine forms
         parameters, values = assignments_of(model, set_ or [], "--set"), assignments_of(model, initial or [], "--initial")
         model = inputs_of(model, input_ or [])
         with _Progress(quiet) as progress:

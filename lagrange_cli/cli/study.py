@@ -24,7 +24,7 @@ def _model(file: str) -> Model:
     from lagrange_cli import derive as core
     from lagrange_cli import spec
 
-    return core.derive(spec.load(spec.resolve(file)))
+    return core.derive(spec.load(spec.resolve(file)), shared=True)  # compiled from the symengine forms
 
 
 def _candidates(methods: list[str] | None) -> list[Candidate] | None:

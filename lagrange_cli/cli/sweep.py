@@ -74,7 +74,7 @@ def sweep(
             raise LagrangeError(f"--sample must be a whole number of at least 1, got {sample}")
         path = spec.resolve(file)
         text = path.read_text(encoding="utf-8")
-        model = core.derive(spec.parse(text, str(path)))
+        model = core.derive(spec.parse(text, str(path)), shared=True)  # compiled from the symengine forms
         fixed_p, axes_p = ranges_of(model, set_ or [], "--set")
         fixed_y, axes_y = ranges_of(model, initial or [], "--initial")
         axes = [*axes_p, *axes_y]

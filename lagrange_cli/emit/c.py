@@ -40,9 +40,10 @@ from typing import Any, ClassVar
 
 from lagrange_cli import __version__
 from lagrange_cli._symengine import to_symengine
+from lagrange_cli.algebra import check_solvable
 from lagrange_cli.emit.common import printable, require_defined
 from lagrange_cli.emit.printer import ATOM, EXACT, MUL, Code, Printer
-from lagrange_cli.emit.python import check_solvable, code_lines, mangle, needed
+from lagrange_cli.emit.python import code_lines, mangle, needed
 from lagrange_cli.errors import DerivationError
 from lagrange_cli.model import Model
 

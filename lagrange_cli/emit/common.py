@@ -80,7 +80,11 @@ def constraint_equations(model: Model) -> list[tuple[str, sp.Expr]]:
 
 def require_defined(model: Model, what: str) -> None:
     """Numeric code needs every function defined, by a `definition` in the file (numeric code
-    evaluates `model.with_definitions()`); undefined ones (e.g. U(r)) cannot be emitted."""
+    evaluates `model.with_definitions()`); undefined ones (e.g. U(r)) cannot be emitted. A file that
+    declares none (or defines all it declares) has none: its equations, which may be too long to
+    convert to sympy (a spatial chain), are then not read."""
+    if model.native and set(model.functions) <= set(model.definitions):
+        return
     numeric = model.with_definitions()
     rows = [part for c in numeric.constraints for part in (c.expr, *c.jacobian, c.bias, c.acceleration_bias)]
     exprs = [*numeric.mass_matrix, *numeric.forcing, numeric.energy, *numeric.momenta, *rows]

@@ -41,7 +41,7 @@ import sympy as sp
 
 from lagrange_cli import __version__
 from lagrange_cli._symengine import to_symengine
-from lagrange_cli.algebra import check_invertible
+from lagrange_cli.algebra import check_invertible, check_solvable
 from lagrange_cli.emit.common import require_defined
 from lagrange_cli.emit.printer import ATOM, Code, Printer, restructure
 from lagrange_cli.emit.python import define, docstring, literal, mangle
@@ -82,7 +82,7 @@ def emit(model: Model, *, name: str = "eom") -> str:
     definitions = model.definitions
     require_defined(model, "JAX code")
     model = model.with_definitions()
-    check_invertible(model)
+    check_solvable(model)
     return _Writer(model, definitions).module()
 
 

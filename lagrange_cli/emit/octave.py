@@ -29,10 +29,11 @@ from pathlib import Path
 from typing import Any, ClassVar
 
 from lagrange_cli import __version__
-from lagrange_cli._symengine import se, to_symengine
+from lagrange_cli._symengine import to_symengine
+from lagrange_cli.algebra import check_solvable
 from lagrange_cli.emit.common import printable, require_defined
 from lagrange_cli.emit.printer import ATOM, Code, Printer, restructure
-from lagrange_cli.emit.python import check_solvable, mangle, needed
+from lagrange_cli.emit.python import mangle, needed
 from lagrange_cli.errors import DerivationError
 from lagrange_cli.model import Model
 
@@ -143,7 +144,6 @@ class _Writer:
         `_`) apart from every name taken, keeping only the lines the results need."""
         printer = OctavePrinter(self.names)
         definitions, reduced = restructure(exprs, self.constants, self.velocities)
-        rename: dict[Any, Any] = {}
         lines: list[tuple[str, str]] = []
         counter = 0
         for name, value in definitions:
@@ -151,10 +151,9 @@ class _Writer:
                 counter += 1
             fresh = f"{prefix}{counter}"
             self.taken.add(fresh)
-            printer.names[fresh] = fresh
-            rename[se.Symbol(name)] = se.Symbol(fresh)
-            lines.append((fresh, printer.doprint(value.xreplace(rename))))
-        temporaries, results = printer.block([e.xreplace(rename) for e in reduced], prefix, self.taken)
+            printer.names[name] = fresh  # printed under its new name: no xreplace, which would unshare a big DAG for the CSE
+            lines.append((fresh, printer.doprint(value)))
+        temporaries, results = printer.block(reduced, prefix, self.taken | {name for name, _ in definitions})
         self.taken |= {name for name, _ in temporaries}
         return [f"{name} = {code};" for name, code in needed(lines + temporaries, results)], results
 

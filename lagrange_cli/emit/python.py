@@ -39,8 +39,8 @@ from typing import Any, ClassVar
 import sympy as sp
 
 from lagrange_cli import __version__
-from lagrange_cli._symengine import se, to_symengine
-from lagrange_cli.algebra import check_invertible, row_pivot_ratio
+from lagrange_cli._symengine import to_symengine
+from lagrange_cli.algebra import check_solvable
 from lagrange_cli.emit.common import require_defined
 from lagrange_cli.emit.printer import ATOM, Code, Printer, restructure
 from lagrange_cli.errors import DerivationError
@@ -119,29 +119,6 @@ def free_names(exprs: Sequence[Any]) -> set[str]:
         else:
             stack.extend(e.args)
     return names
-
-
-def check_solvable(model: Model) -> None:
-    """`check_invertible` without the sympy fields for an unconstrained model: M evaluated by
-    symengine at a random point, pivots by `pivot_ratio`'s rule; only a doubtful M (a zero row, a
-    tiny pivot, no finite value) goes to `check_invertible` for its verdict and message."""
-    if model.constraints:
-        check_invertible(model)
-        return
-    import random
-
-    forms = model.symengine
-    rng = random.Random(1)
-    point = {se.Symbol(p.name): se.RealDouble(p.value if p.value else rng.uniform(0.5, 2.0)) for p in model.parameters}
-    point.update({se.Symbol(i.name): se.RealDouble(rng.uniform(0.5, 2.0)) for i in model.inputs})
-    point.update({s: se.RealDouble(rng.uniform(0.2, 1.3)) for s in (*forms.q, *forms.qd, forms.t)})
-    try:
-        rows = [[float(m.xreplace(point)) if m != 0 else 0.0 for m in row] for row in forms.mass]
-    except (RuntimeError, TypeError, ValueError, OverflowError, ZeroDivisionError):
-        check_invertible(model)
-        return
-    if not all(math.isfinite(x) for row in rows for x in row) or row_pivot_ratio(rows) < 1e-12:
-        check_invertible(model)
 
 
 def emit(model: Model, numba: bool = False) -> str:

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 import sympy as sp
 
-from lagrange_cli.algebra import check_invertible
+from lagrange_cli.algebra import check_solvable
 from lagrange_cli.emit.common import require_defined
 from lagrange_cli.errors import LagrangeError, Span, SpecError
 from lagrange_cli.expr import Scope, parse_expression
@@ -134,7 +134,7 @@ def check(model: Model) -> None:
 
     def checked() -> bool:
         require_defined(model, "simulation")
-        check_invertible(model.with_definitions())
+        check_solvable(model.with_definitions())
         return True
 
     memo.once(model, "checked for simulation", checked)
