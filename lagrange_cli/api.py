@@ -479,6 +479,10 @@ class System:
             hamiltonian = importlib.import_module(f"lagrange_cli.emit.{written}")
             rest = {k: v for k, v in settings.items() if k != "form"}
             writers = {"text": hamiltonian.text, "latex": hamiltonian.latex, "python": hamiltonian.python}
+            if written == "reduced":
+                from lagrange_cli.emit import c
+
+                writers["c"] = c.emit_reduced
             if target not in writers:
                 hamiltonian.refuse(target)
             try:

@@ -33,6 +33,7 @@ INVOCATIONS: dict[str, dict[str, list[str]]] = {
         **{f"{fmt}-hamilton": [f"--{fmt}", "--form", "hamilton"] for fmt in ("text", "latex", "python")},
         "latex-hamilton-standalone": ["--latex", "--standalone", "--form", "hamilton"],
         **{f"{fmt}-reduced": [f"--{fmt}", "--form", "reduced"] for fmt in ("text", "latex", "python")},
+        "c-reduced": ["--to", "c", "--form", "reduced"],
         "c": ["--to", "c"],
         "octave": ["--to", "octave"],
         "jax": ["--to", "jax"],

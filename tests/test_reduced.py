@@ -182,7 +182,7 @@ def test_dependent_constraints_are_refused() -> None:
         reduced(model_of(text))
 
 
-@pytest.mark.parametrize("target", ["c", "octave", "jax", "json"])
+@pytest.mark.parametrize("target", ["octave", "jax", "json"])
 def test_other_targets_refuse(target: str) -> None:
     result = runner.invoke(app, ["derive", "rolling_coin", "--to", target, "--form", "reduced"])
     assert result.exit_code == 2
@@ -255,5 +255,6 @@ def test_the_api_writes_the_reduced_form() -> None:
     system = load("chaplygin_sleigh")
     assert system.reduced.dependent == (1,)
     assert "def rhs(" in system.to("python", form="reduced")
-    with pytest.raises(LagrangeError, match="--form reduced is not available for --to c"):
-        system.to("c", form="reduced")
+    assert "static inline int eom_rhs(" in system.to("c", form="reduced")
+    with pytest.raises(LagrangeError, match="--form reduced is not available for --to octave"):
+        system.to("octave", form="reduced")

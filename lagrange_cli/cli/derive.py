@@ -87,7 +87,7 @@ def derive(
             output(_hamilton(model, target, numba, standalone, name), output_path)
             return
         if form is Form.reduced:
-            output(_reduced(model, target, numba, standalone), output_path)
+            output(_reduced(model, target, numba, standalone, name), output_path)
             return
         emitter = _emitter(target)
         if target == "python":
@@ -122,10 +122,14 @@ def _hamilton(model: Any, target: str, numba: bool, standalone: bool, name: str)
     raise AssertionError("unreachable")
 
 
-def _reduced(model: Any, target: str, numba: bool, standalone: bool) -> str:
-    """`--form reduced`: text, latex and python write Maggi's equations; other targets refuse (exit 2)."""
+def _reduced(model: Any, target: str, numba: bool, standalone: bool, name: str) -> str:
+    """`--form reduced`: text, latex, python and c write Maggi's equations; other targets refuse (exit 2)."""
     from lagrange_cli.emit import reduced
 
+    if target == "c":
+        from lagrange_cli.emit import c
+
+        return c.emit_reduced(model, name=name)
     if target == "text":
         return reduced.text(model)
     if target == "latex":

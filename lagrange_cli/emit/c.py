@@ -638,3 +638,136 @@ static inline int eom_solve(int n, double *a, double *b)
     }
     return 0;
 }"""
+
+
+# -- --form reduced -------------------------------------------------------------------------------------
+
+REDUCED_FUNCTIONS = ("velocities", "reduce", "reduced_mass_matrix", "reduced_forcing", "independent", "dependent")
+"""The reduced form's names besides those of `generated` (reserved against user names too)."""
+
+
+def emit_reduced(model: Model, *, name: str = "eom") -> str:
+    """`derive --to c --form reduced`: the header of Maggi's equations (lagrange_cli/reduced.py; its
+    refusals are its own) in the state y = [q, u], u the independent velocities, as the Python module
+    of `--form reduced` has them: `NAME_velocities` (every q_dot = C u + d), `NAME_reduce` (u from a
+    full q_dot), `NAME_reduced_mass_matrix` (C^T M C, k x k), `NAME_reduced_forcing` (C^T (F - M e))
+    and `NAME_rhs` ([q_dot, u_dot], the k x k system solved numerically: the straight-line LDL^T,
+    the LU solve when it fails)."""
+    from lagrange_cli.reduced import reduced
+
+    if not re.fullmatch(r"[A-Za-z][A-Za-z0-9_]*", name):
+        raise DerivationError(f"the C prefix '{printable(name)}' is not a C identifier")
+    definitions = model.definitions
+    model = model.with_definitions()
+    require_defined(model, "C code")
+    return _ReducedWriter(model, name, definitions, reduced(model)).file()
+
+
+class _ReducedWriter(_Writer):
+    def __init__(self, model: Model, prefix: str, definitions: Mapping[str, Any], red: Any) -> None:
+        super().__init__(model, prefix, definitions)
+        self.red = red
+        n, k = model.n, len(red.independent)
+        symbols = [str(s) for s in (*model.q, *model.qd, *(p.symbol for p in model.parameters), *(i.symbol for i in model.inputs))]
+        extra = [*(f"{prefix}_{f}" for f in REDUCED_FUNCTIONS), f"{self.upper}_NI", f"{self.upper}_NY"]
+        self.names = {**mangle(symbols, Reserved({*C_KEYWORDS, *MATH_H, *MACROS, *LOCALS, "qdot", *generated(prefix), *extra}, MACRO_FAMILIES)), str(model.t): "t"}
+        self.index = {str(q): f"y[{i}]" for i, q in enumerate(model.q)}
+        self.index |= {str(v): f"y[{n + j}]" for j, v in enumerate(red.u)}
+        self.index |= {p.name: f"p[{i}]" for i, p in enumerate(model.parameters)}
+        self.index |= {i.name: f"u[{j}]" for j, i in enumerate(model.inputs)}
+        self.cells = [(i, j) for i in range(k) for j in range(i, k)]
+        self.qdot = [to_symengine(v) for v in red.velocities]
+        self.reduced_mass = [to_symengine(red.mass[i, j]) for i, j in self.cells]
+        self.reduced_force = [to_symengine(f) for f in red.rhs]
+
+    def velocities_function(self) -> str:
+        used: set[str] = set()
+        lines, results = self.block(self.qdot, used)
+        lines += [f"out[{i}] = {r};" for i, r in enumerate(results)]
+        return self.function("void", "velocities", f"Every q_dot = C u + d ({self.model.n} values) at the reduced state y = [q, u].", lines, used)
+
+    def reduce_function(self) -> str:
+        picks = [f"    out[{j}] = qdot[{i}];" for j, i in enumerate(self.red.independent)]
+        doc = "The independent velocities u of a full velocity vector qdot (which must satisfy the constraints)."
+        return "\n".join([f"/* {comment(doc)} */", f"static inline void {self.prefix}_reduce(const double *qdot, double *out)", "{", *picks, "}"])
+
+    def mass_function(self) -> str:
+        k = len(self.red.independent)
+        used: set[str] = set()
+        lines, results = self.block(self.reduced_mass, used)
+        for (i, j), r in zip(self.cells, results, strict=True):
+            lines.append(f"out[{i * k + j}] = {r};")
+            if i != j:
+                lines.append(f"out[{j * k + i}] = out[{i * k + j}];")
+        return self.function("void", "reduced_mass_matrix", f"C^T M C (row-major, {k} x {k}; symmetric) at the reduced state y = [q, u].", lines, used)
+
+    def force_function(self) -> str:
+        used: set[str] = set()
+        lines, results = self.block(self.reduced_force, used)
+        lines += [f"out[{i}] = {r};" for i, r in enumerate(results)]
+        return self.function("void", "reduced_forcing", f"C^T (F - M e) ({len(self.red.independent)} values) at the reduced state y = [q, u].", lines, used)
+
+    def rhs(self) -> str:
+        n, k = self.model.n, len(self.red.independent)
+        used: set[str] = set()
+        lines, results = self.block([*self.qdot, *self.reduced_mass, *self.reduced_force], used)
+        qdot, rest = results[:n], results[n:]
+        mass = dict(zip(self.cells, rest[: len(self.cells)], strict=True))
+        force = rest[len(self.cells) :]
+        lines[:0] = ["int _i;", "int _status;", f"double _a[{k * k}];", f"double _b[{k}];"]
+        for i, j in self.cells:
+            lines.append(f"_a[{i * k + j}] = {mass[(i, j)]};")
+            if i != j:
+                lines.append(f"_a[{j * k + i}] = _a[{i * k + j}];")
+        lines += [f"_b[{i}] = {f};" for i, f in enumerate(force)]
+        solve = f"{self.prefix}_solve({k}, _a, _b)"
+        lines.append(f"_status = {self.prefix}_ldlt(_a, _b) == 0 ? 0 : {solve};" if k <= LDLT_SIZE else f"_status = {solve};")
+        lines += [f"dydt[{i}] = {v};" for i, v in enumerate(qdot)]
+        lines += [
+            f"for (_i = 0; _i < {k}; ++_i) dydt[_i + {n}] = _status ? NAN : _b[_i];",
+            f"for (_i = 0; _i < {n + k} && !_status; ++_i) if (!isfinite(dydt[_i])) _status = 2;",
+            "return _status;",
+        ]
+        doc = "dy/dt = [q_dot, u_dot] for y = [q, u]: 0, or 1 when C^T M C is singular at y, 2 when a value is not finite."
+        return self.function("int", "rhs", doc, lines, used, out="dydt")
+
+    def header(self) -> str:
+        model, red = self.model, self.red
+        n, k = model.n, len(red.independent)
+        state = ", ".join(f"y[{i}] = {s}" for i, s in enumerate(red.state))
+        lines = [
+            f"{model.title}: reduced (Maggi) equations generated by lagrange {__version__} from {Path(model.source).name}.",
+            "",
+            f"State y = [q, u] ({n + k} values): {state}: the coordinates and the independent velocities u (the multipliers are eliminated).",
+            red.summary() + ".",
+            f"q_dot = C u + d ({self.prefix}_velocities) and (C^T M C) u_dot = C^T (F - M e) ({self.prefix}_reduced_mass_matrix, {self.prefix}_reduced_forcing);",
+            f"{self.prefix}_rhs gives dy/dt = [q_dot, u_dot]; {self.prefix}_reduce picks u from a full q_dot; {self.prefix}_independent and",
+            f"{self.prefix}_dependent hold the coordinates' indices.",
+        ]
+        notes = ["The inputs are given values at time t."] if model.inputs else []
+        return self.comment_block(lines, notes)
+
+    def file(self) -> str:
+        model, red = self.model, self.red
+        n, k, np_ = model.n, len(red.independent), len(model.parameters)
+        guard = f"{self.upper}_H_INCLUDED"
+        defaults = ", ".join(_c_number(p.value) for p in model.parameters) if model.parameters else "0.0"
+        parts = [
+            self.header(),
+            f"#ifndef {guard}\n#define {guard}\n\n#include <math.h>",
+            f"#define {self.upper}_NQ {n}\n#define {self.upper}_NI {k}\n#define {self.upper}_NY {n + k}\n#define {self.upper}_NP {np_}\n#define {self.upper}_NC {len(model.constraints)}",
+            f"/* The parameters' defaults, in the file's order (see above). */\nstatic const double {self.prefix}_default_parameters[{max(np_, 1)}] = {{{defaults}}};",
+            *self.inputs_block(),
+            "/* The indices in q of the independent velocities u and of the dependent ones. */\n"
+            f"static const int {self.prefix}_independent[{max(k, 1)}] = {{{', '.join(map(str, red.independent)) or '0'}}};\n"
+            f"static const int {self.prefix}_dependent[{max(len(red.dependent), 1)}] = {{{', '.join(map(str, red.dependent)) or '0'}}};",
+            SOLVE.replace("eom_", f"{self.prefix}_"),
+            *([ldlt(self.prefix, k)] if k <= LDLT_SIZE else []),
+            self.velocities_function(),
+            self.reduce_function(),
+            self.mass_function(),
+            self.force_function(),
+            self.rhs(),
+            f"#endif /* {guard} */",
+        ]
+        return "\n\n".join(parts) + "\n"
