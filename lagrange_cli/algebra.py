@@ -192,6 +192,12 @@ def solved_accelerations(model: Model, max_size: int = 4) -> tuple[sp.Expr, ...]
         )
     matrix, rhs = augmented(model)
     check_invertible(model, matrix)
+    # symengine has no `Subs` (a derivative of a declared function at a compound argument, U'(sqrt(x^2
+    # + y^2))): each stands in the determinants as a symbol whose name no file can write, and is put back.
+    opaque = {node: sp.Symbol(f"Subs#{index}") for index, node in enumerate(sorted(matrix.atoms(sp.Subs) | rhs.atoms(sp.Subs), key=sp.default_sort_key))}
+    if opaque:
+        matrix, rhs = matrix.xreplace(opaque), rhs.xreplace(opaque)
+    back = {symbol: node for node, symbol in opaque.items()}
     entries = [[to_symengine(matrix[i, j]) for j in range(size)] for i in range(size)]
     det = _sp(combine_trig(se.DenseMatrix(entries).det()))
     result = []
@@ -205,7 +211,7 @@ def solved_accelerations(model: Model, max_size: int = 4) -> tuple[sp.Expr, ...]
             sp.count_ops(numerator) + sp.count_ops(det) <= MAX_CANCEL_OPS and expansion_size(quotient, MAX_CANCEL_TERMS) <= MAX_CANCEL_TERMS and not nested_roots(quotient) and tame_numbers(quotient)
         )
         result.append(sp.factor_terms(sp.cancel(quotient)) if small else quotient)
-    return tuple(result)
+    return tuple(r.xreplace(back) for r in result) if back else tuple(result)
 
 
 TAME_MAGNITUDE = 1e30

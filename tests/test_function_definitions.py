@@ -4,6 +4,7 @@ numbers are needed (`derive --python`, `simulate`)."""
 
 from __future__ import annotations
 
+import json
 import math
 import random
 from pathlib import Path
@@ -324,3 +325,31 @@ def test_the_solved_form_of_a_general_function_in_the_mass_matrix(tmp_path: Path
     path.write_text(BEAD.replace("DEFINITION", ""))
     result = runner.invoke(app, ["derive", str(path), "--form", "solved"])
     assert result.exit_code == 0 and "lambda_curve = " in result.output and "Derivative(H(x), x)" in result.output, result.output
+
+
+RADIAL = """title: particle in a radial potential
+coordinates: [x, y]
+parameters: {m: 1.5, k: 2.0}
+functions:
+  U: {arguments: [s], definition: k*s**4/4}
+kinetic: m*(x_dot**2 + y_dot**2)/2
+potential: U(sqrt(x**2 + y**2))
+initial: {x: 1.0, y: 0.5}
+"""
+
+
+@pytest.mark.parametrize("form", ["lagrange", "matrix", "solved", "hamilton"])
+@pytest.mark.parametrize("target", ["text", "latex", "python", "c", "octave", "jax", "json"])
+def test_a_defined_function_at_a_compound_argument_in_every_form_and_target(tmp_path: Path, form: str, target: str) -> None:
+    """U'(sqrt(x^2 + y^2)) is a `Subs`: the solved form (symengine has no Subs) and JSON (the file syntax
+    has none) once failed on it."""
+    path = tmp_path / "radial.yaml"
+    path.write_text(RADIAL)
+    result = runner.invoke(app, ["derive", str(path), "--to", target, "--form", form])
+    assert result.exit_code == 0, result.output
+    if target == "json":
+        document = json.loads(result.stdout)
+        # written out from the definition: F = -k r^2 (x, y), which the file's parser reads back
+        assert [f["text"] for f in document["forcing"]] == ["-k*x*(x**2 + y**2)", "-k*y*(x**2 + y**2)"]
+    if target == "text" and form == "solved":
+        assert "x_ddot = " in result.stdout and "Subs(Derivative(U(" in result.stdout

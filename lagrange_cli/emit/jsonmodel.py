@@ -31,7 +31,7 @@ from sympy.printing.str import StrPrinter
 from lagrange_cli import __version__
 from lagrange_cli.emit import latex
 from lagrange_cli.errors import DerivationError
-from lagrange_cli.model import Model
+from lagrange_cli.model import Model, apply_definitions
 
 FUNCTIONS = frozenset({sp.sin, sp.cos, sp.tan, sp.cot, sp.sec, sp.csc, sp.asin, sp.acos, sp.atan, sp.atan2, sp.sinh, sp.cosh, sp.tanh, sp.exp, sp.log, sp.Abs, sp.sign})
 """The functions of the system-file syntax (the parser's, `expr.SUPPORTED_FUNCTIONS`; emitters do not import the frontend)."""
@@ -62,7 +62,8 @@ def document(model: Model, hamilton: bool = False) -> dict[str, Any]:
     tex = namer.printer().doprint
 
     def expression(expr: sp.Expr) -> dict[str, str]:
-        return {"text": text(expr), "latex": tex(expr)}
+        written = _subs_written(expr, model)
+        return {"text": text(written), "latex": tex(written)}
 
     def expressions(exprs: Iterable[sp.Expr]) -> list[dict[str, str]]:
         return [expression(e) for e in exprs]
@@ -183,6 +184,15 @@ def _finite(value: float, what: str) -> float:
 
 
 # --- expressions in the system-file syntax ------------------------------------------------------
+
+
+def _subs_written(expr: sp.Expr, model: Model) -> sp.Expr:
+    """`expr` with each derivative of a defined function at a compound argument (`Subs`, e.g. U' at
+    sqrt(x^2 + y^2)), which the system-file syntax cannot say, written out from the definition; the
+    file's parser refuses such a derivative of an undefined function, so every `Subs` here has one."""
+    if not expr.has(sp.Subs) or not model.definitions:
+        return expr
+    return expr.replace(lambda e: isinstance(e, sp.Subs), lambda e: apply_definitions(e, model.definitions))
 
 
 def text(expr: sp.Expr) -> str:
