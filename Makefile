@@ -26,6 +26,7 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/run.py  # issue 14: the general chain, whole processes against sympy.physics.mechanics, N up to 60
 	$(BIN)/python benchmarks/spatial_bench.py  # issue 13: the spatial chain N = 2..6, whole processes (CPU time) against KanesMethod / LagrangesMethod at N = 2..4
 	$(BIN)/python benchmarks/simulate_bench.py --write
+	$(BIN)/python benchmarks/c_bench.py --write  # issue 16: generated C per call against hand-written C and the pure-Python module
 	$(BIN)/python benchmarks/study_bench.py
 	$(BIN)/python benchmarks/every_system.py --write  # about an hour: accuracy and stress on every file in systems/
 
