@@ -469,7 +469,7 @@ class System:
         """The equations written for `target`: text, latex or python (and c, octave, jax, json
         where those emitters are installed); `settings` go to the emitter (`form="matrix"` for
         text and latex, `form="hamilton"` for Hamilton's equations in text, latex or python, `form="reduced"` for
-        the reduced equations of velocity constraints (the same targets),
+        the reduced equations of velocity constraints (every target),
         `standalone=True` for latex, `numba=True` for python)."""
         module_name = EMITTERS.get(target)
         if module_name is None:
@@ -480,9 +480,9 @@ class System:
             rest = {k: v for k, v in settings.items() if k != "form"}
             writers = {"text": hamiltonian.text, "latex": hamiltonian.latex, "python": hamiltonian.python}
             if written == "reduced":
-                from lagrange_cli.emit import c
+                from lagrange_cli.emit import c, jsonmodel, octave
 
-                writers["c"] = c.emit_reduced
+                writers |= {"c": c.emit_reduced, "octave": octave.emit_reduced, "jax": hamiltonian.jax, "json": jsonmodel.emit_reduced}
             if target not in writers:
                 hamiltonian.refuse(target)
             try:
