@@ -396,3 +396,14 @@ def test_system_to_writes_every_target() -> None:
     assert system.to("octave", form="reduced").startswith("function [dydt, qdot, Mr, Fr] = eom(t, y, p)")
     assert "def reduced_forcing(t, y, p=None):" in system.to("jax", form="reduced")
     assert json.loads(system.to("json", form="reduced"))["reduced"]["independent"] == ["x", "phi"]
+
+
+def test_system_to_writes_hamilton_for_every_target_too() -> None:
+    """System.to(target, form=...) reaches the same writers as `derive --to TARGET --form ...`."""
+    from lagrange_cli import api
+
+    system = api.load("double_pendulum")
+    for target in ("text", "latex", "python", "c", "octave", "jax", "json"):
+        result = CliRunner().invoke(app, ["derive", "double_pendulum", "--to", target, "--form", "hamilton"])
+        assert result.exit_code == 0, result.output
+        assert system.to(target, form="hamilton").rstrip("\n") == result.stdout.rstrip("\n"), target
