@@ -468,8 +468,8 @@ class System:
     def to(self, target: str, **settings: Any) -> str:
         """The equations written for `target`: text, latex or python (and c, octave, jax, json
         where those emitters are installed); `settings` go to the emitter (`form="matrix"` for
-        text and latex, `form="hamilton"` for Hamilton's equations in text, latex or python, `form="reduced"` for
-        the reduced equations of velocity constraints (the same targets),
+        text and latex, `form="hamilton"` for Hamilton's equations and `form="reduced"` for
+        the reduced equations of velocity constraints (every target, as `derive --form`),
         `standalone=True` for latex, `numba=True` for python)."""
         module_name = EMITTERS.get(target)
         if module_name is None:
@@ -479,10 +479,12 @@ class System:
             hamiltonian = importlib.import_module(f"lagrange_cli.emit.{written}")
             rest = {k: v for k, v in settings.items() if k != "form"}
             writers = {"text": hamiltonian.text, "latex": hamiltonian.latex, "python": hamiltonian.python}
-            if written == "reduced":
-                from lagrange_cli.emit import c
+            from lagrange_cli.emit import c, jax, jsonmodel, octave
 
-                writers["c"] = c.emit_reduced
+            if written == "reduced":
+                writers |= {"c": c.emit_reduced, "octave": octave.emit_reduced, "jax": hamiltonian.jax, "json": jsonmodel.emit_reduced}
+            else:
+                writers |= {"c": c.emit_hamilton, "octave": octave.emit_hamilton, "jax": jax.emit_hamilton, "json": jsonmodel.emit_hamilton}
             if target not in writers:
                 hamiltonian.refuse(target)
             try:

@@ -201,4 +201,4 @@ def choose(model: Model, A: sp.Matrix) -> tuple[tuple[int, ...], str]:
 
 def refuse_target(target: str) -> None:
     """Exit 2 for a target that does not write the reduced equations."""
-    raise fail(None, f"--form reduced is not available for --to {target}", f"--to text, --to latex, --to python or --to c with --form reduced (or another --form for --to {target})")
+    raise fail(None, f"--form reduced is not available for --to {target}", f"--to text, latex, python, c, octave, jax or json with --form reduced (or another --form for --to {target})")

@@ -33,7 +33,7 @@ INVOCATIONS: dict[str, dict[str, list[str]]] = {
         **{f"{fmt}-hamilton": [f"--{fmt}", "--form", "hamilton"] for fmt in ("text", "latex", "python")},
         "latex-hamilton-standalone": ["--latex", "--standalone", "--form", "hamilton"],
         **{f"{fmt}-reduced": [f"--{fmt}", "--form", "reduced"] for fmt in ("text", "latex", "python")},
-        "c-reduced": ["--to", "c", "--form", "reduced"],
+        **{f"{target}-reduced": ["--to", target, "--form", "reduced"] for target in ("c", "octave", "jax", "json")},
         "c": ["--to", "c"],
         "octave": ["--to", "octave"],
         "jax": ["--to", "jax"],
@@ -61,6 +61,10 @@ SHOWS = {
     ("derive", "text-hamilton"): "H = ",
     ("derive", "text-reduced"): "independent velocities: ",
     ("derive", "python-reduced"): "def rhs(",
+    ("derive", "c-reduced"): "static inline void eom_reduce(const double *qdot, double *out)",
+    ("derive", "octave-reduced"): "function [dydt, qdot, Mr, Fr] = eom(t, y, p",  # then `, u` with inputs
+    ("derive", "jax-reduced"): "def reduced_forcing(t, y, p=None",  # then `, u=None` with inputs
+    ("derive", "json-reduced"): '"reduced": {',
     ("derive", "latex-hamilton-standalone"): "\\end{document}",
     ("info", "routh"): "V_eff = ",
     ("derive", "c"): "static inline int eom_rhs(double t, const double *y, const double *p, ",  # then `const double *u, ` with inputs

@@ -65,7 +65,7 @@ def derive(
     form: Annotated[
         Form,
         typer.Option(
-            help="lagrange: one equation per coordinate; matrix: M q_ddot = F; solved: q_ddot = ...; hamilton: H(q, p) and Hamilton's equations in the state (q, p) (every target); reduced: with velocity constraints, the equations in the independent velocities, multipliers eliminated (text, latex, python)."
+            help="lagrange: one equation per coordinate; matrix: M q_ddot = F; solved: q_ddot = ...; hamilton: H(q, p) and Hamilton's equations in the state (q, p) (every target); reduced: with velocity constraints, the equations in the independent velocities, multipliers eliminated (every target)."
         ),
     ] = Form.lagrange,
     standalone: Annotated[bool, typer.Option(help="With --latex: a whole compilable document.")] = False,
@@ -123,13 +123,14 @@ def _hamilton(model: Any, target: str, numba: bool, standalone: bool, name: str)
 
 
 def _reduced(model: Any, target: str, numba: bool, standalone: bool, name: str) -> str:
-    """`--form reduced`: text, latex, python and c write Maggi's equations; other targets refuse (exit 2)."""
+    """`--form reduced`: every target writes Maggi's equations (emit/reduced.py `TARGETS`): text, latex,
+    python and jax by emit/reduced.py, the others by their module's `emit_reduced`."""
     from lagrange_cli.emit import reduced
 
-    if target == "c":
-        from lagrange_cli.emit import c
-
-        return c.emit_reduced(model, name=name)
+    if target in ("c", "octave", "json"):
+        return str(_emitter(target).emit_reduced(model, name=name))
+    if target == "jax":
+        return reduced.jax(model, name=name)
     if target == "text":
         return reduced.text(model)
     if target == "latex":

@@ -311,6 +311,12 @@ def input_constants(model: Model) -> list[str]:
     return [f"INPUT_NAMES = ({names})", f"INPUTS = {{{defaults}}}", f"NU = {len(model.inputs)}"]
 
 
+def helpers(model: Model) -> list[str]:
+    """The definitions every module of this target starts with: default_parameters, _parameters and _array
+    (and default_inputs and _inputs for a file with inputs); for the other writers of JAX modules (`--form reduced`)."""
+    return _helpers(model)
+
+
 def _helpers(model: Model) -> list[str]:
     """default_parameters, _parameters and _array, as every module defines them."""
     return [

@@ -51,12 +51,20 @@ def emit_hamilton(model: Model, *, name: str = "eom") -> str:
     return json.dumps(document(model, hamilton=True), indent=2, ensure_ascii=True, allow_nan=False) + "\n"
 
 
-def document(model: Model, hamilton: bool = False) -> dict[str, Any]:
+def emit_reduced(model: Model, *, name: str = "eom") -> str:
+    """`derive --to json --form reduced`: the model's document with the key `reduced` added (Maggi's
+    equations for velocity constraints, lagrange_cli/reduced.py; its refusals are its own)."""
+    return json.dumps(document(model, reduced=True), indent=2, ensure_ascii=True, allow_nan=False) + "\n"
+
+
+def document(model: Model, hamilton: bool = False, reduced: bool = False) -> dict[str, Any]:
     """The JSON document as Python data (what `emit` writes); with `hamilton`, also the key `hamilton`
-    (what `emit_hamilton` writes)."""
+    (what `emit_hamilton` writes); with `reduced`, also the key `reduced` (what `emit_reduced` writes)."""
     from lagrange_cli import hamilton as legendre
+    from lagrange_cli import reduced as maggi
 
     ham = legendre.hamilton(model) if hamilton else None
+    red = maggi.reduced(model) if reduced else None
     functions = _functions(model)
     namer = latex.names(model, ham.p if ham is not None else ())
     tex = namer.printer().doprint
@@ -94,6 +102,18 @@ def document(model: Model, hamilton: bool = False) -> dict[str, Any]:
             "hamiltonian": expression(ham.hamiltonian) if ham.hamiltonian is not None else None,
             "velocities": expressions(ham.velocities) if ham.symbolic else None,
             "momentum_rates": expressions(ham.rates) if ham.symbolic else None,
+        }
+    if red is not None:
+        k = len(red.independent)
+        extra["reduced"] = {
+            "independent": [model.coordinates[i] for i in red.independent],
+            "dependent": [model.coordinates[i] for i in red.dependent],
+            "state": [str(s) for s in red.state],
+            "chosen": red.where,
+            "determinant": expression(red.determinant),
+            "velocities": expressions(red.velocities),
+            "mass_matrix": [expressions(red.mass[i, j] for j in range(k)) for i in range(k)],
+            "forcing": expressions(red.rhs),
         }
     return (
         {
