@@ -374,9 +374,10 @@ class Runner:
             self.event.compile(kernels.EVENT_SIG.args)
             self.size = numba.module._SIZE
             self.budget = integrators.MAX_STEPS["compiled"]
-            from lagrange_cli.numeric.ensemble import erk_batch
+            from lagrange_cli.numeric.ensemble import erk_batch, erk_sections
 
             self.batch_entry = erk_batch()
+            self.sections_entry: Any = erk_sections() if self.section is not None else None
         full = model.with_definitions()
         self.vector: dict[str, Callable[..., Any]] = {}
         for m in self.measures:
@@ -417,7 +418,9 @@ class Runner:
 
     def batch(self, indices: Sequence[int], chunk: np.ndarray) -> list[list[Any]]:
         """The rows of points `chunk` (numbered `indices`): one compiled call for the whole batch
-        (numeric/ensemble.py) on the compiled explicit path without a section, else run by run."""
+        (numeric/ensemble.py) on the compiled explicit path (a section's crossings too), else run by run."""
+        if self.fast and self.section is not None and len(indices) > 0:
+            return self.section_batch(indices, chunk)
         if not (self.fast and self.section is None) or len(indices) == 0:
             result: list[list[Any]] = []
             for k, values in zip(indices, chunk, strict=True):
@@ -442,6 +445,32 @@ class Runner:
             else:
                 outcome = Outcome.failed(self, code, float(t_last[b]), y_last[b], ts[:m], ys[b, :m], [])
             rows += self.measured_rows([k, *values.tolist()], outcome, y0s[b], ps[b], None if exponents is None else float(exponents[b]))
+        return rows
+
+    def section_batch(self, indices: Sequence[int], chunk: np.ndarray) -> list[list[Any]]:
+        """The rows of a Poincare section's runs, the whole batch in one compiled call
+        (ensemble.sections): the runs and crossings of `_erk(..., crossings=True)`, run by run, so the same rows."""
+        import numpy as np
+
+        from lagrange_cli.numeric import status as st
+
+        starts = [self.point(values) for values in chunk]
+        y0s, ps = np.array([y for y, _ in starts]), np.array([p for _, p in starts])
+        ts = np.array(self.settings.t_eval, dtype=float)
+        control = self._control(self.settings.t0, self.settings.t_end)
+        codes, t_last, y_last, counts, times, states = self.sections_entry(self.pair, y0s, ps, control, ts, self.budget, MAX_CROSSINGS, self.accel, self.event)
+        rows: list[list[Any]] = []
+        first = 0
+        for b, (k, values) in enumerate(zip(indices, chunk, strict=True)):
+            code = int(codes[b])
+            events = [(float(times[j]), states[j].copy()) for j in range(first, first + int(counts[b]))]
+            first += int(counts[b])
+            no_samples = np.empty((0, y0s.shape[1]))
+            if code in (st.DONE, st.EVENT):
+                outcome = Outcome("event" if code == st.EVENT else "finished", "", float(t_last[b]), y_last[b], ts[:0], no_samples, events, float(t_last[b]) if code == st.EVENT else math.nan)
+            else:
+                outcome = Outcome.failed(self, code, float(t_last[b]), y_last[b], ts[:0], no_samples, events)
+            rows += self.measured_rows([k, *values.tolist()], outcome, y0s[b], ps[b])
         return rows
 
     def _control(self, t0: float, t1: float) -> np.ndarray:

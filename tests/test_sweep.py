@@ -336,3 +336,33 @@ def test_lyapunov_is_measured_for_a_whole_batch_at_once(monkeypatch) -> None:  #
     monkeypatch.setattr(library.Runner, "_lyapunov", refuse)
     again = library.sweep(pendulum, axes, **{**options, "t_end": 5.0})
     assert np.array_equal(np.array(again.column("lyapunov")), np.array(one_by_one))
+
+
+def test_section_is_run_for_a_whole_batch_at_once(monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    """A Poincare section on the compiled path runs its batch in one compiled call (Runner.section_batch,
+    every crossing recorded there) and gets exactly the rows of the run-by-run path (Runner._erk from
+    Python, restarted at each crossing): the same crossings, times and states, a failed run's reason, and
+    the same cut at MAX_CROSSINGS."""
+    elastic = model("elastic_pendulum")
+    axes = [Axis("initial", "x", -1.0, 0.3, 2), Axis("initial", "theta", 0.2, 1.4, 4)]  # x = -1: l + x = 0, a singular mass matrix
+    options = {"section": "theta=0, theta_dot>0", "t_end": 40, "rtol": 1e-9, "method": "DOP853", "backend": "compiled", "batch": 3}
+    table = library.sweep(elastic, axes, **options)
+    runner = next(r for r in library._RUNNERS.values() if r.model is elastic and r.job.section == options["section"])
+
+    def one_by_one() -> list[list[object]]:
+        return [row for k, values in enumerate(library.points(axes)) for row in runner.run_point(k, values)]
+
+    assert table.rows and repr(table.rows) == repr(one_by_one())  # bit for bit (NaN included)
+    status = table.column("status").tolist()
+    assert status[:4] == ["failed"] * 4 and "singular" in table.rows[0][table.columns.index("reason")]
+    assert set(status[4:]) == {"finished"} and max(table.column("crossing")) >= 5
+
+    monkeypatch.setattr(library, "MAX_CROSSINGS", 3)  # each run ends at its 4th crossing, in both paths
+    cut = library.sweep(elastic, axes, **options)
+    assert repr(cut.rows) == repr(one_by_one()) and max(cut.column("crossing")) <= 2  # 3 crossings alternate up and down
+
+    def refuse(*args, **kwargs):  # type: ignore[no-untyped-def]
+        raise AssertionError("a section's run was integrated on its own")
+
+    monkeypatch.setattr(library.Runner, "_erk", refuse)
+    assert repr(library.sweep(elastic, axes, **options).rows) == repr(cut.rows)
