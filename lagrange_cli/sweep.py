@@ -837,11 +837,19 @@ def _dask(address: str, job: Job, grid: np.ndarray, batches: list[list[int]]) ->
         raise LagrangeError(f"--scheduler {address}: cannot connect to a Dask scheduler ({error})") from None
     try:
         shared = client.scatter(job, broadcast=True)
+        # Every worker builds the system now, all at once, ahead of its batches (priority): not at its first batch,
+        # which a short sweep (or the first sweep of a session) may never send it, leaving the cost to the next sweep.
+        ready = [client.submit(_dask_prepare, shared, workers=[worker], allow_other_workers=True, priority=1, pure=False) for worker in client.scheduler_info()["workers"]]
         futures = [(client.submit(_dask_task, shared, list(indices), grid[indices], pure=False), len(indices)) for indices in batches]
         for future, size in futures:
             yield future.result(), size
+        client.gather(ready, errors="skip")  # every worker built (one that failed says so through its batches' results)
     finally:
         client.close()
+
+
+def _dask_prepare(job: Job) -> None:
+    runner_for(job)
 
 
 def _dask_task(job: Job, indices: list[int], chunk: np.ndarray) -> list[list[Any]]:

@@ -273,6 +273,26 @@ def test_a_killed_worker_loses_no_rows(cluster) -> None:  # type: ignore[no-unty
     assert [row[0] for row in remote.rows] == list(range(12))
 
 
+def _built_on_worker(key: str) -> bool:
+    return key in library._RUNNERS
+
+
+def test_every_dask_worker_builds_the_system_once_even_for_one_batch(cluster) -> None:  # type: ignore[no-untyped-def]
+    """A sweep of one batch has every worker build the system (ahead of the batches), so that the next sweep
+    of the session pays no worker's derivation and loading: it was the Dask path's extra cost in the benchmark."""
+    from distributed import Client
+
+    pendulum = model("double_pendulum")
+    options = {"measures": ["final", "max(theta)"], "t_end": 2.5}
+    with Client(cluster.scheduler_address, set_as_default=False) as client:
+        client.wait_for_workers(2)  # a worker killed by the test above is restarted by its nanny
+        table = library.sweep(pendulum, DASK_AXES[:1], scheduler=cluster.scheduler_address, **options)
+        assert len(table) == 4
+        key = next(k for k, r in library._RUNNERS.items() if r.model is pendulum and r.job.measures == ("final", "max(theta)"))
+        built = client.run(_built_on_worker, key)
+    assert len(built) == 2 and all(built.values())
+
+
 def test_dask_is_imported_only_for_a_scheduler(tmp_path: Path) -> None:
     import subprocess
     import sys
