@@ -654,12 +654,16 @@ class Runner:
             codes, _, y_last, _, _ = self.batch_entry(self.pair, np.vstack([a, b]), pairs, self._control(t0, t1), np.array([t1]), self.budget, self.accel, self.event)
             alive &= (codes[:count] == st.DONE) & (codes[count:] == st.DONE)
             a, gap = y_last[:count].copy(), y_last[count:] - y_last[:count]
-            distance = np.linalg.norm(gap, axis=1)
-            with np.errstate(all="ignore"):
-                alive &= (distance > 0) & np.isfinite(distance)
-                total += np.where(alive, np.log(distance / d0), 0.0)
-                b = a + gap * np.where(alive, d0 / distance, 0.0)[:, None]
-            b[~alive] = a[~alive]  # a dead run's pair is kept finite (its exponent is NaN anyway)
+            b = a.copy()  # a dead run's pair is kept finite (its exponent is NaN anyway)
+            for k in np.flatnonzero(alive).tolist():
+                # row by row with `_lyapunov`'s own functions: np.linalg.norm(gap, axis=1) and np.log of an array
+                # round differently in the last bit (another summation, SIMD logarithms), and chaos amplifies it
+                distance = float(np.linalg.norm(gap[k]))
+                if not (distance > 0 and math.isfinite(distance)):
+                    alive[k] = False
+                    continue
+                total[k] += math.log(distance / d0[k])
+                b[k] = a[k] + gap[k] * (d0[k] / distance)
         return np.where(alive, total / (s.t_end - s.t0), math.nan)
 
     def _section_rows(self, head: list[Any], outcome: Outcome, p: np.ndarray) -> list[list[Any]]:

@@ -233,7 +233,7 @@ def test_system_sweep() -> None:
 def cluster():  # type: ignore[no-untyped-def]
     """Two worker processes of one thread each (the machine's two cores)."""
     distributed = pytest.importorskip("distributed")
-    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as local:
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=":0") as local:  # any free port: another test process may hold 8787
         yield local
 
 
