@@ -10,12 +10,12 @@ measures) or, for a Poincaré section, one row per crossing. A run that fails is
 its reason, never a lost sweep.
 
 Execution: the system's compiled right-hand side (the compile cache, numeric/compile.py) is
-built once per process and every run of a batch calls the compiled integration loop
-(kernels.erk_start / erk_run, which release the GIL) directly from a short loop, so that a
-run costs its integration and a few microseconds more. `workers > 1` runs batches on that many
-threads (the compiled loops run in parallel; the little Python between runs takes turns);
-`scheduler` sends the batches to a `dask.distributed` cluster instead (imported only then),
-whose workers build the system once each and return rows that are collected in order.
+built once per process and a batch's runs are integrated in one compiled call (numeric/ensemble.py:
+`batch`, or `sections` for a Poincaré section, whose runs go on after each crossing; a Lyapunov
+exponent takes one call per segment), with the GIL released, so that a run costs its integration
+and a few microseconds more. `workers > 1` runs batches on that many threads; `scheduler` sends
+the batches to a `dask.distributed` cluster instead (imported only then), whose workers all build
+the system at the start of the sweep (once per worker process) and return rows collected in order.
 Methods other than the compiled explicit pairs (symplectic, the scipy methods, or the python
 backend) run each point through `simulate.integrate`, the same as `lagrange simulate`.
 

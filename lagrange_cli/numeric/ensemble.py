@@ -4,7 +4,8 @@ initial states and parameter vectors, so that a run costs its integration and no
 Calling a compiled loop from Python resolves the types of the system's functions (passed as
 first-class functions) on every call, a fraction of a millisecond: more than a short run itself.
 `erk_batch()` is a loop compiled by numba that calls `erk_start` and `erk_run` for each row of a
-batch, with the GIL released (threads run batches in parallel). Like the kernels, its source is
+batch, with the GIL released (threads run batches in parallel); `sections()` does the same for a
+Poincaré section's runs, recording every crossing and going on from it. Like the kernels, its source is
 written to the compile cache beside the kernels' copy (numeric/compile.py) and imported from
 there, so that numba caches its machine code: it compiles once per machine, not per process.
 """
