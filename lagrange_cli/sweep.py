@@ -10,12 +10,12 @@ measures) or, for a Poincaré section, one row per crossing. A run that fails is
 its reason, never a lost sweep.
 
 Execution: the system's compiled right-hand side (the compile cache, numeric/compile.py) is
-built once per process and every run of a batch calls the compiled integration loop
-(kernels.erk_start / erk_run, which release the GIL) directly from a short loop, so that a
-run costs its integration and a few microseconds more. `workers > 1` runs batches on that many
-threads (the compiled loops run in parallel; the little Python between runs takes turns);
-`scheduler` sends the batches to a `dask.distributed` cluster instead (imported only then),
-whose workers build the system once each and return rows that are collected in order.
+built once per process and a batch's runs are integrated in one compiled call (numeric/ensemble.py:
+`batch`, or `sections` for a Poincaré section, whose runs go on after each crossing; a Lyapunov
+exponent takes one call per segment), with the GIL released, so that a run costs its integration
+and a few microseconds more. `workers > 1` runs batches on that many threads; `scheduler` sends
+the batches to a `dask.distributed` cluster instead (imported only then), whose workers all build
+the system at the start of the sweep (once per worker process) and return rows collected in order.
 Methods other than the compiled explicit pairs (symplectic, the scipy methods, or the python
 backend) run each point through `simulate.integrate`, the same as `lagrange simulate`.
 
@@ -374,9 +374,10 @@ class Runner:
             self.event.compile(kernels.EVENT_SIG.args)
             self.size = numba.module._SIZE
             self.budget = integrators.MAX_STEPS["compiled"]
-            from lagrange_cli.numeric.ensemble import erk_batch
+            from lagrange_cli.numeric.ensemble import erk_batch, erk_sections
 
             self.batch_entry = erk_batch()
+            self.sections_entry: Any = erk_sections() if self.section is not None else None
         full = model.with_definitions()
         self.vector: dict[str, Callable[..., Any]] = {}
         for m in self.measures:
@@ -417,7 +418,9 @@ class Runner:
 
     def batch(self, indices: Sequence[int], chunk: np.ndarray) -> list[list[Any]]:
         """The rows of points `chunk` (numbered `indices`): one compiled call for the whole batch
-        (numeric/ensemble.py) on the compiled explicit path without a section, else run by run."""
+        (numeric/ensemble.py) on the compiled explicit path (a section's crossings too), else run by run."""
+        if self.fast and self.section is not None and len(indices) > 0:
+            return self.section_batch(indices, chunk)
         if not (self.fast and self.section is None) or len(indices) == 0:
             result: list[list[Any]] = []
             for k, values in zip(indices, chunk, strict=True):
@@ -442,6 +445,32 @@ class Runner:
             else:
                 outcome = Outcome.failed(self, code, float(t_last[b]), y_last[b], ts[:m], ys[b, :m], [])
             rows += self.measured_rows([k, *values.tolist()], outcome, y0s[b], ps[b], None if exponents is None else float(exponents[b]))
+        return rows
+
+    def section_batch(self, indices: Sequence[int], chunk: np.ndarray) -> list[list[Any]]:
+        """The rows of a Poincare section's runs, the whole batch in one compiled call
+        (ensemble.sections): the runs and crossings of `_erk(..., crossings=True)`, run by run, so the same rows."""
+        import numpy as np
+
+        from lagrange_cli.numeric import status as st
+
+        starts = [self.point(values) for values in chunk]
+        y0s, ps = np.array([y for y, _ in starts]), np.array([p for _, p in starts])
+        ts = np.array(self.settings.t_eval, dtype=float)
+        control = self._control(self.settings.t0, self.settings.t_end)
+        codes, t_last, y_last, counts, times, states = self.sections_entry(self.pair, y0s, ps, control, ts, self.budget, MAX_CROSSINGS, self.accel, self.event)
+        rows: list[list[Any]] = []
+        first = 0
+        for b, (k, values) in enumerate(zip(indices, chunk, strict=True)):
+            code = int(codes[b])
+            events = [(float(times[j]), states[j].copy()) for j in range(first, first + int(counts[b]))]
+            first += int(counts[b])
+            no_samples = np.empty((0, y0s.shape[1]))
+            if code in (st.DONE, st.EVENT):
+                outcome = Outcome("event" if code == st.EVENT else "finished", "", float(t_last[b]), y_last[b], ts[:0], no_samples, events, float(t_last[b]) if code == st.EVENT else math.nan)
+            else:
+                outcome = Outcome.failed(self, code, float(t_last[b]), y_last[b], ts[:0], no_samples, events)
+            rows += self.measured_rows([k, *values.tolist()], outcome, y0s[b], ps[b])
         return rows
 
     def _control(self, t0: float, t1: float) -> np.ndarray:
@@ -625,12 +654,16 @@ class Runner:
             codes, _, y_last, _, _ = self.batch_entry(self.pair, np.vstack([a, b]), pairs, self._control(t0, t1), np.array([t1]), self.budget, self.accel, self.event)
             alive &= (codes[:count] == st.DONE) & (codes[count:] == st.DONE)
             a, gap = y_last[:count].copy(), y_last[count:] - y_last[:count]
-            distance = np.linalg.norm(gap, axis=1)
-            with np.errstate(all="ignore"):
-                alive &= (distance > 0) & np.isfinite(distance)
-                total += np.where(alive, np.log(distance / d0), 0.0)
-                b = a + gap * np.where(alive, d0 / distance, 0.0)[:, None]
-            b[~alive] = a[~alive]  # a dead run's pair is kept finite (its exponent is NaN anyway)
+            b = a.copy()  # a dead run's pair is kept finite (its exponent is NaN anyway)
+            for k in np.flatnonzero(alive).tolist():
+                # row by row with `_lyapunov`'s own functions: np.linalg.norm(gap, axis=1) and np.log of an array
+                # round differently in the last bit (another summation, SIMD logarithms), and chaos amplifies it
+                distance = float(np.linalg.norm(gap[k]))
+                if not (distance > 0 and math.isfinite(distance)):
+                    alive[k] = False
+                    continue
+                total[k] += math.log(distance / d0[k])
+                b[k] = a[k] + gap[k] * (d0[k] / distance)
         return np.where(alive, total / (s.t_end - s.t0), math.nan)
 
     def _section_rows(self, head: list[Any], outcome: Outcome, p: np.ndarray) -> list[list[Any]]:
@@ -808,11 +841,19 @@ def _dask(address: str, job: Job, grid: np.ndarray, batches: list[list[int]]) ->
         raise LagrangeError(f"--scheduler {address}: cannot connect to a Dask scheduler ({error})") from None
     try:
         shared = client.scatter(job, broadcast=True)
+        # Every worker builds the system now, all at once, ahead of its batches (priority): not at its first batch,
+        # which a short sweep (or the first sweep of a session) may never send it, leaving the cost to the next sweep.
+        ready = [client.submit(_dask_prepare, shared, workers=[worker], allow_other_workers=True, priority=1, pure=False) for worker in client.scheduler_info()["workers"]]
         futures = [(client.submit(_dask_task, shared, list(indices), grid[indices], pure=False), len(indices)) for indices in batches]
         for future, size in futures:
             yield future.result(), size
+        client.gather(ready, errors="skip")  # every worker built (one that failed says so through its batches' results)
     finally:
         client.close()
+
+
+def _dask_prepare(job: Job) -> None:
+    runner_for(job)
 
 
 def _dask_task(job: Job, indices: list[int], chunk: np.ndarray) -> list[list[Any]]:

@@ -233,7 +233,7 @@ def test_system_sweep() -> None:
 def cluster():  # type: ignore[no-untyped-def]
     """Two worker processes of one thread each (the machine's two cores)."""
     distributed = pytest.importorskip("distributed")
-    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as local:
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=":0") as local:  # any free port: another test process may hold 8787
         yield local
 
 
@@ -271,6 +271,26 @@ def test_a_killed_worker_loses_no_rows(cluster) -> None:  # type: ignore[no-unty
     remote = library.sweep(pendulum, DASK_AXES, measures=["final"], t_end=3, batch=1, scheduler=cluster.scheduler_address, on_batch=kill_one)
     assert killed and remote.rows == local.rows
     assert [row[0] for row in remote.rows] == list(range(12))
+
+
+def _built_on_worker(key: str) -> bool:
+    return key in library._RUNNERS
+
+
+def test_every_dask_worker_builds_the_system_once_even_for_one_batch(cluster) -> None:  # type: ignore[no-untyped-def]
+    """A sweep of one batch has every worker build the system (ahead of the batches), so that the next sweep
+    of the session pays no worker's derivation and loading: it was the Dask path's extra cost in the benchmark."""
+    from distributed import Client
+
+    pendulum = model("double_pendulum")
+    options = {"measures": ["final", "max(theta)"], "t_end": 2.5}
+    with Client(cluster.scheduler_address, set_as_default=False) as client:
+        client.wait_for_workers(2)  # a worker killed by the test above is restarted by its nanny
+        table = library.sweep(pendulum, DASK_AXES[:1], scheduler=cluster.scheduler_address, **options)
+        assert len(table) == 4
+        key = next(k for k, r in library._RUNNERS.items() if r.model is pendulum and r.job.measures == ("final", "max(theta)"))
+        built = client.run(_built_on_worker, key)
+    assert len(built) == 2 and all(built.values())
 
 
 def test_dask_is_imported_only_for_a_scheduler(tmp_path: Path) -> None:
@@ -336,3 +356,33 @@ def test_lyapunov_is_measured_for_a_whole_batch_at_once(monkeypatch) -> None:  #
     monkeypatch.setattr(library.Runner, "_lyapunov", refuse)
     again = library.sweep(pendulum, axes, **{**options, "t_end": 5.0})
     assert np.array_equal(np.array(again.column("lyapunov")), np.array(one_by_one))
+
+
+def test_section_is_run_for_a_whole_batch_at_once(monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    """A Poincare section on the compiled path runs its batch in one compiled call (Runner.section_batch,
+    every crossing recorded there) and gets exactly the rows of the run-by-run path (Runner._erk from
+    Python, restarted at each crossing): the same crossings, times and states, a failed run's reason, and
+    the same cut at MAX_CROSSINGS."""
+    elastic = model("elastic_pendulum")
+    axes = [Axis("initial", "x", -1.0, 0.3, 2), Axis("initial", "theta", 0.2, 1.4, 4)]  # x = -1: l + x = 0, a singular mass matrix
+    options = {"section": "theta=0, theta_dot>0", "t_end": 40, "rtol": 1e-9, "method": "DOP853", "backend": "compiled", "batch": 3}
+    table = library.sweep(elastic, axes, **options)
+    runner = next(r for r in library._RUNNERS.values() if r.model is elastic and r.job.section == options["section"])
+
+    def one_by_one() -> list[list[object]]:
+        return [row for k, values in enumerate(library.points(axes)) for row in runner.run_point(k, values)]
+
+    assert table.rows and repr(table.rows) == repr(one_by_one())  # bit for bit (NaN included)
+    status = table.column("status").tolist()
+    assert status[:4] == ["failed"] * 4 and "singular" in table.rows[0][table.columns.index("reason")]
+    assert set(status[4:]) == {"finished"} and max(table.column("crossing")) >= 5
+
+    monkeypatch.setattr(library, "MAX_CROSSINGS", 3)  # each run ends at its 4th crossing, in both paths
+    cut = library.sweep(elastic, axes, **options)
+    assert repr(cut.rows) == repr(one_by_one()) and max(cut.column("crossing")) <= 2  # 3 crossings alternate up and down
+
+    def refuse(*args, **kwargs):  # type: ignore[no-untyped-def]
+        raise AssertionError("a section's run was integrated on its own")
+
+    monkeypatch.setattr(library.Runner, "_erk", refuse)
+    assert repr(library.sweep(elastic, axes, **options).rows) == repr(cut.rows)
