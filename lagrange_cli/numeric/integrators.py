@@ -136,13 +136,15 @@ class GaussReport:
     the fixed step does not resolve the motion there (a coordinate singularity, a close approach)."""
 
     iterations_max: int
-    """The most Newton sweeps one step took."""
+    """The most sweeps (fixed-point or Newton) one step took."""
     correction_max: float
-    """The largest last Newton correction of a step (relative): the round-off level the stages reached."""
+    """The largest last correction of a step (relative): the round-off level the stages reached."""
     deviation_max: float
     deviation_t: float
     """The time of the step where `deviation_max` occurred."""
     deviation_mean: float
+    fallbacks: int = 0
+    """Steps whose fixed-point iteration failed and were solved again by Newton iteration (kernels.FIXED_SLOW)."""
 
 
 @dataclass(frozen=True)
@@ -327,6 +329,7 @@ def run_gauss(functions: Functions, problem: Problem, z0: np.ndarray, stages: in
         float(report[kernels.DEVIATION_MAX]),
         float(report[kernels.DEVIATION_T]),
         float(report[kernels.DEVIATION_SUM] / counted) if counted else 0.0,
+        int(report[kernels.FALLBACKS]),
     )
     stats_record = _stats(stats, nlu=int(stats[status.NJEV]))
     return Run(problem.ts[:m], ys[:m], Status.of_code(code), float(state[status.T]), y_last, stats_record, compile_seconds, time.perf_counter() - began, gauss=gauss)

@@ -12,9 +12,9 @@ directory and imports it from there, so numba's cache sits beside it.
   same steps), samples written at requested times, and an event located by root finding on
   the dense output;
 - `gauss_run`: fixed-step Gauss-Legendre collocation in (q, p), symplectic and symmetric,
-  stage equations solved to round-off by simplified Newton iteration (a finite-difference
-  Jacobian, refreshed when convergence slows), samples and events by cubic Hermite
-  interpolation.
+  stage equations solved to round-off by fixed-point iteration, or where that converges slowly
+  (a stiff stretch) by simplified Newton iteration (a finite-difference Jacobian, refreshed when
+  convergence slows), samples and events by cubic Hermite interpolation.
 """
 
 # ruff: noqa: SIM108, SIM110  (explicit loops and branches compile best in numba)
@@ -75,16 +75,30 @@ SLOW = 0.02
 """A step whose Newton corrections shrank by less than this factor a sweep (the Newton matrix is
 stale: its Jacobian is from an earlier part of the motion) refreshes the matrix for the next step."""
 MAX_ITERATIONS = 50
-"""Newton sweeps of one step at most (a converging step takes about 6 to 12)."""
+"""Sweeps of one step at most (a converging step takes about 4 to 12)."""
+FIXED_SLOW = 0.25
+"""A step is first solved by fixed-point iteration (W_i <- h sum_j a_ij F(z + W_j): s evaluations a
+sweep and no linear algebra, cheaper than a Newton sweep on a non-stiff problem); where its corrections
+shrink by less than this factor over two sweeps (well above round-off), stop growing smaller, or the
+stages cannot be evaluated, the step is solved again by simplified Newton iteration from the same
+predictor. Two sweeps, because the iteration matrix h (A x J) has complex eigenvalues (an
+oscillation): the corrections' largest component shrinks unevenly, 100x in one sweep and 1.2x in
+the next (Kepler e = 0.5 at pericentre), and a sweep-to-sweep test would fall back at every
+pericentre."""
+RETRY = 100
+"""After a step fell back to Newton, the next RETRY steps use Newton directly, then fixed-point
+iteration is tried again (a stiff stretch costs one failed attempt per RETRY steps)."""
 # The tail of `memory` (gauss_run) after the predictor and the Newton matrix: the compensation of
 # the summed state (n floats), then what the loop reports (DIAGNOSTICS floats, indices below).
-ITERATIONS_MAX, CORRECTION_MAX, DEVIATION_MAX, DEVIATION_T, DEVIATION_STEPS, DEVIATION_SUM = range(6)
+ITERATIONS_MAX, CORRECTION_MAX, DEVIATION_MAX, DEVIATION_T, DEVIATION_STEPS, DEVIATION_SUM, NEWTON_UNTIL, FALLBACKS = range(8)
 """The most Newton sweeps of a step; the largest last correction of a step's stages (relative: the
 round-off level reached); the largest predictor deviation (the converged stage increments minus their extrapolation
 from the previous step, relative: an error indicator of order s + 1 in h), the time of the step where
 it occurred, and the number of steps and the sum of the deviations (their mean). The deviation of a
-component is measured against the largest size of its block (the coordinates, or the momenta)."""
-DIAGNOSTICS = 6
+component is measured against the largest size of its block (the coordinates, or the momenta).
+Then the loop's own state: the step up to which Newton iteration is used directly (RETRY), and the
+number of steps whose fixed-point iteration fell back to Newton."""
+DIAGNOSTICS = 8
 
 
 def memory_size(stages: int, n: int) -> int:
@@ -565,8 +579,9 @@ def _newton_matrix(s, h, jac, m, pivots):
     return 0
 
 
-STAGES_DOC = """What gauss_run's stage loop does. Solve W_i = h sum_j a_ij F(z + W_j) for the stage increments W_i = Z_i - z by simplified
-    Newton iteration (matrix m from `_newton_matrix`, in gauss_run's loop) until the corrections reach round-off; FZ
+STAGES_DOC = """What gauss_run's stage loop does. Solve W_i = h sum_j a_ij F(z + W_j) for the stage increments W_i = Z_i - z by
+    fixed-point iteration (FIXED_SLOW says when it falls back), else by simplified
+    Newton iteration (matrix m from `_newton_matrix`, in gauss_run's loop), until the corrections reach round-off; FZ
     holds F at the stage values of the last iteration. It sets (status, iterations, the last
     correction, the slowest contraction of the corrections before the last: how stale the Newton
     matrix is). Working with increments (Hairer, Lubich and Wanner, VIII.6) keeps the stage
@@ -656,83 +671,100 @@ def gauss_run(s, z, state, control, ts, zs, p, stats, sizes, memory, pivots, ham
     taken = 0
     while done < steps and t < t_stop and taken < PAUSE_STEPS:
         taken += 1
-        if not fresh:
-            state[NEWTON] = 0.0
-            if _jacobian(hamilton, t, z, p, x, a, jac, f0, work, fw, sizes, stats) or _newton_matrix(s, h, jac, m, pivots):
-                return SINGULAR
-            fresh, refreshed = True, True
-            state[NEWTON] = 1.0
         for i in range(s):
             for k in range(n):
                 value = 0.0
                 for j in range(s):
                     value += _GAUSS_E[s - 1, i, j] * FZ[j, k]
-                W[i, k] = h * value
-                predicted[i, k] = W[i, k]
+                predicted[i, k] = h * value
         # The stage equations, solved here rather than in a function of their own: a call of a compiled
         # function (and a view such as FZ[i]) costs atomic reference-count operations on every array
         # it takes, which numba cannot prune around the indirect call of `hamilton`; they were about
         # 40% of a step's time on Kepler's problem (issue 15). STAGES_DOC says what this does.
-        previous, slowest = np.inf, 0.0
-        status, iterations, correction = NO_CONVERGENCE, MAX_ITERATIONS, np.inf
-        for iteration in range(1, MAX_ITERATIONS + 1):
-            singular = False
+        newton = done < report[NEWTON_UNTIL]
+        status, iterations, correction, slowest = NO_CONVERGENCE, MAX_ITERATIONS, np.inf, 0.0
+        for _attempt in range(3):
+            if newton and not fresh:
+                state[NEWTON] = 0.0
+                if _jacobian(hamilton, t, z, p, x, a, jac, f0, work, fw, sizes, stats) or _newton_matrix(s, h, jac, m, pivots):
+                    return SINGULAR
+                fresh, refreshed = True, True
+                state[NEWTON] = 1.0
             for i in range(s):
                 for k in range(n):
-                    work[k] = z[k] + W[i, k]
-                if hamilton(t + _GAUSS_C[s - 1, i] * h, work, p, fw, x, a):
-                    singular = True
+                    W[i, k] = predicted[i, k]
+            previous, before, slowest = np.inf, np.inf, 0.0
+            status, iterations, correction = NO_CONVERGENCE, MAX_ITERATIONS, np.inf
+            for iteration in range(1, MAX_ITERATIONS + 1):
+                singular = False
+                for i in range(s):
+                    for k in range(n):
+                        work[k] = z[k] + W[i, k]
+                    if hamilton(t + _GAUSS_C[s - 1, i] * h, work, p, fw, x, a):
+                        singular = True
+                        break
+                    for k in range(n):
+                        FZ[i, k] = fw[k]
+                if singular:
+                    status, iterations, correction = SINGULAR, iteration, np.inf
                     break
-                for k in range(n):
-                    FZ[i, k] = fw[k]
-            if singular:
-                status, iterations, correction = SINGULAR, iteration, np.inf
+                stats[NFEV] += s
+                for i in range(s):
+                    for k in range(n):
+                        value = -W[i, k]
+                        for j in range(s):
+                            value += h * _GAUSS_A[s - 1, i, j] * FZ[j, k]
+                        g[i * n + k] = value
+                if newton:  # g = m^-1 g with the LU factors of `_newton_matrix` (their row exchanges in `pivots`)
+                    for k in range(unknowns):
+                        g[k], g[pivots[k]] = g[pivots[k]], g[k]
+                    for i in range(unknowns):
+                        for j in range(i):
+                            g[i] -= m[i, j] * g[j]
+                    for i in range(unknowns - 1, -1, -1):
+                        for j in range(i + 1, unknowns):
+                            g[i] -= m[i, j] * g[j]
+                        g[i] /= m[i, i]
+                change = 0.0
+                for i in range(s):
+                    for k in range(n):
+                        W[i, k] += g[i * n + k]
+                        step_change = abs(g[i * n + k])
+                        if step_change > 0.0:
+                            change = max(change, step_change / (sizes[k] if sizes[k] > 0.0 else 1.0))
+                if not np.isfinite(change):
+                    status, iterations, correction = NONFINITE, iteration, change
+                    break
+                if change <= ROUNDOFF:  # FZ was evaluated at stage values within an ulp of the solution
+                    status, iterations, correction = DONE, iteration, change
+                    break
+                if iteration > (1 if newton else 2) and change >= (previous if newton else before):
+                    # the corrections stopped decreasing (fixed-point: over two sweeps): round-off, or no convergence
+                    status, iterations, correction = (DONE if change <= STAGNATION else NO_CONVERGENCE), iteration, change
+                    break
+                if not newton and iteration > 2 and change > STAGNATION and change > FIXED_SLOW * before:
+                    status, iterations, correction = NO_CONVERGENCE, iteration, change  # too slow: Newton's turn
+                    break
+                if iteration > 1:
+                    slowest = max(slowest, change / previous)
+                previous, before = change, previous
+                correction = change
+            if status == DONE:
                 break
-            stats[NFEV] += s
-            for i in range(s):
-                for k in range(n):
-                    value = -W[i, k]
-                    for j in range(s):
-                        value += h * _GAUSS_A[s - 1, i, j] * FZ[j, k]
-                    g[i * n + k] = value
-            # g = m^-1 g with the LU factors of `_newton_matrix` (their row exchanges in `pivots`)
-            for k in range(unknowns):
-                g[k], g[pivots[k]] = g[pivots[k]], g[k]
-            for i in range(unknowns):
-                for j in range(i):
-                    g[i] -= m[i, j] * g[j]
-            for i in range(unknowns - 1, -1, -1):
-                for j in range(i + 1, unknowns):
-                    g[i] -= m[i, j] * g[j]
-                g[i] /= m[i, i]
-            change = 0.0
-            for i in range(s):
-                for k in range(n):
-                    W[i, k] += g[i * n + k]
-                    step_change = abs(g[i * n + k])
-                    if step_change > 0.0:
-                        change = max(change, step_change / (sizes[k] if sizes[k] > 0.0 else 1.0))
-            if not np.isfinite(change):
-                status, iterations, correction = NONFINITE, iteration, change
-                break
-            if change <= ROUNDOFF:  # FZ was evaluated at stage values within an ulp of the solution
-                status, iterations, correction = DONE, iteration, change
-                break
-            if iteration > 1 and change >= previous:  # the corrections stopped decreasing: round-off, or no convergence
-                status, iterations, correction = (DONE if change <= STAGNATION else NO_CONVERGENCE), iteration, change
-                break
-            if iteration > 1:
-                slowest = max(slowest, change / previous)
-            previous = change
-            correction = previous
-        if status == NO_CONVERGENCE and not refreshed:
-            fresh = False  # a Jacobian from an earlier step: refresh it and try again
-            state[NEWTON] = 0.0
-            continue
+            if not newton:  # fixed-point iteration failed: the same step by Newton, with a fresh matrix
+                newton, fresh = True, False
+                report[NEWTON_UNTIL] = done + RETRY
+                report[FALLBACKS] += 1.0
+                continue
+            if status == NO_CONVERGENCE and not refreshed:
+                fresh = False  # a Jacobian from an earlier step: refresh it and try again
+                continue
+            break
         if status != DONE:
             return status
-        fresh, refreshed = slowest <= SLOW, False
-        state[NEWTON] = 1.0 if fresh else 0.0
+        if newton:
+            fresh, refreshed = slowest <= SLOW, False
+            state[NEWTON] = 1.0 if fresh else 0.0
         report[ITERATIONS_MAX] = max(report[ITERATIONS_MAX], iterations)
         report[CORRECTION_MAX] = max(report[CORRECTION_MAX], correction)
         deviation = 0.0
