@@ -257,3 +257,28 @@ def test_every_method_runs_behind_one_solver_interface() -> None:
         assert run.status == Status.FINISHED and isinstance(run.stats, integrators.Stats) and run.stats.steps > 0
         reported = simulate(model, method=method, backend=backend, t_end=2.0, samples=5, rtol=1e-8, atol=1e-10, step=settings.step)
         assert np.array_equal(run.y, reported.y) and run.stats.steps == reported.stats.steps
+
+
+@pytest.mark.parametrize(("stages", "step"), [(2, 0.1), (3, 0.2)])
+def test_samples_between_steps_are_as_accurate_as_the_steps(stages: int, step: float) -> None:
+    """Kepler e = 0.5 to t = 100: the samples midway between steps (each by a Gauss step from the step's
+    start, kernels._gauss_sample) are within 2x the error of the samples at the steps themselves (the
+    method's own; measured: within 0.5%), both against DOP853 at rtol 1e-13, and in energy. The cubic
+    Hermite interpolant of one step put a 100x (s = 2) and 1e4x (s = 3) larger energy error mid-step,
+    the degree-7 interpolant (kernels.NODES) still 200x at s = 3."""
+    model = _kepler()
+    t_end = 100.0
+    at_steps = np.arange(1, 1000) * step
+    at_steps = at_steps[at_steps < t_end - step]
+    midway = at_steps + step / 2
+    errors = {}
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(settings, "STAGES", stages)
+        for name, times in (("steps", at_steps), ("midway", midway)):
+            run = simulate(model, method="symplectic", step=step, t_end=t_end, t_eval=times.tolist(), initial=ECCENTRIC)
+            reference = simulate(model, method="DOP853", rtol=1e-13, atol=1e-15, t_end=t_end, t_eval=times.tolist(), initial=ECCENTRIC)
+            energy = run.energy
+            errors[name] = (_position_error(model, run, reference), float(np.max(np.abs(energy - energy[0]))))
+    assert errors["steps"][0] > 1e-9  # the method's own error is visible at this step
+    assert errors["midway"][0] <= 2 * errors["steps"][0], errors
+    assert errors["midway"][1] <= 2 * errors["steps"][1], errors

@@ -321,7 +321,8 @@ def run_gauss(functions: Functions, problem: Problem, z0: np.ndarray, stages: in
     hamilton(float(state[status.T]), z, problem.p, out, x, a)
     y_last = np.concatenate([z[: len(z) // 2], out[: len(z) // 2]])
     m = int(state[status.NEXT_SAMPLE])
-    report = memory[len(memory) - kernels.DIAGNOSTICS :]
+    start = kernels.diagnostics_start(stages, len(z))
+    report = memory[start : start + kernels.DIAGNOSTICS]
     counted = report[kernels.DEVIATION_STEPS]
     gauss = GaussReport(
         int(report[kernels.ITERATIONS_MAX]),
