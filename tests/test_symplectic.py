@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from lagrange_cli.model import Model
-from lagrange_cli.numeric import compile, integrators, settings, status
+from lagrange_cli.numeric import compile, integrators, status
 from lagrange_cli.numeric.simulate import simulate
 from lagrange_cli.numeric.status import Status
 
@@ -157,8 +157,7 @@ def test_where_fixed_point_iteration_diverges_newton_takes_over(stages: int) -> 
 
     with pytest.MonkeyPatch.context() as patch:
         patch.setattr(integrators, "run_gauss", spy)
-        patch.setattr(settings, "STAGES", stages)
-        trajectory = simulate(model, method="symplectic", step=0.05, t_end=50.0, samples=101)
+        trajectory = simulate(model, method="symplectic", step=0.05, stages=stages, t_end=50.0, samples=101)
     kernels = compile.build(model, "numba").kernels
     assert kernels is not None
     report = runs[-1].gauss
@@ -255,7 +254,7 @@ def test_every_method_runs_behind_one_solver_interface() -> None:
         problem = integrators.Problem(0.0, 2.0, np.array(settings.y0), np.array(settings.t_eval), np.array(settings.p), False, 10**6)
         run = solver.run(problem)
         assert run.status == Status.FINISHED and isinstance(run.stats, integrators.Stats) and run.stats.steps > 0
-        reported = simulate(model, method=method, backend=backend, t_end=2.0, samples=5, rtol=1e-8, atol=1e-10, step=settings.step)
+        reported = simulate(model, method=method, backend=backend, t_end=2.0, samples=5, rtol=1e-8, atol=1e-10, step=settings.step, stages=settings.stages)
         assert np.array_equal(run.y, reported.y) and run.stats.steps == reported.stats.steps
 
 
@@ -272,13 +271,37 @@ def test_samples_between_steps_are_as_accurate_as_the_steps(stages: int, step: f
     at_steps = at_steps[at_steps < t_end - step]
     midway = at_steps + step / 2
     errors = {}
-    with pytest.MonkeyPatch.context() as patch:
-        patch.setattr(settings, "STAGES", stages)
-        for name, times in (("steps", at_steps), ("midway", midway)):
-            run = simulate(model, method="symplectic", step=step, t_end=t_end, t_eval=times.tolist(), initial=ECCENTRIC)
-            reference = simulate(model, method="DOP853", rtol=1e-13, atol=1e-15, t_end=t_end, t_eval=times.tolist(), initial=ECCENTRIC)
-            energy = run.energy
-            errors[name] = (_position_error(model, run, reference), float(np.max(np.abs(energy - energy[0]))))
+    for name, times in (("steps", at_steps), ("midway", midway)):
+        run = simulate(model, method="symplectic", step=step, stages=stages, t_end=t_end, t_eval=times.tolist(), initial=ECCENTRIC)
+        reference = simulate(model, method="DOP853", rtol=1e-13, atol=1e-15, t_end=t_end, t_eval=times.tolist(), initial=ECCENTRIC)
+        energy = run.energy
+        errors[name] = (_position_error(model, run, reference), float(np.max(np.abs(energy - energy[0]))))
     assert errors["steps"][0] > 1e-9  # the method's own error is visible at this step
     assert errors["midway"][0] <= 2 * errors["steps"][0], errors
     assert errors["midway"][1] <= 2 * errors["steps"][1], errors
+
+
+def test_the_pilot_chooses_the_stage_count_that_costs_fewer_evaluations() -> None:
+    """Kepler e = 0.5 to t = 1000 at rtol 1e-8: the pilot runs both Gauss methods (2 and 3 stages) and
+    picks 3 stages at a step more than twice as long; the run at its choice meets the tolerance (positions
+    against DOP853 at rtol 1e-13, within 10x) in fewer evaluations (counted) than the run the pilot
+    chooses when held to 2 stages, and the notes say so. Bad stage counts are refused."""
+    from lagrange_cli.errors import LagrangeError
+
+    model = _kepler()
+    t_end, rtol = 1000.0, 1e-8
+    options = {"method": "symplectic", "rtol": rtol, "atol": rtol * 1e-3, "t_end": t_end, "samples": 201, "initial": ECCENTRIC}
+    chosen = simulate(model, **options)  # type: ignore[arg-type]
+    two = simulate(model, stages=2, **options)  # type: ignore[arg-type]
+    reference = simulate(model, method="DOP853", rtol=1e-13, atol=1e-15, t_end=t_end, samples=201, initial=ECCENTRIC)
+    assert chosen.settings.stages == 3 and two.settings.stages == 2
+    assert chosen.settings.step is not None and two.settings.step is not None and chosen.settings.step > 2 * two.settings.step
+    assert chosen.stats.nfev < two.stats.nfev, (chosen.stats.nfev, two.stats.nfev)
+    scale = np.max(np.abs(reference.y[:, :2]), axis=0)
+    for run in (chosen, two):
+        assert np.max(np.abs(run.y[:, :2] - reference.y[:, :2]) / (rtol * scale + rtol * 1e-3)) < 10.0
+        assert not run.warnings
+    assert any("3 stages (order 6)" in note and "2 stages, 3 stages" in note for note in chosen.notes), chosen.notes
+    for bad in (0, 4, True):
+        with pytest.raises(LagrangeError, match="stages must be 1, 2 or 3"):
+            simulate(model, method="symplectic", stages=bad, t_end=1.0)
