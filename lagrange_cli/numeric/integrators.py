@@ -124,6 +124,14 @@ class GaussPilot:
     """False when the rounds ran out (or every trial failed, or the next trial would exceed the step
     budget) before the estimate met the tolerance."""
     stages: int = 2
+    evaluations: float = 0.0
+    """Right-hand side evaluations per step of the pilot's run at step/2 (its stage solves): what a
+    step of the run is expected to cost, to compare stage counts (`policy.symplectic_pilot`)."""
+
+    @property
+    def cost(self) -> float:
+        """Expected evaluations per unit time of a run at `step`."""
+        return self.evaluations / self.step
 
 
 @dataclass(frozen=True)
@@ -136,13 +144,15 @@ class GaussReport:
     the fixed step does not resolve the motion there (a coordinate singularity, a close approach)."""
 
     iterations_max: int
-    """The most Newton sweeps one step took."""
+    """The most sweeps (fixed-point or Newton) one step took."""
     correction_max: float
-    """The largest last Newton correction of a step (relative): the round-off level the stages reached."""
+    """The largest last correction of a step (relative): the round-off level the stages reached."""
     deviation_max: float
     deviation_t: float
     """The time of the step where `deviation_max` occurred."""
     deviation_mean: float
+    fallbacks: int = 0
+    """Steps whose fixed-point iteration failed and were solved again by Newton iteration (kernels.FIXED_SLOW)."""
 
 
 @dataclass(frozen=True)
@@ -319,7 +329,8 @@ def run_gauss(functions: Functions, problem: Problem, z0: np.ndarray, stages: in
     hamilton(float(state[status.T]), z, problem.p, out, x, a)
     y_last = np.concatenate([z[: len(z) // 2], out[: len(z) // 2]])
     m = int(state[status.NEXT_SAMPLE])
-    report = memory[len(memory) - kernels.DIAGNOSTICS :]
+    start = kernels.diagnostics_start(stages, len(z))
+    report = memory[start : start + kernels.DIAGNOSTICS]
     counted = report[kernels.DEVIATION_STEPS]
     gauss = GaussReport(
         int(report[kernels.ITERATIONS_MAX]),
@@ -327,6 +338,7 @@ def run_gauss(functions: Functions, problem: Problem, z0: np.ndarray, stages: in
         float(report[kernels.DEVIATION_MAX]),
         float(report[kernels.DEVIATION_T]),
         float(report[kernels.DEVIATION_SUM] / counted) if counted else 0.0,
+        int(report[kernels.FALLBACKS]),
     )
     stats_record = _stats(stats, nlu=int(stats[status.NJEV]))
     return Run(problem.ts[:m], ys[:m], Status.of_code(code), float(state[status.T]), y_last, stats_record, compile_seconds, time.perf_counter() - began, gauss=gauss)
@@ -361,14 +373,15 @@ def pilot_gauss(functions: Functions, problem: Problem, z0: np.ndarray, stages: 
     ts = problem.t0 + span * np.arange(1, PILOT_SAMPLES + 1) / PILOT_SAMPLES
     ts[-1] = problem.t0 + span
     pilot = Problem(problem.t0, problem.t0 + span, problem.y0, ts, problem.p, False, problem.max_steps)
-    h, taken, yardstick, estimate = h0, 0, 0.0, math.inf
-    for _ in range(PILOT_ROUNDS):
+    h, taken, yardstick, estimate, per_step = h0, 0, 0.0, math.inf, 0.0
+    for round_ in range(PILOT_ROUNDS):
         steps = max(2, math.ceil(span / h - 1e-9))
         if 3 * steps > problem.max_steps:  # the pilot alone would exceed the run's budget
             break
         coarse = run_gauss(functions, pilot, z0, stages, span / steps)
         fine = run_gauss(functions, pilot, z0, stages, span / (2 * steps))
         taken += coarse.stats.steps + fine.stats.steps
+        per_step = fine.stats.nfev / fine.stats.steps if fine.stats.steps else 0.0
         h = span / steps
         if coarse.status.failed or fine.status.failed or len(coarse.t) < len(ts) or len(fine.t) < len(ts):
             h /= 4.0  # the trial step does not even converge over the span
@@ -379,12 +392,14 @@ def pilot_gauss(functions: Functions, problem: Problem, z0: np.ndarray, stages: 
         difference = float(np.max(np.abs(coarse.y - fine.y) / scale)) * 2.0**order / (2.0**order - 1.0)
         estimate = difference * total / span
         if estimate == 0.0:
-            return GaussPilot(min(4.0 * h, span), 0.0, span, yardstick, taken, True, stages)
+            return GaussPilot(min(4.0 * h, span), 0.0, span, yardstick, taken, True, stages, per_step)
         proposed = h * min(4.0, max(0.1, (AIM / estimate) ** (1.0 / order)))
-        if proposed >= 0.5 * h:  # the estimate at h is trustworthy enough to move from it
-            return GaussPilot(proposed, estimate * (proposed / h) ** order, span, yardstick, taken, True, stages)
+        if 0.5 * h <= proposed < 4.0 * h or (proposed >= 0.5 * h and round_ == PILOT_ROUNDS - 1):
+            # the estimate at h is trustworthy enough to move from it (and the move is not capped,
+            # or no round is left: a capped move, 4x, is tried again from there)
+            return GaussPilot(proposed, estimate * (proposed / h) ** order, span, yardstick, taken, True, stages, per_step)
         h = proposed
-    return GaussPilot(h, estimate, span, yardstick, taken, False, stages)
+    return GaussPilot(h, estimate, span, yardstick, taken, False, stages, per_step)
 
 
 def monitor(run: Run, step: float, pilot: GaussPilot | None) -> Run:

@@ -12,9 +12,10 @@ directory and imports it from there, so numba's cache sits beside it.
   same steps), samples written at requested times, and an event located by root finding on
   the dense output;
 - `gauss_run`: fixed-step Gauss-Legendre collocation in (q, p), symplectic and symmetric,
-  stage equations solved to round-off by simplified Newton iteration (a finite-difference
-  Jacobian, refreshed when convergence slows), samples and events by cubic Hermite
-  interpolation.
+  stage equations solved to round-off by fixed-point iteration, or where that converges slowly
+  (a stiff stretch) by simplified Newton iteration (a finite-difference Jacobian, refreshed when
+  convergence slows); a sample between two steps is one Gauss step from the step's start (the
+  method's own accuracy), events are found on a Hermite interpolant of degree 7 (`NODES`).
 """
 
 # ruff: noqa: SIM108, SIM110  (explicit loops and branches compile best in numba)
@@ -61,7 +62,7 @@ from lagrange_cli.numeric.status import (
 )
 from lagrange_cli.numeric.tableaux import DOP853, DOP853_A, DOP853_B, DOP853_C, DOP853_D, DOP853_E3, DOP853_E5, GAUSS, RK45, RK45_A, RK45_B, RK45_C, RK45_E, RK45_P
 
-__all__ = ["DIAGNOSTICS", "MAX_ITERATIONS", "PAUSE_STEPS", "SIGNATURES", "compiled", "lu_solve", "memory_size"]
+__all__ = ["DIAGNOSTICS", "MAX_ITERATIONS", "PAUSE_STEPS", "SIGNATURES", "compiled", "diagnostics_start", "lu_solve", "memory_size"]
 # The Gauss stage equations are solved to round-off (a looser tolerance, such as the 1e-11 used
 # before, leaves an error that is not symmetric and makes the energy drift over long runs: issue 15).
 ROUNDOFF = 2.220446049250313e-16
@@ -75,22 +76,59 @@ SLOW = 0.02
 """A step whose Newton corrections shrank by less than this factor a sweep (the Newton matrix is
 stale: its Jacobian is from an earlier part of the motion) refreshes the matrix for the next step."""
 MAX_ITERATIONS = 50
-"""Newton sweeps of one step at most (a converging step takes about 6 to 12)."""
+"""Sweeps of one step at most (a converging step takes about 4 to 12)."""
+FIXED_SLOW = 0.25
+"""A step is first solved by fixed-point iteration (W_i <- h sum_j a_ij F(z + W_j): s evaluations a
+sweep and no linear algebra, cheaper than a Newton sweep on a non-stiff problem); where its corrections
+shrink by less than this factor over two sweeps (well above round-off), stop growing smaller, or the
+stages cannot be evaluated, the step is solved again by simplified Newton iteration from the same
+predictor. Two sweeps, because the iteration matrix h (A x J) has complex eigenvalues (an
+oscillation): the corrections' largest component shrinks unevenly, 100x in one sweep and 1.2x in
+the next (Kepler e = 0.5 at pericentre), and a sweep-to-sweep test would fall back at every
+pericentre."""
+RETRY = 100
+"""After a step fell back to Newton, the next RETRY steps use Newton directly, then fixed-point
+iteration is tried again (a stiff stretch costs one failed attempt per RETRY steps)."""
 # The tail of `memory` (gauss_run) after the predictor and the Newton matrix: the compensation of
 # the summed state (n floats), then what the loop reports (DIAGNOSTICS floats, indices below).
-ITERATIONS_MAX, CORRECTION_MAX, DEVIATION_MAX, DEVIATION_T, DEVIATION_STEPS, DEVIATION_SUM = range(6)
+ITERATIONS_MAX, CORRECTION_MAX, DEVIATION_MAX, DEVIATION_T, DEVIATION_STEPS, DEVIATION_SUM, NEWTON_UNTIL, FALLBACKS = range(8)
 """The most Newton sweeps of a step; the largest last correction of a step's stages (relative: the
 round-off level reached); the largest predictor deviation (the converged stage increments minus their extrapolation
 from the previous step, relative: an error indicator of order s + 1 in h), the time of the step where
 it occurred, and the number of steps and the sum of the deviations (their mean). The deviation of a
-component is measured against the largest size of its block (the coordinates, or the momenta)."""
-DIAGNOSTICS = 6
+component is measured against the largest size of its block (the coordinates, or the momenta).
+Then the loop's own state: the step up to which Newton iteration is used directly (RETRY), and the
+number of steps whose fixed-point iteration fell back to Newton."""
+DIAGNOSTICS = 8
+
+
+NODES = 4
+"""Events between two steps are found on the Hermite interpolant (values and derivatives)
+of the state at the step's two ends and at the starts of the NODES - 2 steps before it: degree
+2 NODES - 1 = 7, an error of order h^8 (at most 2.2e-5 h^8 |z^(8)| on the last interval), below the
+method's own error at the steps it is used at. The cubic Hermite interpolant of the step's ends
+alone (order h^4, 2.6e-3 h^4 |z^(4)|) was the larger error at samples between steps: on Kepler
+e = 0.5 at h = 0.2 (3 stages) it put an energy error of 1.2e-5 at samples mid-step, where the
+method's own is 1e-8 at the steps. The first NODES - 2 steps of a run have fewer nodes (degree 3,
+then 5). Samples come from `_gauss_sample` (a Gauss step to the sample: this interpolant still put
+an energy error 200x the method's at s = 3, h = 0.2 midway), and from this interpolant only where
+its fixed-point iteration does not converge (a stiff problem)."""
 
 
 def memory_size(stages: int, n: int) -> int:
     """The length of gauss_run's `memory` for s stages and n = 2 x coordinates."""
     unknowns = stages * n
-    return unknowns + unknowns * unknowns + n + DIAGNOSTICS
+    return unknowns + unknowns * unknowns + n + DIAGNOSTICS + _HISTORY * (2 * n + 2)
+
+
+def diagnostics_start(stages: int, n: int) -> int:
+    """Where the loop's DIAGNOSTICS floats start in gauss_run's `memory`."""
+    unknowns = stages * n
+    return unknowns + unknowns * unknowns + n
+
+
+_HISTORY = NODES - 1
+"""Steps' starting states gauss_run keeps for its interpolant (a ring: step k in slot k % _HISTORY)."""
 
 
 _RK45_A = np.array(RK45_A)
@@ -128,9 +166,25 @@ def _predictor(c: np.ndarray, b: np.ndarray) -> np.ndarray:
     return e
 
 
+_GAUSS_L = np.zeros((3, 3, 4))
+"""_GAUSS_L[s - 1, j]: the coefficients (highest power first) of the integral from 0 of the Lagrange
+basis polynomial j on the nodes c: the collocation polynomial of a step is u(t + theta h) =
+z + h sum_j L_j(theta) F_j."""
+
+
+def _integrated_basis(c: np.ndarray) -> np.ndarray:
+    out = np.zeros((len(c), 4))
+    for j in range(len(c)):
+        others = np.delete(c, j)
+        integral = np.polyint(np.atleast_1d(np.poly(others)) / np.prod(c[j] - others))
+        out[j, 4 - len(integral) :] = integral
+    return out
+
+
 for _s, (_c, _a, _b) in GAUSS.items():
     _GAUSS_C[_s - 1, :_s], _GAUSS_A[_s - 1, :_s, :_s], _GAUSS_B[_s - 1, :_s] = _c, _a, _b
     _GAUSS_E[_s - 1, :_s, :_s] = _predictor(np.array(_c), np.array(_b))
+    _GAUSS_L[_s - 1, :_s] = _integrated_basis(np.array(_c))
 
 _F8, _I8, _ARR, _MAT = types.float64, types.int64, types.float64[::1], types.float64[:, ::1]
 ACCEL_SIG = _I8(_F8, _ARR, _ARR, _ARR, _MAT)
@@ -565,8 +619,9 @@ def _newton_matrix(s, h, jac, m, pivots):
     return 0
 
 
-STAGES_DOC = """What gauss_run's stage loop does. Solve W_i = h sum_j a_ij F(z + W_j) for the stage increments W_i = Z_i - z by simplified
-    Newton iteration (matrix m from `_newton_matrix`, in gauss_run's loop) until the corrections reach round-off; FZ
+STAGES_DOC = """What gauss_run's stage loop does. Solve W_i = h sum_j a_ij F(z + W_j) for the stage increments W_i = Z_i - z by
+    fixed-point iteration (FIXED_SLOW says when it falls back), else by simplified
+    Newton iteration (matrix m from `_newton_matrix`, in gauss_run's loop), until the corrections reach round-off; FZ
     holds F at the stage values of the last iteration. It sets (status, iterations, the last
     correction, the slowest contraction of the corrections before the last: how stale the Newton
     matrix is). Working with increments (Hairer, Lubich and Wanner, VIII.6) keeps the stage
@@ -580,15 +635,84 @@ STAGES_DOC = """What gauss_run's stage loop does. Solve W_i = h sum_j a_ij F(z +
 
 
 @njit(error_model="numpy")
-def _hermite(t0, h, z0, f0, z1, f1, t, out):
-    """The cubic Hermite interpolant of (z0, f0) and (z1, f1) at t."""
-    xi = (t - t0) / h
-    h00 = (1 + 2 * xi) * (1 - xi) ** 2
-    h10 = xi * (1 - xi) ** 2
-    h01 = xi * xi * (3 - 2 * xi)
-    h11 = xi * xi * (xi - 1)
-    for i in range(z0.shape[0]):
-        out[i] = h00 * z0[i] + h10 * h * f0[i] + h01 * z1[i] + h11 * h * f1[i]
+def _hermite(tn, Zn, Fn, m, t, out, xs, q):
+    """The Hermite interpolant of (Zn[r], Fn[r]) at the times tn[r], r < m (m >= 2), at t: divided
+    differences on the doubled nodes, in the variable theta = (t - tn[m - 2]) / (tn[m - 1] - tn[m - 2])
+    (the last interval is [0, 1]); xs and q are work arrays of 2 m floats."""
+    scale = tn[m - 1] - tn[m - 2]
+    top = 2 * m
+    theta = (t - tn[m - 2]) / scale
+    for r in range(m):
+        xs[2 * r] = xs[2 * r + 1] = (tn[r] - tn[m - 2]) / scale
+    for i in range(Zn.shape[1]):
+        for r in range(m):
+            q[2 * r] = q[2 * r + 1] = Zn[r, i]
+        for order in range(1, top):
+            for r in range(top - 1, order - 1, -1):
+                if order == 1 and r % 2 == 1:
+                    q[r] = Fn[r // 2, i] * scale
+                else:
+                    q[r] = (q[r] - q[r - 1]) / (xs[r] - xs[r - order])
+        value = q[top - 1]
+        for r in range(top - 2, -1, -1):
+            value = value * (theta - xs[r]) + q[r]
+        out[i] = value
+
+
+@njit(error_model="numpy")
+def _gauss_sample(hamilton, s, t, h, theta, z, compensation, FZ, sizes, p, x, a, out, W, F, work, fw, stats):
+    """out = the state at t + theta h (0 < theta < 1) by one Gauss step of theta h from the step's start
+    z: the method's own accuracy (order 2s), where an interpolant of the steps has its own error (of
+    order h^8, larger than the method's at the steps it is used at: Kepler e = 0.5, 3 stages, h = 0.2:
+    an energy error 200x the method's midway between steps). Its stages are predicted by the step's
+    collocation polynomial (FZ) and solved by fixed-point iteration as the steps are; 1 when that
+    does not converge (a stiff problem: the caller interpolates instead), else 0."""
+    n = z.shape[0]
+    sub = theta * h
+    for i in range(s):
+        x_i = theta * _GAUSS_C[s - 1, i]
+        for k in range(n):
+            value = 0.0
+            for j in range(s):
+                weight = 0.0
+                for r in range(4):
+                    weight = weight * x_i + _GAUSS_L[s - 1, j, r]
+                value += weight * FZ[j, k]
+            W[i, k] = h * value
+    previous, before = np.inf, np.inf
+    for iteration in range(1, MAX_ITERATIONS + 1):
+        for i in range(s):
+            for k in range(n):
+                work[k] = z[k] + W[i, k]
+            if hamilton(t + _GAUSS_C[s - 1, i] * sub, work, p, fw, x, a):
+                return 1
+            for k in range(n):
+                F[i, k] = fw[k]
+        stats[NFEV] += s
+        change = 0.0
+        for i in range(s):
+            for k in range(n):
+                value = 0.0
+                for j in range(s):
+                    value += sub * _GAUSS_A[s - 1, i, j] * F[j, k]
+                step_change = abs(value - W[i, k])
+                W[i, k] = value
+                if step_change > 0.0:
+                    change = max(change, step_change / (sizes[k] if sizes[k] > 0.0 else 1.0))
+        if not np.isfinite(change):
+            return 1
+        converged = change <= ROUNDOFF or (iteration > 2 and change >= before and change <= STAGNATION)
+        if not converged and ((iteration > 2 and change >= before) or (iteration > 2 and change > STAGNATION and change > FIXED_SLOW * before)):
+            return 1
+        if converged:
+            for k in range(n):
+                value = 0.0
+                for i in range(s):
+                    value += _GAUSS_B[s - 1, i] * F[i, k]
+                out[k] = z[k] + (sub * value + compensation[k])  # z + compensation is the state at t
+            return 0
+        previous, before = change, previous
+    return 1
 
 
 @njit(error_model="numpy")
@@ -601,17 +725,17 @@ def _velocity_state(z, f, out):
 
 
 @njit(error_model="numpy")
-def _gauss_root(hamilton, event, t_old, h, z0, f0, z1, f1, p, x, a, g_old):
-    """The event time in (t_old, t_old + h], by bisection on the Hermite interpolant."""
-    n = z0.shape[0]
-    lo, hi = t_old, t_old + h
+def _gauss_root(hamilton, event, tn, Zn, Fn, m, xs, q, p, x, a, g_old):
+    """The event time in (tn[m - 2], tn[m - 1]], by bisection on the Hermite interpolant (`_hermite`)."""
+    n = Zn.shape[1]
+    lo, hi = tn[m - 2], tn[m - 1]
     g_lo = g_old
     work, f, state = np.empty(n), np.empty(n), np.empty(n)
     for _ in range(200):
         if hi - lo <= 4e-16 * max(abs(hi), 1.0):
             break
         mid = 0.5 * (lo + hi)
-        _hermite(t_old, h, z0, f0, z1, f1, mid, work)
+        _hermite(tn, Zn, Fn, m, mid, work, xs, q)
         hamilton(mid, work, p, f, x, a)
         _velocity_state(work, f, state)
         g_mid = event(mid, state, p, x, a)
@@ -648,6 +772,13 @@ def gauss_run(s, z, state, control, ts, zs, p, stats, sizes, memory, pivots, ham
     m = memory[s * n : base].reshape((s * n, s * n))
     compensation = memory[base : base + n]
     report = memory[base + n : base + n + DIAGNOSTICS]
+    ring = base + n + DIAGNOSTICS  # the interpolant's history: the state at the start of step k, F there, whether F is known, k + 1 (0: empty)
+    Zh = memory[ring : ring + _HISTORY * n].reshape((_HISTORY, n))
+    Fh = memory[ring + _HISTORY * n : ring + 2 * _HISTORY * n].reshape((_HISTORY, n))
+    known = memory[ring + 2 * _HISTORY * n : ring + 2 * _HISTORY * n + _HISTORY]
+    held = memory[ring + 2 * _HISTORY * n + _HISTORY : ring + 2 * _HISTORY * n + 2 * _HISTORY]
+    tn, Zn, Fn, xs, q = np.empty(NODES), np.empty((NODES, n)), np.empty((NODES, n)), np.empty(2 * NODES), np.empty(2 * NODES)
+    W_sample, F_sample, scratch = np.empty((s, n)), np.empty((s, n)), np.empty(n)
     z_new, f0, f1, work, fw, z_event, lost = np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(n)
     jac, g = np.empty((n, n)), np.empty(s * n)
     done = int(state[H])
@@ -656,83 +787,105 @@ def gauss_run(s, z, state, control, ts, zs, p, stats, sizes, memory, pivots, ham
     taken = 0
     while done < steps and t < t_stop and taken < PAUSE_STEPS:
         taken += 1
-        if not fresh:
-            state[NEWTON] = 0.0
-            if _jacobian(hamilton, t, z, p, x, a, jac, f0, work, fw, sizes, stats) or _newton_matrix(s, h, jac, m, pivots):
-                return SINGULAR
-            fresh, refreshed = True, True
-            state[NEWTON] = 1.0
+        slot = done % _HISTORY
+        if held[slot] != done + 1:
+            for k in range(n):
+                Zh[slot, k] = z[k]
+            known[slot], held[slot] = 0.0, done + 1
         for i in range(s):
             for k in range(n):
                 value = 0.0
                 for j in range(s):
                     value += _GAUSS_E[s - 1, i, j] * FZ[j, k]
-                W[i, k] = h * value
-                predicted[i, k] = W[i, k]
+                predicted[i, k] = h * value
         # The stage equations, solved here rather than in a function of their own: a call of a compiled
         # function (and a view such as FZ[i]) costs atomic reference-count operations on every array
         # it takes, which numba cannot prune around the indirect call of `hamilton`; they were about
         # 40% of a step's time on Kepler's problem (issue 15). STAGES_DOC says what this does.
-        previous, slowest = np.inf, 0.0
-        status, iterations, correction = NO_CONVERGENCE, MAX_ITERATIONS, np.inf
-        for iteration in range(1, MAX_ITERATIONS + 1):
-            singular = False
+        newton = done < report[NEWTON_UNTIL]
+        status, iterations, correction, slowest = NO_CONVERGENCE, MAX_ITERATIONS, np.inf, 0.0
+        for _attempt in range(3):
+            if newton and not fresh:
+                state[NEWTON] = 0.0
+                if _jacobian(hamilton, t, z, p, x, a, jac, f0, work, fw, sizes, stats) or _newton_matrix(s, h, jac, m, pivots):
+                    return SINGULAR
+                fresh, refreshed = True, True
+                state[NEWTON] = 1.0
             for i in range(s):
                 for k in range(n):
-                    work[k] = z[k] + W[i, k]
-                if hamilton(t + _GAUSS_C[s - 1, i] * h, work, p, fw, x, a):
-                    singular = True
+                    W[i, k] = predicted[i, k]
+            previous, before, slowest = np.inf, np.inf, 0.0
+            status, iterations, correction = NO_CONVERGENCE, MAX_ITERATIONS, np.inf
+            for iteration in range(1, MAX_ITERATIONS + 1):
+                singular = False
+                for i in range(s):
+                    for k in range(n):
+                        work[k] = z[k] + W[i, k]
+                    if hamilton(t + _GAUSS_C[s - 1, i] * h, work, p, fw, x, a):
+                        singular = True
+                        break
+                    for k in range(n):
+                        FZ[i, k] = fw[k]
+                if singular:
+                    status, iterations, correction = SINGULAR, iteration, np.inf
                     break
-                for k in range(n):
-                    FZ[i, k] = fw[k]
-            if singular:
-                status, iterations, correction = SINGULAR, iteration, np.inf
+                stats[NFEV] += s
+                for i in range(s):
+                    for k in range(n):
+                        value = -W[i, k]
+                        for j in range(s):
+                            value += h * _GAUSS_A[s - 1, i, j] * FZ[j, k]
+                        g[i * n + k] = value
+                if newton:  # g = m^-1 g with the LU factors of `_newton_matrix` (their row exchanges in `pivots`)
+                    for k in range(unknowns):
+                        g[k], g[pivots[k]] = g[pivots[k]], g[k]
+                    for i in range(unknowns):
+                        for j in range(i):
+                            g[i] -= m[i, j] * g[j]
+                    for i in range(unknowns - 1, -1, -1):
+                        for j in range(i + 1, unknowns):
+                            g[i] -= m[i, j] * g[j]
+                        g[i] /= m[i, i]
+                change = 0.0
+                for i in range(s):
+                    for k in range(n):
+                        W[i, k] += g[i * n + k]
+                        step_change = abs(g[i * n + k])
+                        if step_change > 0.0:
+                            change = max(change, step_change / (sizes[k] if sizes[k] > 0.0 else 1.0))
+                if not np.isfinite(change):
+                    status, iterations, correction = NONFINITE, iteration, change
+                    break
+                if change <= ROUNDOFF:  # FZ was evaluated at stage values within an ulp of the solution
+                    status, iterations, correction = DONE, iteration, change
+                    break
+                if iteration > (1 if newton else 2) and change >= (previous if newton else before):
+                    # the corrections stopped decreasing (fixed-point: over two sweeps): round-off, or no convergence
+                    status, iterations, correction = (DONE if change <= STAGNATION else NO_CONVERGENCE), iteration, change
+                    break
+                if not newton and iteration > 2 and change > STAGNATION and change > FIXED_SLOW * before:
+                    status, iterations, correction = NO_CONVERGENCE, iteration, change  # too slow: Newton's turn
+                    break
+                if iteration > 1:
+                    slowest = max(slowest, change / previous)
+                previous, before = change, previous
+                correction = change
+            if status == DONE:
                 break
-            stats[NFEV] += s
-            for i in range(s):
-                for k in range(n):
-                    value = -W[i, k]
-                    for j in range(s):
-                        value += h * _GAUSS_A[s - 1, i, j] * FZ[j, k]
-                    g[i * n + k] = value
-            # g = m^-1 g with the LU factors of `_newton_matrix` (their row exchanges in `pivots`)
-            for k in range(unknowns):
-                g[k], g[pivots[k]] = g[pivots[k]], g[k]
-            for i in range(unknowns):
-                for j in range(i):
-                    g[i] -= m[i, j] * g[j]
-            for i in range(unknowns - 1, -1, -1):
-                for j in range(i + 1, unknowns):
-                    g[i] -= m[i, j] * g[j]
-                g[i] /= m[i, i]
-            change = 0.0
-            for i in range(s):
-                for k in range(n):
-                    W[i, k] += g[i * n + k]
-                    step_change = abs(g[i * n + k])
-                    if step_change > 0.0:
-                        change = max(change, step_change / (sizes[k] if sizes[k] > 0.0 else 1.0))
-            if not np.isfinite(change):
-                status, iterations, correction = NONFINITE, iteration, change
-                break
-            if change <= ROUNDOFF:  # FZ was evaluated at stage values within an ulp of the solution
-                status, iterations, correction = DONE, iteration, change
-                break
-            if iteration > 1 and change >= previous:  # the corrections stopped decreasing: round-off, or no convergence
-                status, iterations, correction = (DONE if change <= STAGNATION else NO_CONVERGENCE), iteration, change
-                break
-            if iteration > 1:
-                slowest = max(slowest, change / previous)
-            previous = change
-            correction = previous
-        if status == NO_CONVERGENCE and not refreshed:
-            fresh = False  # a Jacobian from an earlier step: refresh it and try again
-            state[NEWTON] = 0.0
-            continue
+            if not newton:  # fixed-point iteration failed: the same step by Newton, with a fresh matrix
+                newton, fresh = True, False
+                report[NEWTON_UNTIL] = done + RETRY
+                report[FALLBACKS] += 1.0
+                continue
+            if status == NO_CONVERGENCE and not refreshed:
+                fresh = False  # a Jacobian from an earlier step: refresh it and try again
+                continue
+            break
         if status != DONE:
             return status
-        fresh, refreshed = slowest <= SLOW, False
-        state[NEWTON] = 1.0 if fresh else 0.0
+        if newton:
+            fresh, refreshed = slowest <= SLOW, False
+            state[NEWTON] = 1.0 if fresh else 0.0
         report[ITERATIONS_MAX] = max(report[ITERATIONS_MAX], iterations)
         report[CORRECTION_MAX] = max(report[CORRECTION_MAX], correction)
         deviation = 0.0
@@ -765,10 +918,34 @@ def gauss_run(s, z, state, control, ts, zs, p, stats, sizes, memory, pivots, ham
         t_new = t_end if done >= steps else t0 + done * h
         stats[NSTEPS] += 1
         j = int(state[NEXT_SAMPLE])
+        m_nodes = 0
         if (j < ts.shape[0] and ts[j] <= t_new) or use_event:
-            if hamilton(t, z, p, f0, x, a) or hamilton(t_new, z_new, p, f1, x, a):
+            # the interpolant's nodes: the starts of this step and of the NODES - 2 before it (F computed
+            # once for each and kept), and this step's end
+            for r in range(max(0, done - NODES + 1), done):
+                slot = r % _HISTORY
+                if held[slot] != r + 1:
+                    continue  # not kept (never, within one run: every step's start is stored)
+                if known[slot] == 0.0:
+                    for k in range(n):
+                        work[k] = Zh[slot, k]
+                    if hamilton(t0 + r * h, work, p, fw, x, a):
+                        return SINGULAR
+                    stats[NFEV] += 1
+                    for k in range(n):
+                        Fh[slot, k] = fw[k]
+                    known[slot] = 1.0
+                tn[m_nodes] = t0 + r * h
+                for k in range(n):
+                    Zn[m_nodes, k], Fn[m_nodes, k] = Zh[slot, k], Fh[slot, k]
+                m_nodes += 1
+            if hamilton(t_new, z_new, p, f1, x, a):
                 return SINGULAR
-            stats[NFEV] += 2
+            stats[NFEV] += 1
+            tn[m_nodes] = t_new
+            for k in range(n):
+                Zn[m_nodes, k], Fn[m_nodes, k] = z_new[k], f1[k]
+            m_nodes += 1
         t_end_here = t_new
         event_found = False
         if use_event:
@@ -776,12 +953,19 @@ def gauss_run(s, z, state, control, ts, zs, p, stats, sizes, memory, pivots, ham
             g_new = event(t_new, work, p, x, a)
             if (state[EVENT_VALUE] < 0.0) != (g_new < 0.0) and state[EVENT_VALUE] != 0.0:
                 event_found = True
-                t_end_here = _gauss_root(hamilton, event, t, h, z, f0, z_new, f1, p, x, a, state[EVENT_VALUE])
-                _hermite(t, h, z, f0, z_new, f1, t_end_here, z_event)
+                t_end_here = _gauss_root(hamilton, event, tn, Zn, Fn, m_nodes, xs, q, p, x, a, state[EVENT_VALUE])
+                theta = (t_end_here - t) / h
+                if not 0.0 < theta < 1.0 or _gauss_sample(hamilton, s, t, h, theta, z, compensation, FZ, sizes, p, x, a, z_event, W_sample, F_sample, work, fw, stats):
+                    _hermite(tn, Zn, Fn, m_nodes, t_end_here, z_event, xs, q)
             else:
                 state[EVENT_VALUE] = g_new
         while j < ts.shape[0] and ts[j] <= t_end_here:
-            _hermite(t, h, z, f0, z_new, f1, ts[j], work)
+            theta = (ts[j] - t) / h
+            if ts[j] == t_new:
+                for k in range(n):
+                    work[k] = z_new[k]
+            elif not 0.0 < theta < 1.0 or _gauss_sample(hamilton, s, t, h, theta, z, compensation, FZ, sizes, p, x, a, work, W_sample, F_sample, scratch, fw, stats):
+                _hermite(tn, Zn, Fn, m_nodes, ts[j], work, xs, q)
             hamilton(ts[j], work, p, fw, x, a)
             _velocity_state(work, fw, zs[j])
             j += 1
@@ -792,6 +976,11 @@ def gauss_run(s, z, state, control, ts, zs, p, stats, sizes, memory, pivots, ham
             else:
                 z[k], compensation[k] = z_new[k], lost[k]
             sizes[k] = max(sizes[k], abs(z[k]))
+        if m_nodes > 0 and not event_found:  # the next step's start, with F known
+            slot = done % _HISTORY
+            for k in range(n):
+                Zh[slot, k], Fh[slot, k] = z[k], f1[k]
+            known[slot], held[slot] = 1.0, done + 1
         t = t_end_here
         state[T], state[H] = t, done
         if event_found:

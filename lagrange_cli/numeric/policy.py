@@ -54,6 +54,9 @@ IMPLICIT_COST = 12.0
 (12 compiled evaluations), measured (benchmarks/auto_bench.py) between 8 and 20: 71-77 us
 against 5.7-9 us on the damped stiff spring at k = 1e8, where the two are within 2x of each
 other (DOP853 17338 steps, LSODA 1252), and 84-130 us against 5-13 us on the damped cart."""
+GAUSS_STAGES = (2, 3)
+"""The Gauss methods the pilot chooses from: 2 stages (order 4) and 3 (order 6, about 1.5x the
+evaluations a step at 2-4x the step on Kepler e = 0.5 at 1e-8..1e-10: fewer evaluations in all)."""
 PILOT_ATOL = 1e-2
 """The symplectic pilot's absolute tolerance, relative to rtol (a component near zero is measured against this)."""
 
@@ -74,6 +77,7 @@ def resolve(
     backend: str = "auto",
     max_step: float | None = None,
     projection: bool | None = None,
+    stages: int | None = None,
 ) -> Settings:
     """`validate`, then `decide`: settings ready to run; raises `LagrangeError` on bad input."""
     settings = validate(
@@ -91,6 +95,7 @@ def resolve(
         backend=backend,
         max_step=max_step,
         projection=projection,
+        stages=stages,
     )
     return decide(model, settings)
 
@@ -98,10 +103,10 @@ def resolve(
 def decide(model: Model, settings: Settings) -> Settings:
     """`settings` with `auto` resolved (method and backend), the symplectic step, and Baumgarte's
     alpha for kept constraints; notes say why and flag an initial state off the constraints."""
-    method, backend, step, rate, notes = _choose(model, settings)
+    method, backend, step, stages, rate, notes = _choose(model, settings)
     alpha = stabilisation(rate, settings.t_end) if model.constraints else None
     notes = (*notes, *constraint_notes(model, settings.values, settings.y0))
-    return dataclasses.replace(settings, method=method, backend=backend, step=step, alpha=alpha, notes=(*settings.notes, *notes))
+    return dataclasses.replace(settings, method=method, backend=backend, step=step, stages=stages, alpha=alpha, notes=(*settings.notes, *notes))
 
 
 def stabilisation(rate: float, t_end: float) -> float:
@@ -155,8 +160,8 @@ def constraint_notes(model: Model, p: Sequence[float], y0: Sequence[float]) -> l
     return notes
 
 
-def _choose(model: Model, settings: Settings) -> tuple[str, str, float | None, float, tuple[str, ...]]:
-    """Resolve `auto` (method and backend) and the symplectic step, saying why in notes."""
+def _choose(model: Model, settings: Settings) -> tuple[str, str, float | None, int, float, tuple[str, ...]]:
+    """Resolve `auto` (method and backend) and the symplectic step and stages, saying why in notes."""
     method, backend, step, t_end, rtol, p, y0 = settings.method, settings.backend, settings.step, settings.t_end, settings.rtol, settings.values, settings.y0
     notes: list[str] = []
     if method == "symplectic" and any(not c.holonomic for c in model.constraints):
@@ -185,9 +190,11 @@ def _choose(model: Model, settings: Settings) -> tuple[str, str, float | None, f
         else:
             method, why = choose(model, settings, found, compiled=backend != "python" and compile.numba_available())
         notes.append(f"method auto -> {method}: {why}")
+    stages = settings.stages
     if method == "symplectic" and step is None:
-        step, chosen = _symplectic_choice(model, found, rate, t_end, rtol, p, y0)
+        step, stages, chosen = _symplectic_choice(model, found, rate, t_end, rtol, p, y0, (stages,) if stages is not None else GAUSS_STAGES)
         notes.extend(chosen)
+    stages = stages if stages is not None else STAGES
     if backend == "auto":
         backend, why = _backend(model, method, rate, t_end)
         notes.append(f"backend auto -> {backend}: {why}")
@@ -196,7 +203,7 @@ def _choose(model: Model, settings: Settings) -> tuple[str, str, float | None, f
             raise LagrangeError(f"the symplectic method needs numba: {compile.NUMBA_HINT}, or use another --method")
         backend = "python"
         notes.append(f"backend compiled -> python: numba is not installed ({compile.NUMBA_HINT})")
-    return method, backend, step, rate, tuple(notes)
+    return method, backend, step, stages, rate, tuple(notes)
 
 
 def _backend(model: Model, method: str, rate: float, t_end: float) -> tuple[str, str]:
@@ -215,8 +222,10 @@ def _backend(model: Model, method: str, rate: float, t_end: float) -> tuple[str,
     return "python", "a short run: compiling would cost more than it saves"
 
 
-def _symplectic_choice(model: Model, found: diagnostics.Spectrum | None, rate: float, t_end: float, rtol: float, p: Sequence[float], y0: Sequence[float]) -> tuple[float, list[str]]:
-    """The symplectic step from a pilot (`symplectic_pilot`) started at `symplectic_step`'s guess, and notes saying how."""
+def _symplectic_choice(
+    model: Model, found: diagnostics.Spectrum | None, rate: float, t_end: float, rtol: float, p: Sequence[float], y0: Sequence[float], choices: tuple[int, ...]
+) -> tuple[float, int, list[str]]:
+    """The symplectic step and stages from pilots (`symplectic_pilot`) started at `symplectic_step`'s guess, and notes saying how."""
     guess = symplectic_step(rate, t_end, rtol)
     if found is None:
         origin = "t_end/1000: the linearisation at the initial state could not be evaluated"
@@ -224,24 +233,27 @@ def _symplectic_choice(model: Model, found: diagnostics.Spectrum | None, rate: f
         origin = "t_end/1000: the linearisation at the initial state has no rates"
     else:
         origin = f"the fastest rate at the initial state, {rate:.3g}/s, and rtol"
-    pilot = symplectic_pilot(model, guess, t_end, rtol, p, y0)
+    pilot = symplectic_pilot(model, guess, t_end, rtol, p, y0, choices)
     if pilot is None:
-        return guess, [f"symplectic step {guess:.3g} ({origin}): no pilot run (the momenta at the initial state cannot be evaluated; give --step)"]
+        return guess, choices[0] if len(choices) == 1 else STAGES, [f"symplectic step {guess:.3g} ({origin}): no pilot run (the momenta at the initial state cannot be evaluated; give --step)"]
     notes = [
-        f"symplectic step {pilot.step:.3g} from a pilot run started at {guess:.3g} ({origin}): runs at h and h/2 over t = {pilot.span:.3g} estimate the error at t_end at "
-        f"{pilot.estimate:.2g} x rtol ({pilot.steps} pilot steps); the step stays fixed (that is what makes the method symplectic)"
+        f"symplectic step {pilot.step:.3g}, {pilot.stages} stages (order {2 * pilot.stages}) from pilot runs started at {guess:.3g} ({origin}): runs at h and h/2 over t = {pilot.span:.3g} estimate the error at t_end at "
+        f"{pilot.estimate:.2g} x rtol ({pilot.steps} pilot steps), at an expected {pilot.cost:.3g} evaluations per unit time, the fewest of {', '.join(f'{s} stages' for s in choices)}; "
+        "the step stays fixed (that is what makes the method symplectic)"
     ]
     if not pilot.controlled:
         notes.append(
             f"warning: the symplectic method's pilot could not find a step that meets rtol {rtol:g} (estimate {pilot.estimate:.2g} x rtol at step {pilot.step:.3g}): "
             "its error is not controlled; give a smaller --step, use an adaptive --method (DOP853, Radau), or change coordinates"
         )
-    return pilot.step, notes
+    return pilot.step, pilot.stages, notes
 
 
-def symplectic_pilot(model: Model, guess: float, t_end: float, rtol: float, p: Sequence[float], y0: Sequence[float]) -> integrators.GaussPilot | None:
-    """The pilot runs of the symplectic method from the step `guess` (integrators.pilot_gauss),
-    once per model and start; None where the momenta cannot be evaluated at the initial state.
+def symplectic_pilot(model: Model, guess: float, t_end: float, rtol: float, p: Sequence[float], y0: Sequence[float], choices: tuple[int, ...] = GAUSS_STAGES) -> integrators.GaussPilot | None:
+    """The pilot runs of the symplectic method from the step `guess` (integrators.pilot_gauss), for
+    each stage count of `choices`, and the one whose step meets the tolerance at the fewest
+    evaluations per unit time (the stage count with the best step and cost; the default STAGES when
+    none meets it), once per model and start; None where the momenta cannot be evaluated at the initial state.
     `simulate` asks again (the same answer) for the yardstick of its run's monitor."""
 
     def compute() -> integrators.GaussPilot | None:
@@ -254,9 +266,13 @@ def symplectic_pilot(model: Model, guess: float, t_end: float, rtol: float, p: S
             return None
         z0 = np.concatenate([state[: len(state) // 2], np.array(momenta, dtype=float)])
         problem = integrators.Problem(0.0, t_end, state, np.empty(0), np.array(values, dtype=float), False, integrators.MAX_STEPS["compiled"])
-        return integrators.pilot_gauss(numba, problem, z0, STAGES, guess, rtol, PILOT_ATOL * rtol)
+        pilots = [integrators.pilot_gauss(numba, problem, z0, stages, guess, rtol, PILOT_ATOL * rtol) for stages in choices]
+        controlled = [pilot for pilot in pilots if pilot.controlled and pilot.evaluations > 0.0]
+        if not controlled:
+            return next((pilot for pilot in pilots if pilot.stages == STAGES), pilots[0])
+        return min(controlled, key=lambda pilot: pilot.cost)
 
-    return memo.once(model, ("symplectic pilot", guess, t_end, rtol, tuple(p), tuple(y0)), compute)
+    return memo.once(model, ("symplectic pilot", guess, t_end, rtol, tuple(p), tuple(y0), choices), compute)
 
 
 def chosen_pilot(model: Model, settings: Settings) -> integrators.GaussPilot | None:
@@ -265,8 +281,11 @@ def chosen_pilot(model: Model, settings: Settings) -> integrators.GaussPilot | N
         return None
     guess = symplectic_step(initial_rate(model, settings), settings.t_end, settings.rtol)
     store = model.__dict__.get(memo.SLOT, {})
-    pilot = store.get(("symplectic pilot", guess, settings.t_end, settings.rtol, tuple(settings.values), tuple(settings.y0)))
-    return pilot if pilot is not None and pilot.step == settings.step else None
+    for choices in (GAUSS_STAGES, (settings.stages,)):  # the stages were chosen, or given
+        pilot = store.get(("symplectic pilot", guess, settings.t_end, settings.rtol, tuple(settings.values), tuple(settings.y0), choices))
+        if pilot is not None and pilot.step == settings.step and pilot.stages == settings.stages:
+            return pilot
+    return None
 
 
 def symplectic_step(rate: float, t_end: float, rtol: float) -> float:

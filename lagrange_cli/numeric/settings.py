@@ -45,7 +45,9 @@ class Settings:
     rtol: float
     atol: float
     step: float | None
-    stages: int
+    stages: int | None
+    """Gauss-Legendre stages of the symplectic method; None (as `validate` returns it when not given):
+    `policy.decide` chooses them with the step (given a step, STAGES)."""
     max_step: float
     t_eval: tuple[float, ...]
     parameters: tuple[tuple[str, float], ...]
@@ -95,9 +97,11 @@ def validate(
     backend: str = "auto",
     max_step: float | None = None,
     projection: bool | None = None,
+    stages: int | None = None,
 ) -> Settings:
     """Validated settings, `auto` left as asked; raises `LagrangeError` on bad input. `projection`
-    (default: on when the model keeps constraints) projects onto them along the run."""
+    (default: on when the model keeps constraints) projects onto them along the run. `stages`: the
+    symplectic method's Gauss-Legendre stages (1, 2 or 3: order 2, 4, 6; default: the pilot's choice)."""
     check(model)
     file = dict(model.simulate)
     end = _positive("t_end", t_end if t_end is not None else file.get("t_end", DEFAULTS["t_end"]))
@@ -118,7 +122,9 @@ def validate(
     if projection is not None and not isinstance(projection, bool):
         raise LagrangeError(f"projection must be true or false, got {projection!r}")
     project = bool(model.constraints) if projection is None else projection and bool(model.constraints)
-    return Settings(0.0, end, chosen_method, backend, relative, absolute, fixed, STAGES, limit, times, tuple(zip(names, p, strict=True)), y0, until, event, project)
+    if stages is not None and (isinstance(stages, bool) or stages not in (1, 2, 3)):
+        raise LagrangeError(f"stages must be 1, 2 or 3 (the Gauss-Legendre method of order 2, 4 or 6), got {stages!r}")
+    return Settings(0.0, end, chosen_method, backend, relative, absolute, fixed, stages, limit, times, tuple(zip(names, p, strict=True)), y0, until, event, project)
 
 
 def resolve(model: Model, **arguments: object) -> Settings:

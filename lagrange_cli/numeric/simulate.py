@@ -31,7 +31,7 @@ from lagrange_cli.numeric import codegen, compile, integrators, policy
 from lagrange_cli.numeric.integrators import Problem, Progress, Run, Stats
 from lagrange_cli.numeric.policy import resolve
 from lagrange_cli.numeric.projection import Correction, Projector
-from lagrange_cli.numeric.settings import Settings, check
+from lagrange_cli.numeric.settings import STAGES, Settings, check
 from lagrange_cli.numeric.status import Status
 
 FAILURES = {
@@ -153,6 +153,7 @@ def simulate(
     progress: Progress | None = None,
     max_steps: int | None = None,
     projection: bool | None = None,
+    stages: int | None = None,
 ) -> Trajectory:
     """Integrate `model` from its initial state; see the module docstring for the conventions.
     `max_steps` is the step budget (default `integrators.MAX_STEPS` of the backend): a run that
@@ -177,6 +178,7 @@ def simulate(
         backend=backend,
         max_step=max_step,
         projection=projection,
+        stages=stages,
     )
     return integrate(model, settings, progress, max_steps, Timing(plain.generate_seconds, plain.import_seconds, 0.0, 0.0))
 
@@ -318,7 +320,7 @@ def solver_for(settings: Settings, python: compile.Functions, numba: compile.Fun
     if settings.method == "symplectic":
         if settings.step is None:
             raise ValueError("the symplectic method needs its step (policy.decide chooses it)")
-        return integrators.Gauss(numba, python, settings.stages, settings.step)
+        return integrators.Gauss(numba, python, settings.stages if settings.stages is not None else STAGES, settings.step)
     return integrators.ExplicitRK(numba, settings.method, settings.rtol, settings.atol, settings.max_step)
 
 
