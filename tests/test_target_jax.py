@@ -339,6 +339,42 @@ def test_a_diagonal_mass_matrix_costs_one_division_per_coordinate() -> None:
     assert solve.count(" / _u") == 2 and " * _u" not in solve
 
 
+def xla_trig_calls(module: ModuleType, n: int) -> int:
+    """The sine and cosine operations in XLA's optimized CPU program for `jax.jit(jax.vmap(rhs))` over 100 states."""
+    states = jnp.zeros((100, 2 * n))
+    text = jax.jit(jax.vmap(module.rhs, in_axes=(None, 0))).lower(0.0, states).compile().as_text()
+    return text.count(" sine(") + text.count(" cosine(")
+
+
+def test_xla_computes_each_sine_and_cosine_once(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Sines and cosines go through `_kept`, so XLA's CPU fusion computes each once under jit of vmap (a count
+    in the optimized program, not a timing): the 3-link chain's rhs has 3 sines and 3 cosines, where without
+    `_kept` XLA recomputes them in each fused loop that reads them; the values are the same."""
+    model = model_from(ROOT / "systems" / "chain_3.yaml")
+    kept = load_module(jax_target.emit(model), tmp_path / "kept.py")
+    assert kept.rhs.__code__.co_names.count("_kept") and xla_trig_calls(kept, model.n) == 2 * model.n
+    monkeypatch.setattr(jax_target, "KEEP", False)
+    plain_code = jax_target.emit(model)
+    assert "_kept" not in plain_code
+    plain = load_module(plain_code, tmp_path / "plain.py")
+    assert xla_trig_calls(plain, model.n) > 2 * 2 * model.n
+    states = jnp.asarray(np.random.default_rng(3).uniform(-2.0, 2.0, (50, 2 * model.n)))
+    np.testing.assert_allclose(np.asarray(jax.vmap(kept.rhs, in_axes=(None, 0))(0.0, states)), np.asarray(jax.vmap(plain.rhs, in_axes=(None, 0))(0.0, states)), rtol=1e-14, atol=1e-14)
+
+
+def test_kept_is_the_identity_and_so_is_its_derivative(tmp_path: Path) -> None:
+    """`_kept(v)` = v / (v * 0 + 1) is v bit for bit (signed zero, tiny, huge; XLA on CPU flushes subnormals to
+    zero in every operation, so none is tried) and its derivative is 1; a non-finite value gives NaN (as sin
+    and cos of a non-finite angle do)."""
+    module = load_module(jax_target.emit(model_from(ROOT / "systems" / "double_pendulum.yaml")), tmp_path / "target.py")
+    values = np.array([0.0, -0.0, 2.3e-308, -1e-300, 1.0, -0.3, 1e308, -1.7976931348623157e308, np.pi])
+    out = np.asarray(jax.jit(jax.vmap(module._kept))(jnp.asarray(values)))
+    assert out.tobytes() == values.tobytes()
+    assert all(float(jax.grad(module._kept)(x)) == 1.0 for x in (0.0, -0.7, 1e300))
+    assert np.isnan(np.asarray(module._kept(jnp.asarray([np.inf, np.nan])))).all()
+    assert "_kept" not in jax_target.emit(model_from(ROOT / "systems" / "kepler.yaml")), "no trig, no helper"
+
+
 # -- --form hamilton ------------------------------------------------------------------------------------
 
 

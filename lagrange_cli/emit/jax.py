@@ -32,6 +32,7 @@ from __future__ import annotations
 import builtins
 import keyword
 import math
+import re
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -109,6 +110,7 @@ class _Writer:
         self.definitions = definitions
         self.names = jax_names(model)
         self.signals = frozenset(i.name for i in model.inputs)
+        self.uses_kept = False
         n = model.n
         self.upper = [(i, j) for i in range(n) for j in range(i, n)]
         forms = model.symengine
@@ -162,10 +164,17 @@ class _Writer:
         definitions, rewritten = restructure(exprs, [p.name for p in self.model.parameters], tag=tag)
         lines = []
         for lhs, value in definitions:
-            lines.append(f"{lhs} = {printer.doprint(value)}")
+            lines.append(f"{lhs} = {self.kept(printer.doprint(value))}")
             printer.names[lhs] = lhs
         temporaries, results = printer.block(rewritten, f"_c{tag}", [*self.names.values(), *(lhs for lhs, _ in definitions)])
-        return lines + [f"{lhs} = {code}" for lhs, code in temporaries], results
+        return lines + [f"{lhs} = {self.kept(code)}" for lhs, code in temporaries], results
+
+    def kept(self, code: str) -> str:
+        """`code`, through `_kept` when it calls a function XLA counts as cheap but which costs a libm call
+        (`kept`); the module then defines `_kept`."""
+        wrapped = kept(code)
+        self.uses_kept = self.uses_kept or wrapped != code
+        return wrapped
 
     def function(self, name: str, doc: str, exprs: Sequence[Any], state: str, shape: str) -> str:
         lines, results = self.block(exprs)
@@ -274,7 +283,7 @@ class _Writer:
             *input_constants(model),
         ]
         head = docstring("\n".join([*header, ""])) + "\n\nimport jax.numpy as jnp\n\n" + "\n".join(constants)
-        return head + "\n\n\n" + "\n\n\n".join([*_helpers(model), *functions]) + "\n"
+        return head + "\n\n\n" + "\n\n\n".join([*_helpers(model), *kept_helper(self.uses_kept), *functions]) + "\n"
 
     def outputs(self) -> str:
         """`outputs(t, y, p=None, u=None)`: the file's outputs in its order, an array (FORMAT.md version 2)."""
@@ -309,6 +318,42 @@ def input_constants(model: Model) -> list[str]:
     names = ", ".join(literal(i.name) for i in model.inputs) + ("," if len(model.inputs) == 1 else "")
     defaults = ", ".join(f"{literal(i.name)}: {_number(i.value)}" for i in model.inputs)
     return [f"INPUT_NAMES = ({names})", f"INPUTS = {{{defaults}}}", f"NU = {len(model.inputs)}"]
+
+
+KEPT_CALLS = re.compile(r"\bjnp\.(sin|cos|tan)\(")
+"""The calls whose values `kept` stores: XLA counts sin, cos and tan of reals as cheap (as a multiplication)
+and so recomputes them in every fused loop that uses them, though each is a libm-grade evaluation (about
+8.5 ns per float64 value on CPU). Other costly functions (exp, log, sqrt, a real power, atan2, a division)
+XLA counts as expensive and computes once by itself."""
+
+
+KEEP = True
+"""Whether `kept` wraps anything (False: the previous modules, for benchmarks/jax_bench.py --no-kept)."""
+
+
+def kept(code: str) -> str:
+    """`_kept(code)` when the printed expression `code` calls sin, cos or tan (`KEPT_CALLS`), else `code`.
+    Meant for the right-hand side of a temporary (a value used more than once): under `jax.jit` of
+    `jax.vmap` on CPU, XLA otherwise recomputes it in each fused loop that reads it (the 10-link
+    chain's rhs: each of its 20 sines and cosines about 28 times; benchmarks/jax_bench.py --no-kept)."""
+    return f"_kept({code})" if KEEP and KEPT_CALLS.search(code) else code
+
+
+def kept_helper(used: bool = True) -> list[str]:
+    """The definition of `_kept` (nothing when not `used`)."""
+    if not used:
+        return []
+    return [
+        define(
+            "_kept",
+            "value",
+            "`value` itself, divided by value * 0 + 1: XLA computes a division once and stores it, where it would\n"
+            "recompute a sine or cosine in every fused loop that uses it, and it cannot fold this divisor (a\n"
+            "constant 1.0 it would). The divisor is exactly 1.0 for a finite value, and dividing by 1.0 is exact, so\n"
+            "the value and its derivative are unchanged (a NaN or infinite value gives NaN).",
+            ["return value / (value * 0.0 + 1.0)"],
+        )
+    ]
 
 
 def _helpers(model: Model) -> list[str]:
@@ -497,7 +542,7 @@ class _HamiltonWriter(_Writer):
             *input_constants(model),
         ]
         head = docstring("\n".join([*header, ""])) + "\n\nimport jax.numpy as jnp\n\n" + "\n".join(constants)
-        return head + "\n\n\n" + "\n\n\n".join([*_helpers(model), *functions]) + "\n"
+        return head + "\n\n\n" + "\n\n\n".join([*_helpers(model), *kept_helper(self.uses_kept), *functions]) + "\n"
 
 
 UNROLLED_MAX = 12
