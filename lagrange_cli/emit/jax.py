@@ -169,6 +169,11 @@ class _Writer:
         temporaries, results = printer.block(rewritten, f"_c{tag}", [*self.names.values(), *(lhs for lhs, _ in definitions)])
         return lines + [f"{lhs} = {self.kept(code)}" for lhs, code in temporaries], results
 
+    def keep(self, code: str) -> str:
+        """`_kept(code)` (for `unrolled_solve`); the module then defines `_kept`."""
+        self.uses_kept = True
+        return f"_kept({code})"
+
     def kept(self, code: str) -> str:
         """`code`, through `_kept` when it calls a function XLA counts as cheap but which costs a libm call
         (`kept`); the module then defines `_kept`."""
@@ -205,7 +210,7 @@ class _Writer:
             jacobian = [[None if self.jacobian[r * n + j] == 0 else a[r * n + j] for j in range(n)] for r in range(k)]
             forcing = [None if expr == 0 else code for expr, code in zip(self.forcing, f, strict=True)]
             bias = [None if expr == 0 else _negate(code) for expr, code in zip(self.bias, c, strict=True)]
-            solved = unrolled_solve(n, mass, forcing, jacobian, bias)
+            solved = unrolled_solve(n, mass, forcing, jacobian, bias, self.keep if KEEP else None)
             return body + solved.lines + ["_x = _array([" + ", ".join(solved.results) + "])"]
         matrix = [[m[(min(i, j), max(i, j))] for j in range(n)] + [_negate(a[r * n + i]) for r in range(k)] for i in range(n)]
         matrix += [[a[r * n + j] for j in range(n)] + ["0.0"] * k for r in range(k)]
@@ -467,7 +472,7 @@ class _HamiltonWriter(_Writer):
             zero = {ij for ij, expr in zip(self.upper, self.mass, strict=True) if expr == 0}
             mass = {ij: (None if ij in zero else code) for ij, code in m.items()}
             shifted = [None if expr == 0 else code for expr, code in zip(self.shifted, results[len(self.mass) :], strict=True)]
-            solved = unrolled_solve(n, mass, shifted, [], [])
+            solved = unrolled_solve(n, mass, shifted, [], [], self.keep if KEEP else None)
             return body + solved.lines + [", ".join(velocities) + " = " + ", ".join(solved.results)]
         rows = ", ".join("[" + ", ".join(m[(min(i, j), max(i, j))] for j in range(n)) + "]" for i in range(n))
         body.append(f"_v = jnp.linalg.solve(_array([{rows}]), _array([{', '.join(results[len(self.mass) :])}]))")
@@ -545,9 +550,11 @@ class _HamiltonWriter(_Writer):
         return head + "\n\n\n" + "\n\n\n".join([*_helpers(model), *kept_helper(self.uses_kept), *functions]) + "\n"
 
 
-UNROLLED_MAX = 12
+UNROLLED_MAX = 20
 """Largest n + k (coordinates plus kept constraints) whose linear system is solved by unrolled
-scalar code (`unrolled_solve`) rather than `jnp.linalg.solve`; measured by benchmarks/jax_bench.py."""
+scalar code (`unrolled_solve`) rather than `jnp.linalg.solve`; measured by benchmarks/jax_bench.py
+(BENCHMARKS.md, 2026-11-26: with `_kept`, unrolled code takes 12 against 45 ms for 10^4 states of the
+15-link chain and 39-48 against 80 ms at 20 links, for a first call of 5.2 against 3.9 s and 9.3 against 6.4 s)."""
 
 
 @dataclass
@@ -558,7 +565,14 @@ class Solved:
     results: list[str]
 
 
-def unrolled_solve(n: int, mass: dict[tuple[int, int], str | None], forcing: Sequence[str | None], jacobian: Sequence[Sequence[str | None]], bias: Sequence[str | None]) -> Solved:
+def unrolled_solve(
+    n: int,
+    mass: dict[tuple[int, int], str | None],
+    forcing: Sequence[str | None],
+    jacobian: Sequence[Sequence[str | None]],
+    bias: Sequence[str | None],
+    keep: Callable[[str], str] | None = None,
+) -> Solved:
     """Scalar code for M x = F (and, with rows of A, for M x - A^T lam = F, A x = bias): the solution
     [x..., lam...] as one line per scalar, so that under `jax.vmap` every operation is elementwise over
     the batch (`jnp.linalg.solve` runs one LAPACK call per matrix on CPU).
@@ -570,13 +584,18 @@ def unrolled_solve(n: int, mass: dict[tuple[int, int], str | None], forcing: Seq
     needs pivoting: with Y = M^-1 A^T and x0 = M^-1 F (the same factors), S = A Y is symmetric
     positive definite when A has full rank, lam solves S lam = bias - A x0 (L D L^T again), and
     x = x0 + Y lam. Both factorizations are of positive definite matrices, where L D L^T without
-    pivoting is backward stable."""
+    pivoting is backward stable.
+
+    `keep` (the writers pass `_Writer.keep`: `_kept(code)`), when given, wraps each value computed here other
+    than a division (the sums of products: pivots, updated entries, substitutions), so that XLA stores it
+    rather than recomputing it in every fused loop that reads it (XLA computes a division once by itself)."""
     lines: list[str] = []
     counter = iter(range(1 << 30))
 
     def let(code: str) -> str:
         name = f"_u{next(counter)}"
-        lines.append(f"{name} = {code}")
+        stored = keep is not None and " / " not in code and not code.isidentifier()
+        lines.append(f"{name} = {keep(code) if stored and keep is not None else code}")
         return name
 
     def combine(base: str | None, terms: Sequence[str]) -> str | None:
