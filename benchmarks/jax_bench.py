@@ -4,7 +4,8 @@ Python loop over the pure-Python module's `rhs`, both in the same run.
     .venv/bin/python benchmarks/jax_bench.py                    # double pendulum, general chain N = 2, 5, 10, 15
     .venv/bin/python benchmarks/jax_bench.py --states 2000 --sizes 2 5
     .venv/bin/python benchmarks/jax_bench.py --unrolled-max 0   # every solve by jnp.linalg.solve (the old code)
-    .venv/bin/python benchmarks/jax_bench.py --no-kept          # sines and cosines not through `_kept` (the old code)
+    .venv/bin/python benchmarks/jax_bench.py --no-kept          # nothing through `_kept` (XLA recomputes shared values)
+    .venv/bin/python benchmarks/jax_bench.py --no-fast-trig     # jnp.sin and jnp.cos rather than the module's `_sincos`
 
 For each system: `derive --to jax` (64-bit mode) and `derive --to python`; 10^4 states drawn with
 seed 0 (angles in [-1, 1], rates in [-1, 1]); the JAX side is `jax.jit(jax.vmap(rhs, (None, 0, None)))`
@@ -94,7 +95,8 @@ def main() -> None:
     parser.add_argument("--states", type=int, default=10_000)
     parser.add_argument("--sizes", type=int, nargs="*", default=[2, 5, 10, 15])
     parser.add_argument("--unrolled-max", type=int, default=None, help="override lagrange_cli.emit.jax.UNROLLED_MAX (0: jnp.linalg.solve everywhere)")
-    parser.add_argument("--no-kept", action="store_true", help="lagrange_cli.emit.jax.KEEP = False: sin and cos not stored through `_kept` (XLA recomputes them)")
+    parser.add_argument("--no-kept", action="store_true", help="lagrange_cli.emit.jax.KEEP = False: nothing stored through `_kept` (XLA recomputes shared values)")
+    parser.add_argument("--no-fast-trig", action="store_true", help="lagrange_cli.emit.jax.FAST_TRIG = False: jnp.sin and jnp.cos rather than `_sincos`")
     args = parser.parse_args()
     import jax
 
@@ -104,9 +106,12 @@ def main() -> None:
     if args.unrolled_max is not None:
         jax_target.UNROLLED_MAX = args.unrolled_max
     jax_target.KEEP = not args.no_kept
+    jax_target.FAST_TRIG = not args.no_fast_trig
     systems = [("double_pendulum", (ROOT / "systems" / "double_pendulum.yaml").read_text())]
     systems += [(f"general_chain_{n}", pendulum.Chain("general", n).yaml()) for n in args.sizes]
-    print(f"jax {jax.__version__}, {args.states} states, unrolled solve for n + k <= {jax_target.UNROLLED_MAX}, _kept {'on' if jax_target.KEEP else 'off'}, load average {os.getloadavg()}")
+    print(
+        f"jax {jax.__version__}, {args.states} states, unrolled solve for n + k <= {jax_target.UNROLLED_MAX}, _kept {'on' if jax_target.KEEP else 'off'}, _sincos {'on' if jax_target.FAST_TRIG else 'off'}, load average {os.getloadavg()}"
+    )
     print("| system | n | first call (compile), CPU / wall s | vmap, CPU / wall ms | Python loop, CPU / wall ms | ratio CPU | ratio wall |")
     print("|---|---|---|---|---|---|---|")
     with tempfile.TemporaryDirectory() as folder:
