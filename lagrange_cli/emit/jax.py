@@ -282,6 +282,7 @@ class _Writer:
             "",
             "Outside a function's domain (the square root or logarithm of a negative number, a negative base to a",
             "real power) the result is NaN, and a singular mass matrix gives inf or NaN: code under jax.jit cannot raise.",
+            *SINCOS_NOTE * self.uses_sincos,
         ]
         if self.definitions:
             written = "; ".join(f"{fname}({', '.join(map(str, f.variables))}) = {sp.sstr(f.expr)}" for fname, f in sorted(self.definitions.items()))
@@ -347,6 +348,13 @@ FAST_TRIG = True
 """Whether the sines and cosines of the coordinates (`restructure`'s `_sin<k>`, `_cos<k>`) are computed by the
 module's `_sincos` (float64: a shared argument reduction and two polynomials, elementwise and vectorized by XLA,
 7x faster than XLA's sin plus cos) rather than by `jnp.sin` and `jnp.cos`; False for benchmarks/jax_bench.py --no-fast-trig."""
+
+SINCOS_NOTE = [
+    "",
+    "In float64 the sines and cosines of the coordinates come from _sincos (arithmetic XLA vectorizes, several",
+    "times faster than jnp.sin and jnp.cos): within 1e-14 of them for angles below 1e15 in magnitude, NaN beyond.",
+]
+"""The module docstring's paragraph on `_sincos`."""
 
 SINE = ("-1.66666666666666324348e-01", "8.33333333332248946124e-03", "-1.98412698298579493134e-04", "2.75573137070700676789e-06", "-2.50507602534068634195e-08", "1.58969099521155010221e-10")
 COSINE = ("4.16666666666666019037e-02", "-1.38888888888741095749e-03", "2.48015872894767294178e-05", "-2.75573143513906633035e-07", "2.08757232129817482790e-09", "-1.13596475577881948265e-11")
