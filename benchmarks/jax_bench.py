@@ -4,11 +4,14 @@ Python loop over the pure-Python module's `rhs`, both in the same run.
     .venv/bin/python benchmarks/jax_bench.py                    # double pendulum, general chain N = 2, 5, 10, 15
     .venv/bin/python benchmarks/jax_bench.py --states 2000 --sizes 2 5
     .venv/bin/python benchmarks/jax_bench.py --unrolled-max 0   # every solve by jnp.linalg.solve (the old code)
+    .venv/bin/python benchmarks/jax_bench.py --no-kept          # nothing through `_kept` (XLA recomputes shared values)
+    .venv/bin/python benchmarks/jax_bench.py --no-fast-trig     # jnp.sin and jnp.cos rather than the module's `_sincos`
 
 For each system: `derive --to jax` (64-bit mode) and `derive --to python`; 10^4 states drawn with
 seed 0 (angles in [-1, 1], rates in [-1, 1]); the JAX side is `jax.jit(jax.vmap(rhs, (None, 0, None)))`
 with its first call (tracing and XLA compilation) timed apart and excluded, then the best of
-REPEATS calls (each ended by `block_until_ready`); the Python side is one loop over the states.
+REPEATS calls (each ended by `block_until_ready`); the Python side is the best of LOOP_REPEATS loops over
+the states (best of several on both sides, so that a descheduled run on a shared machine inflates neither).
 Times are CPU time (`time.process_time`, all threads of this process) and wall; XLA on CPU may use
 more than one thread, so the CPU ratio is the fair one on a shared machine. The results agree to
 1e-9 (checked). The generated module solves M q_ddot = F by unrolled L D L^T code for
@@ -19,6 +22,7 @@ from __future__ import annotations
 
 import argparse
 import importlib.util
+import os
 import sys
 import tempfile
 import time
@@ -35,7 +39,8 @@ sys.path.insert(0, str(ROOT))
 
 import pendulum  # noqa: E402
 
-REPEATS = 5
+REPEATS = 20
+LOOP_REPEATS = 3
 
 
 def load(code: str, path: Path) -> ModuleType:
@@ -76,7 +81,10 @@ def bench(label: str, text: str, states: int, folder: Path) -> dict[str, Any]:
         best_cpu, best_wall = min(best_cpu, cpu), min(best_wall, wall)
     rows = y.tolist()
     rhs = reference.rhs
-    loop, loop_cpu, loop_wall = timed(lambda: [rhs(0.0, row) for row in rows])
+    loop_cpu = loop_wall = float("inf")
+    for _ in range(LOOP_REPEATS):
+        loop, cpu, wall = timed(lambda: [rhs(0.0, row) for row in rows])
+        loop_cpu, loop_wall = min(loop_cpu, cpu), min(loop_wall, wall)
     np.testing.assert_allclose(np.asarray(result), np.asarray(loop, dtype=float), rtol=1e-9, atol=1e-11)
     return {
         "system": label,
@@ -92,6 +100,8 @@ def main() -> None:
     parser.add_argument("--states", type=int, default=10_000)
     parser.add_argument("--sizes", type=int, nargs="*", default=[2, 5, 10, 15])
     parser.add_argument("--unrolled-max", type=int, default=None, help="override lagrange_cli.emit.jax.UNROLLED_MAX (0: jnp.linalg.solve everywhere)")
+    parser.add_argument("--no-kept", action="store_true", help="lagrange_cli.emit.jax.KEEP = False: nothing stored through `_kept` (XLA recomputes shared values)")
+    parser.add_argument("--no-fast-trig", action="store_true", help="lagrange_cli.emit.jax.FAST_TRIG = False: jnp.sin and jnp.cos rather than `_sincos`")
     args = parser.parse_args()
     import jax
 
@@ -100,9 +110,13 @@ def main() -> None:
 
     if args.unrolled_max is not None:
         jax_target.UNROLLED_MAX = args.unrolled_max
+    jax_target.KEEP = not args.no_kept
+    jax_target.FAST_TRIG = not args.no_fast_trig
     systems = [("double_pendulum", (ROOT / "systems" / "double_pendulum.yaml").read_text())]
     systems += [(f"general_chain_{n}", pendulum.Chain("general", n).yaml()) for n in args.sizes]
-    print(f"jax {jax.__version__}, {args.states} states, unrolled solve for n + k <= {jax_target.UNROLLED_MAX}")
+    print(
+        f"jax {jax.__version__}, {args.states} states, unrolled solve for n + k <= {jax_target.UNROLLED_MAX}, _kept {'on' if jax_target.KEEP else 'off'}, _sincos {'on' if jax_target.FAST_TRIG else 'off'}, load average {os.getloadavg()}"
+    )
     print("| system | n | first call (compile), CPU / wall s | vmap, CPU / wall ms | Python loop, CPU / wall ms | ratio CPU | ratio wall |")
     print("|---|---|---|---|---|---|---|")
     with tempfile.TemporaryDirectory() as folder:

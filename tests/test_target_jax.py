@@ -339,6 +339,68 @@ def test_a_diagonal_mass_matrix_costs_one_division_per_coordinate() -> None:
     assert solve.count(" / _u") == 2 and " * _u" not in solve
 
 
+def xla_trig_calls(module: ModuleType, n: int) -> int:
+    """The sine and cosine operations in XLA's optimized CPU program for `jax.jit(jax.vmap(rhs))` over 100 states."""
+    states = jnp.zeros((100, 2 * n))
+    text = jax.jit(jax.vmap(module.rhs, in_axes=(None, 0))).lower(0.0, states).compile().as_text()
+    return text.count(" sine(") + text.count(" cosine(")
+
+
+def test_xla_computes_each_sine_and_cosine_once(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Sines and cosines go through `_kept`, so XLA's CPU fusion computes each once under jit of vmap (a count
+    in the optimized program, not a timing): with `jnp.sin` and `jnp.cos` (FAST_TRIG off) the 3-link chain's
+    rhs has 3 sines and 3 cosines, where without `_kept` XLA recomputes them in each fused loop that reads
+    them; the values are the same. With `_sincos` (the default) XLA has no sine or cosine operation at all."""
+    model = model_from(ROOT / "systems" / "chain_3.yaml")
+    assert xla_trig_calls(load_module(jax_target.emit(model), tmp_path / "fast.py"), model.n) == 0, "_sincos: arithmetic only"
+    monkeypatch.setattr(jax_target, "FAST_TRIG", False)
+    kept = load_module(jax_target.emit(model), tmp_path / "kept.py")
+    assert kept.rhs.__code__.co_names.count("_kept") and xla_trig_calls(kept, model.n) == 2 * model.n
+    monkeypatch.setattr(jax_target, "KEEP", False)
+    plain_code = jax_target.emit(model)
+    assert "_kept" not in plain_code
+    plain = load_module(plain_code, tmp_path / "plain.py")
+    assert xla_trig_calls(plain, model.n) > 2 * 2 * model.n
+    states = jnp.asarray(np.random.default_rng(3).uniform(-2.0, 2.0, (50, 2 * model.n)))
+    np.testing.assert_allclose(np.asarray(jax.vmap(kept.rhs, in_axes=(None, 0))(0.0, states)), np.asarray(jax.vmap(plain.rhs, in_axes=(None, 0))(0.0, states)), rtol=1e-14, atol=1e-14)
+
+
+def test_kept_is_the_identity_and_so_is_its_derivative(tmp_path: Path) -> None:
+    """`_kept(v)` = v / (v * 0 + 1) is v bit for bit (signed zero, tiny, huge; XLA on CPU flushes subnormals to
+    zero in every operation, so none is tried) and its derivative is 1; a non-finite value gives NaN (as sin
+    and cos of a non-finite angle do)."""
+    module = load_module(jax_target.emit(model_from(ROOT / "systems" / "double_pendulum.yaml")), tmp_path / "target.py")
+    values = np.array([0.0, -0.0, 2.3e-308, -1e-300, 1.0, -0.3, 1e308, -1.7976931348623157e308, np.pi])
+    out = np.asarray(jax.jit(jax.vmap(module._kept))(jnp.asarray(values)))
+    assert out.tobytes() == values.tobytes()
+    assert all(float(jax.grad(module._kept)(x)) == 1.0 for x in (0.0, -0.7, 1e300))
+    assert np.isnan(np.asarray(module._kept(jnp.asarray([np.inf, np.nan])))).all()
+
+
+def test_sincos_is_sin_and_cos_to_1e_14_below_1e15_and_nan_beyond(tmp_path: Path) -> None:
+    """`_sincos` against numpy (libm) at 2000 random angles per decade up to 1e15, the quadrant boundaries and
+    signed zero: within 2.3e-16 below 1e12 and 1e-14 below 1e15; NaN at and beyond 1e15 and for NaN or inf;
+    its derivative (jax.grad, jit, vmap, second order) is (cos, -sin); float32 falls back to jnp.sin/jnp.cos."""
+    module = load_module(jax_target.emit(model_from(ROOT / "systems" / "double_pendulum.yaml")), tmp_path / "target.py")
+    sincos = jax.jit(jax.vmap(module._sincos))
+    rng = np.random.default_rng(11)
+    edges = np.array([0.0, -0.0, np.pi / 4, -np.pi / 4, np.pi / 2, np.pi, 3 * np.pi / 4, 1e-300, 1e6 * np.pi / 2])
+    for decade in range(-3, 16):
+        x = np.concatenate([rng.uniform(-1.0, 1.0, 2000) * 10.0**decade, edges])
+        s, c = (np.asarray(v) for v in sincos(jnp.asarray(x)))
+        bound = 2.3e-16 if decade < 12 else 1e-14
+        assert np.max(np.abs(s - np.sin(x))) <= bound and np.max(np.abs(c - np.cos(x))) <= bound, decade
+    assert np.signbit(np.asarray(sincos(jnp.asarray([-0.0]))[0]))[0]
+    far = np.asarray(sincos(jnp.asarray([1e15, -3e20, np.inf, np.nan, 1e300])))
+    assert np.isnan(far).all()
+    for x in (0.3, -2.0, 1e5 + 0.1):
+        assert float(jax.grad(lambda v: module._sincos(v)[0])(x)) == float(module._sincos(x)[1])
+        assert float(jax.grad(lambda v: module._sincos(v)[1])(x)) == -float(module._sincos(x)[0])
+        assert float(jax.grad(jax.grad(lambda v: module._sincos(v)[0]))(x)) == -float(module._sincos(x)[0])
+    x32 = jnp.asarray([0.5, 1e20], dtype=jnp.float32)
+    assert all(np.array_equal(np.asarray(a), np.asarray(b)) for a, b in zip(module._sincos(x32), (jnp.sin(x32), jnp.cos(x32)), strict=True))
+
+
 # -- --form hamilton ------------------------------------------------------------------------------------
 
 

@@ -32,6 +32,7 @@ from __future__ import annotations
 import builtins
 import keyword
 import math
+import re
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -109,6 +110,8 @@ class _Writer:
         self.definitions = definitions
         self.names = jax_names(model)
         self.signals = frozenset(i.name for i in model.inputs)
+        self.uses_kept = False
+        self.uses_sincos = False
         n = model.n
         self.upper = [(i, j) for i in range(n) for j in range(i, n)]
         forms = model.symengine
@@ -162,10 +165,31 @@ class _Writer:
         definitions, rewritten = restructure(exprs, [p.name for p in self.model.parameters], tag=tag)
         lines = []
         for lhs, value in definitions:
-            lines.append(f"{lhs} = {printer.doprint(value)}")
+            lines.append(f"{lhs} = {self.kept(self.sincos(printer.doprint(value)))}")
             printer.names[lhs] = lhs
         temporaries, results = printer.block(rewritten, f"_c{tag}", [*self.names.values(), *(lhs for lhs, _ in definitions)])
-        return lines + [f"{lhs} = {code}" for lhs, code in temporaries], results
+        return lines + [f"{lhs} = {self.kept(code)}" for lhs, code in temporaries], results
+
+    def sincos(self, code: str) -> str:
+        """`_sincos(x)[0]` for `jnp.sin(x)` and `_sincos(x)[1]` for `jnp.cos(x)` of a name `x` (the sines and
+        cosines of the coordinates that `restructure` computes once) when `FAST_TRIG`; the module then defines `_sincos`."""
+        match = SINCOS.fullmatch(code)
+        if not (FAST_TRIG and match):
+            return code
+        self.uses_sincos = True
+        return f"_sincos({match[2]})[{int(match[1] == 'cos')}]"
+
+    def keep(self, code: str) -> str:
+        """`_kept(code)` (for `unrolled_solve`); the module then defines `_kept`."""
+        self.uses_kept = True
+        return f"_kept({code})"
+
+    def kept(self, code: str) -> str:
+        """`code`, through `_kept` when it calls a function XLA counts as cheap but which costs a libm call
+        (`kept`); the module then defines `_kept`."""
+        wrapped = kept(code)
+        self.uses_kept = self.uses_kept or wrapped != code
+        return wrapped
 
     def function(self, name: str, doc: str, exprs: Sequence[Any], state: str, shape: str) -> str:
         lines, results = self.block(exprs)
@@ -196,7 +220,7 @@ class _Writer:
             jacobian = [[None if self.jacobian[r * n + j] == 0 else a[r * n + j] for j in range(n)] for r in range(k)]
             forcing = [None if expr == 0 else code for expr, code in zip(self.forcing, f, strict=True)]
             bias = [None if expr == 0 else _negate(code) for expr, code in zip(self.bias, c, strict=True)]
-            solved = unrolled_solve(n, mass, forcing, jacobian, bias)
+            solved = unrolled_solve(n, mass, forcing, jacobian, bias, self.keep if KEEP else None)
             return body + solved.lines + ["_x = _array([" + ", ".join(solved.results) + "])"]
         matrix = [[m[(min(i, j), max(i, j))] for j in range(n)] + [_negate(a[r * n + i]) for r in range(k)] for i in range(n)]
         matrix += [[a[r * n + j] for j in range(n)] + ["0.0"] * k for r in range(k)]
@@ -258,6 +282,7 @@ class _Writer:
             "",
             "Outside a function's domain (the square root or logarithm of a negative number, a negative base to a",
             "real power) the result is NaN, and a singular mass matrix gives inf or NaN: code under jax.jit cannot raise.",
+            *SINCOS_NOTE * self.uses_sincos,
         ]
         if self.definitions:
             written = "; ".join(f"{fname}({', '.join(map(str, f.variables))}) = {sp.sstr(f.expr)}" for fname, f in sorted(self.definitions.items()))
@@ -273,8 +298,8 @@ class _Writer:
             f"NP = {len(model.parameters)}",
             *input_constants(model),
         ]
-        head = docstring("\n".join([*header, ""])) + "\n\nimport jax.numpy as jnp\n\n" + "\n".join(constants)
-        return head + "\n\n\n" + "\n\n\n".join([*_helpers(model), *functions]) + "\n"
+        head = docstring("\n".join([*header, ""])) + "\n\n" + ("import jax\n" if self.uses_sincos else "") + "import jax.numpy as jnp\n\n" + "\n".join(constants)
+        return head + "\n\n\n" + "\n\n\n".join([*_helpers(model), *kept_helper(self.uses_kept), *sincos_helper(self.uses_sincos), *functions]) + "\n"
 
     def outputs(self) -> str:
         """`outputs(t, y, p=None, u=None)`: the file's outputs in its order, an array (FORMAT.md version 2)."""
@@ -315,6 +340,101 @@ def helpers(model: Model) -> list[str]:
     """The definitions every module of this target starts with: default_parameters, _parameters and _array
     (and default_inputs and _inputs for a file with inputs); for the other writers of JAX modules (`--form reduced`)."""
     return _helpers(model)
+
+
+KEPT_CALLS = re.compile(r"\bjnp\.(sin|cos|tan)\(|^_sincos\(")
+"""The calls whose values `kept` stores: XLA counts sin, cos and tan of reals as cheap (as a multiplication)
+and so recomputes them in every fused loop that uses them, though each is a libm-grade evaluation (about
+8.5 ns per float64 value on CPU). Other costly functions (exp, log, sqrt, a real power, atan2, a division)
+XLA counts as expensive and computes once by itself."""
+
+
+SINCOS = re.compile(r"jnp\.(sin|cos)\(([A-Za-z_][A-Za-z0-9_]*)\)")
+FAST_TRIG = True
+"""Whether the sines and cosines of the coordinates (`restructure`'s `_sin<k>`, `_cos<k>`) are computed by the
+module's `_sincos` (float64: a shared argument reduction and two polynomials, elementwise and vectorized by XLA,
+7x faster than XLA's sin plus cos) rather than by `jnp.sin` and `jnp.cos`; False for benchmarks/jax_bench.py --no-fast-trig."""
+
+SINCOS_NOTE = [
+    "",
+    "In float64 the sines and cosines of the coordinates come from _sincos (arithmetic XLA vectorizes, several",
+    "times faster than jnp.sin and jnp.cos): within 1e-14 of them for angles below 1e15 in magnitude, NaN beyond.",
+]
+"""The module docstring's paragraph on `_sincos`."""
+
+SINE = ("-1.66666666666666324348e-01", "8.33333333332248946124e-03", "-1.98412698298579493134e-04", "2.75573137070700676789e-06", "-2.50507602534068634195e-08", "1.58969099521155010221e-10")
+COSINE = ("4.16666666666666019037e-02", "-1.38888888888741095749e-03", "2.48015872894767294178e-05", "-2.75573143513906633035e-07", "2.08757232129817482790e-09", "-1.13596475577881948265e-11")
+"""The minimax coefficients of fdlibm's __kernel_sin and __kernel_cos (sin r = r + r^3 S(r^2), cos r = 1 - r^2/2 + r^4 C(r^2) on |r| <= pi/4)."""
+
+
+def sincos_helper(used: bool = True) -> list[str]:
+    """The definitions of `_sincos` and its derivative rule (nothing when not `used`); the module imports `jax`."""
+    if not used:
+        return []
+
+    def horner(coefficients: Sequence[str]) -> str:
+        text = coefficients[-1]
+        for c in reversed(coefficients[:-1]):
+            text = f"{c} + _z * ({text})"
+        return text
+
+    body = [
+        "x = jnp.asarray(x)",
+        "if x.dtype != jnp.float64:",
+        "    return jnp.sin(x), jnp.cos(x)",
+        "_k = jnp.round(x * 0.6366197723675814)",
+        "_r = ((x - _k * 1.5707963267341256) - _k * 6.077100506303966e-11) - _k * 2.0222662487111665e-21",
+        "_z = _r * _r",
+        f"_s = _r + _r * _z * ({horner(SINE)})",
+        f"_c = 1.0 - 0.5 * _z + _z * _z * ({horner(COSINE)})",
+        "_n = jnp.where(jnp.abs(x) < 1e15, _k, 0.0).astype(jnp.int64) & 3",
+        "_sin = jnp.where(x == 0, x, jnp.where(_n == 0, _s, jnp.where(_n == 1, _c, jnp.where(_n == 2, -_s, -_c))))",
+        "_cos = jnp.where(_n == 0, _c, jnp.where(_n == 1, -_s, jnp.where(_n == 2, -_c, _s)))",
+        "_far = ~(jnp.abs(x) < 1e15)",
+        "return jnp.where(_far, jnp.nan, _sin), jnp.where(_far, jnp.nan, _cos)",
+    ]
+    doc = (
+        "(sin x, cos x), elementwise. Float64: x - k pi/2 (k the nearest integer to x 2/pi, pi/2 in three parts as\n"
+        "in fdlibm) and fdlibm's polynomials on |r| <= pi/4, all of it arithmetic that XLA vectorizes (about 7x faster\n"
+        "than jnp.sin and jnp.cos together on CPU). Within 1 ulp of the correctly rounded values for |x| < 1.6e6 and,\n"
+        "as measured, within 1e-14 up to |x| = 1e15; NaN for |x| >= 1e15 (where consecutive floats are more than 0.1\n"
+        "apart, so the angle has no phase left) and for NaN or infinite x; sin(-0.0) is -0.0. Other dtypes: jnp.sin and jnp.cos.\n"
+        "Its derivative is (cos x, -sin x) from the same values (`_sincos_jvp`)."
+    )
+    return [
+        "@jax.custom_jvp\n" + define("_sincos", "x", doc, body),
+        "@_sincos.defjvp\n"
+        + define("_sincos_jvp", "primals, tangents", "d(sin x, cos x) = (cos x dx, -sin x dx).", ["(x,), (dx,) = primals, tangents", "_s, _c = _sincos(x)", "return (_s, _c), (_c * dx, -_s * dx)"]),
+    ]
+
+
+KEEP = True
+"""Whether `kept` wraps anything (False: the previous modules, for benchmarks/jax_bench.py --no-kept)."""
+
+
+def kept(code: str) -> str:
+    """`_kept(code)` when the printed expression `code` calls sin, cos or tan (`KEPT_CALLS`), else `code`.
+    Meant for the right-hand side of a temporary (a value used more than once): under `jax.jit` of
+    `jax.vmap` on CPU, XLA otherwise recomputes it in each fused loop that reads it (the 10-link
+    chain's rhs: each of its 20 sines and cosines about 28 times; benchmarks/jax_bench.py --no-kept)."""
+    return f"_kept({code})" if KEEP and KEPT_CALLS.search(code) else code
+
+
+def kept_helper(used: bool = True) -> list[str]:
+    """The definition of `_kept` (nothing when not `used`)."""
+    if not used:
+        return []
+    return [
+        define(
+            "_kept",
+            "value",
+            "`value` itself, divided by value * 0 + 1: XLA computes a division once and stores it, where it would\n"
+            "recompute a sine or cosine in every fused loop that uses it, and it cannot fold this divisor (a\n"
+            "constant 1.0 it would). The divisor is exactly 1.0 for a finite value, and dividing by 1.0 is exact, so\n"
+            "the value and its derivative are unchanged (a NaN or infinite value gives NaN).",
+            ["return value / (value * 0.0 + 1.0)"],
+        )
+    ]
 
 
 def _helpers(model: Model) -> list[str]:
@@ -428,7 +548,7 @@ class _HamiltonWriter(_Writer):
             zero = {ij for ij, expr in zip(self.upper, self.mass, strict=True) if expr == 0}
             mass = {ij: (None if ij in zero else code) for ij, code in m.items()}
             shifted = [None if expr == 0 else code for expr, code in zip(self.shifted, results[len(self.mass) :], strict=True)]
-            solved = unrolled_solve(n, mass, shifted, [], [])
+            solved = unrolled_solve(n, mass, shifted, [], [], self.keep if KEEP else None)
             return body + solved.lines + [", ".join(velocities) + " = " + ", ".join(solved.results)]
         rows = ", ".join("[" + ", ".join(m[(min(i, j), max(i, j))] for j in range(n)) + "]" for i in range(n))
         body.append(f"_v = jnp.linalg.solve(_array([{rows}]), _array([{', '.join(results[len(self.mass) :])}]))")
@@ -502,13 +622,15 @@ class _HamiltonWriter(_Writer):
             f"NP = {len(model.parameters)}",
             *input_constants(model),
         ]
-        head = docstring("\n".join([*header, ""])) + "\n\nimport jax.numpy as jnp\n\n" + "\n".join(constants)
-        return head + "\n\n\n" + "\n\n\n".join([*_helpers(model), *functions]) + "\n"
+        head = docstring("\n".join([*header, ""])) + "\n\n" + ("import jax\n" if self.uses_sincos else "") + "import jax.numpy as jnp\n\n" + "\n".join(constants)
+        return head + "\n\n\n" + "\n\n\n".join([*_helpers(model), *kept_helper(self.uses_kept), *sincos_helper(self.uses_sincos), *functions]) + "\n"
 
 
-UNROLLED_MAX = 12
+UNROLLED_MAX = 20
 """Largest n + k (coordinates plus kept constraints) whose linear system is solved by unrolled
-scalar code (`unrolled_solve`) rather than `jnp.linalg.solve`; measured by benchmarks/jax_bench.py."""
+scalar code (`unrolled_solve`) rather than `jnp.linalg.solve`; measured by benchmarks/jax_bench.py
+(BENCHMARKS.md, 2026-11-26: with `_kept`, unrolled code takes 12 against 45 ms for 10^4 states of the
+15-link chain and 39-48 against 80 ms at 20 links, for a first call of 5.2 against 3.9 s and 9.3 against 6.4 s)."""
 
 
 @dataclass
@@ -519,7 +641,14 @@ class Solved:
     results: list[str]
 
 
-def unrolled_solve(n: int, mass: dict[tuple[int, int], str | None], forcing: Sequence[str | None], jacobian: Sequence[Sequence[str | None]], bias: Sequence[str | None]) -> Solved:
+def unrolled_solve(
+    n: int,
+    mass: dict[tuple[int, int], str | None],
+    forcing: Sequence[str | None],
+    jacobian: Sequence[Sequence[str | None]],
+    bias: Sequence[str | None],
+    keep: Callable[[str], str] | None = None,
+) -> Solved:
     """Scalar code for M x = F (and, with rows of A, for M x - A^T lam = F, A x = bias): the solution
     [x..., lam...] as one line per scalar, so that under `jax.vmap` every operation is elementwise over
     the batch (`jnp.linalg.solve` runs one LAPACK call per matrix on CPU).
@@ -531,13 +660,18 @@ def unrolled_solve(n: int, mass: dict[tuple[int, int], str | None], forcing: Seq
     needs pivoting: with Y = M^-1 A^T and x0 = M^-1 F (the same factors), S = A Y is symmetric
     positive definite when A has full rank, lam solves S lam = bias - A x0 (L D L^T again), and
     x = x0 + Y lam. Both factorizations are of positive definite matrices, where L D L^T without
-    pivoting is backward stable."""
+    pivoting is backward stable.
+
+    `keep` (the writers pass `_Writer.keep`: `_kept(code)`), when given, wraps each value computed here other
+    than a division (the sums of products: pivots, updated entries, substitutions), so that XLA stores it
+    rather than recomputing it in every fused loop that reads it (XLA computes a division once by itself)."""
     lines: list[str] = []
     counter = iter(range(1 << 30))
 
     def let(code: str) -> str:
         name = f"_u{next(counter)}"
-        lines.append(f"{name} = {code}")
+        stored = keep is not None and " / " not in code and not code.isidentifier()
+        lines.append(f"{name} = {keep(code) if stored and keep is not None else code}")
         return name
 
     def combine(base: str | None, terms: Sequence[str]) -> str | None:
