@@ -123,7 +123,7 @@ def main() -> None:
         for label, text in systems:
             r = bench(label, text, args.states, Path(folder))
             (cc, cw), (vc, vw), (lc, lw) = r["compile"], r["vmap"], r["loop"]
-            print(f"| {label} | {r['n']} | {cc:.2f} / {cw:.2f} | {vc * 1e3:.1f} / {vw * 1e3:.1f} | {lc * 1e3:.0f} / {lw * 1e3:.0f} | {lc / vc:.0f}x | {lw / vw:.0f}x |", flush=True)
+            print(f"| {label} | {r['n']} | {cc:.2f} / {cw:.2f} | {vc * 1e3:.2f} / {vw * 1e3:.2f} | {lc * 1e3:.0f} / {lw * 1e3:.0f} | {lc / vc:.0f}x | {lw / vw:.0f}x |", flush=True)
 
 
 if __name__ == "__main__":
