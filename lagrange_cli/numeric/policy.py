@@ -296,12 +296,13 @@ def initial_spectrum(model: Model, p: Sequence[float], y0: Sequence[float]) -> d
     right-hand side cannot be evaluated); the same diagnosis `lagrange stress` makes along a
     trajectory. Kept constraints without stabilisation (alpha = 0): alpha is chosen from these rates."""
     functions = compile.build(model, "python")
-    rhs = _safe_rhs(functions.module, code_parameters(p, 0.0 if model.constraints else None))
+    rhs = safe_rhs(functions.module, code_parameters(p, 0.0 if model.constraints else None))
     found = diagnostics.jacobian(rhs, 0.0, np.array(y0, dtype=float))
     return diagnostics.spectrum(found) if found is not None else None
 
 
-def _safe_rhs(module: object, p: tuple[float, ...]) -> Callable[[float, np.ndarray], np.ndarray | None]:
+def safe_rhs(module: object, p: tuple[float, ...]) -> Callable[[float, np.ndarray], np.ndarray | None]:
+    """The right-hand side f(t, y) of a generated Python module, None where it cannot be evaluated."""
     accel, n = module._accel, module._N  # type: ignore[attr-defined]
 
     def rhs(t: float, y: np.ndarray) -> np.ndarray | None:
@@ -365,7 +366,7 @@ def _pilot(model: Model, settings: Settings) -> Pilot | None:
     import scipy.integrate
 
     functions = compile.build(model, "python")
-    rhs = _safe_rhs(functions.module, code_parameters(settings.values, 0.0 if model.constraints else None))
+    rhs = safe_rhs(functions.module, code_parameters(settings.values, 0.0 if model.constraints else None))
     y0 = np.array(settings.y0, dtype=float)
     first = diagnostics.jacobian(rhs, 0.0, y0)
     start = diagnostics.spectrum(first) if first is not None else None
@@ -472,7 +473,7 @@ def _explicit_probe(model: Model, settings: Settings, measured: Pilot) -> Probe:
     import scipy.integrate
 
     functions = compile.build(model, "python")
-    rhs = _safe_rhs(functions.module, code_parameters(settings.values, 0.0 if model.constraints else None))
+    rhs = safe_rhs(functions.module, code_parameters(settings.values, 0.0 if model.constraints else None))
     t0, y0 = (0.0, np.array(settings.y0, dtype=float)) if measured.finished or not measured.y_reached else (measured.t_reached, np.array(measured.y_reached))
     count = [0]
 
