@@ -58,14 +58,16 @@ PILOT_TAIL = 20
 DOP853_STABILITY = 6.0
 """|h lambda| on the negative real axis up to which DOP853 stays stable (measured: the damped
 cart at decay 9e5/s over t_end = 10 takes 1.46e6 steps = decay x t_end / 6.2)."""
-IMPLICIT_COST = 12.0
+IMPLICIT_COST = 20.0
 """Cost of an LSODA step (Python right-hand side, ~1.5 evaluations) over a compiled DOP853 step
-(12 compiled evaluations), measured (benchmarks/auto_bench.py) between 8 and 20: 71-77 us
-against 5.7-9 us on the damped stiff spring at k = 1e8, where the two are within 2x of each
-other (DOP853 17338 steps, LSODA 1252), and 84-130 us against 5-13 us on the damped cart."""
-PROBE_STEPS = 200
-"""Accepted steps of the explicit probe (`explicit_probe`): about 3000 Python right-hand side
-evaluations (~30-40 ms), run only where the decay's estimate would pick DOP853 on a stiff system."""
+attempt (12 compiled evaluations). Measured in CPU time of whole `simulate` calls
+(benchmarks/auto_bench.py, 2026-11-26): 25-33 us per LSODA step against 0.9-1.3 us per compiled DOP853
+attempt (ratio 20-30) on the damped stiff spring at k = 1e8 and the damped cart; an earlier
+measurement of integration time alone gave 8-20 (12 was used until then)."""
+PROBE_STEPS = 80
+"""Accepted steps of the explicit probe (`explicit_probe`): about 1000 Python right-hand side
+evaluations (~15 ms), run only where the decay's estimate would pick DOP853 on a stiff system;
+the rate is taken over the second half, once the step has grown to its stability limit."""
 DOP853_EVALUATIONS = 12
 """Right-hand side evaluations per DOP853 step attempt (accepted or rejected)."""
 PILOT_ATOL = 1e-2
@@ -323,7 +325,9 @@ class Pilot:
     t_reached: float
     finished: bool
     worst: diagnostics.Spectrum
-    """The sampled spectrum with the fastest unmatched decay (the initial one when none decays)."""
+    """The sampled spectrum with the fastest unmatched decay (the initial one when none decays), its
+    slowest rate the median of the sampled ones where that is lower (so that the stiffness ratio
+    compares the fastest decay with the motion, not with that state's other fast modes)."""
     t_worst: float
     """Where that spectrum was sampled."""
     settled_step: float
@@ -380,6 +384,7 @@ def _pilot(model: Model, settings: Settings) -> Pilot | None:
         return value
 
     worst, t_worst, spectra = start, 0.0, 0
+    slowest = [start.slowest] if start.slowest > 0 else []
     times = [0.0]
     every = max(1, PILOT_STEPS // PILOT_SPECTRA)
 
@@ -416,10 +421,14 @@ def _pilot(model: Model, settings: Settings) -> Pilot | None:
                     found = diagnostics.jacobian(rhs, float(solver.t), np.array(solver.y, dtype=float))
                     sampled = diagnostics.spectrum(found) if found is not None else None
                     spectra += 1
+                    if sampled is not None and sampled.slowest > 0:
+                        slowest.append(sampled.slowest)
                     if sampled is not None and sampled.decay > worst.decay:
                         worst, t_worst = sampled, float(solver.t)
         except _Unevaluable:
             pass
+    if slowest and worst.decay > 0:  # the motion's typical slowest rate, not that at the worst state alone (a violent start: 1e5/s there, 3/s along the rest)
+        worst = dataclasses.replace(worst, slowest=min(worst.slowest, float(np.median(slowest))))
     steps = len(times) - 1
     since = steps - switched[1] if switched[0] > 0 else steps
     tail = min(PILOT_TAIL, since if since > 0 else steps)
