@@ -62,3 +62,53 @@ def test_the_pilot_measures_stiffness_along_the_run_not_only_at_the_start() -> N
     found = policy.pilot(model, settings)
     assert found is not None and found.worst.decay > 1e4 and found.t_worst > 0
     assert settings.method in STIFF_CAPABLE, settings.notes
+
+
+AUDIT2 = ROOT / "tests" / "numeric_audit2"
+
+
+def test_the_pilot_runs_until_lsoda_steps_with_bdf_on_a_stiff_start() -> None:
+    """The damped elastic pendulum in r at k = 1e11 (moving start): LSODA steps with Adams,
+    stability-limited at ~1.5e-6, for its first ~230 steps, then switches to BDF. A pilot stopped
+    before the switch extrapolated Adams's step to 3.2e6 LSODA steps (the whole run takes ~1200) and
+    `auto` took compiled DOP853, which needs 1.2e6 step attempts (a third of them rejected)."""
+    model = model_from(AUDIT2 / "elastic_pendulum_r_k1e11.yaml")
+    settings = policy.resolve(model, method="auto")
+    assert settings.method == "LSODA", settings.notes
+    measured = policy.pilot(model, settings)
+    assert measured is not None and measured.bdf and measured.switches >= 1
+    assert measured.implicit_steps(settings.t_end) < 5000, measured
+    note = next(n for n in settings.notes if n.startswith("method auto ->"))
+    assert "in BDF" in note, note
+
+
+def test_the_explicit_probe_counts_the_step_attempts_dop853_really_takes() -> None:
+    """Where the decay alone would let compiled DOP853 win (the same pendulum at k = 2e8 over t = 5:
+    decay 1e4/s, ~8300 stability-limited steps against 20 x ~750 LSODA steps), a short DOP853
+    probe measures the attempts, rejections included: ~2.5 x the decay's estimate, so LSODA. The
+    probe's rate agrees with a budget-limited DOP853 run from the start (counted in evaluations)."""
+    model = model_from(AUDIT2 / "elastic_pendulum_r_k1e11.yaml")
+    settings = policy.resolve(model, method="auto", parameters={"k": 2e8})
+    measured = policy.pilot(model, settings)
+    assert measured is not None
+    estimate, implicit = measured.explicit_steps(settings.t_end), measured.implicit_steps(settings.t_end)
+    assert estimate <= policy.IMPLICIT_COST * implicit  # the decay's estimate alone would pick DOP853
+    probe = policy.explicit_probe(model, settings, measured)
+    assert not probe.failed and probe.steps == policy.PROBE_STEPS
+    attempts = probe.attempts(settings.t_end)
+    assert attempts > 2 * estimate, (attempts, estimate)
+    assert attempts > policy.IMPLICIT_COST * implicit and settings.method == "LSODA", settings.notes
+    assert any("DOP853 probe" in n for n in settings.notes), settings.notes
+    explicit = simulate(model, method="DOP853", backend="python", parameters={"k": 2e8}, samples=11, max_steps=3000)
+    assert explicit.outcome == "budget"
+    measured_attempts = explicit.stats.nfev / policy.DOP853_EVALUATIONS * settings.t_end / explicit.t_last
+    assert 0.5 < attempts / measured_attempts < 2.0, (probe, measured_attempts)
+
+
+@pytest.mark.parametrize("name", ["chain_mixed_stiffness.yaml", "van_der_pol_force.yaml", "driven_coupled_oscillators.yaml"])
+def test_mildly_stiff_cases_keep_dop853_when_the_probe_finds_it_cheaper(name: str) -> None:
+    # benchmarks/auto_bench.py: on these compiled DOP853 is the fastest or within 2x of it
+    settings = policy.resolve(model_from(AUDIT2 / name), method="auto")
+    assert settings.method == "DOP853", settings.notes
+    note = next(n for n in settings.notes if n.startswith("method auto ->"))
+    assert "DOP853 probe" in note, note

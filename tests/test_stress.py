@@ -160,13 +160,14 @@ def test_auto_picks_explicit_unless_an_explicit_method_is_stability_limited_too_
 
 def test_report_names_the_naive_failure_and_the_recommended_success() -> None:
     # the damped stiff spring at k = 1e10: scipy's RK45 needs ~3e5 stability-limited steps
-    # (~20 s in Python) for t = 0..10, Radau ~300 (~60 ms): a budget of 5000 steps stops the naive run
+    # (~20 s in Python) for t = 0..10, Radau ~300 (~60 ms): above 2 x a budget of 5000 steps, the
+    # naive run is not run at all (its stability-limited step count says so), and reported as over budget
     model = model_from(ROOT / "systems" / "stiff_spring_pendulum_damped.yaml")
     report = stress.stress(model, scales=[("k", [1e10])], target=1e-5, candidates=[Candidate("RK45", "python"), Candidate("auto")], max_steps=5000)
     outcome = report.outcomes[0]
     assert outcome.naive is not None and outcome.auto is not None
-    assert outcome.naive.status == "over step budget" and outcome.naive.steps == 5000, outcome.naive
-    assert any(f.startswith("RK45:python") and "stopped after" in f for f in outcome.diagnosis.findings)
+    assert outcome.naive.status == "over step budget" and outcome.naive.steps == 0 and "stability-limited" in outcome.naive.reason, outcome.naive
+    assert any(f.startswith("RK45:python") and "not run: stiff" in f for f in outcome.diagnosis.findings), outcome.diagnosis.findings
     assert any(f.startswith("stiff:") for f in outcome.diagnosis.findings), outcome.diagnosis.findings
     assert outcome.recommended is not None and outcome.recommended.resolved.startswith(("Radau", "LSODA")) and outcome.auto.resolved.startswith(("Radau", "LSODA"))
     assert json.loads(stress.json_text(report))["regimes"][0]["naive"]["status"] == "over step budget"
@@ -340,3 +341,43 @@ def test_a_reference_is_computed_once_per_model_and_setup(monkeypatch) -> None: 
     assert len(calls) == ran and again[1] is first[1]
     reference.prepare(model, setup, 1e-9)
     assert len(calls) > ran
+
+
+def test_regimes_measure_errors_at_dense_samples_as_many_per_unit_time_in_the_long_horizon() -> None:
+    model = model_from(ROOT / "systems" / "spherical_pendulum.yaml")
+    planned = stress.regimes(model, [], long_factor=10.0)
+    assert planned[0].samples == stress.SAMPLES >= 2001
+    assert planned[1].samples == min(stress.MAX_SAMPLES, 10 * (stress.SAMPLES - 1) + 1)
+
+
+def test_explicit_runs_a_stiff_system_keeps_at_its_stability_limit_are_not_run_past_their_budget() -> None:
+    """The damped elastic pendulum in r at k = 1e10 (decay 1e5/s) over t = 100: scipy's RK45 needs
+    about 3.3e6 stability-limited steps, far above a 60000-step budget; it used to run to the budget
+    (twice: its ladder and its default tolerance). Counted in steps, not run."""
+    from lagrange_cli.numeric.runs import PointStatus, Setup, starting
+    from lagrange_cli.numeric.status import Failure
+
+    model = model_from(ROOT / "tests" / "numeric_audit_pilot" / "stiff_elastic_pendulum_r.yaml")
+    setup = starting(model, Setup(100.0, tuple(np.linspace(0.0, 100.0, 11).tolist()), max_steps=60_000))
+    needed = stress.stability_steps(model, setup, "RK45")
+    assert 1e6 < needed < 1e7, needed
+    assert stress.stability_steps(model, setup, "Radau") == 0.0
+    assert stress.stability_steps(model, setup, "DOP853") == pytest.approx(needed * 3 / 6)
+    point = stress._capped(model, stress.NAIVE, 1e-3, setup, None, np.ones(4), None, None)  # type: ignore[arg-type]  # not run: no reference needed
+    assert point.status == PointStatus.OVER_BUDGET and point.failure == Failure.BUDGET and point.steps == 0
+    assert "stability-limited" in point.reason and "not run" in point.reason
+    calm = model_from(ROOT / "tests" / "numeric_audit_pilot" / "double_pendulum_nonstiff.yaml")
+    assert stress.stability_steps(calm, starting(calm, Setup(10.0, (0.0, 10.0))), "RK45") == 0.0
+
+
+def test_an_explicit_reference_that_runs_out_of_budget_where_the_system_is_stiff_goes_implicit_at_once() -> None:
+    """Where an explicit reference attempt stopped at a stiff state (the spring at rest, decay 1e5/s),
+    looser explicit attempts would be stability-limited as well: `stiff_at` says so; not at a calm state."""
+    from lagrange_cli.numeric.reference import stiff_at
+    from lagrange_cli.numeric.runs import Setup, starting
+
+    model = model_from(ROOT / "tests" / "numeric_audit_pilot" / "stiff_elastic_pendulum_r.yaml")
+    setup = starting(model, Setup(10.0, (0.0, 10.0)))
+    assert stiff_at(model, setup, 0.5, np.array([1.0, 0.4, 0.0, 0.1]))
+    calm = model_from(ROOT / "tests" / "numeric_audit_pilot" / "double_pendulum_nonstiff.yaml")
+    assert not stiff_at(calm, starting(calm, Setup(10.0, (0.0, 10.0))), 0.5, np.array([0.3, 0.2, 0.0, 0.1]))

@@ -106,7 +106,7 @@ def accuracy(
     t_end: Annotated[float | None, typer.Option("--t-end", help="Final time (default: the file's).", callback=check_positive)] = None,
     set_: Annotated[list[str] | None, typer.Option("--set", help="Override parameters: name=value, repeated or separated by commas (k=1,m=2).")] = None,
     initial: Annotated[list[str] | None, typer.Option("--initial", help="Override initial values: q=value,q_dot=value, repeated or separated by commas.")] = None,
-    samples: Annotated[int, typer.Option(help="Evenly spaced times the RMS error is taken over.", callback=check_samples)] = 201,
+    samples: Annotated[int, typer.Option(help="Evenly spaced times the errors (largest, RMS, final) are taken at.", callback=check_samples)] = 2001,
     repeats: Annotated[int, typer.Option(help="Timed runs after the warm-up (fewer for slow runs).", callback=check_repeats)] = 3,
     max_steps: Annotated[int, typer.Option("--max-steps", help=STEPS_HELP, callback=check_steps)] = STUDY_STEPS,
     budget: Annotated[float | None, typer.Option(help=TIME_LIMIT_HELP, callback=check_positive)] = None,

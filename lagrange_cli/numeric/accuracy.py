@@ -157,7 +157,9 @@ __all__ = [
 
 TOLERANCES = (1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8)
 REFERENCE_FACTOR = 1e-3  # the reference runs at this times the tightest tolerance
-SAMPLES = 201
+SAMPLES = 2001
+"""Evenly spaced times the errors are taken at (see stress.SAMPLES: 201 understated the largest error
+along an eccentric Kepler orbit 1.6x, 2001 by 1-2%)."""
 
 
 @dataclass(frozen=True)

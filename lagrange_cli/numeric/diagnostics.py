@@ -14,7 +14,7 @@
   singularity (Euler angles at theta = 0, the pole of spherical coordinates) but not with the
   units (diag(m, m r^2) at r = 7e6 m is well conditioned).
 - `condition_peak(condition, t, y, rerun)`: the largest cond M along a trajectory, sampled
-  densely: every sample, then around the highest local maxima the trajectory run again with
+  densely: every sample, then around the highest local maxima (of at least PEAK_FLOOR) the trajectory run again with
   PEAK_SAMPLES samples between the neighbouring samples, PEAK_LEVELS times over (a pole passage
   lasting 1e-4 of the sample spacing is found, and its cond M, not that of the nearest sample).
 - `singular_coordinate(model, condition, y)`: at such a peak, which coordinate is at its
@@ -59,6 +59,11 @@ SINGULAR_CONDITION = 1e6
 PEAKS = 6
 """Local maxima of cond M along the samples that `condition_peak` looks at more closely."""
 PEAK_SAMPLES = 101
+PEAK_FLOOR = 100.0
+"""Only local maxima of cond M at or above this are resampled: M well conditioned at every sample
+has no pole passage between them worth a rerun (a pole passage lasting 1e-4 of the sample spacing
+still shows cond M ~ 1e4 at the neighbouring samples), and each rerun restarts the reference's
+method (scipy's Radau on a stiff spring: 18 reruns, 800 steps each, two thirds of a regime's time)."""
 PEAK_LEVELS = 3
 """Each peak is resampled PEAK_LEVELS times, PEAK_SAMPLES samples between the neighbours of the highest one."""
 
@@ -248,7 +253,7 @@ def condition_peak(condition: Callable[[float, np.ndarray], float], t: np.ndarra
         return Peak(*best, evaluations, reruns)
     finite = np.where(np.isfinite(values), values, np.inf)
     left, right = np.r_[-np.inf, finite[:-1]], np.r_[finite[1:], -np.inf]
-    maxima = [int(i) for i in np.argsort(-finite, kind="stable") if finite[i] >= left[i] and finite[i] >= right[i]][:peaks]
+    maxima = [int(i) for i in np.argsort(-finite, kind="stable") if finite[i] >= left[i] and finite[i] >= right[i] and finite[i] >= PEAK_FLOOR][:peaks]
     for i in maxima:
         times, states, m = t, y, i
         for _ in range(levels):

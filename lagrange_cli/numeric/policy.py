@@ -11,12 +11,20 @@ the run). Then:
 
 - not stiff anywhere along the pilot (see `diagnostics.stiff`: oscillatory or saddle
   eigenvalues are not stiffness) -> DOP853;
-- stiff, but the explicit stability-limited steps cost less compiled than the implicit steps
-  (explicit steps <= IMPLICIT_COST x implicit steps) -> DOP853;
+- stiff, but the explicit steps cost less compiled than the implicit steps (explicit steps <=
+  IMPLICIT_COST x implicit steps) -> DOP853. The explicit steps are first estimated from the
+  decay (decay x t_end / DOP853_STABILITY); where that estimate would pick DOP853, a short
+  explicit probe (`explicit_probe`: PROBE_STEPS steps of scipy's DOP853, the same step control
+  as the compiled kernel, from where the pilot ended) measures them, rejected steps included:
+  round-off in the stiff terms (a spring of k = 1e11 written in its length) or a double
+  eigenvalue at the stability limit make DOP853 take 5-6x the estimate, half of them rejected;
 - stiff and dearer explicitly (or no numba) -> LSODA (measured 3-6x faster than Radau and
   2-4x faster than BDF through scipy on the stiff audit cases; it also switches to Adams by
   itself where the stiffness dies out).
 
+The pilot runs on while LSODA still steps with Adams on a problem the sampled spectra call
+stiff (LSODA switches to BDF by itself once it detects the stiffness; up to PILOT_MAX_STEPS), and
+for PILOT_TAIL steps after a switch, so that its settled step is that of the method it will use.
 The notes give the measured numbers. The initial linearisation still sets how fast the system
 moves (whether compiling pays off, the symplectic step, Baumgarte's alpha for kept constraints).
 """
@@ -24,6 +32,7 @@ moves (whether compiling pays off, the symplectic step, Baumgarte's alpha for ke
 from __future__ import annotations
 
 import dataclasses
+import math
 from collections.abc import Callable, Mapping, Sequence
 
 import numpy as np
@@ -49,11 +58,18 @@ PILOT_TAIL = 20
 DOP853_STABILITY = 6.0
 """|h lambda| on the negative real axis up to which DOP853 stays stable (measured: the damped
 cart at decay 9e5/s over t_end = 10 takes 1.46e6 steps = decay x t_end / 6.2)."""
-IMPLICIT_COST = 12.0
+IMPLICIT_COST = 20.0
 """Cost of an LSODA step (Python right-hand side, ~1.5 evaluations) over a compiled DOP853 step
-(12 compiled evaluations), measured (benchmarks/auto_bench.py) between 8 and 20: 71-77 us
-against 5.7-9 us on the damped stiff spring at k = 1e8, where the two are within 2x of each
-other (DOP853 17338 steps, LSODA 1252), and 84-130 us against 5-13 us on the damped cart."""
+attempt (12 compiled evaluations). Measured in CPU time of whole `simulate` calls
+(benchmarks/auto_bench.py, 2026-11-26): 25-33 us per LSODA step against 0.9-1.3 us per compiled DOP853
+attempt (ratio 20-30) on the damped stiff spring at k = 1e8 and the damped cart; an earlier
+measurement of integration time alone gave 8-20 (12 was used until then)."""
+PROBE_STEPS = 80
+"""Accepted steps of the explicit probe (`explicit_probe`): about 1000 Python right-hand side
+evaluations (~15 ms), run only where the decay's estimate would pick DOP853 on a stiff system;
+the rate is taken over the second half, once the step has grown to its stability limit."""
+DOP853_EVALUATIONS = 12
+"""Right-hand side evaluations per DOP853 step attempt (accepted or rejected)."""
 GAUSS_STAGES = (2, 3)
 """The Gauss methods the pilot chooses from: 2 stages (order 4) and 3 (order 6, about 1.5x the
 evaluations a step at 2-4x the step on Kepler e = 0.5 at 1e-8..1e-10: fewer evaluations in all)."""
@@ -301,12 +317,13 @@ def initial_spectrum(model: Model, p: Sequence[float], y0: Sequence[float]) -> d
     right-hand side cannot be evaluated); the same diagnosis `lagrange stress` makes along a
     trajectory. Kept constraints without stabilisation (alpha = 0): alpha is chosen from these rates."""
     functions = compile.build(model, "python")
-    rhs = _safe_rhs(functions.module, code_parameters(p, 0.0 if model.constraints else None))
+    rhs = safe_rhs(functions.module, code_parameters(p, 0.0 if model.constraints else None))
     found = diagnostics.jacobian(rhs, 0.0, np.array(y0, dtype=float))
     return diagnostics.spectrum(found) if found is not None else None
 
 
-def _safe_rhs(module: object, p: tuple[float, ...]) -> Callable[[float, np.ndarray], np.ndarray | None]:
+def safe_rhs(module: object, p: tuple[float, ...]) -> Callable[[float, np.ndarray], np.ndarray | None]:
+    """The right-hand side f(t, y) of a generated Python module, None where it cannot be evaluated."""
     accel, n = module._accel, module._N  # type: ignore[attr-defined]
 
     def rhs(t: float, y: np.ndarray) -> np.ndarray | None:
@@ -327,12 +344,20 @@ class Pilot:
     t_reached: float
     finished: bool
     worst: diagnostics.Spectrum
-    """The sampled spectrum with the fastest unmatched decay (the initial one when none decays)."""
+    """The sampled spectrum with the fastest unmatched decay (the initial one when none decays), its
+    slowest rate the median of the sampled ones where that is lower (so that the stiffness ratio
+    compares the fastest decay with the motion, not with that state's other fast modes)."""
     t_worst: float
     """Where that spectrum was sampled."""
     settled_step: float
-    """LSODA's mean step over the pilot's last PILOT_TAIL steps."""
+    """LSODA's mean step over the pilot's last PILOT_TAIL steps (after its last switch of method, when it switched)."""
     spectra: int
+    y_reached: tuple[float, ...] = ()
+    """The state at t_reached."""
+    switches: int = 0
+    """Times LSODA switched between Adams (non-stiff) and BDF (stiff) along the pilot."""
+    bdf: bool | None = None
+    """Whether LSODA stepped with BDF (it judged the problem stiff) at the end of the pilot; None where unknown."""
 
     def implicit_steps(self, t_end: float) -> float:
         """The steps an implicit method takes over the run: the pilot's, then the rest at its settled step."""
@@ -364,7 +389,7 @@ def _pilot(model: Model, settings: Settings) -> Pilot | None:
     import scipy.integrate
 
     functions = compile.build(model, "python")
-    rhs = _safe_rhs(functions.module, code_parameters(settings.values, 0.0 if model.constraints else None))
+    rhs = safe_rhs(functions.module, code_parameters(settings.values, 0.0 if model.constraints else None))
     y0 = np.array(settings.y0, dtype=float)
     first = diagnostics.jacobian(rhs, 0.0, y0)
     start = diagnostics.spectrum(first) if first is not None else None
@@ -378,8 +403,12 @@ def _pilot(model: Model, settings: Settings) -> Pilot | None:
         return value
 
     worst, t_worst, spectra = start, 0.0, 0
+    slowest = [start.slowest] if start.slowest > 0 else []
     times = [0.0]
     every = max(1, PILOT_STEPS // PILOT_SPECTRA)
+
+    method: list[int | None] = [None]  # LSODA's current method: 1 Adams, 2 BDF
+    switched = [0, 0]  # switches, the step count at the last one
 
     def growing() -> bool:
         if len(times) <= 2 * PILOT_TAIL:
@@ -387,27 +416,121 @@ def _pilot(model: Model, settings: Settings) -> Pilot | None:
         recent, before = times[-1] - times[-1 - PILOT_TAIL], times[-1 - PILOT_TAIL] - times[-1 - 2 * PILOT_TAIL]
         return recent > SETTLED * before
 
+    def unsettled() -> bool:
+        """LSODA still in Adams on a problem that looks stiff, or just switched: its step is not yet that of its method."""
+        adams_on_stiff = method[0] == 1 and diagnostics.stiff(worst, settings.t_end)
+        return adams_on_stiff or (switched[0] > 0 and len(times) - 1 - switched[1] < 2 * PILOT_TAIL)
+
+    y_reached = y0
     with warnings.catch_warnings(), np.errstate(all="ignore"):
         warnings.simplefilter("ignore")
         try:
             solver = scipy.integrate.LSODA(f, 0.0, y0, settings.t_end, rtol=settings.rtol, atol=settings.atol, max_step=settings.max_step)
-            while solver.status == "running" and (len(times) <= PILOT_STEPS or (len(times) <= PILOT_MAX_STEPS and growing())):
+            while solver.status == "running" and (len(times) <= PILOT_STEPS or (len(times) <= PILOT_MAX_STEPS and (growing() or unsettled()))):
                 solver.step()
                 if solver.status == "failed" or not np.all(np.isfinite(solver.y)):
                     break
                 times.append(float(solver.t))
+                y_reached = np.array(solver.y, dtype=float)
+                now = _lsoda_method(solver)
+                if now is not None and method[0] is not None and now != method[0]:
+                    switched[0], switched[1] = switched[0] + 1, len(times) - 1
+                method[0] = now
                 if (len(times) - 1) % every == 0 or solver.status != "running":
                     found = diagnostics.jacobian(rhs, float(solver.t), np.array(solver.y, dtype=float))
                     sampled = diagnostics.spectrum(found) if found is not None else None
                     spectra += 1
+                    if sampled is not None and sampled.slowest > 0:
+                        slowest.append(sampled.slowest)
                     if sampled is not None and sampled.decay > worst.decay:
                         worst, t_worst = sampled, float(solver.t)
         except _Unevaluable:
             pass
+    if slowest and worst.decay > 0:  # the motion's typical slowest rate, not that at the worst state alone (a violent start: 1e5/s there, 3/s along the rest)
+        worst = dataclasses.replace(worst, slowest=min(worst.slowest, float(np.median(slowest))))
     steps = len(times) - 1
-    tail = min(PILOT_TAIL, steps)
+    since = steps - switched[1] if switched[0] > 0 else steps
+    tail = min(PILOT_TAIL, since if since > 0 else steps)
     settled = (times[-1] - times[-1 - tail]) / tail if tail > 0 else 0.0
-    return Pilot(steps, times[-1], times[-1] >= settings.t_end, worst, t_worst, settled, spectra)
+    bdf = None if method[0] is None else method[0] == 2
+    return Pilot(steps, times[-1], times[-1] >= settings.t_end, worst, t_worst, settled, spectra, tuple(float(v) for v in y_reached), switches=switched[0], bdf=bdf)
+
+
+def _lsoda_method(solver: object) -> int | None:
+    """The method scipy's LSODA steps with now (ODEPACK's MCUR, IWORK(20): 1 Adams, 2 BDF); None where scipy does not expose it."""
+    try:
+        value = int(solver._lsoda_solver._integrator.iwork[19])  # type: ignore[attr-defined]
+    except (AttributeError, IndexError, TypeError, ValueError):
+        return None
+    return value if value in (1, 2) else None
+
+
+@dataclasses.dataclass(frozen=True)
+class Probe:
+    """What a short run of DOP853 (scipy's, Python) measured from where the pilot ended."""
+
+    t0: float
+    t_reached: float
+    steps: int
+    evaluations: int
+    rate: float
+    """Step attempts (accepted and rejected: evaluations / DOP853_EVALUATIONS) per unit time over the probe's second half."""
+    failed: bool
+    """The probe could not go on (an evaluation failed, or the step collapsed)."""
+
+    def attempts(self, t_end: float) -> float:
+        """DOP853's step attempts over the run, at the probe's rate (inf when the probe failed)."""
+        if self.failed:
+            return math.inf
+        if self.t_reached >= t_end:
+            return self.evaluations / DOP853_EVALUATIONS
+        return self.rate * t_end
+
+
+def explicit_probe(model: Model, settings: Settings, measured: Pilot) -> Probe:
+    """PROBE_STEPS steps of scipy's DOP853 from the pilot's last state (from the start when the
+    pilot finished the run), counting right-hand side evaluations: the steps DOP853 really takes
+    where the system is stiff, rejections included. Once per model and settings."""
+    key = ("explicit probe", settings.values, settings.y0, settings.t_end, settings.rtol, settings.atol, measured.t_reached)
+    return memo.once(model, key, lambda: _explicit_probe(model, settings, measured))
+
+
+def _explicit_probe(model: Model, settings: Settings, measured: Pilot) -> Probe:
+    import warnings
+
+    import scipy.integrate
+
+    functions = compile.build(model, "python")
+    rhs = safe_rhs(functions.module, code_parameters(settings.values, 0.0 if model.constraints else None))
+    t0, y0 = (0.0, np.array(settings.y0, dtype=float)) if measured.finished or not measured.y_reached else (measured.t_reached, np.array(measured.y_reached))
+    count = [0]
+
+    def f(t: float, y: np.ndarray) -> np.ndarray:
+        count[0] += 1
+        value = rhs(t, y)
+        if value is None or not np.all(np.isfinite(value)):
+            raise _Unevaluable
+        return value
+
+    times, evaluations, failed = [t0], [0], False
+    with warnings.catch_warnings(), np.errstate(all="ignore"):
+        warnings.simplefilter("ignore")
+        try:
+            solver = scipy.integrate.DOP853(f, t0, y0, settings.t_end, rtol=settings.rtol, atol=settings.atol, max_step=settings.max_step)
+            evaluations[0] = count[0]
+            while solver.status == "running" and len(times) <= PROBE_STEPS:
+                solver.step()
+                if solver.status == "failed" or not np.all(np.isfinite(solver.y)):
+                    failed = True
+                    break
+                times.append(float(solver.t))
+                evaluations.append(count[0])
+        except _Unevaluable:
+            failed = True
+    half = len(times) // 2
+    span = times[-1] - times[half]
+    rate = (evaluations[-1] - evaluations[half]) / DOP853_EVALUATIONS / span if span > 0 else math.inf
+    return Probe(t0, times[-1], len(times) - 1, count[0], rate, failed or not math.isfinite(rate))
 
 
 def choose(model: Model, settings: Settings, found: diagnostics.Spectrum | None, compiled: bool) -> tuple[str, str]:
@@ -426,12 +549,20 @@ def choose(model: Model, settings: Settings, found: diagnostics.Spectrum | None,
             return "DOP853", f"not stiff along {span}: fastest unmatched decay {worst.decay:.3g}/s ({where}) x t_end {t_end:g} = {worst.decay * t_end:.3g}, slowest rate {worst.slowest:.3g}/s"
         return "DOP853", f"not stiff along {span}: no decaying mode faster than the motion (fastest rate {worst.rate:.3g}/s)"
     explicit, implicit = measured.explicit_steps(t_end), measured.implicit_steps(t_end)
-    numbers = (
-        f"decay {worst.decay:.3g}/s ({where}) x t_end {t_end:g}: about {explicit:.3g} stability-limited DOP853 steps, "
-        f"against about {implicit:.3g} LSODA steps (its step settled to {measured.settled_step:.3g} over {span})"
-    )
-    if compiled and explicit <= IMPLICIT_COST * implicit:
-        return "DOP853", f"mildly stiff: {numbers}; compiled explicit steps are cheaper (an implicit step costs ~{IMPLICIT_COST:g} of them)"
+    lsoda = f"about {implicit:.3g} LSODA steps (its step settled to {measured.settled_step:.3g} over {span}{', in BDF' if measured.bdf else ''})"
+    numbers = f"decay {worst.decay:.3g}/s ({where}) x t_end {t_end:g}: about {explicit:.3g} stability-limited DOP853 steps, against {lsoda}"
     if not compiled:
         return "LSODA", f"stiff: {numbers}; explicit methods cannot run compiled here"
+    if explicit > IMPLICIT_COST * implicit:
+        return "LSODA", f"stiff: {numbers}; an implicit step costs ~{IMPLICIT_COST:g} compiled explicit steps"
+    probe = explicit_probe(model, settings, measured)
+    attempts = probe.attempts(t_end)
+    tried = (
+        f"a DOP853 probe of {probe.steps} steps from t = {probe.t0:.3g} failed"
+        if probe.failed
+        else f"a DOP853 probe of {probe.steps} steps from t = {probe.t0:.3g} ({probe.evaluations} evaluations, rejected steps included) extrapolates to {attempts:.3g} step attempts"
+    )
+    numbers = f"decay {worst.decay:.3g}/s ({where}) x t_end {t_end:g}; {tried}, against {lsoda}"
+    if attempts <= IMPLICIT_COST * implicit:
+        return "DOP853", f"mildly stiff: {numbers}; compiled explicit steps are cheaper (an implicit step costs ~{IMPLICIT_COST:g} of them)"
     return "LSODA", f"stiff: {numbers}; an implicit step costs ~{IMPLICIT_COST:g} compiled explicit steps"

@@ -21,12 +21,13 @@ from lagrange_cli.errors import LagrangeError
 from lagrange_cli.model import Model
 from lagrange_cli.numeric import compile, diagnostics, integrators, memo, policy
 from lagrange_cli.numeric.runs import ATOL_RATIO, COMPILED_STEPS, REFERENCE_STEPS, TIGHTEST, Candidate, Setup, component_scale, over_step_budget, run, scaled_errors, start_of, tol_text
-from lagrange_cli.numeric.settings import Settings
+from lagrange_cli.numeric.settings import Settings, code_parameters
 from lagrange_cli.numeric.simulate import Trajectory, integrate, state_text
 from lagrange_cli.numeric.status import Status
 
 HORIZON_THRESHOLD = 1e-3  # separation (scaled) at which nearby trajectories have parted
 CHAOS_GROWTH = 100.0  # growth over the second half of the time to part, above which it is exponential
+HORIZON_SAMPLES = 8001  # samples of the two runs that measure how nearby trajectories part (4 x the study's, at most this)
 
 
 class ReferenceFailed(LagrangeError):
@@ -140,6 +141,18 @@ def stiff_start(model: Model, setup: Setup) -> bool:
     if measured is None:
         return False
     return diagnostics.stiff(measured.worst, setup.t_end)
+
+
+def stiff_at(model: Model, setup: Setup, t: float, y: np.ndarray) -> bool:
+    """Whether the linearisation at the state (t, y) is stiff over the window (`diagnostics.stiff`):
+    where an explicit reference attempt ran out of its budget there, its steps were stability-limited
+    and looser attempts would fare no better (the elastic pendulum in r started at r = 0.01: three
+    explicit attempts, 6e6 compiled steps, before the implicit reference)."""
+    s = start_of(model, setup)
+    rhs = policy.safe_rhs(compile.build(model, "python").module, code_parameters(s.values, 0.0 if model.constraints else None))
+    found = diagnostics.jacobian(rhs, t, np.array(y, dtype=float))
+    spectrum = diagnostics.spectrum(found) if found is not None else None
+    return spectrum is not None and diagnostics.stiff(spectrum, setup.t_end)
 
 
 PILOT_RTOL = 1e-6
@@ -300,6 +313,9 @@ def _computed_reference(model: Model, setup: Setup, tolerance: float, hint: str,
             tried.append(_stopped(model, primary, rtol, capped, main))
             if main.outcome != Status.BUDGET:
                 break  # a blow-up or a singular matrix: a looser tolerance will not pass it
+            if stiff_at(model, setup, main.t_last, main.y_last):
+                tried.append(f"stiff where it stopped (t = {main.t_last:.6g}): its steps are stability-limited, a looser rtol would not lengthen them")
+                break
         reasons.append("; ".join(tried))
     attempt = replace(setup, reference_max_steps=_implicit_budget(model, setup))
     why = reasons[0] if reasons else "stiff at the start, where an explicit reference would be stability-limited"
@@ -452,7 +468,7 @@ def prepare(
             notes.append("the file's exact solution was not used (it does not cover every coordinate, or the initial state was changed)")
         if progress:
             progress("reference")
-        found = horizon(model, replace(setup, times=tuple(np.linspace(0.0, setup.t_end, 4 * len(setup.times)).tolist())), ref_tol)
+        found = horizon(model, replace(setup, times=tuple(np.linspace(0.0, setup.t_end, max(len(setup.times), min(4 * len(setup.times), HORIZON_SAMPLES))).tolist())), ref_tol)
         end = min(found.time_to(window), found.horizon) if found is not None and found.chaotic else math.inf
         if 0 < end < setup.t_end:
             assert found is not None

@@ -64,8 +64,10 @@ from lagrange_cli.errors import LagrangeError
 from lagrange_cli.model import Model
 from lagrange_cli.numeric import accuracy as study
 from lagrange_cli.numeric import compile, diagnostics, policy
-from lagrange_cli.numeric.reference import HORIZON_THRESHOLD, IMPLICIT, IMPLICIT_TIGHTEST, Horizon, Reference, ReferenceFailed, dense, implicit_tolerances, prepare
+from lagrange_cli.numeric.reference import HORIZON_THRESHOLD, IMPLICIT, IMPLICIT_TIGHTEST, PILOT_RTOL, Horizon, Reference, ReferenceFailed, dense, implicit_tolerances, prepare
 from lagrange_cli.numeric.runs import (
+    ATOL_RATIO,
+    COMPILED_STEPS,
     TIGHTEST,
     Candidate,
     Point,
@@ -91,7 +93,12 @@ NAIVE = Candidate("RK45", "python")
 """scipy's default method, what a user reaches for first."""
 NAIVE_RTOL = 1e-3
 """solve_ivp's default rtol (with atol = rtol x ATOL_RATIO = 1e-6, its default too): how a user first runs it."""
-SAMPLES = 101
+SAMPLES = 2001
+"""Evenly spaced times over the file's t_end at which errors are measured (the largest of them is what
+"meets" judges by): dense enough to catch the worst point of an eccentric orbit (Kepler e = 0.9,
+2.3 periods: the error at the periapsis passages; 101 or 201 samples understated it 1.6-1.7x,
+2001 by 1-2%). A longer regime gets as many per unit time, up to MAX_SAMPLES."""
+MAX_SAMPLES = 20001
 STALLED = 2.0
 """Two decades in a row that each shrink an error below SATURATED by less than this end a
 method's ladder; errors above SATURATED (a phase lost entirely) may not shrink for a while."""
@@ -107,6 +114,8 @@ class Regime:
     t_end: float
     parameters: Mapping[str, float]
     initial: Mapping[str, float]
+    samples: int = SAMPLES
+    """Evenly spaced times its errors are measured at."""
 
 
 class Finding(str):
@@ -235,7 +244,8 @@ def regimes(model: Model, scales: Sequence[tuple[str, Sequence[float]]], long_fa
                 raise LagrangeError(f"--scale: '{name}' is not a parameter of {model.source}; parameters: {', '.join(known) or 'none'}")
             result += [Regime(f"{name} = {v:g}", base.t_end, {name: v}, {}) for v in values]
         return tuple(result)
-    result = [Regime("defaults", base.t_end, {}, {}), Regime(f"long horizon (t_end x {long_factor:g})", base.t_end * long_factor, {}, {})]
+    longer = min(MAX_SAMPLES, max(SAMPLES, round((SAMPLES - 1) * long_factor) + 1))
+    result = [Regime("defaults", base.t_end, {}, {}), Regime(f"long horizon (t_end x {long_factor:g})", base.t_end * long_factor, {}, {}, longer)]
     result.append(Regime(f"high energy (velocities x {energy_factor:g})", base.t_end, {}, _high_energy(model, base.values, base.y0, energy_factor)))
     singular = _near_singular(model, base.values, base.y0)
     if singular is not None:
@@ -383,7 +393,7 @@ def _order(model: Model, setup: Setup, candidates: Sequence[Candidate]) -> list[
 
 def _regime(model: Model, regime: Regime, target: float, candidates: Sequence[Candidate], budget: Setup, say: Callable[[str], None] | None) -> Outcome:
     """One regime; `budget` carries the step budget and time limit."""
-    times = tuple(np.linspace(0.0, regime.t_end, SAMPLES).tolist())
+    times = tuple(np.linspace(0.0, regime.t_end, regime.samples).tolist())
     setup = starting(model, Setup(regime.t_end, times, dict(regime.parameters), dict(regime.initial), budget.max_steps, time_limit=budget.time_limit))
     ref_tol = reference_tolerance(target)
     try:
@@ -451,9 +461,41 @@ def _regime(model: Model, regime: Regime, target: float, candidates: Sequence[Ca
     return Outcome(regime, setup.t_end, reference.description, reference.own_error, tuple(ordered), diagnosis, recommended, naive, auto, naive_default, tied, open_reason)
 
 
+STABILITY_INTERVAL = {"RK45": diagnostics.STABILITY, "DOP853": policy.DOP853_STABILITY}
+"""|h lambda| on the negative real axis up to which each explicit method stays stable."""
+STABILITY_MARGIN = 2.0
+"""An explicit run whose stability-limited steps (`stability_steps`) exceed this times its step
+budget is not run: it would spend the whole budget to learn what the count says (scipy's RK45 on
+the damped spring of k = 1e10 in r over the long horizon: 2 x 60000 steps, a third of `stress`'s time)."""
+
+
+def stability_steps(model: Model, setup: Setup, method: str) -> float:
+    """The steps an explicit `method` needs just to stay stable over the window: the fastest unmatched
+    decay along `auto`'s pilot run x t_end / its stability interval; 0 when the pilot finds the
+    system not stiff (`diagnostics.stiff`) or the method is not explicit."""
+    interval = STABILITY_INTERVAL.get(method)
+    if interval is None:
+        return 0.0
+    s = replace(start_of(model, setup), method="auto", backend="auto", rtol=PILOT_RTOL, atol=PILOT_RTOL * ATOL_RATIO)
+    measured = policy.pilot(model, s)
+    if measured is None or not diagnostics.stiff(measured.worst, setup.t_end):
+        return 0.0
+    return measured.worst.decay * setup.t_end / interval
+
+
 def _capped(model: Model, candidate: Candidate, tolerance: float, setup: Setup, reference: Reference, scale: np.ndarray, best: Point | None, last: Point | None) -> Point:
-    """`measure`, within the step budget `_cap` leaves it once `best` meets the accuracy."""
+    """`measure`, within the step budget `_cap` leaves it once `best` meets the accuracy; an explicit
+    run that its stability limit alone would take past STABILITY_MARGIN x that budget is not run."""
     cap = _cap(candidate, best, last, setup)
+    method = candidate.method if candidate.method != "auto" else ""
+    needed = stability_steps(model, setup, method)
+    allowed = cap * (COMPILED_STEPS if backend_for(candidate) == "compiled" else 1)
+    if needed > STABILITY_MARGIN * allowed:
+        reason = (
+            f"not run: stiff, so its steps are stability-limited: about {needed:.3g} steps to t_end (the fastest decay along a pilot run x t_end / {STABILITY_INTERVAL[method]:g}),"
+            f" above {STABILITY_MARGIN:g} x its step budget ({allowed})"
+        )
+        return unrun(candidate, tolerance, PointStatus.OVER_BUDGET, reason, Failure.BUDGET)
     point = measure(model, candidate, tolerance, replace(setup, max_steps=cap) if cap < setup.steps else setup, reference, scale, repeats=0)
     if cap < setup.steps and point.failure == Failure.BUDGET and best is not None and point.steps:
         done = point.reason.rpartition(" at ")[2]
