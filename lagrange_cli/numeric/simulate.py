@@ -159,7 +159,9 @@ def simulate(
     `max_steps` is the step budget (default `integrators.MAX_STEPS` of the backend): a run that
     has not reached t_end after it stops, failed, with the trajectory so far. `projection` (default:
     on for a model with kept constraints) projects the state onto them after each stretch between
-    two samples (`projection.py`). A model's inputs are taken at their defaults (`inputs.substitute`)."""
+    two samples (`projection.py`). `stages` fixes the symplectic method's Gauss-Legendre stages (1, 2 or 3;
+    default: the pilot picks 2 or 3 with the step, or 2 with a given step). A model's inputs are taken at
+    their defaults (`inputs.substitute`)."""
     model = substitute(model)
     check(model)
     plain = compile.build(model, "python")  # here rather than in the policy's linearisation, so that its cost is reported
