@@ -189,6 +189,20 @@ def integrate(model: Model, settings: Settings, progress: Progress | None = None
     """Run `settings` as decided by `policy.decide` (method and backend resolved); `before` the
     one-time costs already spent on this run."""
     model = substitute(model)
+    run, python, timing, notes = _integrated(model, settings, progress, max_steps, before)
+    trajectory = _trajectory(model, settings, python, run, timing)
+    return dataclasses.replace(trajectory, notes=(*trajectory.notes, *notes)) if notes else trajectory
+
+
+def run_seconds(model: Model, settings: Settings, max_steps: int | None = None) -> float:
+    """The integration time (`Timing.run`) of one more run of `settings`, without the report
+    (invariants along the samples): what a study times again, in turns, once it has the report."""
+    _, _, timing, _ = _integrated(substitute(model), settings, None, max_steps, None)
+    return timing.run
+
+
+def _integrated(model: Model, settings: Settings, progress: Progress | None, max_steps: int | None, before: Timing | None) -> tuple[Run, compile.Functions, Timing, tuple[str, ...]]:
+    """The integrator's run of `settings`, the Python functions, the timing and the projection's notes."""
     python = compile.build(model, "python", jacobian=settings.method in ("Radau", "BDF", "LSODA"), event=settings.event)
     generate = python.generate_seconds + (before.generate if before else 0.0)
     load = python.import_seconds + (before.load if before else 0.0)
@@ -213,8 +227,7 @@ def integrate(model: Model, settings: Settings, progress: Progress | None = None
         run = runner(problem, progress)
     if settings.method == "symplectic" and settings.step is not None:
         run = integrators.monitor(run, settings.step, policy.chosen_pilot(model, settings))
-    trajectory = _trajectory(model, settings, python, run, Timing(generate, load, run.compile_seconds, run.run_seconds))
-    return dataclasses.replace(trajectory, notes=(*trajectory.notes, *notes)) if notes else trajectory
+    return run, python, Timing(generate, load, run.compile_seconds, run.run_seconds), notes
 
 
 MAX_STRETCHES = 1000
