@@ -56,8 +56,13 @@ def test_stress_runs_on(name: str) -> None:
         if regime["verdict"] == "undecided":
             # only where the reference itself cannot vouch for 1e-6: two methods at 2.5e-14 disagree by more
             # (Kepler started at r = 0.01 falls to r ~ 1e-8: round-off, not any method, limits the error)
-            assert regime["regime"].startswith("near singular") and regime["reference_error"] > 1e-7, regime
-            assert "reference's own error" in regime["open_reason"], regime
+            # or where its second method cannot pass the singularity at all (central_potential: r falls to ~1e-8,
+            # where compiled RK45 at 2.5e-14 collapses its step): unconfirmed, so nothing is claimed
+            assert regime["regime"].startswith("near singular"), regime
+            if regime["reference_error"] is None:
+                assert "unconfirmed" in regime["reference"] and "reference is unconfirmed" in regime["open_reason"], regime
+            else:
+                assert regime["reference_error"] > 1e-7 and "reference's own error" in regime["open_reason"], regime
             continue
         assert regime["verdict"] == "met" and regime["recommended"]["error"] + regime["reference_error"] <= 1e-6, regime
     assert document["verdict"] == ("passed" if all(r["verdict"] == "met" for r in regimes) else "undecided")
