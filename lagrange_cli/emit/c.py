@@ -41,7 +41,7 @@ from typing import Any, ClassVar
 from lagrange_cli import __version__
 from lagrange_cli._symengine import to_symengine
 from lagrange_cli.algebra import check_solvable
-from lagrange_cli.emit.common import printable, require_defined
+from lagrange_cli.emit.common import printable, require_defined, written_definitions
 from lagrange_cli.emit.printer import ATOM, EXACT, MUL, Code, Printer
 from lagrange_cli.emit.python import code_lines, mangle, needed
 from lagrange_cli.errors import DerivationError
@@ -359,9 +359,7 @@ class _Writer:
             lines += [f"  u[{i}] = {u.name} (default {u.value!r})" for i, u in enumerate(model.inputs)]
         lines += notes
         if self.definitions:
-            lines.append(
-                "Functions written out from their definitions in the file: " + "; ".join(f"{k}({', '.join(map(str, f.variables))}) = {f.expr}" for k, f in sorted(self.definitions.items())) + "."
-            )
+            lines.append(written_definitions(self.definitions))
         names = {c: v for c, v in self.names.items() if c != v and c != str(model.t)}
         if names:
             lines.append("Names changed to C identifiers: " + ", ".join(f"{c} -> {v}" for c, v in names.items()) + ".")

@@ -12,7 +12,7 @@ from __future__ import annotations
 import re
 import sys
 import unicodedata
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from typing import Any, ClassVar
 
 import sympy as sp
@@ -438,3 +438,10 @@ class SymenginePrinter:
 
     def fallback(self, expr: sp.Basic) -> str:
         raise NotImplementedError
+
+
+def written_definitions(definitions: Mapping[str, Any]) -> str:
+    """The generated files' sentence naming the functions written out from the file's definitions
+    (`U(s) = -k/s; ...`, sorted by name): every target states it the same way."""
+    listed = "; ".join(f"{name}({', '.join(map(str, f.variables))}) = {sp.sstr(f.expr)}" for name, f in sorted(definitions.items()))
+    return f"Functions written out from their definitions in the file: {listed}."

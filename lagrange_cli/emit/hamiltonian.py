@@ -20,7 +20,7 @@ from sympy.printing.str import StrPrinter
 
 from lagrange_cli import __version__
 from lagrange_cli._symengine import to_symengine
-from lagrange_cli.emit.common import printable, require_defined
+from lagrange_cli.emit.common import printable, require_defined, written_definitions
 from lagrange_cli.errors import fail
 from lagrange_cli.hamilton import hamilton
 from lagrange_cli.model import Model
@@ -180,8 +180,7 @@ def python(model: Model, numba: bool = False) -> str:
     if not ham.symbolic:
         header.append("q_dot = M^-1 (p - b) is solved numerically at each call (no symbolic inverse for this many coordinates).")
     if model.definitions:
-        written = "; ".join(f"{name}({', '.join(map(str, f.variables))}) = {sp.sstr(f.expr)}" for name, f in sorted(model.definitions.items()))
-        header.append(f"Functions written out from their definitions in the file: {written}.")
+        header.append(written_definitions(model.definitions))
     missing = [p.name for p in model.parameters if p.value is None]
     if missing:
         header.append(f"Parameters without a default, to be given in p: {', '.join(missing)}.")

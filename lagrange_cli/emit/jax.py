@@ -43,7 +43,7 @@ import sympy as sp
 from lagrange_cli import __version__
 from lagrange_cli._symengine import to_symengine
 from lagrange_cli.algebra import check_invertible, check_solvable
-from lagrange_cli.emit.common import require_defined
+from lagrange_cli.emit.common import require_defined, written_definitions
 from lagrange_cli.emit.printer import ATOM, Code, Printer, restructure
 from lagrange_cli.emit.python import define, docstring, literal, mangle
 from lagrange_cli.model import Model
@@ -285,8 +285,7 @@ class _Writer:
             *SINCOS_NOTE * self.uses_sincos,
         ]
         if self.definitions:
-            written = "; ".join(f"{fname}({', '.join(map(str, f.variables))}) = {sp.sstr(f.expr)}" for fname, f in sorted(self.definitions.items()))
-            header += ["", f"Functions written out from their definitions in the file: {written}."]
+            header += ["", written_definitions(self.definitions)]
         if missing:
             header += ["", f"Parameters without a default, to be given in p: {', '.join(missing)}."]
         header += input_header(model)
@@ -602,8 +601,7 @@ class _HamiltonWriter(_Writer):
             "this module leaves that global setting to you.",
         ]
         if self.definitions:
-            written = "; ".join(f"{fname}({', '.join(map(str, f.variables))}) = {sp.sstr(f.expr)}" for fname, f in sorted(self.definitions.items()))
-            header += ["", f"Functions written out from their definitions in the file: {written}."]
+            header += ["", written_definitions(self.definitions)]
         if missing:
             header += ["", f"Parameters without a default, to be given in p: {', '.join(missing)}."]
         if model.inputs:

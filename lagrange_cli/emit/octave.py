@@ -31,7 +31,7 @@ from typing import Any, ClassVar
 from lagrange_cli import __version__
 from lagrange_cli._symengine import to_symengine
 from lagrange_cli.algebra import check_solvable
-from lagrange_cli.emit.common import printable, require_defined
+from lagrange_cli.emit.common import printable, require_defined, written_definitions
 from lagrange_cli.emit.printer import ATOM, Code, Printer, restructure
 from lagrange_cli.emit.python import mangle, needed
 from lagrange_cli.errors import DerivationError
@@ -130,8 +130,7 @@ class _Writer:
         if missing:
             lines.append(f"  Parameters without a default (NaN unless given in p): {', '.join(missing)}.")
         if self.definitions:
-            written = "; ".join(f"{k}({', '.join(map(str, f.variables))}) = {f.expr}" for k, f in sorted(self.definitions.items()))
-            lines.append(f"  Functions written out from their definitions in the file: {written}.")
+            lines.append("  " + written_definitions(self.definitions))
         renamed = {c: v for c, v in self.names.items() if c != v and c != str(model.t)}
         if renamed:
             lines.append("  Names changed to MATLAB identifiers: " + ", ".join(f"{c} -> {v}" for c, v in renamed.items()) + ".")
@@ -275,12 +274,7 @@ class _HamiltonWriter(_Writer):
         temporaries, results = self.block(exprs, "c")
         lines += temporaries
         cell = dict(zip(self.upper, results[: len(self.mass)], strict=True))
-        lines.append(f"M = zeros({n}, {n});")
-        for i, j in self.upper:
-            if cell[(i, j)] != "0":
-                lines.append(f"M({i + 1}, {j + 1}) = {cell[(i, j)]};")
-                if i != j:
-                    lines.append(f"M({j + 1}, {i + 1}) = M({i + 1}, {j + 1});")
+        lines += _symmetric("M", n, cell)
         lines.append(f"b = [{'; '.join(results[len(self.mass) :])}];")
         lines += [
             "r = rcond(M ./ max(abs(M), [], 2));",
@@ -327,6 +321,18 @@ class _HamiltonWriter(_Writer):
         lines += [f"  {line}" for line in self.body()]
         lines.append("end")
         return "\n".join(lines) + "\n"
+
+
+def _symmetric(name: str, size: int, cell: Mapping[tuple[int, int], str]) -> list[str]:
+    """`name = zeros(size, size)` and the nonzero entries of a symmetric matrix from its upper triangle
+    `cell[(i, j)]` (i <= j, in the order given), each lower entry copied from its mirror."""
+    lines = [f"{name} = zeros({size}, {size});"]
+    for (i, j), value in cell.items():
+        if value != "0":
+            lines.append(f"{name}({i + 1}, {j + 1}) = {value};")
+            if i != j:
+                lines.append(f"{name}({j + 1}, {i + 1}) = {name}({i + 1}, {j + 1});")
+    return lines
 
 
 def _number(value: float | None) -> str:
@@ -384,12 +390,7 @@ class _ReducedWriter(_Writer):
         lines.append(f"qdot = [{'; '.join(qdot)}];")
         if not k:  # every velocity is dependent: nothing to solve
             return [*lines, "dydt = qdot;", "if nargout > 2", "  Mr = zeros(0, 0);", "  Fr = zeros(0, 1);", "end"]
-        lines.append(f"Mr = zeros({k}, {k});")
-        for i, j in self.cells:
-            if cell[(i, j)] != "0":
-                lines.append(f"Mr({i + 1}, {j + 1}) = {cell[(i, j)]};")
-                if i != j:
-                    lines.append(f"Mr({j + 1}, {i + 1}) = Mr({i + 1}, {j + 1});")
+        lines += _symmetric("Mr", k, cell)
         lines.append(f"Fr = [{'; '.join(force)}];")
         lines += [
             "r = rcond(Mr ./ max(abs(Mr), [], 2));",

@@ -41,7 +41,7 @@ import sympy as sp
 from lagrange_cli import __version__
 from lagrange_cli._symengine import to_symengine
 from lagrange_cli.algebra import check_solvable
-from lagrange_cli.emit.common import require_defined
+from lagrange_cli.emit.common import require_defined, written_definitions
 from lagrange_cli.emit.printer import ATOM, Code, Printer, restructure
 from lagrange_cli.errors import DerivationError
 from lagrange_cli.model import Model
@@ -360,8 +360,7 @@ class _Writer:
             f"M(q{time}) q_ddot = F(q, q_dot{time})" + (" + A^T lambda" if model.constraints else "") + f", with y = [{', '.join(map(str, (*model.q, *model.qd)))}].",
         ]
         if self.definitions:
-            written = "; ".join(f"{name}({', '.join(map(str, f.variables))}) = {sp.sstr(f.expr)}" for name, f in sorted(self.definitions.items()))
-            header.append(f"Functions written out from their definitions in the file: {written}.")
+            header.append(written_definitions(self.definitions))
         if missing:
             header.append(f"Parameters without a default, to be given in p: {', '.join(missing)}.")
         parts = [docstring("\n".join([*header, ""])), "\n".join(imports)] if imports else [docstring("\n".join([*header, ""]))]

@@ -24,7 +24,7 @@ from sympy.printing.str import StrPrinter
 
 from lagrange_cli import __version__
 from lagrange_cli._symengine import to_symengine
-from lagrange_cli.emit.common import printable, require_defined
+from lagrange_cli.emit.common import printable, require_defined, written_definitions
 from lagrange_cli.errors import fail
 from lagrange_cli.model import Model
 from lagrange_cli.reduced import reduced, refuse_target
@@ -143,8 +143,7 @@ def python(model: Model, numba: bool = False) -> str:
     if model.inputs:
         header.append(f"Inputs [{', '.join(i.name for i in model.inputs)}] are given values at time t: rhs and velocities take them as a dict by name, u=INPUTS (the defaults), after p.")
     if model.definitions:
-        written = "; ".join(f"{name}({', '.join(map(str, f.variables))}) = {sp.sstr(f.expr)}" for name, f in sorted(model.definitions.items()))
-        header.append(f"Functions written out from their definitions in the file: {written}.")
+        header.append(written_definitions(model.definitions))
     imports = []
     if used_math:
         imports.append(f"from math import {', '.join(sorted(used_math))}")
@@ -275,8 +274,7 @@ def jax(model: Model, *, name: str = "eom") -> str:
         "or a function is outside its domain, the result is inf or NaN.",
     ]
     if definitions:
-        written = "; ".join(f"{fname}({', '.join(map(str, f.variables))}) = {sp.sstr(f.expr)}" for fname, f in sorted(definitions.items()))
-        header += ["", f"Functions written out from their definitions in the file: {written}."]
+        header += ["", written_definitions(definitions)]
     if missing:
         header += ["", f"Parameters without a default, to be given in p: {', '.join(missing)}."]
     if model.inputs:
