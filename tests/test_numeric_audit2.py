@@ -130,3 +130,39 @@ def test_an_explicit_reference_over_its_budget_is_tried_looser() -> None:
     setup = Setup(600.0, tuple(np.linspace(0.0, 600.0, 11).tolist()), max_steps=1)  # 10 reference steps: 1000 compiled
     found = reference.computed_reference(model, setup, 2.5e-14, implicit=(1e-10, 1e-9, 1e-8, 1e-7))
     assert found.settings is not None and found.settings.rtol > 2.5e-14
+
+
+def test_a_losing_run_is_stopped_by_its_pace() -> None:
+    """A paced run (one capped at the work of a run that met the accuracy already) is stopped once
+    its steps over the share of the span done exceed runs.PACE_MARGIN x its budget: Radau at rtol
+    1e-8 on the k = 1e10 pendulum (round-off-limited, 5705 steps to get nowhere) stops after a
+    quarter of a 400-step budget, counted; unpaced, the same run spends its whole budget."""
+    from lagrange_cli.numeric.runs import PACE_AFTER, PointStatus, measure
+    from lagrange_cli.numeric.status import Failure
+
+    model = _model(PILOT / "stiff_elastic_pendulum_r.yaml")
+    setup = Setup(10.0, tuple(np.linspace(0.0, 10.0, 11).tolist()), max_steps=400)
+    paced = measure(model, Candidate("Radau"), 1e-8, setup, None, np.ones(4), repeats=0, paced=True)  # type: ignore[arg-type]
+    assert paced.status == PointStatus.OVER_BUDGET and paced.failure == Failure.BUDGET
+    assert paced.steps == round(PACE_AFTER * 400)
+    assert "at that pace" in paced.reason
+    full = measure(model, Candidate("Radau"), 1e-8, setup, None, np.ones(4), repeats=0)  # type: ignore[arg-type]
+    assert full.status == PointStatus.OVER_BUDGET and full.steps > 3 * paced.steps
+
+
+def test_a_doomed_implicit_reference_goes_to_the_explicit_fallback_at_once() -> None:
+    """The k = 1e10 pendulum started at r = 0.01: Radau cannot finish at any rtol (round-off); the
+    loosest attempt is judged doomed by its probe like the tighter ones, not run to its whole budget
+    (55614 steps, most of `stress`'s time), and the reference is compiled RK45 (cheaper than DOP853
+    at tight rtols there: fewer rejected steps), confirmed by compiled DOP853."""
+    from lagrange_cli.numeric import compile
+
+    if not compile.numba_available():
+        pytest.skip("the explicit fallback needs numba")
+    model = _model(PILOT / "stiff_elastic_pendulum_r.yaml")
+    setup = Setup(1.0, tuple(np.linspace(0.0, 1.0, 21).tolist()), initial={"r": 0.01}, max_steps=60_000)
+    found = reference.computed_reference(model, setup, 1e-14, implicit=reference.implicit_tolerances(1e-9, 1e-7))
+    assert found.settings is not None and (found.settings.method, found.settings.backend) == ("RK45", "compiled")
+    assert "cannot finish within its budget" in found.description
+    assert "confirmed by DOP853 (compiled)" in found.description
+    assert found.own_error < 1e-7

@@ -237,8 +237,9 @@ def _capped(model: Model, candidate: Candidate, tolerance: float, setup: Setup, 
         reason = last.reason if not last.steps else f"not run: at rtol {tol_text(last.tolerance)} it ran out of its budget already ({last.reason})"
         return unrun(candidate, tolerance, PointStatus.OVER_BUDGET, reason, Failure.BUDGET)
     cap = capped_steps(candidate, LOSING * cheapest, last, setup)
-    point = measure(model, candidate, tolerance, replace(setup, max_steps=cap) if cap < setup.steps else setup, reference, scale, repeats=0)
-    if cap < setup.steps and point.failure == Failure.BUDGET and point.steps:
+    capped = cap < setup.steps  # then a losing run: stopped as soon as its pace shows it cannot finish (`runs.PACE_MARGIN`)
+    point = measure(model, candidate, tolerance, replace(setup, max_steps=cap) if capped else setup, reference, scale, repeats=0, paced=capped)
+    if capped and point.failure == Failure.BUDGET and point.steps and point.nfev:
         point = replace(point, reason=f"stopped after {point.steps} steps: {LOSING:g} x the work of the cheapest run at rtol {tol_text(tolerance)}")
     return point
 

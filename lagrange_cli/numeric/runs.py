@@ -235,6 +235,41 @@ def _time_limit(seconds: float) -> Progress:
     return progress
 
 
+PACE_AFTER = 0.25
+"""A paced run (`run(..., paced=True)`: one capped at the work of a run that met the accuracy
+already, which it can only lose to) is judged from this share of its step budget on ..."""
+PACE_MARGIN = 4.0
+"""... and stopped when its steps so far over the share of the time span done, the steps it needs
+at that pace, exceed this times its budget: it cannot finish within the budget (scipy's BDF at rtol
+1e-8 on the k = 1e10 pendulum started at r = 0.01 spent its whole cap, 14895 steps, 4 s, to reach
+1% of the span). Counted in steps, never timed; only Python runs (whose progress is told every step)."""
+
+
+class Unaffordable(Exception):
+    """A paced run was stopped: at its pace it needs `needed` steps, above PACE_MARGIN x its `budget`."""
+
+    def __init__(self, steps: int, fraction: float, needed: float, budget: int) -> None:
+        super().__init__(steps)
+        self.steps, self.fraction, self.needed, self.budget = steps, fraction, needed, budget
+
+
+def _paced(budget: int, then: Progress | None) -> Progress:
+    """A progress report, told once a step (scipy's runs), that raises Unaffordable (`PACE_MARGIN`)."""
+    taken = 0
+
+    def progress(fraction: float) -> None:
+        nonlocal taken
+        taken += 1
+        if taken >= PACE_AFTER * budget:
+            needed = taken / fraction if fraction > 0 else math.inf
+            if needed > PACE_MARGIN * budget:
+                raise Unaffordable(taken, fraction, needed, budget)
+        if then is not None:
+            then(fraction)
+
+    return progress
+
+
 def settings_for(model: Model, candidate: Candidate, tolerance: float, setup: Setup, step: float | None = None) -> Settings:
     """The settings of one run of `candidate` at `tolerance`, validated and decided (`auto` resolved)."""
     asked = validate(
@@ -257,14 +292,30 @@ def run_steps(settings: Settings, budget: int) -> int:
     return budget * COMPILED_STEPS if settings.backend == "compiled" else budget
 
 
-def run(model: Model, candidate: Candidate, tolerance: float, setup: Setup, *, step: float | None = None, timed: bool = True, reference: bool = False, settings: Settings | None = None) -> Trajectory:
+def run(
+    model: Model,
+    candidate: Candidate,
+    tolerance: float,
+    setup: Setup,
+    *,
+    step: float | None = None,
+    timed: bool = True,
+    reference: bool = False,
+    settings: Settings | None = None,
+    paced: bool = False,
+) -> Trajectory:
     """One run of the study, within its step budget (the reference's when `reference`) and, when
-    `timed` and the setup has one, its time limit (raises TimeLimit, LagrangeError). `settings`:
-    those of an earlier run of the same point, so that a repeat decides nothing again."""
+    `timed` and the setup has one, its time limit (raises TimeLimit, LagrangeError); `paced`: a
+    Python run is stopped once its pace shows it cannot finish within its budget (raises
+    Unaffordable, see PACE_MARGIN). `settings`: those of an earlier run of the same point, so that a
+    repeat decides nothing again."""
     limit = setup.time_limit if timed and not reference else None
     decided = settings if settings is not None else settings_for(model, candidate, tolerance, setup, step)
     budget = run_steps(decided, setup.reference_steps if reference else setup.steps)
-    return integrate(model, decided, _time_limit(limit) if limit is not None else None, budget)
+    progress = _time_limit(limit) if limit is not None else None
+    if paced and not reference and decided.backend == "python":
+        progress = _paced(budget, progress)
+    return integrate(model, decided, progress, budget)
 
 
 def over_step_budget(trajectory: Trajectory) -> bool:
@@ -314,10 +365,10 @@ def fixed_steps(settings: Settings) -> float:
     return abs(settings.t_end - settings.t0) / settings.step
 
 
-def measure(model: Model, candidate: Candidate, tolerance: float, setup: Setup, reference: Reference, scale: np.ndarray, repeats: int = 3) -> Point:
+def measure(model: Model, candidate: Candidate, tolerance: float, setup: Setup, reference: Reference, scale: np.ndarray, repeats: int = 3, paced: bool = False) -> Point:
     """Run one point (warm-up, then timed repeats) and compare it with the reference. The
     symplectic method's step is the one `policy.decide` chooses for `simulate` (its pilot run at
-    this tolerance), so a study measures the method as `simulate` runs it."""
+    this tolerance), so a study measures the method as `simulate` runs it. `paced`: see `run`."""
     step = None
     empty = unrun(candidate, tolerance)
     try:
@@ -327,7 +378,11 @@ def measure(model: Model, candidate: Candidate, tolerance: float, setup: Setup, 
             ran = Ran(decided.method, decided.backend)
             reason = f"its fixed step {decided.step:.3g} needs {needed:.3g} steps to t_end, above the step budget ({run_steps(decided, setup.steps)}); not run"
             return replace(empty, resolved=str(ran), ran=ran, settings=decided, step=decided.step, status=PointStatus.OVER_BUDGET, reason=reason, failure=Failure.BUDGET)
-        first = run(model, candidate, tolerance, setup, step=step, settings=decided)
+        first = run(model, candidate, tolerance, setup, step=step, settings=decided, paced=paced)
+    except Unaffordable as over:
+        ran = Ran(decided.method, decided.backend)
+        reason = f"stopped after {over.steps} steps, which at that pace need about {over.needed:.3g} to t_end, above {PACE_MARGIN:g} x its step budget ({over.budget}), at {100 * over.fraction:.2g}% of the time span"
+        return replace(empty, resolved=str(ran), ran=ran, settings=decided, steps=over.steps, status=PointStatus.OVER_BUDGET, reason=reason, failure=Failure.BUDGET)
     except TimeLimit as over:
         reason = f"stopped by the time limit ({setup.time_limit:g} s, --budget) at {100 * over.fraction:.0f}% of the time span"
         return replace(empty, status=PointStatus.UNDECIDED, reason=reason, failure=Failure.TIME_LIMIT)
