@@ -323,12 +323,19 @@ def over_step_budget(trajectory: Trajectory) -> bool:
     return trajectory.outcome == Status.BUDGET
 
 
+REPEAT_SECONDS = 1.0
+"""The timed runs after the warm-up (`_repeats`) spend at most about this much per point; a run longer
+than it is not repeated, its first time stands (2 s and at least one repeat before: the repeats were
+a quarter of `accuracy`'s time on the k = 1e10 pendulum, compiled DOP853 at rtol 1e-8 alone 5 s; a
+run that long is timed well once, and cannot tie with the short ones)."""
+
+
 def _repeats(first: float, repeats: int) -> int:
     """More timed runs after the warm-up: `repeats` when one run is short, fewer for slow runs
-    (at most about 2 s of repeats per point), and at least one."""
+    (at most about REPEAT_SECONDS of repeats per point), none for a run longer than that."""
     if first <= 0:
         return repeats
-    return max(1, min(repeats, int(2.0 / first)))
+    return min(repeats, int(REPEAT_SECONDS / first))
 
 
 def unrun(candidate: Candidate, tolerance: float, status: PointStatus = PointStatus.NOT_APPLICABLE, reason: str = "", failure: Failure | None = None) -> Point:
@@ -415,10 +422,11 @@ def measure(model: Model, candidate: Candidate, tolerance: float, setup: Setup, 
     drifts = [inv.max_change for inv in first.invariants if inv.kind == InvariantKind.CONSTRAINT]
     conserved = tuple((inv.name, inv.relative) for inv in first.invariants if inv.conserved and inv.kind != InvariantKind.CONSTRAINT)
     seconds = [first.timing.run]
-    if repeats > 0:
-        for _ in range(_repeats(first.timing.run, repeats)):
-            seconds.append(run(model, candidate, tolerance, setup, step=step, timed=False, settings=s).timing.run)
-        seconds = seconds[1:]
+    again = _repeats(first.timing.run, repeats) if repeats > 0 else 0
+    for _ in range(again):
+        seconds.append(run(model, candidate, tolerance, setup, step=step, timed=False, settings=s).timing.run)
+    if again:
+        seconds = seconds[1:]  # the warm-up's time dropped
     return replace(
         base,
         status=PointStatus.FINISHED,
