@@ -381,3 +381,43 @@ def test_an_explicit_reference_that_runs_out_of_budget_where_the_system_is_stiff
     assert stiff_at(model, setup, 0.5, np.array([1.0, 0.4, 0.0, 0.1]))
     calm = model_from(ROOT / "tests" / "numeric_audit_pilot" / "double_pendulum_nonstiff.yaml")
     assert not stiff_at(calm, starting(calm, Setup(10.0, (0.0, 10.0))), 0.5, np.array([0.3, 0.2, 0.0, 0.1]))
+
+
+def _point(method: str, backend: str, nfev: int, error: float, seconds: float = 1.0):  # type: ignore[no-untyped-def]
+    from dataclasses import replace
+
+    from lagrange_cli.numeric.runs import PointStatus, Ran, unrun
+
+    candidate = Candidate(method, backend if method in ("RK45", "DOP853") else "auto")
+    point = unrun(candidate, 1e-5)
+    return replace(point, status=PointStatus.FINISHED, ran=Ran(method, backend), nfev=nfev, steps=nfev // 6, max_error=error, seconds=seconds, reason="")
+
+
+def test_a_method_losing_on_the_same_backend_goes_no_tighter() -> None:
+    """Once a run meets the accuracy, a method whose run on the same backend missed it with more than
+    SAME_BACKEND_LOSING x that work is not run tighter (work maps to time closely on one backend);
+    across backends, or before any run met it, the wider LOSING applies."""
+    best = _point("RK45", "compiled", 2_000_000, 3e-8)
+    dop = _point("DOP853", "compiled", 3_200_000, 1e-5)
+    radau = _point("Radau", "python", 20_000, 5e-6)
+    assert stress._losing(Candidate("DOP853", "compiled"), best, dop) == stress.SAME_BACKEND_LOSING["compiled"]
+    assert stress._losing(Candidate("Radau"), best, radau) == stress.LOSING
+    assert stress._losing(Candidate("Radau"), _point("LSODA", "python", 6000, 7e-7), radau) == stress.SAME_BACKEND_LOSING["python"]
+    assert stress._losing(stress.NAIVE) == stress.NAIVE_LOSING
+    assert stress.SAME_BACKEND_LOSING["compiled"] * 2_000_000 < 3_200_000  # DOP853 here stops at rtol 1e-5
+
+
+def test_a_lone_meeting_run_is_not_timed_again(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Timing again in turns only serves to compare runs that could decide the recommendation or
+    tie with it: with one such run (or none meeting the accuracy) nothing is run again."""
+    from lagrange_cli.numeric.runs import Setup
+
+    def refuse(*args: object, **kwargs: object) -> None:
+        raise AssertionError("timed again")
+
+    monkeypatch.setattr(stress, "retime", refuse)
+    setup = Setup(1.0, (0.0, 1.0))
+    lone = [_point("RK45", "compiled", 100, 1e-8, 1.0), _point("Radau", "python", 100, 1e-8, 5.0)]
+    assert stress._retimed(None, lone, None, setup, 1e-6, 0.0)[0] == lone  # type: ignore[arg-type]
+    missing = [_point("RK45", "compiled", 100, 1e-3, 1.0), _point("DOP853", "compiled", 100, 1e-3, 1.05)]
+    assert stress._retimed(None, missing, None, setup, 1e-6, 0.0)[0] == missing  # type: ignore[arg-type]

@@ -312,7 +312,8 @@ def _report_stress(report: Report, to_stderr: bool) -> None:
             table.add_column(column, justify="left" if column in ("method", "setting", "status") else "right")
         for p in (o.naive_default, *o.points) if o.naive_default is not None else o.points:
             met = o.meets(p, report.accuracy)
-            status = ("[green]meets[/green]" if met else "[yellow]misses[/yellow]") if p.ok else f"[red]{inert(p.status)}[/red]: {inert(p.reason)}"
+            missed = "[yellow]misses[/yellow]" + (f": {inert(p.reason)}" if p.reason else "")  # and why it was not run tighter
+            status = ("[green]meets[/green]" if met else missed) if p.ok else f"[red]{inert(p.status)}[/red]: {inert(p.reason)}"
             name = _shown(p)
             evals = f"{p.nfev} ({p.njev})" if p.njev else str(p.nfev)
             setting = f"{p.setting} (default)" if p is o.naive_default else p.setting

@@ -425,6 +425,9 @@ def _regime(model: Model, regime: Regime, target: float, candidates: Sequence[Ca
             if not last.ok or last.error + own <= target:
                 break
             if best is not None and work(last) > _losing(candidate, best, last) * work(best):
+                if last.ok:
+                    ratio = work(last) / max(work(best), 1e-300)
+                    last = runs[(candidate, tolerance)] = replace(last, reason=f"not run tighter: it already took {ratio:.2g} x the work of {best.method} ({best.setting}), which meets the accuracy")
                 break  # tighter tolerances cost more still: it cannot be the recommendation
             stalled = previous is not None and previous.ok and previous.error < SATURATED and last.error > previous.error / STALLED
             stalls = stalls + 1 if stalled else 0
