@@ -402,6 +402,13 @@ def _explicit_fallback(model: Model, setup: Setup, rtols: tuple[float, ...], why
         if not main.failed:
             confirmations = [(Candidate("DOP853", "compiled"), rtols[-1]), (Candidate("DOP853", "compiled"), rtol), (Candidate("Radau"), rtols[-1])]
             found = _confirmed(model, attempt, main, rtol, list(dict.fromkeys(confirmations)), seconds)
+            closer = float(f"{10 * rtol:.12g}")
+            if not found.own_error <= rtols[-1] and closer < rtols[-1]:
+                # the confirmation at the loosest rtol disagrees by more than that rtol (its own error, not the primary's):
+                # confirmed again a decade from the primary (accuracy's ladder to 1e-8 on the k = 1e10 pendulum: 1.3e-8 at
+                # DOP853's 1e-8, 2e-9 at 1e-9, which the fastest-run table's 1e-7 row needs)
+                again = _confirmed(model, attempt, main, rtol, [(Candidate("DOP853", "compiled"), closer)], seconds)
+                found = again if math.isfinite(again.own_error) and not found.own_error <= again.own_error else found
             return replace(found, description=f"{found.description} (explicit, stability-limited: {why})")
         if main.outcome != Status.BUDGET:
             return None
