@@ -310,3 +310,30 @@ def test_the_reported_error_is_the_largest_pointwise_error_along_an_eccentric_or
     assert accuracy.SAMPLES >= 2001
     assert 1 / 1.2 <= ratio(accuracy.SAMPLES) <= 1.2
     assert ratio(201) > 1.4  # what the sparse samples missed
+
+
+def test_only_runs_that_can_be_the_fastest_are_timed_again() -> None:
+    """`contenders`: a run is timed again unless another reached at least its accuracy in under half
+    its time; the dominated runs keep their first time (retime with `only`), counted by timer calls."""
+    from lagrange_cli.numeric.runs import PointStatus, contenders, retime, unrun
+
+    def point(name: str, error: float, seconds: float, status: PointStatus = PointStatus.FINISHED) -> accuracy.Point:
+        return replace(unrun(Candidate(name), 1e-6), status=status, max_error=error, seconds=seconds, runs=1)
+
+    points = [
+        point("RK45", 1e-8, 0.10),  # the fastest at 1e-8
+        point("DOP853", 1e-9, 1.00),  # slower, but more accurate: may be the fastest at 1e-9
+        point("Radau", 1e-8, 0.15),  # within 2x of RK45 at its accuracy: a tie to decide
+        point("BDF", 1e-7, 0.50),  # RK45 is more accurate in a fifth of the time: dominated
+        point("LSODA", math.nan, math.nan, PointStatus.OVER_BUDGET),
+    ]
+    assert contenders(points) == [True, True, True, False, False]
+    calls: list[str] = []
+
+    def timer(p: accuracy.Point) -> Callable[[], float]:
+        return lambda: calls.append(p.method) or p.seconds / 2
+
+    timed = retime(None, points, None, 3, timer=timer, only=contenders(points))  # type: ignore[arg-type]
+    assert set(calls) == {"RK45", "DOP853", "Radau"} and "BDF" not in calls
+    assert [p.seconds for p in timed[:4]] == [0.05, 0.5, 0.075, 0.5] and timed[4] is points[4]
+    assert timed[3].runs == 1 and timed[0].runs >= 1

@@ -81,6 +81,7 @@ from lagrange_cli.numeric.runs import (
     capped_steps,
     check_steps,
     component_scale,
+    contenders,
     default_candidates,
     errors,
     interleave,
@@ -303,5 +304,5 @@ def study(
     if repeats > 0:  # the run times, measured in turns so that a changing load slows every run alike
         if progress:
             progress(Step(total, total, "timing", "timing the runs in turns"))
-        points = retime(model, points, setup, repeats)
+        points = retime(model, points, setup, repeats, only=contenders(points))  # a dominated run keeps its first time
     return Study(model.title, model.source, setup.t_end, full, reference, found, tuple(points), notes)

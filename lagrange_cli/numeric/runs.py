@@ -467,12 +467,27 @@ def interleave(timers: Sequence[Timer], rounds: Sequence[int]) -> list[list[floa
     return times
 
 
-def retime(model: Model, points: Sequence[Point], setup: Setup, repeats: int, timer: Callable[[Point], Timer] | None = None) -> list[Point]:
+CONTENDER = 2.0
+"""A finished run is timed again only if no other run reached at least its accuracy in less than
+1/CONTENDER of its time (`contenders`): a run that much slower cannot be the fastest at any accuracy
+whatever the noise of its first time, so repeating it would decide nothing."""
+
+
+def contenders(points: Sequence[Point], factor: float = CONTENDER) -> list[bool]:
+    """For each point: whether it is finished and not dominated (another finished run with an error
+    at most its own in less than 1/factor of its time)."""
+    done = [p for p in points if p.status == PointStatus.FINISHED]
+    return [p.status == PointStatus.FINISHED and not any(q.error <= p.error and q.seconds * factor < p.seconds for q in done) for p in points]
+
+
+def retime(model: Model, points: Sequence[Point], setup: Setup, repeats: int, timer: Callable[[Point], Timer] | None = None, only: Sequence[bool] | None = None) -> list[Point]:
     """The finished points with their run times measured again in turns (`interleave`): up to
     `repeats` timed runs each (fewer for slow runs), the fastest kept. `timer` makes the timer of a
-    point (default: run its settings again and take the integration time)."""
+    point (default: run its settings again and take the integration time); `only` (one flag per
+    point, e.g. `contenders`) limits the repeats to the flagged points, the others keep their first time."""
     make = timer if timer is not None else (lambda point: _timer(model, point, setup))
-    chosen = [k for k, p in enumerate(points) if p.status == PointStatus.FINISHED and (p.settings is not None or timer is not None)]
+    flags = list(only) if only is not None else [True] * len(points)
+    chosen = [k for k, p in enumerate(points) if flags[k] and p.status == PointStatus.FINISHED and (p.settings is not None or timer is not None)]
     times = interleave([make(points[k]) for k in chosen], [_repeats(points[k].seconds, repeats) for k in chosen])
     result = list(points)
     for k, found in zip(chosen, times, strict=True):
