@@ -75,16 +75,27 @@ def trig_source() -> str:
         "_k = (x * 0.6366197723675814 + 6755399441055744.0) - 6755399441055744.0",
         f"_near = abs(x) < {TRIG_LIMIT!r}",
         "_k = _k if _near else 0.0",
-        "_r = ((x - _k * 1.5707963267341256) - _k * 6.077100506303966e-11) - _k * 2.0222662487111665e-21",
+        "_t = x - _k * 1.5707963267341256",
+        "_w = _k * 6.077100506303966e-11",
+        "_a = _t - _w",
+        "_b = _a - _t",
+        "_e = (_t - (_a - _b)) + (-_w - _b)",
+        "_w = _k * 2.0222662487111665e-21",
+        "_h = _a - _w",
+        "_b = _h - _a",
+        "_e = (_e + ((_a - (_h - _b)) + (-_w - _b))) - _k * 8.47842766036889956997e-32",
+        "_r = _h + _e",
+        "_y = _e - (_r - _h)",
         "_z = _r * _r",
-        f"_s = _r + _r * _z * ({_horner(SINE)})",
-        f"_c = 1.0 - 0.5 * _z + _z * _z * ({_horner(COSINE)})",
         "_n = int(_k) & 3",
     ]
-    sine = [*reduction, "_v = _c if _n & 1 else _s", "_v = -_v if _n & 2 else _v", "return _v if _near else numpy.nan"]
-    cosine = [*reduction, "_v = _s if _n & 1 else _c", "_v = -_v if (_n + 1) & 2 else _v", "return _v if _near else numpy.nan"]
+    sine_kernel = ["_v = _z * _r", f"_q = {_horner(SINE[1:])}", f"_s = _r - ((_z * (0.5 * _y - _v * _q) - _y) - _v * {SINE[0]})"]
+    cosine_kernel = [f"_q = _z * ({_horner(COSINE)})", "_hz = 0.5 * _z", "_w = 1.0 - _hz", "_c = _w + (((1.0 - _w) - _hz) + (_z * _q - _r * _y))"]
+    sine = [*reduction, *sine_kernel, *cosine_kernel, "_v = _c if _n & 1 else _s", "_v = -_v if _n & 2 else _v", "return _v if _near else numpy.nan"]
+    cosine = [*reduction, *sine_kernel, *cosine_kernel, "_v = _s if _n & 1 else _c", "_v = -_v if (_n + 1) & 2 else _v", "return _v if _near else numpy.nan"]
     doc = (
-        "{} of x by fdlibm's reduction (x - k pi/2, pi/2 in three parts) and polynomials on |r| <= pi/4: arithmetic\n"
+        "{} of x by fdlibm's reduction (r + y = x - k pi/2 in double-double, pi/2 in three exact 33-bit parts and a tail)\n"
+        "and its kernels __kernel_sin and __kernel_cos on |r| <= pi/4 (within 1 ulp; measured: tests/test_sweep_lanes.py): arithmetic\n"
         "only, so that a loop over lanes vectorises; NaN for |x| >= TRIG_LIMIT or x not finite (the caller then uses libm)."
     )
     decorator = '@_njit(inline="always", error_model="numpy")\n'
