@@ -163,9 +163,10 @@ def test_each_lane_is_the_one_run_loops_run(pair: int) -> None:
 
 
 def test_final_states_against_the_default_path() -> None:
-    """Against the sweep's previous path (pivoted LU and libm sin and cos): the same statuses and final times, final
-    states equal to round-off amplified by the step-size controller (its error estimate cancels ~9 digits) on regular
-    runs (small angles): measured median 1e-12 relative, all within 1e-7 (tolerance 1e-9)."""
+    """Against the sweep's previous path (pivoted LU and libm sin and cos): the same statuses and final times; on
+    regular runs (angles within 0.3) final states within 1e-12 (relative) in 91% of runs, median 3.7e-15 (measured):
+    the rest took another step somewhere, where round-off tipped an accept/reject decision (the error estimate
+    cancels about 9 digits, so the right-hand side's last bit moves it by ~1e-7), up to 1.6e-9 (tolerance 1e-9)."""
     p = parts("double_pendulum")
     y0s, ps = pendulum_starts(300, 0.3, seed=2)
     ts = np.array([0.0, 10.0])
@@ -175,7 +176,7 @@ def test_final_states_against_the_default_path() -> None:
     got = p.loop(1, y0s, ps, control, ts, budget, lanes.LANES, p.accel, p.lanes)
     assert np.array_equal(got[0], one[0]) and np.array_equal(got[1], one[1])
     difference = np.max(np.abs(got[2] - one[2]) / np.maximum(1.0, np.abs(one[2])), axis=1)
-    assert np.median(difference) < 1e-10 and difference.max() < 1e-7
+    assert np.median(difference) < 1e-13 and np.mean(difference <= 1e-12) > 0.8 and difference.max() < 1e-7
 
 
 def test_failed_runs_come_back_with_their_reasons() -> None:

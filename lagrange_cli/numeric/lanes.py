@@ -22,10 +22,12 @@ the rest in the Runge-Kutta loop. Neither can be vectorised within one run of a 
   batch's next run. Its first evaluation and step size (kernels.erk_start) and the dense output at
   samples (kernels._erk_dense, 3 more evaluations) are the one-run path's scalar code.
 
-So each lane's run is the one-run path's run with a right-hand side that differs by round-off
-(L D L^T against LU, polynomial against libm sin and cos, both within about an ulp): the same steps
-except where round-off tips an accept/reject decision, final states equal to ~1e-12 on regular runs
-(tests/test_sweep_lanes.py); on a chaotic run both are within the tolerance's error of the truth.
+With the same right-hand side, each lane's run is the one-run loop's run bit for bit (tested, any
+number of lanes). The lanes' right-hand side differs from `_accel` by round-off (L D L^T against
+LU, polynomials against libm, within 1 ulp), so runs take the same steps except where round-off
+tips an accept/reject decision (the error estimate cancels about 9 digits): on regular double-pendulum
+runs 91% of final states within 1e-12 of the one-run path (median 3.7e-15), all within 1.6e-9 at
+rtol 1e-9; on chaotic runs the difference grows as any round-off does, within the tolerance's error.
 
 Covered: unconstrained systems without inputs, at most MAX_COORDINATES coordinates, no event
 (`--until`) and no section. Everything else (and a system whose generated code is too long) runs on
