@@ -8,6 +8,8 @@ best of --repeat, the contestants interleaved; the steps taken and the final sta
 
 The hand-written accel is an experiment, not lagrange's code: it shows what the batch would gain
 from a cheaper right-hand side (code generation), which no change of the batch loop can give.
+The lanes (numeric/lanes.py, what a sweep runs now): the same runs LANES at a time in lockstep, the
+generated `_accel_lanes` over the lanes in one vectorised loop; and `_accel_lanes` alone (LANES states a call).
 """
 
 from __future__ import annotations
@@ -64,6 +66,17 @@ def tight(accel, y, p, x, a, n):  # type: ignore[no-untyped-def]
     return y[0]
 
 
+@njit(error_model="numpy")
+def tight_lanes(accel_lanes, T, Y, P, X, S, active, n):  # type: ignore[no-untyped-def]
+    """n calls of accel_lanes along a chain (as `tight`, every lane)."""
+    for _ in range(n):
+        accel_lanes(T, Y, P, X, S, active)
+        for lane in range(Y.shape[1]):
+            Y[0, lane] = 0.3 + 1e-12 * X[0, lane]
+            Y[2, lane] = 0.2 + 1e-12 * X[1, lane]
+    return Y[0, 0]
+
+
 def main() -> None:
     parser = argparse.ArgumentParser()
     parser.add_argument("--runs", type=int, default=2000)
@@ -87,7 +100,21 @@ def main() -> None:
     for accel in contestants.values():
         runner.batch_entry(runner.pair, y0s[:2], ps[:2], control, ts, runner.budget, accel, runner.event)
         tight(accel, y0s[0].copy(), ps[0].copy(), np.empty(runner.size), np.empty((runner.size, runner.size)), 10)
+    from lagrange_cli.numeric.lanes import LANES
+
+    width = LANES
+    lane_state = (np.zeros(width), np.ascontiguousarray(np.tile(y0s[0], (width, 1)).T), np.ascontiguousarray(np.tile(ps[0], (width, 1)).T))
+    lane_work = (np.empty((runner.size, width)), np.empty(width), np.ones(width, dtype=np.int64))
+    runner.lanes_entry(runner.pair, y0s[:2], ps[:2], control, ts, runner.budget, width, runner.accel, runner.lanes_accel)
+    tight_lanes(runner.lanes_accel, *lane_state, *lane_work, 10)
+    lane_best, lane_alone = np.inf, np.inf
     for _ in range(arguments.repeat):
+        began = time.process_time()
+        lane_results = runner.lanes_entry(runner.pair, y0s, ps, control, ts, runner.budget, width, runner.accel, runner.lanes_accel)
+        lane_best = min(lane_best, time.process_time() - began)
+        began = time.process_time()
+        tight_lanes(runner.lanes_accel, *lane_state, *lane_work, calls // width)
+        lane_alone = min(lane_alone, time.process_time() - began)
         for name, accel in contestants.items():
             began = time.process_time()
             results[name] = runner.batch_entry(runner.pair, y0s, ps, control, ts, runner.budget, accel, runner.event)
@@ -115,6 +142,11 @@ def main() -> None:
         print(
             f"- {name}: batch {best[name] / arguments.runs * 1e3:.4f} ms a run ({best[name] / arguments.runs / per_run * 1e9:.1f} ns an evaluation); accel alone {alone[name] / calls * 1e9:.1f} ns a call"
         )
+    print(
+        f"- lanes ({width} runs in lockstep, `_accel_lanes`): batch {lane_best / arguments.runs * 1e3:.4f} ms a run ({lane_best / arguments.runs / per_run * 1e9:.1f} ns an evaluation;"
+        f" {lane_results[5] / arguments.runs:.0f} lane evaluations a run, idle lanes included: {lane_best / lane_results[5] * 1e9:.1f} ns each); `_accel_lanes` alone"
+        f" {lane_alone / (calls // width * width) * 1e9:.1f} ns a lane evaluation; {best[generated] / lane_best:.2f}x the batch with the generated accel"
+    )
     same_steps = np.array_equal(results[generated][4], results[hand][4])
     gap = np.abs(results[generated][2] - results[hand][2]).max()
     print(

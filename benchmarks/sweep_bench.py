@@ -8,8 +8,9 @@ The system: benchmarks/pendulum.py's 2-link chain (the double pendulum, m = l = 
 absolute angles), started at rest at angles drawn uniformly from [-1.5, 1.5]^2 (seed 0), run to
 t = 10 at rtol 1e-9, atol 1e-12 (so that runs end within about 1e-6 of the true state: see the
 report's true-error line), recording the final state. Contestants:
-1. `lagrange_cli.sweep.sweep` (compiled DOP853, batches of BATCH runs, one compiled call each) on 1 thread, 2 threads, and a
-   2-worker `dask.distributed.LocalCluster` (processes, 1 thread each), every run;
+1. `lagrange_cli.sweep.sweep` (compiled DOP853, batches of BATCH runs, one compiled call each, the runs in lockstep lanes:
+   numeric/lanes.py) on 1 thread, 2 threads, and a 2-worker `dask.distributed.LocalCluster` (processes, 1 thread each),
+   every run; and on 1 thread without lanes (`sweep.LANES = False`: ensemble.batch, the path before lanes), each round;
 2. the peer: a Python loop over `scipy.integrate.solve_ivp` (DOP853, same tolerances) on the
    sympy.physics.mechanics + lambdify(cse=True) right-hand side (benchmarks/peer.py), timed on a
    sample of PEER_SAMPLE runs and extrapolated linearly to all runs (stated as such);
@@ -85,16 +86,44 @@ def main() -> None:
     # The parallel comparison needs two free cores: it is run `--rounds` times, interleaved, each round with the
     # load average at its end; the table shows the round with the fastest --workers 2, the list below all of them.
     rounds: list[tuple[float, float, float, float, float, float, str]] = []
+    before: list[tuple[float, float, Any]] = []  # (wall, CPU, table) of the sweep without lanes (library.LANES = False), each round
+
+    def without_lanes() -> None:
+        library.LANES = False
+        library._RUNNERS.clear()
+        library.sweep(model, axes, **{**options, "sample": 8})  # the runner without lanes, built outside the timing
+        wall, table_before = timed(lambda: library.sweep(model, axes, **options))
+        before.append((wall, CPU[id(table_before)], table_before))
+        library.LANES = True
+        library._RUNNERS.clear()
+        library.sweep(model, axes, **{**options, "sample": 8})
+
     with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster:
         library.sweep(model, axes, scheduler=cluster.scheduler_address, **{**options, "sample": 8})  # every worker derives and loads once
         for _ in range(max(1, arguments.rounds)):
             one, table = timed(lambda: library.sweep(model, axes, **options))
             two, table_two = timed(lambda: library.sweep(model, axes, workers=2, **options))
             dask, table_dask = timed(lambda: library.sweep(model, axes, scheduler=cluster.scheduler_address, **options))
+            without_lanes()
             assert table.rows == table_two.rows and table_dask.rows == table.rows
             rounds.append((one, two, dask, CPU[id(table)], CPU[id(table_two)], CPU[id(table_dask)], ", ".join(f"{x:.1f}" for x in os.getloadavg())))
     one, two, dask, _, cpu_two, _, _ = min(rounds, key=lambda r: r[1])
     cpu_one = float(np.median([r[3] for r in rounds]))  # the sequential contestants compare by CPU time: the rounds' median
+    cpu_before = float(np.median([b[1] for b in before]))
+    wall_before, table_before = before[0][0], before[0][2]
+    lane_runner = next(r for r in library._RUNNERS.values() if r.model is model and r.lanes_entry is not None)
+    from lagrange_cli.numeric.lanes import LANES
+
+    starts = [lane_runner.point(values) for values in points]
+    y0s, ps = np.array([y for y, _ in starts]), np.array([p for _, p in starts])
+    control = lane_runner._control(0.0, T_END)
+    ts = np.array(lane_runner.settings.t_eval, dtype=float)
+    lane_cpu = time.process_time()
+    lane_evaluations = sum(
+        int(lane_runner.lanes_entry(lane_runner.pair, y0s[k : k + BATCH], ps[k : k + BATCH], control, ts, lane_runner.budget, LANES, lane_runner.accel, lane_runner.lanes_accel)[5])
+        for k in range(0, n, BATCH)
+    )
+    lane_cpu = time.process_time() - lane_cpu
 
     import peer as sympy_peer
     from scipy.integrate import solve_ivp
@@ -112,6 +141,11 @@ def main() -> None:
     exact = np.array([[row[k] for k in columns] for row in tight.rows])
     every = np.array([[row[k] for k in columns] for row in table.rows])
     true_error = np.abs(every - exact).max(axis=1)
+    every_before = np.array([[row[k] for k in columns] for row in table_before.rows])
+    true_error_before = np.abs(every_before - exact).max(axis=1)
+    lanes_against_before = (np.abs(every - every_before) / np.maximum(1.0, np.abs(every_before))).max(axis=1)
+    status_column = table.columns.index("status")
+    same_status = all(a[status_column] == b[status_column] for a, b in zip(table.rows, table_before.rows, strict=True))
     peer_error = np.abs(np.array(finals) - exact[:PEER_SAMPLE]).max(axis=1)
 
     simulate(model, t_end=T_END, method="DOP853", backend="compiled", rtol=rtol, atol=atol, samples=2)
@@ -136,6 +170,7 @@ def main() -> None:
         "| contestant | runs timed | CPU s (all runs) | wall s (all runs) | CPU per run | the sweep (1 worker) is faster by |",
         "|---|---|---|---|---|---|",
         f"| `lagrange sweep` compiled DOP853, 1 worker (CPU: median of the rounds) | {n} | {cpu_one:.2f} | {one:.2f} | {cpu_one / n * 1e3:.3f} ms | 1x |",
+        f"| before: `lagrange sweep` without lanes (`sweep.LANES = False`: ensemble.batch, run by run in one compiled call), 1 worker (CPU: median of the rounds) | {n} | {cpu_before:.2f} | {wall_before:.2f} | {cpu_before / n * 1e3:.3f} ms | {cpu_before / cpu_one:.2f}x |",
         f"| `lagrange sweep --workers 2` (2 threads, GIL released in the compiled loop) | {n} | {cpu_two:.2f} | {two:.2f} | | wall: speed-up {one / two:.2f}x over 1 worker |",
         f"| `lagrange sweep --scheduler` (2-worker LocalCluster, processes) | {n} | (in the workers) | {dask:.2f} | | wall: {dask / two:.2f}x the time of --workers 2 |",
         f"| peer: Python loop over `solve_ivp` (DOP853) on lambdify(cse=True) | {PEER_SAMPLE}, extrapolated | {peer_all:.1f} | {peer_wall / PEER_SAMPLE * n:.1f} | {peer_time / PEER_SAMPLE * 1e3:.2f} ms | {peer_all / cpu_one:.0f}x (wall {peer_wall / PEER_SAMPLE * n / one:.0f}x) |",
@@ -143,6 +178,15 @@ def main() -> None:
         f"| Python loop over `simulate` as documented (auto: {default_method}, 1001 samples) | {DEFAULT_SAMPLE}, extrapolated | {default_all:.1f} | {default_wall / DEFAULT_SAMPLE * n:.1f} | {default_time / DEFAULT_SAMPLE * 1e3:.3f} ms | {default_all / cpu_one:.1f}x |",
         "",
         f"- Against the peer: {peer_all / cpu_one:.0f}x in CPU time (target >= 100x); against a loop over `simulate`: {api_all / cpu_one:.1f}x tuned, {default_all / cpu_one:.1f}x with its defaults (target >= 5x).",
+        f"- Lanes ({LANES} runs in lockstep, numeric/lanes.py) against the same sweep without them: {cpu_before / cpu_one:.2f}x (CPU, median of the rounds: "
+        + ", ".join(f"{b[1]:.2f} s" for b in before)
+        + f" without, {', '.join(f'{r[3]:.2f} s' for r in rounds)} with); the tuned `simulate` loop against the sweep without lanes: {api_all / cpu_before:.1f}x.",
+        f"- Per evaluation: {lane_evaluations / n:.0f} lane evaluations a run (idle lanes at the end of each batch of {BATCH} included), the whole run"
+        f" {lane_cpu / lane_evaluations * 1e9:.1f} ns a lane evaluation (the lane loop called directly, batch by batch, CPU {lane_cpu:.2f} s); without lanes"
+        f" {cpu_before / lane_evaluations * 1e9:.1f} ns an evaluation at the same count.",
+        f"- Lanes against no lanes: statuses {'identical' if same_status else 'DIFFERENT'}; final states (relative, largest component) median {np.median(lanes_against_before):.1e},"
+        f" 90% {np.quantile(lanes_against_before, 0.9):.1e}, max {lanes_against_before.max():.1e} (the right-hand side differs by round-off, which the"
+        f" step-size controller and the chaotic runs amplify); true error without lanes: median {np.median(true_error_before):.1e}, {100 * np.mean(true_error_before <= 1e-6):.0f}% of runs within 1e-6.",
         f"- Two local workers: {one / two:.2f}x one worker (target >= 1.7x). The CPU time of the process was {cpu_one:.1f} s with one worker and",
         f"  {cpu_two:.1f} s with two (the threads run the compiled loop with the GIL released); load average at the start {load_start}.",
         f"- 2-worker LocalCluster: {dask / two:.2f}x the time of `--workers 2` (target <= 1.3x; Dask adds its scheduling and transfers per",

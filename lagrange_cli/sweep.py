@@ -57,6 +57,9 @@ if TYPE_CHECKING:
 
 BATCH = 64
 """Runs per batch: a batch is the unit of work of a thread or a Dask task, and of writing and resuming."""
+LANES = True
+"""Whether a batch on the compiled explicit path runs in lockstep lanes where it can (numeric/lanes.py); False:
+run by run in one compiled call (ensemble.batch), as before (benchmarks/sweep_bench.py measures both)."""
 LYAPUNOV_SEGMENTS = 50
 LYAPUNOV_SEPARATION = 1e-8
 MAX_CROSSINGS = 100_000
@@ -378,6 +381,7 @@ class Runner:
 
             self.batch_entry = erk_batch()
             self.sections_entry: Any = erk_sections() if self.section is not None else None
+            self.lanes_entry, self.lanes_accel = self._lanes(model, settings)
         full = model.with_definitions()
         self.vector: dict[str, Callable[..., Any]] = {}
         for m in self.measures:
@@ -389,6 +393,20 @@ class Runner:
         if self.section is not None:
             self.conditions = [_vectorised(model, c) for c in self.section.conditions]
         self.columns = self._columns()
+
+    def _lanes(self, model: Model, settings: Any) -> tuple[Any, Any]:
+        """(the lane loop, the system's `_accel_lanes`) when the batch can run in lockstep lanes (numeric/lanes.py:
+        no event or section, no inputs, no kept constraints, a small system), else (None, None): ensemble.batch."""
+        if not LANES or self.section is not None or settings.event is not None or model.inputs or model.constraints:
+            return None, None
+        from lagrange_cli.numeric import lanes
+
+        module = lanes.build(model)
+        if module is None:
+            return None, None
+        loop = lanes.lane_loop()
+        module._accel_lanes.compile(lanes.loop_module().LANES_SIG.args)
+        return loop, module._accel_lanes
 
     def _columns(self) -> list[str]:
         axes = [axis.column for axis in self.job.axes]
@@ -434,7 +452,12 @@ class Runner:
         y0s, ps = np.array([y for y, _ in starts]), np.array([p for _, p in starts])
         ts = np.array(self.settings.t_eval, dtype=float)
         control = self._control(self.settings.t0, self.settings.t_end)
-        codes, t_last, y_last, ys, _ = self.batch_entry(self.pair, y0s, ps, control, ts, self.budget, self.accel, self.event)
+        if self.lanes_entry is not None:
+            from lagrange_cli.numeric.lanes import LANES as width
+
+            codes, t_last, y_last, ys, _, _ = self.lanes_entry(self.pair, y0s, ps, control, ts, self.budget, width, self.accel, self.lanes_accel)
+        else:
+            codes, t_last, y_last, ys, _ = self.batch_entry(self.pair, y0s, ps, control, ts, self.budget, self.accel, self.event)
         exponents = self.lyapunov_batch(y0s, ps) if any(m.kind == "lyapunov" for m in self.measures) else None
         rows: list[list[Any]] = []
         for b, (k, values) in enumerate(zip(indices, chunk, strict=True)):

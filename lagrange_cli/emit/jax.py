@@ -34,7 +34,7 @@ import keyword
 import math
 import re
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, ClassVar
 
@@ -637,6 +637,8 @@ class Solved:
 
     lines: list[str]
     results: list[str]
+    pivots: list[str] = field(default_factory=list)
+    """The pivots D of M's factors (the sweep's lane code tests them: numeric/lanes.py)."""
 
 
 def unrolled_solve(
@@ -722,7 +724,7 @@ def unrolled_solve(
     x0 = substitute(n, low, diagonal, list(forcing))
     k = len(jacobian)
     if not k:
-        return Solved(lines, [v if v is not None else "0.0" for v in x0])
+        return Solved(lines, [v if v is not None else "0.0" for v in x0], diagonal)
     columns = [substitute(n, low, diagonal, list(row)) for row in jacobian]  # Y = M^-1 A^T, by column
     schur: dict[tuple[int, int], str | None] = {}
     for r in range(k):
@@ -737,7 +739,7 @@ def unrolled_solve(
         start = x0[j]
         terms = [f"{columns[r][j]} * {lam[r]}" for r in range(k) if columns[r][j] is not None and lam[r] is not None]
         x.append(let(" + ".join(([start] if start is not None else []) + terms)) if terms else (start if start is not None else "0.0"))
-    return Solved(lines, [*x, *(v if v is not None else "0.0" for v in lam)])
+    return Solved(lines, [*x, *(v if v is not None else "0.0" for v in lam)], diagonal)
 
 
 def _negate(code: str) -> str:
