@@ -350,6 +350,8 @@ class ErkLoop:
 
     def finish(self, progress: Progress | None = None) -> Run:
         """Go on to the end (or an event, a failure, the problem's step budget); the run."""
+        if self.code == status.RUNNING and self.steps >= self.problem.max_steps:  # paused past the budget already
+            self.code = status.BUDGET
         if self.code == status.RUNNING:
             self.code = _drive(self._advance, lambda: self.t, lambda: self.steps, self.problem, progress)
         m = int(self.state[status.NEXT_SAMPLE])
