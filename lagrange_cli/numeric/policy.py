@@ -563,7 +563,7 @@ and a stiff run the test missed wastes no more than the pilot. A run that needs 
 then. Also the explicit steps left, at DOP853's stability-limited step, below which a stiff run
 goes on explicitly: fewer than an implicit run's cost (IMPLICIT_COST x ~500 steps at the least)."""
 CHECK_STEPS = 1000
-"""The attempt looks at its progress after every this many steps: ..."""
+"""The attempt looks at its progress after every this many steps ..."""
 LONG_STEPS = 3 * ATTEMPT_STEPS
 """... and hands over to the pilot as soon as its steps so far and the rest of the run at the rate of
 its last CHECK_STEPS steps come to more than these: a run this long will not finish within ATTEMPT_STEPS,
@@ -593,7 +593,7 @@ class Attempt:
     step: float
     """The next step size (at the stability limit where the test found stiffness)."""
     rate: float | None = None
-    """Step attempts per unit time over a stretch run on past the stiffness (`measure`), rejected steps included."""
+    """Step attempts per unit time over a stretch run on past the stiffness (`measure_attempt`), rejected steps included."""
     projected: float = math.nan
     """The steps of the whole run, projected from the last CHECK_STEPS (see LONG_STEPS)."""
 
