@@ -9,7 +9,10 @@ in a warm-up first, so they are excluded: one-time costs kept in a cache), steps
 side evaluations. auto's memo is cleared before each of its runs, so its time includes its pilot
 run, explicit probe and the compiled run it starts with (`policy.decide`, also timed on its own). Ratios are against the fastest
 method that finished. The cases: the audit's (tests/numeric_audit_pilot, tests/numeric_audit2)
-and bundled stiff springs; each file's own t_end.
+the bundled stiff springs and the other bundled stiff and extreme systems (README: the chaotic double
+pendulum, the spherical pendulum near the pole, the sleeping top, Kapitza's pendulum; not the
+multiplier pendulum: kept constraints, so `auto` cannot start compiled there, and scipy's implicit
+methods over its t_end = 1000 take minutes); each file's own t_end.
 The second part runs the multiplier pendulum to t = 1e4 with and without projection and
 measures the error against the exact solution (the simple pendulum's elliptic-function formula).
 """
@@ -43,6 +46,7 @@ CASES = [
     ("damped elastic pendulum in r, k=1e10", AUDIT / "stiff_elastic_pendulum_r.yaml", {}),
     ("double pendulum (non-stiff)", AUDIT / "double_pendulum_nonstiff.yaml", {}),
     *((f"audit 2: {path.stem}", path, {}) for path in sorted(AUDIT2.glob("*.yaml"))),
+    *((f"bundled: {name}", SYSTEMS / f"{name}.yaml", {}) for name in ("double_pendulum_chaotic", "spherical_pendulum_near_pole", "heavy_top", "kapitza_pendulum")),
 ]
 METHODS = ["auto", "DOP853", "RK45", "Radau", "BDF", "LSODA"]
 BUDGET = 3_000_000
