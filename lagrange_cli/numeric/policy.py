@@ -11,7 +11,8 @@ ATTEMPT_STEPS steps (about a pilot's cost):
   (`take_attempt`); no pilot is spent, and the run costs what `--method DOP853` costs;
 - the test found it stiff, but the steps left at its stability-limited step are fewer than
   ATTEMPT_STEPS (cheaper than any implicit run): it goes on from where it paused;
-- otherwise (stiff, or over ATTEMPT_STEPS) the pilot below decides; where it picks DOP853 the run
+- otherwise (stiff, over ATTEMPT_STEPS, or projected from its last CHECK_STEPS steps to need more than
+  LONG_STEPS) the pilot below decides; where it picks DOP853 the run
   goes on from where it paused, and where the decay's estimate makes the choice close, the paused
   run goes on MEASURE_STEPS steps and its measured cost of the rest of the run decides (`measure_attempt`).
 
