@@ -7,9 +7,12 @@ round r + 1), the minimum over rounds kept. For each case: every method's CPU ti
 `simulate` call (time.process_time: the machine is shared; compile and code generation are done
 in a warm-up first, so they are excluded: one-time costs kept in a cache), steps and right-hand
 side evaluations. auto's memo is cleared before each of its runs, so its time includes its pilot
-run and explicit probe (`policy.decide`, also timed on its own). Ratios are against the fastest
+run, explicit probe and the compiled run it starts with (`policy.decide`, also timed on its own). Ratios are against the fastest
 method that finished. The cases: the audit's (tests/numeric_audit_pilot, tests/numeric_audit2)
-and bundled stiff springs; each file's own t_end.
+the bundled stiff springs and the other bundled stiff and extreme systems (README: the chaotic double
+pendulum, the spherical pendulum near the pole, the sleeping top, Kapitza's pendulum; not the
+multiplier pendulum: kept constraints, so `auto` cannot start compiled there, and scipy's implicit
+methods over its t_end = 1000 take minutes); each file's own t_end.
 The second part runs the multiplier pendulum to t = 1e4 with and without projection and
 measures the error against the exact solution (the simple pendulum's elliptic-function formula).
 """
@@ -43,6 +46,7 @@ CASES = [
     ("damped elastic pendulum in r, k=1e10", AUDIT / "stiff_elastic_pendulum_r.yaml", {}),
     ("double pendulum (non-stiff)", AUDIT / "double_pendulum_nonstiff.yaml", {}),
     *((f"audit 2: {path.stem}", path, {}) for path in sorted(AUDIT2.glob("*.yaml"))),
+    *((f"bundled: {name}", SYSTEMS / f"{name}.yaml", {}) for name in ("double_pendulum_chaotic", "spherical_pendulum_near_pole", "heavy_top", "kapitza_pendulum")),
 ]
 METHODS = ["auto", "DOP853", "RK45", "Radau", "BDF", "LSODA"]
 BUDGET = 3_000_000
@@ -55,9 +59,10 @@ def load(path: Path):  # type: ignore[no-untyped-def]
     return derive.derive(spec.load(path))
 
 
-def bench_auto(rounds: int, only: str | None = None) -> None:
-    print(f"## auto against every method (each file's t_end; rtol 1e-8, atol 1e-10; min of {rounds} interleaved rounds; CPU seconds of the whole `simulate` call)\n")
-    print("| case | auto picks | auto steps | auto CPU s (with its pilot) | pilot CPU s | best method | best steps | best CPU s | auto/best |")
+def bench_auto(rounds: int, only: str | None = None, warm_compiled: bool = False) -> None:
+    warm = "; each system compiled in the warm-up (numba's code cached, as on a second call)" if warm_compiled else ""
+    print(f"## auto against every method (each file's t_end; rtol 1e-8, atol 1e-10; min of {rounds} interleaved rounds; CPU seconds of the whole `simulate` call{warm})\n")
+    print("| case | auto picks | auto steps | auto+pilot CPU s | decide CPU s (attempt, pilot, probe) | best method | best steps | best CPU s | auto+pilot / best |")
     print("|---|---|---|---|---|---|---|---|---|")
     for name, path, parameters in CASES:
         if only is not None and only not in name:
@@ -65,6 +70,8 @@ def bench_auto(rounds: int, only: str | None = None) -> None:
         model = load(path)
         for method in METHODS:  # warm: code generation and compilation out of the timed rounds
             simulate(model, method=method, parameters=parameters, samples=11, t_end=1e-3)
+        if warm_compiled:
+            simulate(model, method="DOP853", backend="compiled", parameters=parameters, samples=11, t_end=1e-3)
         best: dict[str, tuple[float, int, int, str, str]] = {}
         pilot_seconds = math.inf
         for _ in range(rounds):
@@ -128,8 +135,9 @@ def main() -> None:
     parser.add_argument("--rounds", type=int, default=2)
     parser.add_argument("--skip-projection", action="store_true")
     parser.add_argument("--only", help="run only the cases whose name contains this text")
+    parser.add_argument("--warm-compiled", action="store_true", help="compile each system in the warm-up (numba's code cached, as on a second call)")
     arguments = parser.parse_args()
-    bench_auto(arguments.rounds, arguments.only)
+    bench_auto(arguments.rounds, arguments.only, arguments.warm_compiled)
     if not arguments.skip_projection:
         bench_projection()
 

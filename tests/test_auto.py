@@ -7,9 +7,10 @@ needs about 1200. Counted in steps, never in seconds.
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 
-from lagrange_cli.numeric import policy
+from lagrange_cli.numeric import compile, integrators, memo, policy, status
 from lagrange_cli.numeric.simulate import simulate
 from tests.conftest import ROOT
 from tests.helpers import model_from
@@ -84,9 +85,13 @@ def test_the_pilot_runs_until_lsoda_steps_with_bdf_on_a_stiff_start() -> None:
 
 def test_the_explicit_probe_counts_the_step_attempts_dop853_really_takes() -> None:
     """Where the decay alone would let compiled DOP853 win (the same pendulum at k = 2e8 over t = 5:
-    decay 1e4/s, ~8300 stability-limited steps against 20 x ~750 LSODA steps), a short DOP853
-    probe measures the attempts, rejections included: ~2.5 x the decay's estimate, so LSODA. The
-    probe's rate agrees with a budget-limited DOP853 run from the start (counted in evaluations)."""
+    decay 1e4/s, ~8300 stability-limited steps against 25 x ~750 LSODA steps), a short DOP853
+    probe (used where `auto` cannot start with the compiled run: kept constraints) measures the
+    attempts, rejections included: ~2.5 x the decay's estimate. The probe's rate agrees with a
+    budget-limited DOP853 run from the start (counted in evaluations), and with the rate `auto`
+    measures on the compiled run it started with, gone on past the stiffness; the attempts that run
+    needs for the rest of the run against IMPLICIT_COST x the pilot's LSODA steps decide (there:
+    DOP853, 14 098 steps; 0.017 s CPU against LSODA's 0.027 s)."""
     model = model_from(AUDIT2 / "elastic_pendulum_r_k1e11.yaml")
     settings = policy.resolve(model, method="auto", parameters={"k": 2e8})
     measured = policy.pilot(model, settings)
@@ -97,18 +102,98 @@ def test_the_explicit_probe_counts_the_step_attempts_dop853_really_takes() -> No
     assert not probe.failed and probe.steps == policy.PROBE_STEPS
     attempts = probe.attempts(settings.t_end)
     assert attempts > 2 * estimate, (attempts, estimate)
-    assert attempts > policy.IMPLICIT_COST * implicit and settings.method == "LSODA", settings.notes
-    assert any("DOP853 probe" in n for n in settings.notes), settings.notes
     explicit = simulate(model, method="DOP853", backend="python", parameters={"k": 2e8}, samples=11, max_steps=3000)
     assert explicit.outcome == "budget"
     measured_attempts = explicit.stats.nfev / policy.DOP853_EVALUATIONS * settings.t_end / explicit.t_last
     assert 0.5 < attempts / measured_attempts < 2.0, (probe, measured_attempts)
-
-
-@pytest.mark.parametrize("name", ["chain_mixed_stiffness.yaml", "van_der_pol_force.yaml", "driven_coupled_oscillators.yaml"])
-def test_mildly_stiff_cases_keep_dop853_when_the_probe_finds_it_cheaper(name: str) -> None:
-    # benchmarks/auto_bench.py: on these compiled DOP853 is the fastest or within 2x of it
-    settings = policy.resolve(model_from(AUDIT2 / name), method="auto")
-    assert settings.method == "DOP853", settings.notes
+    compiled = policy.measure_attempt(model, settings, policy.explicit_attempt(model, settings))  # as `auto` measured it (once per settings)
+    assert compiled.rate is not None and 0.5 < compiled.rate / probe.rate < 2.0, (compiled, probe)
+    cheaper = compiled.left(settings.t_end) <= policy.IMPLICIT_COST * implicit
+    assert settings.method == ("DOP853" if cheaper else "LSODA"), settings.notes
     note = next(n for n in settings.notes if n.startswith("method auto ->"))
-    assert "DOP853 probe" in note, note
+    assert "the compiled DOP853 run, gone on to" in note and "more step attempts at its measured rate" in note, note
+
+
+@pytest.mark.parametrize(("name", "cached"), [("chain_mixed_stiffness.yaml", False), ("van_der_pol_force.yaml", False), ("driven_coupled_oscillators.yaml", False), ("kepler_e09.yaml", True)])
+def test_a_run_compiled_dop853_does_cheaply_is_the_run_auto_starts_with_and_no_pilot_runs(name: str, cached: bool) -> None:
+    """`auto` starts the run itself with compiled DOP853 and Hairer's stiffness test (at most
+    ATTEMPT_STEPS steps) where it would run DOP853 compiled: a long run for its rates, or a system
+    compiled already (Kepler: a short run, compiled once first). On these (160-6000 steps; the chain and
+    van der Pol have a few steps limited by stability, then need fewer than ATTEMPT_STEPS more) that run
+    goes on to the end: the same steps and samples as `--method DOP853 --backend compiled`, and no
+    LSODA pilot or Python probe is spent."""
+    model = model_from(AUDIT2 / name)
+    if cached:
+        simulate(model, method="DOP853", backend="compiled", samples=2, t_end=1e-3)
+        model.__dict__.pop(memo.SLOT, None)
+    auto = simulate(model, method="auto", samples=21)
+    assert (auto.settings.method, auto.settings.backend) == ("DOP853", "compiled"), auto.notes
+    store = model.__dict__[memo.SLOT]
+    assert not any(isinstance(key, tuple) and key[0] in ("pilot", "explicit probe") for key in store), list(store)  # decided without them
+    note = next(n for n in auto.notes if n.startswith("method auto ->"))
+    assert "the compiled DOP853 run itself finished" in note or "more steps at its step" in note, note
+    alone = simulate(model, method="DOP853", backend="compiled", samples=21)
+    assert auto.stats.steps == alone.stats.steps and auto.stats.nfev == alone.stats.nfev
+    assert np.array_equal(auto.t, alone.t) and np.array_equal(auto.y, alone.y)  # one run, paused and gone on: the same run
+
+
+def test_a_stiff_start_stops_the_compiled_run_within_a_few_hundred_steps() -> None:
+    """The damped cart (decay 9e5/s): compiled DOP853 would take 1.46e6 steps; Hairer's test stops it
+    after a few hundred, the pilot then picks LSODA."""
+    model = model_from(AUDIT / "cart_pendulum_damped.yaml")
+    settings = policy.validate(model, method="auto")
+    found = policy.explicit_attempt(model, settings)
+    assert found.stiff_at is not None and not found.ended and found.h_lambda > status.STIFF_H_LAMBDA, found
+    assert found.steps < 1000, found
+    decided = policy.decide(model, settings)
+    assert decided.method == "LSODA", decided.notes
+
+
+def test_the_kernel_pauses_on_stiffness_and_goes_on_to_the_same_run() -> None:
+    """kernels._stiffness_test: on the damped stiff spring at k = 1e10 (decay 1e6/s), DOP853's accepted
+    steps sit at h |lambda| ~ 6-7 and the loop pauses after STIFF_STEPS of them; going on from the pause
+    gives exactly the run made straight through (pausing changes no step)."""
+    model = model_from(ROOT / "systems" / "stiff_spring_pendulum_damped.yaml")
+    settings = policy.validate(model, method="DOP853", backend="compiled", parameters={"k": 1e10}, t_end=0.01, samples=5)
+    numba = compile.build(model, "numba")
+    problem = integrators.Problem(0.0, settings.t_end, np.array(settings.y0), np.array(settings.t_eval), np.array(settings.p), False, 10**6)
+    loop = integrators.ErkLoop(numba, problem, "DOP853", settings.rtol, settings.atol, settings.max_step)
+    assert loop.advance(policy.ATTEMPT_STEPS, stiffness=True) == status.RUNNING
+    assert loop.stiff and loop.stats[status.H_LAMBDA] > status.STIFF_H_LAMBDA and loop.steps < 1000, loop.stats
+    paused = loop.finish()
+    straight = integrators.run_erk(numba, problem, "DOP853", settings.rtol, settings.atol, settings.max_step)
+    assert paused.status == straight.status == "finished"
+    assert paused.stats == straight.stats and np.array_equal(paused.y, straight.y)
+    free = integrators.ErkLoop(numba, problem, "DOP853", settings.rtol, settings.atol, settings.max_step)
+    assert free.advance(100) == status.RUNNING and free.steps == 100 and not free.stiff  # no test asked: pauses by its step count only
+
+
+def test_a_close_choice_is_made_from_the_measured_cost_of_the_rest_of_the_run() -> None:
+    """The damped stiff spring at k = 1e8 (decay 1e4/s over t = 10): the compiled run is found stiff early,
+    the pilot too, and the decay's estimate is close; the paused run goes on MEASURE_STEPS steps, and its
+    measured attempts for the rest of the run against IMPLICIT_COST x the pilot's LSODA steps decide
+    (what is already done is not counted: it is paid either way)."""
+    model = model_from(ROOT / "systems" / "stiff_spring_pendulum_damped.yaml")
+    settings = policy.validate(model, method="auto")
+    decided = policy.decide(model, settings)
+    found = policy.explicit_attempt(model, settings)
+    assert found.stiff_at is not None
+    measured = policy.pilot(model, settings)
+    assert measured is not None
+    after = policy.measure_attempt(model, settings, found)  # as `decide` measured it (once per settings)
+    assert after.rate is not None and after.steps > found.steps
+    cheaper = after.left(settings.t_end) <= policy.IMPLICIT_COST * measured.implicit_steps(settings.t_end)
+    assert decided.method == ("DOP853" if cheaper else "LSODA"), decided.notes
+    note = next(n for n in decided.notes if n.startswith("method auto ->"))
+    assert "more step attempts at its measured rate" in note, note
+
+
+def test_a_paused_run_past_the_step_budget_stops_there() -> None:
+    """The undamped stiff spring (14 868 DOP853 steps): the compiled run `auto` starts with pauses at
+    ATTEMPT_STEPS, the pilot finds it not stiff and it goes on, unless the caller's budget is spent already."""
+    model = model_from(ROOT / "systems" / "stiff_spring_pendulum.yaml")
+    short = simulate(model, method="auto", samples=11, max_steps=5000)
+    assert short.outcome == "budget" and short.stats.steps == policy.ATTEMPT_STEPS, (short.stats, short.notes)
+    whole = simulate(model, method="auto", samples=11)
+    assert whole.status == "finished" and whole.settings.method == "DOP853" and whole.stats.steps > policy.ATTEMPT_STEPS, whole.notes
+    assert any("goes on from t =" in note for note in whole.notes), whole.notes

@@ -280,26 +280,82 @@ def _compile(functions: Functions, kernel: str, pieces: Sequence[tuple[str, Any]
 
 def run_erk(functions: Functions, problem: Problem, method: str, rtol: float, atol: float, max_step: float, progress: Progress | None = None) -> Run:
     """The explicit pair `method` (RK45 or DOP853, see tableaux.EXPLICIT) compiled, with scipy's step-size control."""
-    kernels = functions.kernels
-    assert kernels is not None
-    pair = EXPLICIT[method].code
-    start_entry, _, compile_start = _compile(functions, "erk_start", [])
-    run_entry, (accel, event), compile_run = _compile(functions, "erk_run", [("_accel", kernels.ACCEL_SIG), ("_event", kernels.EVENT_SIG)])
-    began = time.perf_counter()
-    y, f = problem.y0.copy(), np.empty_like(problem.y0)
-    stats = _new_stats(math.inf, 0.0)
-    ys = np.full((len(problem.ts), len(y)), np.nan)
-    control = _control(problem, functions.module._SIZE, rtol=rtol, atol=atol, max_step=max_step)
-    h0 = start_entry(pair, problem.t0, y, f, control, problem.p, stats, accel)
-    state = _state(problem.t0, h0, _initial_event(functions, problem))
+    return ErkLoop(functions, problem, method, rtol, atol, max_step).finish(progress)
 
-    def advance(t_stop: float) -> int:
-        control[status.T_STOP] = t_stop
-        return int(run_entry(pair, y, f, state, control, problem.ts, ys, problem.p, stats, accel, event))
 
-    code = status.SINGULAR if h0 < 0 else _drive(advance, lambda: float(state[status.T]), lambda: int(stats[status.NSTEPS]), problem, progress)
-    m = int(state[status.NEXT_SAMPLE])
-    return Run(problem.ts[:m], ys[:m], Status.of_code(code), float(state[status.T]), y, _stats(stats), compile_start + compile_run, time.perf_counter() - began)
+class ErkLoop:
+    """A compiled run of an explicit pair that can pause and go on (`run_erk` runs one straight through).
+
+    `advance(steps, stiffness=True)` runs one stretch of the kernel: to the end, an event or a failure, or
+    until it pauses after `steps` steps or, with `stiffness`, once DOP853's stiffness
+    test (kernels._stiffness_test, Hairer's) has found STIFF_STEPS steps limited by stability;
+    `finish` then takes it to its end (the test off) and returns the `Run`, the same run as one
+    made straight through (the same steps: pausing changes nothing in the loop)."""
+
+    def __init__(self, functions: Functions, problem: Problem, method: str, rtol: float, atol: float, max_step: float) -> None:
+        kernels = functions.kernels
+        assert kernels is not None
+        self.problem, self.pair = problem, EXPLICIT[method].code
+        start_entry, _, compile_start = _compile(functions, "erk_start", [])
+        self._entry, (self._accel, self._event), compile_run = _compile(functions, "erk_run", [("_accel", kernels.ACCEL_SIG), ("_event", kernels.EVENT_SIG)])
+        self.compile_seconds = compile_start + compile_run
+        began = time.perf_counter()
+        self.y, self.f = problem.y0.copy(), np.empty_like(problem.y0)
+        self.stats = _new_stats(math.inf, 0.0)
+        self.ys = np.full((len(problem.ts), len(self.y)), np.nan)
+        self.control = _control(problem, functions.module._SIZE, rtol=rtol, atol=atol, max_step=max_step)
+        h0 = start_entry(self.pair, problem.t0, self.y, self.f, self.control, problem.p, self.stats, self._accel)
+        self.state = _state(problem.t0, h0, _initial_event(functions, problem))
+        self.code = status.SINGULAR if h0 < 0 else status.RUNNING
+        """The last stretch's status code: RUNNING while paused."""
+        self.seconds = time.perf_counter() - began
+
+    @property
+    def t(self) -> float:
+        return float(self.state[status.T])
+
+    @property
+    def steps(self) -> int:
+        return int(self.stats[status.NSTEPS])
+
+    @property
+    def attempts(self) -> int:
+        """Steps tried, accepted and rejected."""
+        return int(self.stats[status.NSTEPS] + self.stats[status.NREJECT])
+
+    @property
+    def ended(self) -> bool:
+        """Whether it has stopped for good (finished, at its event, or failed): not paused."""
+        return self.code != status.RUNNING
+
+    @property
+    def stiff(self) -> bool:
+        """Whether the stiffness test has found the problem stiff (STIFF_STEPS steps limited by stability)."""
+        return bool(self.stats[status.STIFF] >= status.STIFF_STEPS)
+
+    def _advance(self, t_stop: float) -> int:
+        began = time.perf_counter()
+        self.control[status.T_STOP] = t_stop
+        self.code = int(self._entry(self.pair, self.y, self.f, self.state, self.control, self.problem.ts, self.ys, self.problem.p, self.stats, self._accel, self._event))
+        self.seconds += time.perf_counter() - began
+        return self.code
+
+    def advance(self, steps: int, stiffness: bool = False) -> int:
+        """One stretch of at most `steps` steps (see the class docstring); the status code (RUNNING: paused)."""
+        if self.code == status.RUNNING:
+            self.control[status.STIFFNESS], self.control[status.STRETCH] = (1.0 if stiffness else 0.0), float(steps)
+            self._advance(self.problem.t_end)
+            self.control[status.STIFFNESS], self.control[status.STRETCH] = 0.0, 0.0
+        return self.code
+
+    def finish(self, progress: Progress | None = None) -> Run:
+        """Go on to the end (or an event, a failure, the problem's step budget); the run."""
+        if self.code == status.RUNNING and self.steps >= self.problem.max_steps:  # paused past the budget already
+            self.code = status.BUDGET
+        if self.code == status.RUNNING:
+            self.code = _drive(self._advance, lambda: self.t, lambda: self.steps, self.problem, progress)
+        m = int(self.state[status.NEXT_SAMPLE])
+        return Run(self.problem.ts[:m], self.ys[:m], Status.of_code(self.code), self.t, self.y, _stats(self.stats), self.compile_seconds, self.seconds)
 
 
 def run_gauss(functions: Functions, problem: Problem, z0: np.ndarray, stages: int, step: float, progress: Progress | None = None) -> Run:

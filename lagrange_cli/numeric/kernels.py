@@ -30,6 +30,7 @@ from lagrange_cli.numeric.status import (
     DONE,
     EVENT,
     EVENT_VALUE,
+    H_LAMBDA,
     HMAX,
     HMIN,
     MAX_FACTOR,
@@ -42,6 +43,7 @@ from lagrange_cli.numeric.status import (
     NJEV,
     NO_CONVERGENCE,
     NONFINITE,
+    NONSTIFF,
     NREJECT,
     NSTEPS,
     PAUSE_STEPS,
@@ -53,6 +55,12 @@ from lagrange_cli.numeric.status import (
     STEP,
     STEP_COLLAPSE,
     STEPS,
+    STIFF,
+    STIFF_H_LAMBDA,
+    STIFF_RESET,
+    STIFF_STEPS,
+    STIFFNESS,
+    STRETCH,
     T0,
     T_BOUND,
     T_STOP,
@@ -204,7 +212,7 @@ SIGNATURES = {
 }
 """The entry points. The arrays are records with named indices (status.py): `state` (T, H or the
 steps done, EVENT_VALUE, NEXT_SAMPLE), `control` (RTOL, ATOL, MAX_STEP, T_BOUND, T_STOP, USE_EVENT,
-SIZE, STEP, STEPS, T0) and `stats` (NFEV, NJEV, NSTEPS, NREJECT, HMIN, HMAX)."""
+SIZE, STEP, STEPS, T0, STIFFNESS, STRETCH) and `stats` (NFEV, NJEV, NSTEPS, NREJECT, HMIN, HMAX, STIFF, NONSTIFF, H_LAMBDA)."""
 _COMPILED: dict[str, Any] = {}
 
 
@@ -480,6 +488,33 @@ def _erk_root(event, pair, t_old, h, y_old, coef, p, x, a, work, g_old):
     return hi
 
 
+@njit(error_model="numpy")
+def _stiffness_test(K, h, y, y_new, work, stats):
+    """DOP853's stiffness test on an accepted step (dop853.f): h |lambda| ~ h |f(t + h, y_new) - f(t + h, Y_12)| / |y_new - Y_12|,
+    Y_12 the last stage's argument (c = 1); counts the positive tests (h |lambda| > STIFF_H_LAMBDA: the step is
+    limited by stability) in stats[STIFF], cleared by STIFF_RESET negative ones in a row; True at STIFF_STEPS."""
+    n = y.shape[0]
+    last = _STAGES[_DOP] - 1
+    numerator, denominator = 0.0, 0.0
+    for i in range(n):
+        dy = 0.0
+        for j in range(last):
+            dy += _DOP_A[last, j] * K[j, i]
+        work[i] = y[i] + h * dy
+        numerator += (K[_STAGES[_DOP], i] - K[last, i]) ** 2
+        denominator += (y_new[i] - work[i]) ** 2
+    if denominator > 0.0:
+        stats[H_LAMBDA] = abs(h) * (numerator / denominator) ** 0.5
+    if stats[H_LAMBDA] > STIFF_H_LAMBDA:
+        stats[NONSTIFF] = 0.0
+        stats[STIFF] += 1.0
+        return stats[STIFF] >= STIFF_STEPS
+    stats[NONSTIFF] += 1.0
+    if stats[NONSTIFF] >= STIFF_RESET:
+        stats[STIFF] = 0.0
+    return False
+
+
 def erk_start(pair, t0, y, f, control, p, stats, accel):
     """f = f(t0, y) and scipy's initial step; -1 when the matrix is singular at t0."""
     size = int(control[SIZE])
@@ -496,6 +531,8 @@ def erk_run(pair, y, f, state, control, ts, ys, p, stats, accel, event):
     passed (state[NEXT_SAMPLE] = the next one); returns a status code."""
     n = y.shape[0]
     rtol, atol, max_step, t_bound, t_stop, use_event = control[RTOL], control[ATOL], control[MAX_STEP], control[T_BOUND], control[T_STOP], control[USE_EVENT] != 0.0
+    test_stiffness = control[STIFFNESS] != 0.0 and pair == _DOP
+    pause = int(control[STRETCH]) if control[STRETCH] > 0.0 else PAUSE_STEPS
     size = int(control[SIZE])
     x, a = np.empty(size), np.empty((size, size))
     stages = _STAGES[pair]
@@ -505,7 +542,7 @@ def erk_run(pair, y, f, state, control, ts, ys, p, stats, accel, event):
     exponent = -1.0 / (_ERROR_ORDER[pair] + 1.0)
     t, h_abs = state[T], state[H]
     taken = 0
-    while t < t_stop and t < t_bound and taken < PAUSE_STEPS:
+    while t < t_stop and t < t_bound and taken < pause:
         taken += 1
         min_step = MIN_STEP_SPACINGS * abs(np.nextafter(t, np.inf) - t)
         h_abs = min(max(h_abs, min_step), max_step)
@@ -535,6 +572,7 @@ def erk_run(pair, y, f, state, control, ts, ys, p, stats, accel, event):
         if t_new < t_bound:
             stats[HMIN] = min(stats[HMIN], h)
         stats[HMAX] = max(stats[HMAX], h)
+        stiff = test_stiffness and _stiffness_test(K, h, y, y_new, work, stats)
         j = int(state[NEXT_SAMPLE])
         need = j < ts.shape[0] and ts[j] <= t_new
         t_end_here = t_new
@@ -566,6 +604,8 @@ def erk_run(pair, y, f, state, control, ts, ys, p, stats, accel, event):
         state[T], state[H] = t, h_abs
         if status == EVENT:
             return EVENT
+        if stiff and t < t_bound:
+            return RUNNING  # paused: the caller asked to hear of stiffness (stats[STIFF] >= STIFF_STEPS)
     return DONE if t >= t_bound else RUNNING
 
 

@@ -1,7 +1,22 @@
 """What `auto` means for one run: the method, the backend, the symplectic step and Baumgarte's alpha.
 
 `decide(model, settings)` takes validated `Settings` (settings.py) and returns them resolved,
-with notes saying why. The method comes from a short pilot run (`pilot`): PILOT_STEPS (at most PILOT_MAX_STEPS)
+with notes saying why. Where compiled DOP853 can run it (numba, no kept constraints, and a run long
+enough to compile for or a system already compiled), `auto` first starts the run itself with it
+(`explicit_attempt`), with Hairer's stiffness test (dop853.f: h |lambda| estimated on each accepted
+step from the last stage and the new solution; above 6.1 on 15 steps, stiff), for at most
+ATTEMPT_STEPS steps (about a pilot's cost):
+
+- it finished (or stopped at its event, or failed): that is the run, `simulate` takes it up
+  (`take_attempt`); no pilot is spent, and the run costs what `--method DOP853` costs;
+- the test found it stiff, but the steps left at its stability-limited step are fewer than
+  ATTEMPT_STEPS (cheaper than any implicit run): it goes on from where it paused;
+- otherwise (stiff, over ATTEMPT_STEPS, or projected from its last CHECK_STEPS steps to need more than
+  LONG_STEPS) the pilot below decides; where it picks DOP853 the run
+  goes on from where it paused, and where the decay's estimate makes the choice close, the paused
+  run goes on MEASURE_STEPS steps and its measured cost of the rest of the run decides (`measure_attempt`).
+
+The method comes otherwise from a short pilot run (`pilot`): PILOT_STEPS (at most PILOT_MAX_STEPS)
 steps of LSODA from the initial state, with the spectrum of the Jacobian sampled along it. The
 pilot measures what one linearisation at t = 0 cannot: the fastest unmatched decay anywhere
 along the start (stiffness: decay x t_end, and the steps an explicit method needs just to stay
@@ -14,8 +29,9 @@ the run). Then:
 - stiff, but the explicit steps cost less compiled than the implicit steps (explicit steps <=
   IMPLICIT_COST x implicit steps) -> DOP853. The explicit steps are first estimated from the
   decay (decay x t_end / DOP853_STABILITY); where that estimate would pick DOP853, a short
-  explicit probe (`explicit_probe`: PROBE_STEPS steps of scipy's DOP853, the same step control
-  as the compiled kernel, from where the pilot ended) measures them, rejected steps included:
+  explicit probe (the paused compiled run above, or where there is none `explicit_probe`: PROBE_STEPS
+  steps of scipy's DOP853, the same step control as the compiled kernel, from where the pilot ended)
+  measures them, rejected steps included:
   round-off in the stiff terms (a spring of k = 1e11 written in its length) or a double
   eigenvalue at the stability limit make DOP853 take 5-6x the estimate, half of them rejected;
 - stiff and dearer explicitly (or no numba) -> LSODA (measured 3-6x faster than Radau and
@@ -40,7 +56,7 @@ import sympy as sp
 
 from lagrange_cli.errors import LagrangeError
 from lagrange_cli.model import Model
-from lagrange_cli.numeric import compile, diagnostics, integrators, memo
+from lagrange_cli.numeric import compile, diagnostics, integrators, memo, status
 from lagrange_cli.numeric.settings import COMPILED, STAGES, Settings, code_parameters, validate
 
 HEAVY = 3000.0  # rate x time span above which compiling pays off (about 1e4 steps)
@@ -58,12 +74,13 @@ PILOT_TAIL = 20
 DOP853_STABILITY = 6.0
 """|h lambda| on the negative real axis up to which DOP853 stays stable (measured: the damped
 cart at decay 9e5/s over t_end = 10 takes 1.46e6 steps = decay x t_end / 6.2)."""
-IMPLICIT_COST = 20.0
+IMPLICIT_COST = 25.0
 """Cost of an LSODA step (Python right-hand side, ~1.5 evaluations) over a compiled DOP853 step
 attempt (12 compiled evaluations). Measured in CPU time of whole `simulate` calls
-(benchmarks/auto_bench.py, 2026-11-26): 25-33 us per LSODA step against 0.9-1.3 us per compiled DOP853
-attempt (ratio 20-30) on the damped stiff spring at k = 1e8 and the damped cart; an earlier
-measurement of integration time alone gave 8-20 (12 was used until then)."""
+(benchmarks/auto_bench.py, 2026-11-26, quiet machine): 24-25 us per LSODA step against 0.87-0.93 us per
+compiled DOP853 attempt (ratio 26-28) on the damped stiff spring at k = 1e8 and the elastic
+pendulum in r at k = 1e8, the two cases where the choice is close; earlier, loaded runs gave 20-30
+(20 was used until then) and integration time alone 8-20."""
 PROBE_STEPS = 80
 """Accepted steps of the explicit probe (`explicit_probe`): about 1000 Python right-hand side
 evaluations (~15 ms), run only where the decay's estimate would pick DOP853 on a stiff system;
@@ -203,9 +220,15 @@ def _choose(model: Model, settings: Settings) -> tuple[str, str, float | None, i
                     f"{model.source}: a fixed step (simulate: step) selects the symplectic method, which runs only compiled (numba); drop --backend python, or the step to let the method adapt it"
                 )
             method, why = "symplectic", "a fixed step was given"
+            notes.append(f"method auto -> {method}: {why}")
         else:
-            method, why = choose(model, settings, found, compiled=backend != "python" and compile.numba_available())
-        notes.append(f"method auto -> {method}: {why}")
+            compiled = backend != "python" and compile.numba_available()
+            attempt = compiled and not model.constraints and (backend == "compiled" or _backend(model, "DOP853", rate, t_end)[0] == "compiled")
+            method, why = choose(model, settings, found, compiled=compiled, attempt=attempt)
+            notes.append(f"method auto -> {method}: {why}")
+            if attempt and method == "DOP853" and backend == "auto":
+                backend = "compiled"
+                notes.append("backend auto -> compiled: the compiled run `auto` started with goes on")
     stages = settings.stages
     if method == "symplectic" and step is None:
         step, stages, chosen = _symplectic_choice(model, found, rate, t_end, rtol, p, y0, (stages,) if stages is not None else GAUSS_STAGES)
@@ -533,36 +556,216 @@ def _explicit_probe(model: Model, settings: Settings, measured: Pilot) -> Probe:
     return Probe(t0, times[-1], len(times) - 1, count[0], rate, failed or not math.isfinite(rate))
 
 
-def choose(model: Model, settings: Settings, found: diagnostics.Spectrum | None, compiled: bool) -> tuple[str, str]:
-    """(method, why) for `--method auto`, from a pilot run (see the module docstring); from the
-    linearisation at the initial state (`found`, `diagnostics.choose`) where the pilot cannot run."""
+ATTEMPT_STEPS = 10000
+"""Steps the compiled DOP853 run that `auto` starts with (`explicit_attempt`) may take before the
+pilot decides: about 10 ms on a small system (0.9-1.3 us a step attempt), the cost of a pilot
+run, so that a run just longer than this costs at most about twice itself with the pilot added,
+and a stiff run the test missed wastes no more than the pilot. A run that needs no more is done by
+then. Also the explicit steps left, at DOP853's stability-limited step, below which a stiff run
+goes on explicitly: fewer than an implicit run's cost (IMPLICIT_COST x ~500 steps at the least)."""
+CHECK_STEPS = 1000
+"""The attempt looks at its progress after every this many steps ..."""
+LONG_STEPS = 3 * ATTEMPT_STEPS
+"""... and hands over to the pilot as soon as its steps so far and the rest of the run at the rate of
+its last CHECK_STEPS steps come to more than these: a run this long will not finish within ATTEMPT_STEPS,
+the pilot costs a third of it at most, and a stiff run that Hairer's test misses (the elastic pendulum
+in r: round-off in the stiff terms keeps the accepted steps at h |lambda| ~ 2-4, a third of the steps
+rejected) is caught after CHECK_STEPS steps rather than ATTEMPT_STEPS."""
+MEASURE_STEPS = 2000
+"""Steps the paused run goes on (stiffness test off) to measure what compiled DOP853 really costs
+per unit time on a mildly stiff problem (`measure_attempt`), rejected steps included."""
+_ATTEMPT_SLOT = "_explicit_attempt"
+"""Where the live attempt waits (on the model) for `simulate` to take it up (`take_attempt`)."""
+
+
+@dataclasses.dataclass(frozen=True)
+class Attempt:
+    """What the compiled DOP853 run that `auto` starts with measured (see `explicit_attempt`)."""
+
+    code: int
+    """Its status code so far (status.RUNNING while it is paused)."""
+    t: float
+    steps: int
+    rejected: int
+    stiff_at: float | None
+    """Where Hairer's stiffness test found the steps limited by stability (None: it did not)."""
+    h_lambda: float
+    """The last h |lambda| the test measured."""
+    step: float
+    """The next step size (at the stability limit where the test found stiffness)."""
+    rate: float | None = None
+    """Step attempts per unit time over a stretch run on past the stiffness (`measure_attempt`), rejected steps included."""
+    projected: float = math.nan
+    """The steps of the whole run, projected from the last CHECK_STEPS (see LONG_STEPS)."""
+
+    @property
+    def ended(self) -> bool:
+        return self.code != status.RUNNING
+
+    def left(self, t_end: float) -> float:
+        """The explicit steps left to t_end at the current step (at `rate` once measured)."""
+        if self.ended:
+            return 0.0
+        if self.rate is not None:
+            return self.rate * (t_end - self.t)
+        return (t_end - self.t) / self.step if self.step > 0 else math.inf
+
+
+def _attempt_key(settings: Settings) -> tuple[object, ...]:
+    return ("explicit attempt", settings.t0, settings.t_end, settings.rtol, settings.atol, settings.max_step, settings.t_eval, settings.parameters, settings.y0, settings.until)
+
+
+def _summary(loop: integrators.ErkLoop, stiff_at: float | None, rate: float | None = None) -> Attempt:
+    stats = loop.stats
+    return Attempt(loop.code, loop.t, loop.steps, int(stats[status.NREJECT]), stiff_at, float(stats[status.H_LAMBDA]), float(loop.state[status.H]), rate)
+
+
+def explicit_attempt(model: Model, settings: Settings) -> Attempt:
+    """Start the run itself with compiled DOP853 and Hairer's stiffness test (dop853.f: h |lambda|
+    estimated from the last stage and the new solution, above 6.1 on 15 accepted steps): at most
+    ATTEMPT_STEPS steps. Finished (or stopped at its event, or failed): that is the run. Stiff, or
+    over ATTEMPT_STEPS: paused, for the pilot to decide. The live run waits on the model for
+    `simulate` (`take_attempt`), which goes on from where it stopped. Once per model and settings."""
+    return memo.once(model, _attempt_key(settings), lambda: _explicit_attempt(model, settings))
+
+
+def _explicit_attempt(model: Model, settings: Settings) -> Attempt:
+    numba = compile.build(model, "numba", event=settings.event)
+    problem = integrators.Problem(
+        settings.t0, settings.t_end, np.array(settings.y0, dtype=float), np.array(settings.t_eval, dtype=float), np.array(settings.p, dtype=float), settings.event is not None
+    )
+    loop = integrators.ErkLoop(numba, problem, "DOP853", settings.rtol, settings.atol, settings.max_step)
+    projected = math.nan
+    while not loop.ended and not loop.stiff and loop.steps < ATTEMPT_STEPS:
+        t, steps = loop.t, loop.steps
+        loop.advance(min(CHECK_STEPS, ATTEMPT_STEPS - steps), stiffness=True)
+        span = loop.t - t
+        projected = loop.steps + (settings.t_end - loop.t) * (loop.steps - steps) / span if span > 0 else math.inf
+        if projected > LONG_STEPS:  # a long run: the pilot costs little beside it, and a stiff one the test misses wastes no more steps
+            break
+    model.__dict__[_ATTEMPT_SLOT] = (_attempt_key(settings), loop)
+    return dataclasses.replace(_summary(loop, loop.t if loop.stiff and not loop.ended else None), projected=projected)
+
+
+def measure_attempt(model: Model, settings: Settings, found: Attempt) -> Attempt:
+    """Run the paused attempt on (stiffness test off) for up to MEASURE_STEPS more steps and measure its
+    step attempts per unit time, rejected steps included: what compiled DOP853 really costs on a stiff
+    problem (round-off in the stiff terms or a double eigenvalue at the stability limit make it 2-6x
+    the decay's estimate, a third of them rejected). Once per model and settings."""
+
+    def compute() -> Attempt:
+        stash = model.__dict__.get(_ATTEMPT_SLOT)
+        if stash is None or stash[0] != _attempt_key(settings) or stash[1].ended:
+            return found
+        loop = stash[1]
+        t, attempts = loop.t, loop.attempts
+        loop.advance(MEASURE_STEPS)
+        span = loop.t - t
+        rate = (loop.attempts - attempts) / span if span > 0 else math.inf
+        return _summary(loop, found.stiff_at, rate)
+
+    return memo.once(model, ("measured attempt", *_attempt_key(settings)), compute)
+
+
+def take_attempt(model: Model, settings: Settings, problem: integrators.Problem) -> integrators.ErkLoop | None:
+    """The compiled DOP853 run `auto` started for these settings (`explicit_attempt`), taken from the
+    model (once: a later run starts afresh), if it runs the same problem; None otherwise."""
+    stash = model.__dict__.get(_ATTEMPT_SLOT)
+    if stash is None or stash[0] != _attempt_key(settings):
+        return None
+    del model.__dict__[_ATTEMPT_SLOT]
+    loop: integrators.ErkLoop = stash[1]
+    mine = loop.problem
+    same = (
+        mine.t0 == problem.t0
+        and mine.t_end == problem.t_end
+        and mine.use_event == problem.use_event
+        and np.array_equal(mine.y0, problem.y0)
+        and np.array_equal(mine.ts, problem.ts)
+        and np.array_equal(mine.p, problem.p)
+    )
+    if not same:
+        return None
+    loop.problem = dataclasses.replace(mine, max_steps=problem.max_steps)
+    return loop
+
+
+def choose(model: Model, settings: Settings, found: diagnostics.Spectrum | None, compiled: bool, attempt: bool = False) -> tuple[str, str]:
+    """(method, why) for `--method auto` (see the module docstring): with `attempt` (compiled DOP853
+    can run it), from the compiled run started with a stiffness test (`explicit_attempt`) first; then
+    from a pilot run; from the linearisation at the initial state (`found`, `diagnostics.choose`) where
+    the pilot cannot run."""
     t_end = settings.t_end
+    tried = explicit_attempt(model, settings) if attempt else None
+    test = f"Hairer's stiffness test: h |lambda| > {status.STIFF_H_LAMBDA:g} on {status.STIFF_STEPS} steps"
+    if tried is not None and tried.code in (status.DONE, status.EVENT):
+        end = "finished" if tried.code == status.DONE else "reached the stop condition"
+        return "DOP853", f"the compiled DOP853 run itself {end} in {tried.steps} steps ({tried.rejected} rejected) without its steps being limited by stability ({test}): no pilot needed"
+    if tried is not None and tried.stiff_at is not None and tried.steps + tried.left(t_end) <= ATTEMPT_STEPS:
+        return "DOP853", (
+            f"stiff from t = {tried.stiff_at:.3g} ({test}; h |lambda| = {tried.h_lambda:.3g}), but the compiled DOP853 run needs only about "
+            f"{tried.left(t_end):.3g} more steps at its step {tried.step:.3g} after {tried.steps}: fewer than {ATTEMPT_STEPS}, cheaper than an implicit run; it goes on from t = {tried.t:.3g}"
+        )
+    goes_on, dropped = "", ""
+    if tried is not None and not tried.ended:
+        if tried.stiff_at is not None:
+            seen = f"its steps limited by stability from t = {tried.stiff_at:.3g}"
+        elif tried.projected > LONG_STEPS:
+            seen = f"no stiffness found in {tried.steps} steps, but about {tried.projected:.3g} steps projected for the run"
+        else:
+            seen = f"no stiffness in {tried.steps} steps"
+        goes_on = f"; the compiled DOP853 run started first ({seen}) goes on from t = {tried.t:.3g}"
+        dropped = f"; the compiled DOP853 run started first ({seen}) is dropped at t = {tried.t:.3g}"
     measured = pilot(model, settings)
     if measured is None:
         method, why = diagnostics.choose(found, t_end, compiled=compiled)
-        return ("LSODA" if method == "Radau" else method), why
+        return ("LSODA" if method == "Radau" else method), why + (goes_on if method == "DOP853" else dropped)
     worst = measured.worst
     where = f"at t = {measured.t_worst:.3g}" if measured.t_worst > 0 else "at the start"
     span = f"a pilot run of {measured.steps} LSODA steps to t = {measured.t_reached:.3g}, {measured.spectra + 1} Jacobians sampled"
     if not diagnostics.stiff(worst, t_end):
         if worst.decay > 0:
-            return "DOP853", f"not stiff along {span}: fastest unmatched decay {worst.decay:.3g}/s ({where}) x t_end {t_end:g} = {worst.decay * t_end:.3g}, slowest rate {worst.slowest:.3g}/s"
-        return "DOP853", f"not stiff along {span}: no decaying mode faster than the motion (fastest rate {worst.rate:.3g}/s)"
+            return "DOP853", f"not stiff along {span}: fastest unmatched decay {worst.decay:.3g}/s ({where}) x t_end {t_end:g} = {worst.decay * t_end:.3g}, slowest rate {worst.slowest:.3g}/s{goes_on}"
+        return "DOP853", f"not stiff along {span}: no decaying mode faster than the motion (fastest rate {worst.rate:.3g}/s){goes_on}"
     explicit, implicit = measured.explicit_steps(t_end), measured.implicit_steps(t_end)
     lsoda = f"about {implicit:.3g} LSODA steps (its step settled to {measured.settled_step:.3g} over {span}{', in BDF' if measured.bdf else ''})"
     numbers = f"decay {worst.decay:.3g}/s ({where}) x t_end {t_end:g}: about {explicit:.3g} stability-limited DOP853 steps, against {lsoda}"
     if not compiled:
         return "LSODA", f"stiff: {numbers}; explicit methods cannot run compiled here"
     if explicit > IMPLICIT_COST * implicit:
-        return "LSODA", f"stiff: {numbers}; an implicit step costs ~{IMPLICIT_COST:g} compiled explicit steps"
+        return "LSODA", f"stiff: {numbers}; an implicit step costs ~{IMPLICIT_COST:g} compiled explicit steps{dropped}"
+    if tried is not None and not tried.ended:
+        return _measured_choice(model, settings, tried, worst, where, lsoda, implicit)
     probe = explicit_probe(model, settings, measured)
     attempts = probe.attempts(t_end)
-    tried = (
+    tried_text = (
         f"a DOP853 probe of {probe.steps} steps from t = {probe.t0:.3g} failed"
         if probe.failed
         else f"a DOP853 probe of {probe.steps} steps from t = {probe.t0:.3g} ({probe.evaluations} evaluations, rejected steps included) extrapolates to {attempts:.3g} step attempts"
     )
-    numbers = f"decay {worst.decay:.3g}/s ({where}) x t_end {t_end:g}; {tried}, against {lsoda}"
+    numbers = f"decay {worst.decay:.3g}/s ({where}) x t_end {t_end:g}; {tried_text}, against {lsoda}"
     if attempts <= IMPLICIT_COST * implicit:
         return "DOP853", f"mildly stiff: {numbers}; compiled explicit steps are cheaper (an implicit step costs ~{IMPLICIT_COST:g} of them)"
+    return "LSODA", f"stiff: {numbers}; an implicit step costs ~{IMPLICIT_COST:g} compiled explicit steps"
+
+
+def _measured_choice(model: Model, settings: Settings, tried: Attempt, worst: diagnostics.Spectrum, where: str, lsoda: str, implicit: float) -> tuple[str, str]:
+    """Mildly stiff by the decay's estimate: the paused compiled run goes on for up to MEASURE_STEPS
+    steps (`measure_attempt`), and its measured cost of the rest of the run decides against a whole implicit run."""
+    t_end = settings.t_end
+    found = measure_attempt(model, settings, tried)
+    if found.code in (status.DONE, status.EVENT):
+        return (
+            "DOP853",
+            f"mildly stiff (decay {worst.decay:.3g}/s {where}): the compiled DOP853 run, gone on past the stiffness, finished in {found.steps} steps ({found.rejected} rejected), against {lsoda}",
+        )
+    if found.ended:
+        return "LSODA", f"mildly stiff (decay {worst.decay:.3g}/s {where}): the compiled DOP853 run failed at t = {found.t:.3g}; {lsoda}"
+    attempts = found.left(t_end)  # what is done is paid for either way: the attempts left against a whole implicit run
+    numbers = (
+        f"decay {worst.decay:.3g}/s ({where}) x t_end {t_end:g}; the compiled DOP853 run, gone on to t = {found.t:.3g} ({found.steps} steps, {found.rejected} rejected), "
+        f"needs about {attempts:.3g} more step attempts at its measured rate, against {lsoda}"
+    )
+    if attempts <= IMPLICIT_COST * implicit:
+        return "DOP853", f"mildly stiff: {numbers}; compiled explicit steps are cheaper (an implicit step costs ~{IMPLICIT_COST:g} of them); it goes on from there"
     return "LSODA", f"stiff: {numbers}; an implicit step costs ~{IMPLICIT_COST:g} compiled explicit steps"

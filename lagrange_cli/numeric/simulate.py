@@ -221,8 +221,11 @@ def _integrated(model: Model, settings: Settings, progress: Progress | None, max
         return _verified_event(python, part, run) if settings.backend == "compiled" else run
 
     notes: tuple[str, ...] = ()
+    started = policy.take_attempt(model, settings, problem) if isinstance(solver, integrators.ExplicitRK) and solver.method == "DOP853" else None
     if settings.projection and model.constraints:
         run, notes = _projected(model, settings, python, problem, runner, progress)
+    elif started is not None:  # `auto` started this very run (policy.explicit_attempt): it goes on from where it paused
+        run = _verified_event(python, problem, started.finish(progress))
     else:
         run = runner(problem, progress)
     if settings.method == "symplectic" and settings.step is not None:

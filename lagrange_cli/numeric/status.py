@@ -31,10 +31,12 @@ progress and stop a run over its budget (a near-collision orbit may take minutes
 to reach the first 1% of its time span)."""
 
 # -- the counter array `stats` of a compiled loop (float64, STATS_SIZE entries)
-NFEV, NJEV, NSTEPS, NREJECT, HMIN, HMAX = 0, 1, 2, 3, 4, 5
+NFEV, NJEV, NSTEPS, NREJECT, HMIN, HMAX, STIFF, NONSTIFF, H_LAMBDA = 0, 1, 2, 3, 4, 5, 6, 7, 8
 """Right-hand side evaluations, Jacobians (the Gauss method: its Newton matrices), steps taken,
-rejected steps, smallest and largest step."""
-STATS_SIZE = 6
+rejected steps, smallest and largest step; DOP853's stiffness test where it is asked for
+(control[STIFFNESS]): the positive tests since the last run of STIFF_RESET negative ones, the
+negative ones in a row, and the last h |lambda| measured."""
+STATS_SIZE = 9
 
 # -- the loop state `state` (float64): where a paused loop resumes
 T, H, EVENT_VALUE, NEXT_SAMPLE, NEWTON = 0, 1, 2, 3, 4
@@ -44,11 +46,22 @@ Newton matrix (kept by the caller) is current."""
 STATE_SIZE = 5
 
 # -- the controls `control` of a loop (float64; read-only to the loops)
-RTOL, ATOL, MAX_STEP, T_BOUND, T_STOP, USE_EVENT, SIZE, STEP, STEPS, T0 = range(10)
+RTOL, ATOL, MAX_STEP, T_BOUND, T_STOP, USE_EVENT, SIZE, STEP, STEPS, T0, STIFFNESS, STRETCH = range(12)
 """Tolerances and the largest step (explicit pairs); the end of the run and where to pause; 1.0
 when a stop condition is watched; the size of the system's workspace (coordinates and
-multipliers); the fixed step, the number of steps and the start (Gauss)."""
-CONTROL_SIZE = 10
+multipliers); the fixed step, the number of steps and the start (Gauss); 1.0 to run DOP853's
+stiffness test and pause (RUNNING) once it finds the problem stiff (0: no test, the default); the
+steps an explicit pair takes before it pauses (0: PAUSE_STEPS, the default)."""
+CONTROL_SIZE = 12
+
+# -- DOP853's stiffness test (Hairer and Wanner, dop853.f): on an accepted step, h |lambda| is
+# estimated from the last stage and the new solution, both at t + h: h |f(y_new) - f(Y_12)| / |y_new - Y_12|
+STIFF_H_LAMBDA = 6.1
+"""h |lambda| above which a step counts as limited by stability (DOP853's region reaches about 6 on the negative real axis)."""
+STIFF_STEPS = 15
+"""Positive tests (without STIFF_RESET negative ones in a row between them) that make the problem stiff."""
+STIFF_RESET = 6
+"""Negative tests in a row that clear the count of positive ones."""
 
 # -- step-size control of the explicit pairs (scipy's values)
 SAFETY = 0.9
