@@ -13,7 +13,7 @@ For each system: `derive --to jax` (64-bit mode) and `derive --to python`; 10^4 
 seed 0 (angles in [-1, 1], rates in [-1, 1]); the JAX side is `jax.jit(jax.vmap(rhs, (None, 0, None)))`
 with its first call (tracing and XLA compilation) timed apart and excluded, then ROUNDS rounds of
 `calls` back-to-back calls each (the last result waited for by `block_until_ready`; `calls` makes a round
-last about ROUND_SECONDS, between 1 and MAX_CALLS calls, so that a 0.1 ms call is timed over about 20 ms,
+last about ROUND_SECONDS by the fastest of 5 single calls, between 1 and MAX_CALLS calls, so that a 0.1 ms call is timed over about 20 ms,
 not at the clock's and the dispatcher's resolution), reported as the median round's time per call; the
 Python side (unchanged) is the best of LOOP_REPEATS loops over the states.
 Times are CPU time (`time.process_time`, all threads of this process) and wall; XLA on CPU may use
@@ -82,7 +82,7 @@ def bench(label: str, text: str, states: int, folder: Path) -> dict[str, Any]:
     batched = jax.jit(jax.vmap(target.rhs, in_axes=(None, 0, None)))
     ys = jnp.asarray(y)
     _, compile_cpu, compile_wall = timed(lambda: batched(0.0, ys, None).block_until_ready())
-    result, _, once = timed(lambda: batched(0.0, ys, None).block_until_ready())
+    once = min(timed(lambda: batched(0.0, ys, None).block_until_ready())[2] for _ in range(5))
     calls = max(1, min(MAX_CALLS, round(ROUND_SECONDS / max(once, 1e-9))))
 
     def round_of_calls() -> Any:

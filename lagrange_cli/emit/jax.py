@@ -104,16 +104,50 @@ def _free_names(exprs: Sequence[Any]) -> set[str]:
     return {str(s) for e in exprs for s in getattr(e, "free_symbols", ())}
 
 
-class _Writer:
+class Storage:
+    """The `_sincos` and `_kept` choices of one module whose linear solve has `unknowns` unknowns (n + k, or the
+    reduced form's independent velocities): what it stores (`KEEP_MIN`) and which helpers it then defines
+    (`uses_kept`, `uses_sincos`); shared by the Lagrange and Hamilton writers and `--form reduced`."""
+
+    def __init__(self, unknowns: int) -> None:
+        self.uses_kept = False
+        self.uses_sincos = False
+        self.storing = KEEP and unknowns >= KEEP_MIN
+
+    def sincos(self, code: str) -> str:
+        """`_sincos(x)[0]` for `jnp.sin(x)` and `_sincos(x)[1]` for `jnp.cos(x)` of a name `x` (the sines and
+        cosines of the coordinates that `restructure` computes once) when `FAST_TRIG`; the module then defines `_sincos`."""
+        match = SINCOS.fullmatch(code)
+        if not (FAST_TRIG and match):
+            return code
+        self.uses_sincos = True
+        return f"_sincos({match[2]})[{int(match[1] == 'cos')}]"
+
+    def keep(self, code: str) -> str:
+        """`_kept(code)` (for `unrolled_solve`); the module then defines `_kept`."""
+        self.uses_kept = True
+        return f"_kept({code})"
+
+    def kept(self, code: str) -> str:
+        """`code`, through `_kept` when it calls a function XLA counts as cheap but which costs a libm call
+        (`kept`); the module then defines `_kept`."""
+        wrapped = kept(code) if self.storing else code
+        self.uses_kept = self.uses_kept or wrapped != code
+        return wrapped
+
+    def solve_keep(self) -> Callable[[str], str] | None:
+        """What `unrolled_solve` takes as `keep`: `keep` when this module stores values, else None."""
+        return self.keep if self.storing else None
+
+
+class _Writer(Storage):
     def __init__(self, model: Model, definitions: Any) -> None:
         self.model = model
         self.definitions = definitions
         self.names = jax_names(model)
         self.signals = frozenset(i.name for i in model.inputs)
-        self.uses_kept = False
-        self.uses_sincos = False
+        Storage.__init__(self, model.n + len(model.constraints))
         self.uses_chunks = False
-        self.storing = KEEP and model.n + len(model.constraints) >= KEEP_MIN
         n = model.n
         self.upper = [(i, j) for i in range(n) for j in range(i, n)]
         forms = model.symengine
@@ -172,27 +206,6 @@ class _Writer:
         temporaries, results = printer.block(rewritten, f"_c{tag}", [*self.names.values(), *(lhs for lhs, _ in definitions)])
         return lines + [f"{lhs} = {self.kept(code)}" for lhs, code in temporaries], results
 
-    def sincos(self, code: str) -> str:
-        """`_sincos(x)[0]` for `jnp.sin(x)` and `_sincos(x)[1]` for `jnp.cos(x)` of a name `x` (the sines and
-        cosines of the coordinates that `restructure` computes once) when `FAST_TRIG`; the module then defines `_sincos`."""
-        match = SINCOS.fullmatch(code)
-        if not (FAST_TRIG and match):
-            return code
-        self.uses_sincos = True
-        return f"_sincos({match[2]})[{int(match[1] == 'cos')}]"
-
-    def keep(self, code: str) -> str:
-        """`_kept(code)` (for `unrolled_solve`); the module then defines `_kept`."""
-        self.uses_kept = True
-        return f"_kept({code})"
-
-    def kept(self, code: str) -> str:
-        """`code`, through `_kept` when it calls a function XLA counts as cheap but which costs a libm call
-        (`kept`); the module then defines `_kept`."""
-        wrapped = kept(code) if self.storing else code
-        self.uses_kept = self.uses_kept or wrapped != code
-        return wrapped
-
     def function(self, name: str, doc: str, exprs: Sequence[Any], state: str, shape: str) -> str:
         lines, results = self.block(exprs)
         body = [*self.unpack(state, self.uses_inputs(exprs)), *lines]
@@ -222,7 +235,7 @@ class _Writer:
             jacobian = [[None if self.jacobian[r * n + j] == 0 else a[r * n + j] for j in range(n)] for r in range(k)]
             forcing = [None if expr == 0 else code for expr, code in zip(self.forcing, f, strict=True)]
             bias = [None if expr == 0 else _negate(code) for expr, code in zip(self.bias, c, strict=True)]
-            solved = unrolled_solve(n, mass, forcing, jacobian, bias, self.keep if self.storing else None)
+            solved = unrolled_solve(n, mass, forcing, jacobian, bias, self.solve_keep())
             return body + solved.lines + ["_x = _array([" + ", ".join(solved.results) + "])"]
         matrix = [[m[(min(i, j), max(i, j))] for j in range(n)] + [_negate(a[r * n + i]) for r in range(k)] for i in range(n)]
         matrix += [[a[r * n + j] for j in range(n)] + ["0.0"] * k for r in range(k)]
@@ -621,7 +634,7 @@ class _HamiltonWriter(_Writer):
             zero = {ij for ij, expr in zip(self.upper, self.mass, strict=True) if expr == 0}
             mass = {ij: (None if ij in zero else code) for ij, code in m.items()}
             shifted = [None if expr == 0 else code for expr, code in zip(self.shifted, results[len(self.mass) :], strict=True)]
-            solved = unrolled_solve(n, mass, shifted, [], [], self.keep if self.storing else None)
+            solved = unrolled_solve(n, mass, shifted, [], [], self.solve_keep())
             return body + solved.lines + [", ".join(velocities) + " = " + ", ".join(solved.results)]
         rows = ", ".join("[" + ", ".join(m[(min(i, j), max(i, j))] for j in range(n)) + "]" for i in range(n))
         body.append(f"_v = jnp.linalg.solve(_array([{rows}]), _array([{', '.join(results[len(self.mass) :])}]))")
