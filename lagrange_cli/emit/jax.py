@@ -8,7 +8,9 @@ control flow on values, no in-place updates), so `jax.jit`, `jax.vmap` and `jax.
 the accelerations solve M q_ddot = F (or [[M, -A^T], [A, 0]] [q_ddot, lambda] = [F, -c] for kept
 constraints, as in the Python module): by unrolled scalar L D L^T code (`unrolled_solve`; the Schur
 complement for kept constraints) up to `UNROLLED_MAX` unknowns, which `jax.vmap` turns into
-elementwise operations over the batch, and by `jnp.linalg.solve` above. `emit_hamilton` writes
+elementwise operations over the batch, and by `jnp.linalg.solve` above. From n + k = `CHUNKED_MIN` the
+module's `rhs` goes through `_in_chunks`, so that `jax.vmap` over many states evaluates it `CHUNK` states at a
+time (same values; derivatives of the plain function); below `KEEP_MIN` nothing is stored through `_kept`. `emit_hamilton` writes
 Hamilton's equations (`derive --to jax --form hamilton`). `p` is optional everywhere: None means the file's
 defaults, a dict gives values by name (missing ones take their defaults), and an array gives
 them all in PARAMETER_NAMES order (what `jax.grad` with respect to the parameters takes).
@@ -443,10 +445,12 @@ fused loops instead of seven, 0.15 against 0.19-0.20 ms CPU for 10^4 states, whi
 
 CHUNKED_MIN = 10
 """Smallest n + k whose `rhs` runs through `_in_chunks` (`chunks_helper`): above it the unrolled solve's stored
-values of 10^4 states no longer fit in the caches (benchmarks/jax_bench.py --no-chunks; BENCHMARKS.md)."""
+values of 10^4 states no longer fit in the caches: 713 ns per state at 1000 to 2000 states against 1062 at 10^4
+for the 15-link chain, and 10.7 against 12.2-12.8 ms for its rhs over 10^4 states, through `_in_chunks` or not;
+the same at 10 links (benchmarks/jax_bench.py --no-chunks; BENCHMARKS.md, helper `jax50`, 2026-11-26)."""
 CHUNK = 1000
 """States per chunk under `_in_chunks` (1000: the 15-link chain's stored values of one chunk, about 400 arrays
-of 8 kB, stay in L2; measured against 250, 500 and 2000 in BENCHMARKS.md, helper `jax50`)."""
+of 8 kB, stay in the caches; 500 and 2000 measured the same within the noise, BENCHMARKS.md, helper `jax50`)."""
 
 CHUNKS_NOTE = [
     "",
