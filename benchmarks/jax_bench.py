@@ -6,12 +6,16 @@ Python loop over the pure-Python module's `rhs`, both in the same run.
     .venv/bin/python benchmarks/jax_bench.py --unrolled-max 0   # every solve by jnp.linalg.solve (the old code)
     .venv/bin/python benchmarks/jax_bench.py --no-kept          # nothing through `_kept` (XLA recomputes shared values)
     .venv/bin/python benchmarks/jax_bench.py --no-fast-trig     # jnp.sin and jnp.cos rather than the module's `_sincos`
+    .venv/bin/python benchmarks/jax_bench.py --no-chunks        # rhs never through `_in_chunks` (the whole batch at once)
+    .venv/bin/python benchmarks/jax_bench.py --keep-min 1       # `_kept` at every size (the module before `KEEP_MIN`)
 
 For each system: `derive --to jax` (64-bit mode) and `derive --to python`; 10^4 states drawn with
 seed 0 (angles in [-1, 1], rates in [-1, 1]); the JAX side is `jax.jit(jax.vmap(rhs, (None, 0, None)))`
-with its first call (tracing and XLA compilation) timed apart and excluded, then the best of
-REPEATS calls (each ended by `block_until_ready`); the Python side is the best of LOOP_REPEATS loops over
-the states (best of several on both sides, so that a descheduled run on a shared machine inflates neither).
+with its first call (tracing and XLA compilation) timed apart and excluded, then ROUNDS rounds of
+`calls` back-to-back calls each (the last result waited for by `block_until_ready`; `calls` makes a round
+last about ROUND_SECONDS by the fastest of 5 single calls, between 1 and MAX_CALLS calls, so that a 0.1 ms call is timed over about 20 ms,
+not at the clock's and the dispatcher's resolution), reported as the median round's time per call; the
+Python side (unchanged) is the best of LOOP_REPEATS loops over the states.
 Times are CPU time (`time.process_time`, all threads of this process) and wall; XLA on CPU may use
 more than one thread, so the CPU ratio is the fair one on a shared machine. The results agree to
 1e-9 (checked). The generated module solves M q_ddot = F by unrolled L D L^T code for
@@ -23,6 +27,7 @@ from __future__ import annotations
 import argparse
 import importlib.util
 import os
+import statistics
 import sys
 import tempfile
 import time
@@ -39,7 +44,9 @@ sys.path.insert(0, str(ROOT))
 
 import pendulum  # noqa: E402
 
-REPEATS = 20
+ROUNDS = 15
+ROUND_SECONDS = 0.02
+MAX_CALLS = 200
 LOOP_REPEATS = 3
 
 
@@ -75,10 +82,18 @@ def bench(label: str, text: str, states: int, folder: Path) -> dict[str, Any]:
     batched = jax.jit(jax.vmap(target.rhs, in_axes=(None, 0, None)))
     ys = jnp.asarray(y)
     _, compile_cpu, compile_wall = timed(lambda: batched(0.0, ys, None).block_until_ready())
-    best_cpu = best_wall = float("inf")
-    for _ in range(REPEATS):
-        result, cpu, wall = timed(lambda: batched(0.0, ys, None).block_until_ready())
-        best_cpu, best_wall = min(best_cpu, cpu), min(best_wall, wall)
+    once = min(timed(lambda: batched(0.0, ys, None).block_until_ready())[2] for _ in range(5))
+    calls = max(1, min(MAX_CALLS, round(ROUND_SECONDS / max(once, 1e-9))))
+
+    def round_of_calls() -> Any:
+        for _ in range(calls - 1):
+            batched(0.0, ys, None)
+        return batched(0.0, ys, None).block_until_ready()
+
+    rounds = [timed(round_of_calls) for _ in range(ROUNDS)]
+    result = rounds[-1][0]
+    vmap_cpu = statistics.median(cpu for _, cpu, _ in rounds) / calls
+    vmap_wall = statistics.median(wall for _, _, wall in rounds) / calls
     rows = y.tolist()
     rhs = reference.rhs
     loop_cpu = loop_wall = float("inf")
@@ -90,7 +105,8 @@ def bench(label: str, text: str, states: int, folder: Path) -> dict[str, Any]:
         "system": label,
         "n": model.n,
         "compile": (compile_cpu, compile_wall),
-        "vmap": (best_cpu, best_wall),
+        "vmap": (vmap_cpu, vmap_wall),
+        "calls": calls,
         "loop": (loop_cpu, loop_wall),
     }
 
@@ -102,6 +118,9 @@ def main() -> None:
     parser.add_argument("--unrolled-max", type=int, default=None, help="override lagrange_cli.emit.jax.UNROLLED_MAX (0: jnp.linalg.solve everywhere)")
     parser.add_argument("--no-kept", action="store_true", help="lagrange_cli.emit.jax.KEEP = False: nothing stored through `_kept` (XLA recomputes shared values)")
     parser.add_argument("--no-fast-trig", action="store_true", help="lagrange_cli.emit.jax.FAST_TRIG = False: jnp.sin and jnp.cos rather than `_sincos`")
+    parser.add_argument("--no-chunks", action="store_true", help="lagrange_cli.emit.jax.CHUNKED_MIN = infinity: rhs evaluates the whole batch at once")
+    parser.add_argument("--keep-min", type=int, default=None, help="override lagrange_cli.emit.jax.KEEP_MIN (1: `_kept` at every size)")
+    parser.add_argument("--chunk", type=int, default=None, help="override lagrange_cli.emit.jax.CHUNK (states per chunk)")
     args = parser.parse_args()
     import jax
 
@@ -111,19 +130,25 @@ def main() -> None:
     if args.unrolled_max is not None:
         jax_target.UNROLLED_MAX = args.unrolled_max
     jax_target.KEEP = not args.no_kept
+    if args.no_chunks:
+        jax_target.CHUNKED_MIN = 1 << 30
+    if args.keep_min is not None:
+        jax_target.KEEP_MIN = args.keep_min
+    if args.chunk is not None:
+        jax_target.CHUNK = args.chunk
     jax_target.FAST_TRIG = not args.no_fast_trig
     systems = [("double_pendulum", (ROOT / "systems" / "double_pendulum.yaml").read_text())]
     systems += [(f"general_chain_{n}", pendulum.Chain("general", n).yaml()) for n in args.sizes]
     print(
-        f"jax {jax.__version__}, {args.states} states, unrolled solve for n + k <= {jax_target.UNROLLED_MAX}, _kept {'on' if jax_target.KEEP else 'off'}, _sincos {'on' if jax_target.FAST_TRIG else 'off'}, load average {os.getloadavg()}"
+        f"jax {jax.__version__}, {args.states} states, unrolled solve for n + k <= {jax_target.UNROLLED_MAX}, _kept {'on' if jax_target.KEEP else 'off'}, _sincos {'on' if jax_target.FAST_TRIG else 'off'}, _kept from n + k = {jax_target.KEEP_MIN}, chunks of {jax_target.CHUNK} from n + k = {jax_target.CHUNKED_MIN}, load average {os.getloadavg()}"
     )
-    print("| system | n | first call (compile), CPU / wall s | vmap, CPU / wall ms | Python loop, CPU / wall ms | ratio CPU | ratio wall |")
-    print("|---|---|---|---|---|---|---|")
+    print(f"| system | n | first call (compile), CPU / wall s | calls per round | vmap (median of {ROUNDS} rounds), CPU / wall ms | Python loop, CPU / wall ms | ratio CPU | ratio wall |")
+    print("|---|---|---|---|---|---|---|---|")
     with tempfile.TemporaryDirectory() as folder:
         for label, text in systems:
             r = bench(label, text, args.states, Path(folder))
             (cc, cw), (vc, vw), (lc, lw) = r["compile"], r["vmap"], r["loop"]
-            print(f"| {label} | {r['n']} | {cc:.2f} / {cw:.2f} | {vc * 1e3:.2f} / {vw * 1e3:.2f} | {lc * 1e3:.0f} / {lw * 1e3:.0f} | {lc / vc:.0f}x | {lw / vw:.0f}x |", flush=True)
+            print(f"| {label} | {r['n']} | {cc:.2f} / {cw:.2f} | {r['calls']} | {vc * 1e3:.3f} / {vw * 1e3:.3f} | {lc * 1e3:.0f} / {lw * 1e3:.0f} | {lc / vc:.0f}x | {lw / vw:.0f}x |", flush=True)
 
 
 if __name__ == "__main__":

@@ -251,6 +251,22 @@ def jax() -> Any:
     return found
 
 
+def test_the_jax_module_uses_the_lagrange_forms_sincos_and_kept(jax: Any, tmp_path: Path) -> None:
+    """`--form reduced` shares the JAX target's `Storage`: the sines and cosines of the coordinates from `_sincos`
+    (in every case that has them), values stored through `_kept` when the reduced solve has at least `KEEP_MIN`
+    unknowns; the values agree with the Python module's reduced form (test_jax_jit_vmap_and_grad, every case)."""
+    from lagrange_cli.emit import jax as jax_target
+
+    codes = {label: reduced_emit.jax(model) for label, model in cases().items()}
+    for label, code in codes.items():
+        functions = code.split("def velocities", 1)[1]
+        assert not any(f"jnp.{f}({q})" in functions for q in cases()[label].coordinates for f in ("sin", "cos")), label
+    assert all("_sincos(" in codes[label].split("def velocities", 1)[1] for label in ("rolling_disk_3d", "rolling_coin", "chaplygin_sleigh"))
+    stored = [label for label in codes if independent(label) >= jax_target.KEEP_MIN]
+    assert stored and all("_kept(" in codes[label].split("def rhs", 1)[1] for label in stored)
+    assert all("_kept" not in codes[label] for label in codes if independent(label) < jax_target.KEEP_MIN)
+
+
 @pytest.mark.parametrize("label", sorted(cases()))
 def test_jax_jit_vmap_and_grad(label: str, jax: Any, tmp_path: Path) -> None:
     model = cases()[label]

@@ -369,12 +369,55 @@ def test_kept_is_the_identity_and_so_is_its_derivative(tmp_path: Path) -> None:
     """`_kept(v)` = v / (v * 0 + 1) is v bit for bit (signed zero, tiny, huge; XLA on CPU flushes subnormals to
     zero in every operation, so none is tried) and its derivative is 1; a non-finite value gives NaN (as sin
     and cos of a non-finite angle do)."""
-    module = load_module(jax_target.emit(model_from(ROOT / "systems" / "double_pendulum.yaml")), tmp_path / "target.py")
+    module = load_module(jax_target.emit(model_from(ROOT / "systems" / "chain_3.yaml")), tmp_path / "target.py")
     values = np.array([0.0, -0.0, 2.3e-308, -1e-300, 1.0, -0.3, 1e308, -1.7976931348623157e308, np.pi])
     out = np.asarray(jax.jit(jax.vmap(module._kept))(jnp.asarray(values)))
     assert out.tobytes() == values.tobytes()
     assert all(float(jax.grad(module._kept)(x)) == 1.0 for x in (0.0, -0.7, 1e300))
     assert np.isnan(np.asarray(module._kept(jnp.asarray([np.inf, np.nan])))).all()
+
+
+def test_two_unknowns_store_nothing_and_three_do(tmp_path: Path) -> None:
+    """`KEEP_MIN`: the double pendulum's module (n = 2) has no `_kept` (XLA's two fused loops recompute less than
+    seven would store), the 3-link chain's has; both agree with the Python module (the other tests)."""
+    assert jax_target.KEEP_MIN == 3
+    assert "_kept" not in jax_target.emit(model_from(ROOT / "systems" / "double_pendulum.yaml"))
+    assert "_kept(" in jax_target.emit(model_from(ROOT / "systems" / "chain_3.yaml")).split("def rhs", 1)[1]
+
+
+def test_rhs_in_chunks_is_the_plain_rhs_under_every_transformation(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """`_in_chunks` (here from n + k = 3, chunks of 7 states): jax.vmap over 2 * 7 + 3 states runs a loop over
+    chunks (a `while` in XLA's program, counted, not timed) with the plain rhs's values, and every other use
+    (t or p batched, vmap of vmap, grad, vmap of grad, grad of vmap, jacfwd) gives the plain rhs's values too."""
+    monkeypatch.setattr(jax_target, "CHUNKED_MIN", 3)
+    monkeypatch.setattr(jax_target, "CHUNK", 7)
+    model = model_from(ROOT / "systems" / "chain_3.yaml")
+    module = load_module(jax_target.emit(model), tmp_path / "chunked.py")
+    rhs, plain, n = module.rhs, module._rhs, model.n
+    y = jnp.asarray(np.random.default_rng(5).uniform(-1.0, 1.0, (17, 2 * n)))
+    p = module.default_parameters()
+
+    def same(a: Any, b: Any) -> None:
+        np.testing.assert_allclose(np.asarray(a), np.asarray(b), rtol=1e-13, atol=1e-13)
+
+    batched = jax.jit(jax.vmap(rhs, in_axes=(None, 0, None)))
+    assert " while(" in batched.lower(0.3, y, p).compile().as_text()
+    assert " while(" not in jax.jit(jax.vmap(plain, in_axes=(None, 0, None))).lower(0.3, y, p).compile().as_text()
+    same(batched(0.3, y, p), jax.vmap(plain, in_axes=(None, 0, None))(0.3, y, p))
+    same(jax.vmap(rhs, in_axes=(None, 0))(0.3, y), jax.vmap(plain, in_axes=(None, 0))(0.3, y))
+    same(jax.vmap(rhs, in_axes=(None, 0, None))(0.3, y, {"g": 3.0}), jax.vmap(plain, in_axes=(None, 0, None))(0.3, y, {"g": 3.0}))
+    ts = jnp.linspace(0.0, 1.0, 17)
+    same(jax.vmap(rhs, in_axes=(0, 0, None))(ts, y, p), jax.vmap(plain, in_axes=(0, 0, None))(ts, y, p))
+    ps = jnp.stack([p * (1.0 + 0.01 * i) for i in range(17)])
+    same(jax.vmap(rhs, in_axes=(None, 0, 0))(0.3, y, ps), jax.vmap(plain, in_axes=(None, 0, 0))(0.3, y, ps))
+    nested = jnp.concatenate([y, y])[:32].reshape(2, 16, 2 * n)
+    same(jax.vmap(jax.vmap(rhs, in_axes=(None, 0, None)), in_axes=(None, 0, None))(0.3, nested, p), jax.vmap(jax.vmap(plain, in_axes=(None, 0, None)), in_axes=(None, 0, None))(0.3, nested, p))
+    same(jax.grad(lambda q: rhs(0.3, y[0], q)[n])(p), jax.grad(lambda q: plain(0.3, y[0], q)[n])(p))
+    same(jax.vmap(jax.grad(lambda s: rhs(0.3, s, p)[n]))(y), jax.vmap(jax.grad(lambda s: plain(0.3, s, p)[n]))(y))
+    same(jax.grad(lambda q: jax.vmap(rhs, in_axes=(None, 0, None))(0.3, y, q).sum())(p), jax.grad(lambda q: jax.vmap(plain, in_axes=(None, 0, None))(0.3, y, q).sum())(p))
+    same(jax.jacfwd(lambda s: rhs(0.3, s, p))(y[0]), jax.jacfwd(lambda s: plain(0.3, s, p))(y[0]))
+    reference = load_module(python.emit(model), tmp_path / "reference.py")
+    same(batched(0.3, y, None), np.array([reference.rhs(0.3, list(map(float, s))) for s in np.asarray(y)]))
 
 
 def test_sincos_is_sin_and_cos_to_1e_14_below_1e15_and_nan_beyond(tmp_path: Path) -> None:

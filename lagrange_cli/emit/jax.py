@@ -8,7 +8,9 @@ control flow on values, no in-place updates), so `jax.jit`, `jax.vmap` and `jax.
 the accelerations solve M q_ddot = F (or [[M, -A^T], [A, 0]] [q_ddot, lambda] = [F, -c] for kept
 constraints, as in the Python module): by unrolled scalar L D L^T code (`unrolled_solve`; the Schur
 complement for kept constraints) up to `UNROLLED_MAX` unknowns, which `jax.vmap` turns into
-elementwise operations over the batch, and by `jnp.linalg.solve` above. `emit_hamilton` writes
+elementwise operations over the batch, and by `jnp.linalg.solve` above. From n + k = `CHUNKED_MIN` the
+module's `rhs` goes through `_in_chunks`, so that `jax.vmap` over many states evaluates it `CHUNK` states at a
+time (same values; derivatives of the plain function); below `KEEP_MIN` nothing is stored through `_kept`. `emit_hamilton` writes
 Hamilton's equations (`derive --to jax --form hamilton`). `p` is optional everywhere: None means the file's
 defaults, a dict gives values by name (missing ones take their defaults), and an array gives
 them all in PARAMETER_NAMES order (what `jax.grad` with respect to the parameters takes).
@@ -104,14 +106,50 @@ def _free_names(exprs: Sequence[Any]) -> set[str]:
     return {str(s) for e in exprs for s in getattr(e, "free_symbols", ())}
 
 
-class _Writer:
+class Storage:
+    """The `_sincos` and `_kept` choices of one module whose linear solve has `unknowns` unknowns (n + k, or the
+    reduced form's independent velocities): what it stores (`KEEP_MIN`) and which helpers it then defines
+    (`uses_kept`, `uses_sincos`); shared by the Lagrange and Hamilton writers and `--form reduced`."""
+
+    def __init__(self, unknowns: int) -> None:
+        self.uses_kept = False
+        self.uses_sincos = False
+        self.storing = KEEP and unknowns >= KEEP_MIN
+
+    def sincos(self, code: str) -> str:
+        """`_sincos(x)[0]` for `jnp.sin(x)` and `_sincos(x)[1]` for `jnp.cos(x)` of a name `x` (the sines and
+        cosines of the coordinates that `restructure` computes once) when `FAST_TRIG`; the module then defines `_sincos`."""
+        match = SINCOS.fullmatch(code)
+        if not (FAST_TRIG and match):
+            return code
+        self.uses_sincos = True
+        return f"_sincos({match[2]})[{int(match[1] == 'cos')}]"
+
+    def keep(self, code: str) -> str:
+        """`_kept(code)` (for `unrolled_solve`); the module then defines `_kept`."""
+        self.uses_kept = True
+        return f"_kept({code})"
+
+    def kept(self, code: str) -> str:
+        """`code`, through `_kept` when it calls a function XLA counts as cheap but which costs a libm call
+        (`kept`); the module then defines `_kept`."""
+        wrapped = kept(code) if self.storing else code
+        self.uses_kept = self.uses_kept or wrapped != code
+        return wrapped
+
+    def solve_keep(self) -> Callable[[str], str] | None:
+        """What `unrolled_solve` takes as `keep`: `keep` when this module stores values, else None."""
+        return self.keep if self.storing else None
+
+
+class _Writer(Storage):
     def __init__(self, model: Model, definitions: Any) -> None:
         self.model = model
         self.definitions = definitions
         self.names = jax_names(model)
         self.signals = frozenset(i.name for i in model.inputs)
-        self.uses_kept = False
-        self.uses_sincos = False
+        Storage.__init__(self, model.n + len(model.constraints))
+        self.uses_chunks = False
         n = model.n
         self.upper = [(i, j) for i in range(n) for j in range(i, n)]
         forms = model.symengine
@@ -170,27 +208,6 @@ class _Writer:
         temporaries, results = printer.block(rewritten, f"_c{tag}", [*self.names.values(), *(lhs for lhs, _ in definitions)])
         return lines + [f"{lhs} = {self.kept(code)}" for lhs, code in temporaries], results
 
-    def sincos(self, code: str) -> str:
-        """`_sincos(x)[0]` for `jnp.sin(x)` and `_sincos(x)[1]` for `jnp.cos(x)` of a name `x` (the sines and
-        cosines of the coordinates that `restructure` computes once) when `FAST_TRIG`; the module then defines `_sincos`."""
-        match = SINCOS.fullmatch(code)
-        if not (FAST_TRIG and match):
-            return code
-        self.uses_sincos = True
-        return f"_sincos({match[2]})[{int(match[1] == 'cos')}]"
-
-    def keep(self, code: str) -> str:
-        """`_kept(code)` (for `unrolled_solve`); the module then defines `_kept`."""
-        self.uses_kept = True
-        return f"_kept({code})"
-
-    def kept(self, code: str) -> str:
-        """`code`, through `_kept` when it calls a function XLA counts as cheap but which costs a libm call
-        (`kept`); the module then defines `_kept`."""
-        wrapped = kept(code)
-        self.uses_kept = self.uses_kept or wrapped != code
-        return wrapped
-
     def function(self, name: str, doc: str, exprs: Sequence[Any], state: str, shape: str) -> str:
         lines, results = self.block(exprs)
         body = [*self.unpack(state, self.uses_inputs(exprs)), *lines]
@@ -220,7 +237,7 @@ class _Writer:
             jacobian = [[None if self.jacobian[r * n + j] == 0 else a[r * n + j] for j in range(n)] for r in range(k)]
             forcing = [None if expr == 0 else code for expr, code in zip(self.forcing, f, strict=True)]
             bias = [None if expr == 0 else _negate(code) for expr, code in zip(self.bias, c, strict=True)]
-            solved = unrolled_solve(n, mass, forcing, jacobian, bias, self.keep if KEEP else None)
+            solved = unrolled_solve(n, mass, forcing, jacobian, bias, self.solve_keep())
             return body + solved.lines + ["_x = _array([" + ", ".join(solved.results) + "])"]
         matrix = [[m[(min(i, j), max(i, j))] for j in range(n)] + [_negate(a[r * n + i]) for r in range(k)] for i in range(n)]
         matrix += [[a[r * n + j] for j in range(n)] + ["0.0"] * k for r in range(k)]
@@ -238,8 +255,7 @@ class _Writer:
         arguments = self.arguments("y", [*self.mass, *self.forcing, *self.jacobian, *self.bias])
         values = "t, y, p, u" if arguments.endswith("u=None") else "t, y, p"
         if not model.constraints:
-            body = [*self.accelerations(), f"return jnp.concatenate([y[{n}:], _x])"]
-            return [define("rhs", arguments, doc, body)]
+            return [self.chunked("rhs", arguments, doc, [*self.accelerations(), f"return jnp.concatenate([y[{n}:], _x])"], values)]
         names = ", ".join(str(x) for x in model.multipliers)
         accelerations = define(
             "accelerations",
@@ -247,10 +263,20 @@ class _Writer:
             f"[{', '.join(map(str, model.qdd))}, {names}] from [[M, -A^T], [A, 0]] x = [F, -c] (index-1 form).",
             [*self.accelerations(), "return _x"],
         )
-        rhs = define("rhs", arguments, doc, ["y = jnp.asarray(y)", f"return jnp.concatenate([y[{n}:], accelerations({values})[:{n}]])"])
+        rhs = self.chunked("rhs", arguments, doc, ["y = jnp.asarray(y)", f"return jnp.concatenate([y[{n}:], accelerations({values})[:{n}]])"], values)
         multipliers = define("multipliers", arguments, f"The multipliers [{names}]; A^T lambda is the generalized constraint force.", [f"return accelerations({values})[{n}:]"])
         residuals = self.function("constraint_residuals", "Each constraint's residual: f(q, t) for holonomic ones, a . q_dot + b for velocity ones.", self.residuals, "q,q_dot", "vector")
         return [residuals, accelerations, rhs, multipliers]
+
+    def chunked(self, name: str, arguments: str, doc: str, body: list[str], values: str) -> str:
+        """`name` defined by `body`, or, for n + k >= `CHUNKED_MIN`, `_<name>` defined so and `name` calling it through
+        `_in_chunks` (jax.vmap over many states runs it on CHUNK states at a time); the module then defines `_in_chunks`."""
+        model = self.model
+        if model.n + len(model.constraints) < CHUNKED_MIN:
+            return define(name, arguments, doc, body)
+        self.uses_chunks = True
+        inner = define(f"_{name}", arguments, f"{name} itself; {name} runs it through _in_chunks.", body)
+        return f"{inner}\n\n\n_{name}_in_chunks = _in_chunks(_{name})\n\n\n" + define(name, arguments, doc, [f"return _{name}_in_chunks({values})"])
 
     def module(self) -> str:
         model = self.model
@@ -283,6 +309,7 @@ class _Writer:
             "Outside a function's domain (the square root or logarithm of a negative number, a negative base to a",
             "real power) the result is NaN, and a singular mass matrix gives inf or NaN: code under jax.jit cannot raise.",
             *SINCOS_NOTE * self.uses_sincos,
+            *CHUNKS_NOTE * self.uses_chunks,
         ]
         if self.definitions:
             header += ["", written_definitions(self.definitions)]
@@ -297,8 +324,9 @@ class _Writer:
             f"NP = {len(model.parameters)}",
             *input_constants(model),
         ]
-        head = docstring("\n".join([*header, ""])) + "\n\n" + ("import jax\n" if self.uses_sincos else "") + "import jax.numpy as jnp\n\n" + "\n".join(constants)
-        return head + "\n\n\n" + "\n\n\n".join([*_helpers(model), *kept_helper(self.uses_kept), *sincos_helper(self.uses_sincos), *functions]) + "\n"
+        head = docstring("\n".join([*header, ""])) + "\n\n" + ("import jax\n" if self.uses_sincos or self.uses_chunks else "") + "import jax.numpy as jnp\n\n" + "\n".join(constants)
+        helpers = [*_helpers(model), *kept_helper(self.uses_kept), *sincos_helper(self.uses_sincos), *chunks_helper(self.uses_chunks)]
+        return head + "\n\n\n" + "\n\n\n".join([*helpers, *functions]) + "\n"
 
     def outputs(self) -> str:
         """`outputs(t, y, p=None, u=None)`: the file's outputs in its order, an array (FORMAT.md version 2)."""
@@ -409,6 +437,69 @@ def sincos_helper(used: bool = True) -> list[str]:
 
 KEEP = True
 """Whether `kept` wraps anything (False: the previous modules, for benchmarks/jax_bench.py --no-kept)."""
+KEEP_MIN = 3
+"""Smallest n + k (coordinates plus kept constraints) whose module stores values through `_kept`. Below it
+(n + k = 1 or 2) XLA's recomputation costs less than the stores: without them the double pendulum's rhs is two
+fused loops instead of seven, 0.15 against 0.19-0.20 ms CPU for 10^4 states, while at n = 3 and 5 storing wins
+(0.35 against 0.41 ms, 0.76 against 1.50 ms; BENCHMARKS.md, helper `jax50`, 2026-11-26)."""
+
+CHUNKED_MIN = 10
+"""Smallest n + k whose `rhs` runs through `_in_chunks` (`chunks_helper`): above it the unrolled solve's stored
+values of 10^4 states no longer fit in the caches: 713 ns per state at 1000 to 2000 states against 1062 at 10^4
+for the 15-link chain, and 10.7 against 12.2-12.8 ms for its rhs over 10^4 states, through `_in_chunks` or not;
+the same at 10 links (benchmarks/jax_bench.py --no-chunks; BENCHMARKS.md, helper `jax50`, 2026-11-26)."""
+CHUNK = 1000
+"""States per chunk under `_in_chunks` (1000: the 15-link chain's stored values of one chunk, about 400 arrays
+of 8 kB, stay in the caches; 500 and 2000 measured the same within the noise, BENCHMARKS.md, helper `jax50`)."""
+
+CHUNKS_NOTE = [
+    "",
+    "rhs is evaluated through _in_chunks: jax.vmap over a batch of states (only y batched) computes it",
+    "_CHUNK states at a time, in turn (jax.lax.map), so that its many intermediate values stay in the",
+    "processor's caches; the values are those of the plain function, and jax.grad and jax.jvp differentiate",
+    "the plain function (a custom_jvp rule).",
+]
+"""The module docstring's paragraph on `_in_chunks`."""
+
+
+def chunks_helper(used: bool = True) -> list[str]:
+    """`CHUNK` and the definition of `_in_chunks` (nothing when not `used`); the module imports `jax`."""
+    if not used:
+        return []
+    doc = (
+        "f (a function of (t, y, ...) for one state y), with a batching rule: jax.vmap over y alone (t and the other\n"
+        "arguments not batched) with at least 2 * _CHUNK states runs jax.vmap(f) on _CHUNK states at a time (jax.lax.map)\n"
+        "and the rest at once, so that f's intermediate values stay in the caches; any other jax.vmap is jax.vmap(f).\n"
+        "The values are f's. Derivatives (jax.grad, jax.jvp, jax.jacfwd) are f's: a custom_jvp rule calls jax.jvp(f)."
+    )
+    body = [
+        "@jax.custom_batching.custom_vmap",
+        "def _batched(*args):",
+        "    return f(*args)",
+        "@_batched.def_vmap",
+        "def _rule(size, batched, *args):",
+        "    _others = [_b for _i, _tree in enumerate(batched) if _i != 1 for _b in jax.tree.leaves(_tree)]",
+        "    if batched[1] is True and not any(_others) and size >= 2 * _CHUNK:",
+        "        _axes = [None, 0, *[None] * (len(args) - 2)]",
+        "        _y = args[1]",
+        "        _head = size // _CHUNK * _CHUNK",
+        "        _chunks = _y[:_head].reshape(size // _CHUNK, _CHUNK, *_y.shape[1:])",
+        "        _out = jax.lax.map(lambda _c: jax.vmap(f, _axes)(args[0], _c, *args[2:]), _chunks)",
+        "        _out = _out.reshape(_head, *_out.shape[2:])",
+        "        if _head < size:",
+        "            _out = jnp.concatenate([_out, jax.vmap(f, _axes)(args[0], _y[_head:], *args[2:])])",
+        "        return _out, True",
+        "    _axes = [jax.tree.map(lambda _b: 0 if _b else None, _tree) for _tree in batched]",
+        "    return jax.vmap(f, _axes)(*args), True",
+        "@jax.custom_jvp",
+        "def _chunked(*args):",
+        "    return _batched(*args)",
+        "@_chunked.defjvp",
+        "def _jvp(primals, tangents):",
+        "    return jax.jvp(f, primals, tangents)",
+        "return _chunked",
+    ]
+    return [f"_CHUNK = {CHUNK}", define("_in_chunks", "f", doc, body)]
 
 
 def kept(code: str) -> str:
@@ -547,7 +638,7 @@ class _HamiltonWriter(_Writer):
             zero = {ij for ij, expr in zip(self.upper, self.mass, strict=True) if expr == 0}
             mass = {ij: (None if ij in zero else code) for ij, code in m.items()}
             shifted = [None if expr == 0 else code for expr, code in zip(self.shifted, results[len(self.mass) :], strict=True)]
-            solved = unrolled_solve(n, mass, shifted, [], [], self.keep if KEEP else None)
+            solved = unrolled_solve(n, mass, shifted, [], [], self.solve_keep())
             return body + solved.lines + [", ".join(velocities) + " = " + ", ".join(solved.results)]
         rows = ", ".join("[" + ", ".join(m[(min(i, j), max(i, j))] for j in range(n)) + "]" for i in range(n))
         body.append(f"_v = jnp.linalg.solve(_array([{rows}]), _array([{', '.join(results[len(self.mass) :])}]))")

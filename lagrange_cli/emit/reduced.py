@@ -185,6 +185,7 @@ def jax(model: Model, *, name: str = "eom") -> str:
     red = reduced(numeric)
     names = target.jax_names(numeric, reserved=JAX_GENERATED)
     n, k = numeric.n, len(red.independent)
+    store = target.Storage(k)
     constants = [p.name for p in numeric.parameters]
     cells = [(i, j) for i in range(k) for j in range(i, k)]
     qdot = [to_symengine(sp.sympify(v)) for v in red.velocities]
@@ -196,10 +197,10 @@ def jax(model: Model, *, name: str = "eom") -> str:
         rewritten_definitions, rewritten = restructure(exprs, constants)
         lines = []
         for lhs, value in rewritten_definitions:
-            lines.append(f"{lhs} = {printer.doprint(value)}")
+            lines.append(f"{lhs} = {store.kept(store.sincos(printer.doprint(value)))}")
             printer.names[lhs] = lhs
         temporaries, results = printer.block(rewritten, "_c", [*names.values(), *(lhs for lhs, _ in rewritten_definitions)])
-        return lines + [f"{lhs} = {code}" for lhs, code in temporaries], results
+        return lines + [f"{lhs} = {store.kept(code)}" for lhs, code in temporaries], results
 
     def unpack(exprs: Sequence[Any]) -> list[str]:
         free = {str(s) for e in exprs for s in getattr(e, "free_symbols", ())}
@@ -248,7 +249,12 @@ def jax(model: Model, *, name: str = "eom") -> str:
         body.append(f"return _array([{', '.join(velocities)}])")
     elif k <= target.UNROLLED_MAX and not any((i, i) in zero for i in range(k)):
         solved = target.unrolled_solve(
-            k, {ij: (None if ij in zero else code) for ij, code in entries.items()}, [None if expr == 0 else code for expr, code in zip(force, forcing, strict=True)], [], []
+            k,
+            {ij: (None if ij in zero else code) for ij, code in entries.items()},
+            [None if expr == 0 else code for expr, code in zip(force, forcing, strict=True)],
+            [],
+            [],
+            store.solve_keep(),
         )
         body += [*solved.lines, f"return _array([{', '.join([*velocities, *solved.results])}])"]
     else:
@@ -272,6 +278,7 @@ def jax(model: Model, *, name: str = "eom") -> str:
         'to about 1e-12, run `import jax; jax.config.update("jax_enable_x64", True)` before creating any array;',
         "this module leaves that global setting to you. Code under jax.jit cannot raise: where C^T M C is singular",
         "or a function is outside its domain, the result is inf or NaN.",
+        *target.SINCOS_NOTE * store.uses_sincos,
     ]
     if definitions:
         header += ["", written_definitions(definitions)]
@@ -300,5 +307,6 @@ def jax(model: Model, *, name: str = "eom") -> str:
         f"NP = {len(model.parameters)}",
         *target.input_constants(model),
     ]
-    head = docstring("\n".join([*header, ""])) + "\n\nimport jax.numpy as jnp\n\n" + "\n".join(constants_block)
-    return head + "\n\n\n" + "\n\n\n".join([*target.helpers(model), *functions]) + "\n"
+    head = docstring("\n".join([*header, ""])) + "\n\n" + ("import jax\n" if store.uses_sincos else "") + "import jax.numpy as jnp\n\n" + "\n".join(constants_block)
+    helpers = [*target.helpers(model), *target.kept_helper(store.uses_kept), *target.sincos_helper(store.uses_sincos)]
+    return head + "\n\n\n" + "\n\n\n".join([*helpers, *functions]) + "\n"
