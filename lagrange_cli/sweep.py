@@ -65,6 +65,11 @@ LYAPUNOV_SEPARATION = 1e-8
 MAX_CROSSINGS = 100_000
 SWEEP_SAMPLES = 201
 CONNECT_TIMEOUT = 10  # seconds to reach a Dask scheduler
+TASKS_PER_WORKER = 8
+"""A Dask task carries several batches, about this many tasks per worker: Dask's fixed cost per task (scheduling,
+transfers; a few ms) is then small against the task's runs, which lockstep lanes make cheap (benchmarks/sweep_bench.py),
+while a lost worker's tasks stay small to rerun and rows still stream back batch by batch."""
+MAX_BATCHES_PER_TASK = 64
 """Samples of a run when a measure needs them and `samples` is not given."""
 _CALL = re.compile(r"^\s*(max|min|mean|period)\s*\((.*)\)\s*$", re.S)
 
@@ -867,9 +872,9 @@ def _dask(address: str, job: Job, grid: np.ndarray, batches: list[list[int]]) ->
         # Every worker builds the system now, all at once, ahead of its batches (priority): not at its first batch,
         # which a short sweep (or the first sweep of a session) may never send it, leaving the cost to the next sweep.
         ready = [client.submit(_dask_prepare, shared, workers=[worker], allow_other_workers=True, priority=1, pure=False) for worker in client.scheduler_info()["workers"]]
-        futures = [(client.submit(_dask_task, shared, list(indices), grid[indices], pure=False), len(indices)) for indices in batches]
-        for future, size in futures:
-            yield future.result(), size
+        futures = [(client.submit(_dask_task, shared, [(list(indices), grid[indices]) for indices in group], pure=False), group) for group in _task_groups(batches, len(ready))]
+        for future, group in futures:
+            yield from zip(future.result(), (len(indices) for indices in group), strict=True)
         client.gather(ready, errors="skip")  # every worker built (one that failed says so through its batches' results)
     finally:
         client.close()
@@ -879,8 +884,17 @@ def _dask_prepare(job: Job) -> None:
     runner_for(job)
 
 
-def _dask_task(job: Job, indices: list[int], chunk: np.ndarray) -> list[list[Any]]:
-    return runner_for(job).batch(indices, chunk)
+def _task_groups(batches: list[list[int]], workers: int) -> list[list[list[int]]]:
+    """Consecutive batches grouped into Dask tasks: about TASKS_PER_WORKER tasks per worker, each of at least one
+    batch and at most MAX_BATCHES_PER_TASK."""
+    per = max(1, min(MAX_BATCHES_PER_TASK, len(batches) // (TASKS_PER_WORKER * max(1, workers))))
+    return [batches[i : i + per] for i in range(0, len(batches), per)]
+
+
+def _dask_task(job: Job, group: list[tuple[list[int], np.ndarray]]) -> list[list[list[Any]]]:
+    """The rows of each batch of a task's `group` of (indices, points)."""
+    runner = runner_for(job)
+    return [runner.batch(indices, chunk) for indices, chunk in group]
 
 
 # -- output and resume -----------------------------------------------------------------------------
