@@ -128,3 +128,14 @@ def test_the_cli_prints_the_command(tmp_path: Path) -> None:
     line = next(line for line in result.output.splitlines() if "try: lagrange simulate" in line)
     params = parsed(line.split("try: ", 1)[1])
     assert params["method"] == "symplectic" and params["stages"] in (1, 2, 3) and isinstance(params["step"], float)
+
+
+def test_sweep_takes_the_stages() -> None:
+    """`sweep --stages` reaches the symplectic runs: order 6 against order 2 at the same step."""
+    errors = {}
+    for stages in (1, 3):
+        result = runner.invoke(app, ["sweep", FILE, "--method", "symplectic", "--step", "0.1", "--stages", str(stages), "--initial", "theta=0.5..1:2", "--measure", "energy_error", "-q"])
+        assert result.exit_code == 0, result.output
+        rows = [line.split(",") for line in result.stdout.splitlines() if line[:2] in ("0,", "1,")]
+        errors[stages] = max(float(row[-1]) for row in rows)
+    assert errors[3] < 1e-3 * errors[1], errors
