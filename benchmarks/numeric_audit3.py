@@ -357,7 +357,10 @@ def run_simulate(s: System, ref: Ref, opts: list[str], tmp: Path) -> dict[str, o
     return row
 
 
-def setting_opts(method: str, backend: str, setting: str) -> list[str]:
+def setting_opts(method: str, backend: str, setting: str, given: object = None) -> list[str]:
+    """`simulate`'s options of a claim: the report's own (`"simulate"`, complete since recfix2), else parsed from its setting text."""
+    if isinstance(given, list):
+        return [str(word) for word in given]
     kind, _, value = setting.partition(" ")
     opts = ["--step", value] if kind == "step" else ["--rtol", value, "--atol", f"{float(value) * 1e-3:g}"]
     return ["--method", method, "--backend", backend, *opts]
@@ -409,7 +412,7 @@ def audit(name: str, s: System, tmp: Path) -> dict[str, object]:
                     if not p:
                         continue
                     method, backend = ran_of(p)
-                    info = run_simulate(s, ref, setting_opts(method, backend, str(p["setting"])), tmp)
+                    info = run_simulate(s, ref, setting_opts(method, backend, str(p["setting"]), p.get("simulate")), tmp)
                     reported = p.get("max_error", p.get("error"))
                     claims.append({"method": method, "backend": backend, "setting": p["setting"], "reported": reported, **info, "meets": info["true_max_error"] <= report["accuracy"]})  # type: ignore[operator]
                 row["claims"] = claims
@@ -427,7 +430,7 @@ def audit(name: str, s: System, tmp: Path) -> dict[str, object]:
         for f in study["fastest"]:
             p = rows.get((f["method"], f["setting"]), {"method": f["method"]})
             method, backend = ran_of(p)
-            info = run_simulate(s, ref, setting_opts(method, backend, str(f["setting"])), tmp)
+            info = run_simulate(s, ref, setting_opts(method, backend, str(f["setting"]), f.get("simulate")), tmp)
             claims.append(
                 {
                     "level": f["error"],

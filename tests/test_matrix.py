@@ -44,11 +44,17 @@ INVOCATIONS: dict[str, dict[str, list[str]]] = {
     "info": {"text": [], "latex": ["--latex"], "json": ["--json"], "routh": ["--routh"]},
     "equilibria": {"": []},
     "linearize": {"text": [], "json": ["--json"]},
-    "simulate": {"": [*SHORT, "--backend", "python", "--method", "DOP853", "--samples", "11"]},
+    "simulate": {
+        "": [*SHORT, "--backend", "python", "--method", "DOP853", "--samples", "11"],
+        "symplectic-stages": [*SHORT, "--method", "symplectic", "--step", "0.02", "--stages", "3", "--samples", "11"],
+    },
     "accuracy": {"": ["--method", "DOP853:python", "--tolerances", "1e-4,1e-6", "--repeats", "0", "--samples", "11", *SHORT]},
     "stress": {"": ["--method", "DOP853:python", *SHORT, "--long", "2", "--energy", "2"]},
     "animate": {"": ["-o", "-", *SHORT, "--fps", "10"]},
-    "sweep": {"": [*SHORT, "--backend", "python", "--method", "DOP853", "--measure", "final", "--measure", "energy_error", "--measure", "max(t)"]},
+    "sweep": {
+        "": [*SHORT, "--backend", "python", "--method", "DOP853", "--measure", "final", "--measure", "energy_error", "--measure", "max(t)"],
+        "symplectic-stages": [*SHORT, "--method", "symplectic", "--step", "0.02", "--stages", "1", "--measure", "final", "--measure", "energy_error"],
+    },
 }
 """How each command is run in the matrix: variant name -> arguments after the file. (The code targets' cells
 only run `derive`; tests/test_target_c.py and tests/test_target_octave.py compile and run every feature's code
@@ -78,8 +84,10 @@ SHOWS = {
     **{("derive", f"latex-{form}-standalone"): "\\end{document}" for form in ("lagrange", "matrix", "solved")},
     ("info", "json"): '"hamiltonian"',
     ("simulate", ""): "invariants",
+    ("simulate", "symplectic-stages"): "step 0.02, 3 stages",
     ("animate", ""): "</html>",
     ("sweep", ""): "index,",
+    ("sweep", "symplectic-stages"): "index,",
 }
 """What a cell that works must print (on stdout), where a word says it did its job."""
 

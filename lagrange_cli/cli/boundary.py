@@ -53,6 +53,7 @@ check_positive = _checker("a finite number above 0", lambda x: x > 0)
 check_fraction = _checker("a number between 0 and 1 (both excluded)", lambda x: 0 < x < 1)
 check_samples = _checker(f"a whole number from 2 to {MAX_SAMPLES}", lambda x: 2 <= x <= MAX_SAMPLES)
 check_repeats = _checker("a whole number from 0 to 100", lambda x: 0 <= x <= 100)
+check_stages = _checker("a whole number from 1 to 3 (Gauss-Legendre stages: order 2, 4 or 6)", lambda x: x in (1, 2, 3))
 MAX_RUNS = 100_000_000  # sweep --sample: far more runs than a sweep can finish, and a bounded table
 check_runs = _checker(f"a whole number from 1 to {MAX_RUNS}", lambda x: 1 <= x <= MAX_RUNS)
 check_seed = _checker("a whole number from 0 to 2**32 - 1", lambda x: 0 <= x <= 2**32 - 1)

@@ -11,7 +11,7 @@ from typing import TYPE_CHECKING, Annotated, Any
 import typer
 
 from lagrange_cli.cli import app, check_outputs, fail_with, write_atomically
-from lagrange_cli.cli.boundary import check_fraction, check_positive, check_samples
+from lagrange_cli.cli.boundary import check_fraction, check_positive, check_samples, check_stages
 
 if TYPE_CHECKING:
     from lagrange_cli.model import Model
@@ -31,6 +31,9 @@ def simulate(
     rtol: Annotated[float | None, typer.Option(help="Relative tolerance of adaptive methods (default 1e-8).", callback=check_fraction)] = None,
     atol: Annotated[float | None, typer.Option(help="Absolute tolerance of adaptive methods (default 1e-10).", callback=check_positive)] = None,
     step: Annotated[float | None, typer.Option(help="Fixed step of the symplectic method.", callback=check_positive)] = None,
+    stages: Annotated[
+        int | None, typer.Option(help="Gauss-Legendre stages of the symplectic method: 1, 2 or 3 (order 2, 4, 6; default: the pilot's choice, or 2 with --step).", callback=check_stages)
+    ] = None,
     max_step: Annotated[float | None, typer.Option("--max-step", help="Largest step of adaptive methods.", callback=check_positive)] = None,
     samples: Annotated[int | None, typer.Option(help="Number of evenly spaced output times (default 1001).", callback=check_samples)] = None,
     until: Annotated[str | None, typer.Option(help='Stop when this expression of the state crosses zero, e.g. "lambda_c" or "x - 1".')] = None,
@@ -73,6 +76,7 @@ def simulate(
                 rtol=rtol,
                 atol=atol,
                 step=step,
+                stages=stages,
                 samples=samples,
                 parameters=parameters,
                 initial=values,
@@ -141,7 +145,7 @@ def _report(trajectory: Trajectory, to_stderr: bool) -> None:
 
     console = make_console(stderr=to_stderr)
     s, stats, timing = trajectory.settings, trajectory.stats, trajectory.timing
-    accuracy = f"step {s.step:.3g}" if s.method == "symplectic" and s.step else f"rtol {s.rtol:g}, atol {s.atol:g}"
+    accuracy = f"step {s.step!r}, {s.stages} stages" if s.method == "symplectic" and s.step else f"rtol {s.rtol!r}, atol {s.atol!r}"
     console.print(f"[bold]{inert(trajectory.title)}[/bold]: {inert(s.method)} ({inert(s.backend)}), t = {s.t0:g} .. {s.t_end:g}, {accuracy}")
     for note in trajectory.notes:
         console.print(f"  [dim]{inert(note)}[/dim]")

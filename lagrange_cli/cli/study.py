@@ -151,7 +151,7 @@ def accuracy(
             core.write_plot(result, plot)
     except LagrangeError as error:
         fail_with(error)
-    _report_study(result, to_stderr=str(csv) == "-" or str(json) == "-")
+    _report_study(result, to_stderr=str(csv) == "-" or str(json) == "-", file=file, model=model)
 
 
 def _console(to_stderr: bool) -> Console:
@@ -174,7 +174,7 @@ def _seconds(value: float) -> str:
     return f"{value * 1e3:.3g} ms" if value < 1 else f"{value:.3g} s"
 
 
-def _report_study(result: Study, to_stderr: bool) -> None:
+def _report_study(result: Study, to_stderr: bool, file: str, model: Model) -> None:
     from rich.table import Table
 
     from lagrange_cli.numeric.accuracy import HORIZON_THRESHOLD, TIE_MARGIN, tol_text
@@ -234,6 +234,8 @@ def _report_study(result: Study, to_stderr: bool) -> None:
             name = p.method + (f" (tie within {TIE_MARGIN:.0%}: {', '.join(t.method for t in tied)})" if tied else "")
             summary.add_row(f"{level:.0e}", inert(name), inert(p.setting), _seconds(p.seconds), _e(p.error))
         console.print(summary)
+        for level, p in fastest:
+            _reproduce(console, file, model, p, f"error <= {level:.0e}: ")
     else:
         console.print("[red]no run finished with a finite error[/red]")
 
@@ -283,12 +285,21 @@ def stress(
             _write_text(json, core.json_text(report))
     except LagrangeError as error:
         fail_with(error)
-    _report_stress(report, to_stderr=str(json) == "-")
+    _report_stress(report, to_stderr=str(json) == "-", file=file, model=model)
     if accuracy_ is not None and report.failed:
         raise typer.Exit(1)
 
 
-def _report_stress(report: Report, to_stderr: bool) -> None:
+def _reproduce(console: Console, file: str, model: Model, point: Point, indent: str) -> None:
+    """The `lagrange simulate` command line that repeats `point`'s run exactly (`reports.simulate_command`)."""
+    from lagrange_cli.numeric.reports import simulate_command
+
+    command = simulate_command(file, model, point)
+    if command is not None:
+        console.print(plain(f"{indent}try: {command}"), markup=False)
+
+
+def _report_stress(report: Report, to_stderr: bool, file: str, model: Model) -> None:
     from rich.table import Table
 
     from lagrange_cli.numeric.accuracy import TIE_MARGIN, tol_text
@@ -322,8 +333,10 @@ def _report_stress(report: Report, to_stderr: bool) -> None:
         best = o.recommended
         if best is not None:
             console.print(f"  recommended: [bold]{inert(best.resolved)}[/bold] at {inert(best.setting)} (error {_e(best.error)} in {_seconds(best.seconds)})")
+            _reproduce(console, file, model, best, "  ")
             for other in o.ties:
                 console.print(f"  tie (within {TIE_MARGIN:.0%} of its run time): {inert(other.resolved)} at {inert(other.setting)} (error {_e(other.error)} in {_seconds(other.seconds)})")
+                _reproduce(console, file, model, other, "    ")
         elif o.undecided and o.open_reason:
             console.print(plain(f"  undecided: no method was shown to meet error {tol_text(report.accuracy)}: {o.open_reason}"), markup=False)
         elif o.undecided:

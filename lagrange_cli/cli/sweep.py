@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING, Annotated, Any
 import typer
 
 from lagrange_cli.cli import app, check_outputs, fail_with, write_atomically
-from lagrange_cli.cli.boundary import check_batch, check_fraction, check_positive, check_runs, check_samples, check_seed, check_workers
+from lagrange_cli.cli.boundary import check_batch, check_fraction, check_positive, check_runs, check_samples, check_seed, check_stages, check_workers
 
 if TYPE_CHECKING:
     from lagrange_cli.model import Model
@@ -37,6 +37,9 @@ def sweep(
     rtol: Annotated[float | None, typer.Option(help="Relative tolerance (default 1e-8).", callback=check_fraction)] = None,
     atol: Annotated[float | None, typer.Option(help="Absolute tolerance (default 1e-10).", callback=check_positive)] = None,
     step: Annotated[float | None, typer.Option(help="Fixed step of the symplectic method.", callback=check_positive)] = None,
+    stages: Annotated[
+        int | None, typer.Option(help="Gauss-Legendre stages of the symplectic method: 1, 2 or 3 (order 2, 4, 6; default: the pilot's choice, or 2 with --step).", callback=check_stages)
+    ] = None,
     max_step: Annotated[float | None, typer.Option("--max-step", help="Largest step of adaptive methods.", callback=check_positive)] = None,
     samples: Annotated[int | None, typer.Option(help="Samples per run for max/min/mean/energy_error/period (default 201).", callback=check_samples)] = None,
     workers: Annotated[int, typer.Option("--workers", help="Local threads running the compiled loops in parallel (default 1).", callback=check_workers)] = 1,
@@ -79,7 +82,7 @@ def sweep(
         fixed_y, axes_y = ranges_of(model, initial or [], "--initial")
         axes = [*axes_p, *axes_y]
         library.check_axes(model, axes, sample)
-        given = {"t_end": t_end, "method": method, "rtol": rtol, "atol": atol, "step": step, "samples": samples, "until": until, "backend": backend, "max_step": max_step}
+        given = {"t_end": t_end, "method": method, "rtol": rtol, "atol": atol, "step": step, "stages": stages, "samples": samples, "until": until, "backend": backend, "max_step": max_step}
         options: dict[str, Any] = {k: v for k, v in given.items() if v is not None}
         options.update(parameters=fixed_p, initial=fixed_y)
         job = library.Job(text, model.source, tuple(axes), tuple(measure or ()), section, tuple(sorted(options.items(), key=lambda kv: kv[0])))

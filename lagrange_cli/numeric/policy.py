@@ -229,6 +229,12 @@ def _choose(model: Model, settings: Settings) -> tuple[str, str, float | None, i
             if attempt and method == "DOP853" and backend == "auto":
                 backend = "compiled"
                 notes.append("backend auto -> compiled: the compiled run `auto` started with goes on")
+    if settings.method == "symplectic" and model.dissipative:
+        notes.append(
+            "warning: this system dissipates (a Rayleigh function), so its energy is not conserved and the symplectic method has nothing to keep:"
+            " it is a fixed-step implicit Runge-Kutta method without error control, its step chosen for the fastest motion at the start even after"
+            " that motion has decayed; symplectic methods are for conservative systems: use an adaptive method (--method auto, DOP853), or an implicit one (LSODA, Radau) where it is stiff"
+        )
     stages = settings.stages
     if method == "symplectic" and step is None:
         step, stages, chosen = _symplectic_choice(model, found, rate, t_end, rtol, p, y0, (stages,) if stages is not None else GAUSS_STAGES)

@@ -10,26 +10,87 @@ import math
 from typing import TYPE_CHECKING, Any
 
 from lagrange_cli.numeric.output import figure_title, inert, plain_text, plot_text
-from lagrange_cli.numeric.runs import Point
+from lagrange_cli.numeric.runs import Point, exact_text
+from lagrange_cli.numeric.settings import STAGES
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
+    from lagrange_cli.model import Model
     from lagrange_cli.numeric.accuracy import Study
 
 
-COLUMNS = ("method", "ran", "setting", "status", "final_error", "rms_error", "max_error", "energy_error", "constraint_drift", "seconds", "runs", "compile_seconds", "nfev", "njev", "steps", "reason")
+def simulate_options(point: Point) -> list[str] | None:
+    """The options of `lagrange simulate` that repeat the run of `point` exactly (method and backend
+    as they ran, every number as it round-trips: the symplectic step and stages, or rtol, atol and a
+    bound on the step), without the time span and the start (`simulate_command`); None when nothing ran."""
+    s = point.settings
+    if s is None or point.ran is None:
+        return None
+    options = ["--method", point.ran.method, "--backend", point.ran.backend]
+    if point.ran.method == "symplectic" and s.step is not None:
+        options += ["--step", exact_text(s.step), "--stages", str(s.stages if s.stages is not None else STAGES)]
+    else:
+        options += ["--rtol", exact_text(s.rtol), "--atol", exact_text(s.atol)]
+        if math.isfinite(s.max_step):
+            options += ["--max-step", exact_text(s.max_step)]
+    return options
+
+
+def simulate_command(file: str, model: Model, point: Point) -> str | None:
+    """A `lagrange simulate` command line that repeats the run of `point`: `file`, the time span
+    and the sample count, the parameters and initial values where they differ from the file's, and
+    `simulate_options`; every word shell-quoted (file text is never shell input). None when nothing ran."""
+    import shlex
+
+    options, s = simulate_options(point), point.settings
+    if options is None or s is None:
+        return None
+    words = ["lagrange", "simulate", file, "--t-end", exact_text(s.t_end)]
+    if len(s.t_eval) >= 2 and s.t_eval[0] == s.t0 and s.t_eval[-1] == s.t_end:
+        words += ["--samples", str(len(s.t_eval))]
+    defaults = {p.name: p.value for p in model.parameters}
+    changed = [f"{name}={exact_text(value)}" for name, value in s.parameters if defaults.get(name) is None or float(defaults[name]) != value]  # type: ignore[arg-type]
+    if changed:
+        words += ["--set", ",".join(changed)]
+    names = [*model.coordinates, *(f"{c}_dot" for c in model.coordinates)]
+    moved = [f"{name}={exact_text(value)}" for name, value in zip(names, s.y0, strict=True) if float(model.initial.get(name, 0.0)) != value]
+    if moved:
+        words += ["--initial", ",".join(moved)]
+    return shlex.join([*words, *options])
+
+
+COLUMNS = (
+    "method",
+    "ran",
+    "setting",
+    "simulate",
+    "status",
+    "final_error",
+    "rms_error",
+    "max_error",
+    "energy_error",
+    "constraint_drift",
+    "seconds",
+    "runs",
+    "compile_seconds",
+    "nfev",
+    "njev",
+    "steps",
+    "reason",
+)
 
 
 def rows(result: Study) -> list[dict[str, object]]:
     """One plain dict per point (for CSV and JSON)."""
-    out = []
+    out: list[dict[str, object]] = []
     for p in result.points:
         out.append(
             {
                 "method": p.method,
                 "ran": p.resolved,
                 "setting": p.setting,
+                "simulate": simulate_options(p),
                 "status": p.status,
                 "final_error": p.final_error,
                 "rms_error": p.rms_error,
@@ -51,12 +112,13 @@ def rows(result: Study) -> list[dict[str, object]]:
 def csv_text(result: Study) -> str:
     import csv
     import io
+    import shlex
 
     buffer = io.StringIO()
     writer = csv.DictWriter(buffer, COLUMNS, lineterminator="\n")
     writer.writeheader()
     for row in rows(result):
-        writer.writerow({k: ("" if v is None else repr(v) if isinstance(v, float) else v) for k, v in row.items()})
+        writer.writerow({k: ("" if v is None else repr(v) if isinstance(v, float) else shlex.join(v) if isinstance(v, list) else v) for k, v in row.items()})
     return buffer.getvalue()
 
 
@@ -77,7 +139,16 @@ def json_text(result: Study) -> str:
         "horizon": None if h is None else {"delta": h.delta, "chaotic": h.chaotic, "lyapunov": h.lyapunov, "horizon": _json_number(h.horizon), "growth": h.growth},
         "points": [{k: _json_number(v) for k, v in row.items()} for row in rows(result)],
         "fastest": [
-            {"error": level, "method": p.method, "setting": p.setting, "seconds": p.seconds, "error_reached": p.error, "ties": [t.method for t in result.ties(level, p)]} for level, p in result.fastest
+            {
+                "error": level,
+                "method": p.method,
+                "setting": p.setting,
+                "simulate": simulate_options(p),
+                "seconds": p.seconds,
+                "error_reached": p.error,
+                "ties": [t.method for t in result.ties(level, p)],
+            }
+            for level, p in result.fastest
         ],
         "notes": list(result.notes),
     }

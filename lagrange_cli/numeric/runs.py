@@ -49,6 +49,13 @@ def tol_text(value: float) -> str:
     return f"{value:.0e}" if text[1:3] == ".0" else text
 
 
+def exact_text(value: float) -> str:
+    """A number as short as `tol_text` writes it where that reads back as the same float (1e-06),
+    else in full (`repr`: 0.011296182345...): a printed setting that repeats the run bit for bit."""
+    forms = (tol_text(value), f"{value:g}") if abs(value) < 1e-2 else (f"{value:g}", tol_text(value))
+    return next((form for form in forms if float(form) == value), repr(float(value)))
+
+
 @dataclass(frozen=True)
 class Candidate:
     """A method and the backend it runs on ("auto" picks compiled for RK45/DOP853 when numba is there)."""
@@ -216,7 +223,14 @@ class Point:
 
     @property
     def setting(self) -> str:
-        return f"step {self.step:.3g}" if self.step is not None else f"rtol {tol_text(self.tolerance)}"
+        """The run's complete setting, every number as it round-trips (`exact_text`): the symplectic
+        step and stages, or rtol and atol (what `simulate` needs to repeat the run exactly)."""
+        s = self.settings
+        if self.step is not None:
+            stages = f", {s.stages} stages" if s is not None and s.stages is not None else ""
+            return f"step {exact_text(self.step)}{stages}"
+        atol = s.atol if s is not None else self.tolerance * ATOL_RATIO
+        return f"rtol {exact_text(self.tolerance)}, atol {exact_text(atol)}"
 
 
 class TimeLimit(Exception):

@@ -189,9 +189,50 @@ def integrate(model: Model, settings: Settings, progress: Progress | None = None
     """Run `settings` as decided by `policy.decide` (method and backend resolved); `before` the
     one-time costs already spent on this run."""
     model = substitute(model)
+    refused = _beyond_budget(model, settings, max_steps, before)
+    if refused is not None:
+        return refused
     run, python, timing, notes = _integrated(model, settings, progress, max_steps, before)
     trajectory = _trajectory(model, settings, python, run, timing)
     return dataclasses.replace(trajectory, notes=(*trajectory.notes, *notes)) if notes else trajectory
+
+
+IMPLICIT_ADVICE = "an adaptive method (--method auto or DOP853), or an implicit one (LSODA, Radau, BDF) where the system is stiff"
+
+
+def fixed_steps(settings: Settings) -> int:
+    """The steps a symplectic run of `settings` takes to t_end, known before it starts (its step is
+    fixed; the last one is shortened onto t_end): 0 for an adaptive method."""
+    if settings.method != "symplectic" or not settings.step:
+        return 0
+    ratio = abs(settings.t_end - settings.t0) / settings.step
+    return max(1, math.ceil(ratio - 1e-9)) if ratio < 2.0**62 else 2**62
+
+
+def _beyond_budget(model: Model, settings: Settings, max_steps: int | None, before: Timing | None) -> Trajectory | None:
+    """A symplectic run whose fixed step needs more steps to t_end than its budget, refused before it
+    starts (failed, with the start as its only sample and a message that says why and what to use
+    instead), rather than spending the whole budget to stop short of t_end; None for any other run."""
+    needed = fixed_steps(settings)
+    budget = integrators.MAX_STEPS[settings.backend] if max_steps is None else _budget(max_steps)
+    if needed <= budget:
+        return None
+    python = compile.build(model, "python")
+    y0 = np.array(settings.y0, dtype=float)
+    first = len(settings.t_eval) > 0 and settings.t_eval[0] <= settings.t0
+    t, y = (np.array([settings.t0]), y0[None, :]) if first else (np.empty(0), np.empty((0, len(y0))))
+    run = Run(t, y, integrators.BUDGET, settings.t0, y0, Stats(0, 0, 0, 0, 0, None, None), 0.0, 0.0)
+    timing = before if before is not None else Timing(python.generate_seconds, python.import_seconds, 0.0, 0.0)
+    trajectory = _trajectory(model, settings, python, run, timing)
+    step = f"the symplectic method's fixed step {settings.step!r} ({settings.stages} stages) needs {needed} steps to reach t_end = {_g(settings.t_end)}, more than the step budget ({budget}); not run"
+    if model.dissipative:
+        why = (
+            "this system dissipates (a Rayleigh function): the step resolves its fastest motion at the start, and a fixed step cannot grow once that motion has decayed;"
+            f" symplectic methods are for conservative systems: use {IMPLICIT_ADVICE}"
+        )
+    else:
+        why = f"give a larger --step or a shorter --t-end, or use {IMPLICIT_ADVICE}"
+    return dataclasses.replace(trajectory, message=f"{model.source}: {step}: {why}")
 
 
 def run_seconds(model: Model, settings: Settings, max_steps: int | None = None) -> float:

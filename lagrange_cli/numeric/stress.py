@@ -689,6 +689,8 @@ def _angle(value: float) -> str:
 def json_text(report: Report) -> str:
     import json
 
+    from lagrange_cli.numeric.reports import simulate_options
+
     def number(value: float | None) -> float | None:
         return value if value is not None and math.isfinite(value) else None
 
@@ -699,6 +701,7 @@ def json_text(report: Report) -> str:
             "method": p.method,
             "ran": p.resolved,
             "setting": p.setting,
+            "simulate": simulate_options(p),
             "status": p.status,
             "error": number(p.error),
             "final_rms_error": number(p.final_rms_error),
