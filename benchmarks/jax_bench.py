@@ -8,6 +8,7 @@ Python loop over the pure-Python module's `rhs`, both in the same run.
     .venv/bin/python benchmarks/jax_bench.py --no-fast-trig     # jnp.sin and jnp.cos rather than the module's `_sincos`
     .venv/bin/python benchmarks/jax_bench.py --no-chunks        # rhs never through `_in_chunks` (the whole batch at once)
     .venv/bin/python benchmarks/jax_bench.py --keep-min 1       # `_kept` at every size (the module before `KEEP_MIN`)
+    .venv/bin/python benchmarks/jax_bench.py --threads both     # XLA's default threads and one thread, each in its own process
 
 For each system: `derive --to jax` (64-bit mode) and `derive --to python`; 10^4 states drawn with
 seed 0 (angles in [-1, 1], rates in [-1, 1]); the JAX side is `jax.jit(jax.vmap(rhs, (None, 0, None)))`
@@ -20,6 +21,14 @@ Times are CPU time (`time.process_time`, all threads of this process) and wall; 
 more than one thread, so the CPU ratio is the fair one on a shared machine. The results agree to
 1e-9 (checked). The generated module solves M q_ddot = F by unrolled L D L^T code for
 n + k <= `jax.UNROLLED_MAX`, by `jnp.linalg.solve` above (`--unrolled-max` changes it here).
+
+`--threads one` gives XLA's CPU client one thread for its loops: the process is restricted to one CPU while jax
+creates the client (XLA sizes its intra-op thread pool by the CPUs the process may use, and splits each fused
+loop over 10^4 states into that many parts) and given all of them back at once (the Python thread that
+dispatches the next call still runs beside XLA's). `--threads both` runs this script in a subprocess per mode and
+system, the modes interleaved (default, one, default, one, ... `--repeats` times each), and prints every row with
+its mode. (XLA_FLAGS="--xla_cpu_multi_thread_eigen=false intra_op_parallelism_threads=1" does not do this: the
+loops stay split in two, `outer_dimension_partitions` in the compiled HLO.)
 """
 
 from __future__ import annotations
@@ -28,6 +37,7 @@ import argparse
 import importlib.util
 import os
 import statistics
+import subprocess
 import sys
 import tempfile
 import time
@@ -48,6 +58,8 @@ ROUNDS = 15
 ROUND_SECONDS = 0.02
 MAX_CALLS = 200
 LOOP_REPEATS = 3
+HEADER = f"| system | n | XLA threads | first call (compile), CPU / wall s | calls per round | vmap (median of {ROUNDS} rounds), CPU / wall ms | Python loop, CPU / wall ms | ratio CPU | ratio wall |"
+RULE = "|---|---|---|---|---|---|---|---|---|"
 
 
 def load(code: str, path: Path) -> ModuleType:
@@ -121,10 +133,24 @@ def main() -> None:
     parser.add_argument("--no-chunks", action="store_true", help="lagrange_cli.emit.jax.CHUNKED_MIN = infinity: rhs evaluates the whole batch at once")
     parser.add_argument("--keep-min", type=int, default=None, help="override lagrange_cli.emit.jax.KEEP_MIN (1: `_kept` at every size)")
     parser.add_argument("--chunk", type=int, default=None, help="override lagrange_cli.emit.jax.CHUNK (states per chunk)")
+    parser.add_argument(
+        "--threads", choices=["default", "one", "both"], default="default", help="XLA's threads: its default, one (the client created on one CPU), or both modes interleaved in subprocesses"
+    )
+    parser.add_argument("--repeats", type=int, default=1, help="with --threads both: runs per mode and system")
+    parser.add_argument("--only", default=None, help="only the system with this label (e.g. general_chain_15)")
+    parser.add_argument("--no-header", action="store_true", help=argparse.SUPPRESS)
     args = parser.parse_args()
+    if args.threads == "both":
+        both(args)
+        return
+    cpus = os.sched_getaffinity(0)
+    if args.threads == "one":
+        os.sched_setaffinity(0, {min(cpus)})
     import jax
 
     jax.config.update("jax_enable_x64", True)
+    jax.devices()  # the CPU client and its thread pool, sized now
+    os.sched_setaffinity(0, cpus)
     from lagrange_cli.emit import jax as jax_target
 
     if args.unrolled_max is not None:
@@ -139,16 +165,41 @@ def main() -> None:
     jax_target.FAST_TRIG = not args.no_fast_trig
     systems = [("double_pendulum", (ROOT / "systems" / "double_pendulum.yaml").read_text())]
     systems += [(f"general_chain_{n}", pendulum.Chain("general", n).yaml()) for n in args.sizes]
-    print(
-        f"jax {jax.__version__}, {args.states} states, unrolled solve for n + k <= {jax_target.UNROLLED_MAX}, _kept {'on' if jax_target.KEEP else 'off'}, _sincos {'on' if jax_target.FAST_TRIG else 'off'}, _kept from n + k = {jax_target.KEEP_MIN}, chunks of {jax_target.CHUNK} from n + k = {jax_target.CHUNKED_MIN}, load average {os.getloadavg()}"
-    )
-    print(f"| system | n | first call (compile), CPU / wall s | calls per round | vmap (median of {ROUNDS} rounds), CPU / wall ms | Python loop, CPU / wall ms | ratio CPU | ratio wall |")
-    print("|---|---|---|---|---|---|---|---|")
+    systems = [(label, text) for label, text in systems if args.only is None or label == args.only]
+    if not args.no_header:
+        print(
+            f"jax {jax.__version__}, {args.states} states, unrolled solve for n + k <= {jax_target.UNROLLED_MAX}, _kept {'on' if jax_target.KEEP else 'off'}, _sincos {'on' if jax_target.FAST_TRIG else 'off'}, _kept from n + k = {jax_target.KEEP_MIN}, chunks of {jax_target.CHUNK} from n + k = {jax_target.CHUNKED_MIN}, XLA threads {args.threads}, load average {os.getloadavg()}"
+        )
+        print(HEADER)
+        print(RULE)
     with tempfile.TemporaryDirectory() as folder:
         for label, text in systems:
             r = bench(label, text, args.states, Path(folder))
             (cc, cw), (vc, vw), (lc, lw) = r["compile"], r["vmap"], r["loop"]
-            print(f"| {label} | {r['n']} | {cc:.2f} / {cw:.2f} | {r['calls']} | {vc * 1e3:.3f} / {vw * 1e3:.3f} | {lc * 1e3:.0f} / {lw * 1e3:.0f} | {lc / vc:.0f}x | {lw / vw:.0f}x |", flush=True)
+            print(
+                f"| {label} | {r['n']} | {args.threads} | {cc:.2f} / {cw:.2f} | {r['calls']} | {vc * 1e3:.3f} / {vw * 1e3:.3f} | {lc * 1e3:.0f} / {lw * 1e3:.0f} | {lc / vc:.0f}x | {lw / vw:.0f}x |",
+                flush=True,
+            )
+
+
+def both(args: argparse.Namespace) -> None:
+    """Each system in a subprocess per XLA thread mode (XLA_FLAGS is read once, when jax starts), the modes
+    interleaved, `--repeats` times; the subprocesses get this run's other options."""
+    forwarded = [f"--states={args.states}", "--no-header"]
+    forwarded += [] if args.unrolled_max is None else [f"--unrolled-max={args.unrolled_max}"]
+    forwarded += ["--no-kept"] * args.no_kept + ["--no-fast-trig"] * args.no_fast_trig + ["--no-chunks"] * args.no_chunks
+    forwarded += [] if args.keep_min is None else [f"--keep-min={args.keep_min}"]
+    forwarded += [] if args.chunk is None else [f"--chunk={args.chunk}"]
+    labels = ["double_pendulum"] + [f"general_chain_{n}" for n in args.sizes]
+    print(f"XLA threads: default and one (the CPU client created on one CPU), each system in its own process per mode, interleaved, {args.repeats} run(s) each, load average {os.getloadavg()}")
+    print(HEADER)
+    print(RULE, flush=True)
+    for label in labels:
+        for _ in range(args.repeats):
+            for mode in ("default", "one"):
+                command = [sys.executable, str(Path(__file__).resolve()), "--threads", mode, "--only", label, "--sizes", *map(str, args.sizes), *forwarded]
+                subprocess.run(command, check=True)
+    print(f"load average at the end {os.getloadavg()}")
 
 
 if __name__ == "__main__":

@@ -8,7 +8,9 @@ from __future__ import annotations
 import ast
 import dataclasses
 import inspect
+import os
 import random
+import subprocess
 import sys
 from collections.abc import Callable
 from pathlib import Path
@@ -304,6 +306,35 @@ def test_the_readme_example_runs(tmp_path: Path, monkeypatch: pytest.MonkeyPatch
     assert namespace["rates"].shape == (10_000, 4)
     assert np.isfinite(float(capsys.readouterr().out))
     sys.modules.pop("eom", None)
+
+
+SPLIT_PROBE = """
+import jax, jax.numpy as jnp
+jax.config.update("jax_enable_x64", True)
+def work(y):  # enough arithmetic per state that XLA splits the loop when it has threads
+    a, b = y[0], y[1]
+    for _ in range(8):
+        a, b = a * b + 1 / (1 + a * a), b - a / (2 + b * b)
+    return a
+compiled = jax.jit(jax.vmap(work)).lower(jnp.ones((10_000, 2))).compile().as_text()
+print(compiled.count("outer_dimension_partitions"), len(os.sched_getaffinity(0)))
+"""
+
+
+@pytest.mark.skipif(not hasattr(os, "sched_setaffinity"), reason="os.sched_setaffinity (Linux)")
+def test_the_readme_one_thread_recipe_stops_xla_splitting_loops() -> None:
+    """The README's second JAX snippet (XLA's CPU client created while the process sees one CPU, then the CPUs
+    given back) compiles a batched loop unsplit (no `outer_dimension_partitions`) and leaves the process all its
+    CPUs; without it, on a machine with 2 or more CPUs, XLA splits the same loop."""
+    readme = (ROOT / "README.md").read_text()
+    recipe = readme.split("### JAX", 1)[1].split("```python\n", 2)[2].split("```", 1)[0]
+    assert "sched_setaffinity" in recipe
+    cpus = len(os.sched_getaffinity(0))
+    for code, split in ((recipe + SPLIT_PROBE, False), ("import os" + SPLIT_PROBE, cpus > 1)):
+        run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, timeout=120)
+        partitions, seen = map(int, run.stdout.split())
+        assert seen == cpus
+        assert (partitions > 0) == split, run.stdout
 
 
 # -- the unrolled solve (small systems) and jnp.linalg.solve (large ones) ---------------------------------

@@ -22,6 +22,9 @@ either generates what it did (the names `u`, `INPUTS`, ... are reserved only the
 
 Float64 is the user's choice, stated in the generated docstring: JAX computes in float32 unless
 `jax.config.update("jax_enable_x64", True)` runs first; the module never changes that setting.
+On CPU, XLA splits each loop over a batch between as many threads as the process may use CPUs; the CPU time
+per call is lower with one thread (XLA's client created while the process sees one CPU: README, "JAX";
+benchmarks/jax_bench.py --threads both), which is what several processes batching at once want.
 
 Safe with any system file, by the same means as the Python module: file text reaches the code
 only through `docstring` and `literal`, and user names go through `mangle` with a reserved set
