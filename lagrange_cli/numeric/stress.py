@@ -44,8 +44,9 @@ output (`diagnostics.condition_peak`), and a coordinate singularity names the co
 change of coordinates to make.
 
 Budget: compiled candidates (auto first) run before scipy's; once a method meets the accuracy,
-the others' runs are capped at LOSING (scipy's RK45: NAIVE_LOSING) times its work, counted in
-right-hand side evaluations (`work`), and only runs that could tie are timed again.
+the others' runs are capped at LOSING (scipy's RK45: NAIVE_LOSING; a scipy run after a compiled
+one met it: PYTHON_AFTER_COMPILED) times its work, counted in right-hand side evaluations (`work`),
+and only runs that could tie are timed again.
 
 Timing: each method's final run (and scipy's default run) is timed again TIMED_RUNS times after
 the ladders, in turns (`runs.interleave`), and methods within TIE_MARGIN (10%) of the recommended
@@ -518,18 +519,30 @@ nor tie with it (compiled DOP853 over the k = 1e10 pendulum's long horizon: 1.6 
 at rtol 1e-5, then 3.5 s at 1e-6 to meet the accuracy 2.4 x slower)."""
 
 
+PYTHON_AFTER_COMPILED = 2.0
+"""Once a compiled run meets the accuracy, a scipy run (Python right-hand side) is stopped at this
+many times its work: `work` already counts a compiled evaluation as 1/COMPILED_STEPS of a scipy one,
+where it costs 1/400-1/500 as much (73 ns against 31-62 us), so such a run is already 8x slower
+than the compiled one and cannot be the recommendation nor tie with it (the penalty pendulum of
+k = 1e9: scipy's RK45, Radau, BDF and LSODA spent 38 of the defaults regime's 46 s losing to
+compiled DOP853's 0.05 s run at 10-30x)."""
+
+
 def _losing(candidate: Candidate, best: Point | None = None, last: Point | None = None) -> float:
-    """How many times `best`'s work a candidate may spend (LOSING; scipy's RK45 NAIVE_LOSING), or
+    """How many times `best`'s work a candidate may spend (LOSING; scipy's RK45 NAIVE_LOSING; a scipy
+    run once a compiled `best` meets the accuracy PYTHON_AFTER_COMPILED), or
     (with `last`, a finished run of it on `best`'s backend) go on from: SAME_BACKEND_LOSING."""
     if best is not None and last is not None and last.ok and best.ran is not None and last.ran is not None and last.ran.backend == best.ran.backend and candidate != NAIVE:
         return SAME_BACKEND_LOSING.get(last.ran.backend, LOSING)
+    if best is not None and best.ran is not None and best.ran.backend == "compiled" and candidate != AUTO and backend_for(candidate) == "python":
+        return PYTHON_AFTER_COMPILED
     return NAIVE_LOSING if candidate == NAIVE else LOSING
 
 
 def _cap(candidate: Candidate, best: Point | None, last: Point | None, setup: Setup) -> int:
     """The step budget of a candidate's next run: the setup's, or, once `best` meets the accuracy,
     what `_losing` x its work buys this candidate (in scipy steps, as budgets count them)."""
-    return capped_steps(candidate, math.inf if best is None else _losing(candidate) * work(best), last, setup)
+    return capped_steps(candidate, math.inf if best is None else _losing(candidate, best) * work(best), last, setup)
 
 
 def _retimed(model: Model, points: list[Point], naive_default: Point | None, setup: Setup, target: float, own: float) -> tuple[list[Point], Point | None]:
