@@ -443,3 +443,38 @@ def test_a_scipy_run_after_a_compiled_one_met_the_accuracy_gets_little_budget() 
     assert stress._losing(Candidate("RK45", "compiled"), best) == stress.LOSING
     assert stress._losing(stress.AUTO, best) == stress.LOSING
     assert stress._losing(stress.NAIVE, _point("LSODA", "python", 6000, 7e-7)) == stress.NAIVE_LOSING
+
+
+def test_a_tighter_run_predicted_past_its_cap_is_not_run() -> None:
+    """A method's next rung is predicted from its last two finished runs (work ratio, counted, never
+    timed): where that exceeds what it may spend once another run meets the accuracy, it is not run."""
+    previous = _point("Radau", "python", 4_000, 5e-5)
+    last = _point("Radau", "python", 8_000, 5e-6)
+    assert stress.predicted_growth(previous, last) == 2.0
+    assert stress.predicted_growth(None, last) == 1.0
+    assert stress.predicted_growth(last, previous) == 1.0  # never below 1: a tighter run costs no less
+    best = _point("DOP853", "compiled", 1_000_000, 8e-7)  # 10000 scipy evaluations' work
+    cap = stress._losing(Candidate("Radau"), best) * work_of(best)  # 2 x 10000
+    assert work_of(last) * stress.predicted_growth(previous, last) < cap  # 16000: run
+    steeper = _point("Radau", "python", 12_000, 5e-6)
+    assert work_of(steeper) * stress.predicted_growth(previous, steeper) > cap  # 36000: not run
+
+
+def work_of(point):  # type: ignore[no-untyped-def]
+    from lagrange_cli.numeric.runs import work
+
+    return work(point)
+
+
+def test_scipy_runs_after_a_compiled_one_met_share_one_budget_over_their_ladder() -> None:
+    """After a compiled run met the accuracy, a scipy method's whole ladder may spend
+    PYTHON_AFTER_COMPILED x its work (counted): each rung gets what the earlier ones left."""
+    from lagrange_cli.numeric.runs import Setup, work
+
+    best = _point("DOP853", "compiled", 1_000_000, 8e-7)
+    allowed = stress.PYTHON_AFTER_COMPILED * work(best)
+    assert stress._remaining(Candidate("BDF"), best, 0.0) == allowed
+    assert stress._remaining(Candidate("BDF"), best, 15_000.0) == allowed - 15_000.0
+    setup = Setup(5.0, (0.0, 5.0), max_steps=60_000)
+    assert stress._cap(Candidate("BDF"), best, None, setup, 15_000.0) < stress._cap(Candidate("BDF"), best, None, setup)
+    assert stress._remaining(Candidate("RK45", "compiled"), best, 1e9) == stress.LOSING * work(best)  # compiled runs: per run, as before

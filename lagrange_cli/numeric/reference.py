@@ -346,10 +346,6 @@ def _computed_reference(model: Model, setup: Setup, tolerance: float, hint: str,
             explicit = [(Candidate(m, "compiled"), max(rtols[-1] * EXPLICIT_CONFIRMATION, TIGHTEST)) for m in confirmers] if compile.numba_available() else []
             confirmations = explicit + [(Candidate("LSODA"), r) for r in (rtol / 100, rtol / 10, rtol) if r >= TIGHTEST] + [(Candidate("BDF"), rtol)]
             found = _confirmed(model, attempt, radau, rtol, confirmations, time.perf_counter() - began)
-            used = next((c for c, _ in explicit if f"confirmed by {c.method} ({c.backend})" in found.description), None)
-            if used is not None:  # the compiled confirmation's own error may set the disagreement: again tighter (at most 100 x Radau's rtol)
-                rungs = confirmation_ladder(explicit[0][1], max(rtol / 100, TIGHTEST))
-                found = _tightened(model, attempt, radau, rtol, found, used, rungs, rtols[-1], time.perf_counter() - began)
             tighter = f"; tighter rtols are round-off-limited here ({'; '.join(skipped)})" if skipped else ""
             return replace(found, description=f"{found.description} (implicit: {why}{tighter})")
         if radau.outcome != Status.BUDGET:
