@@ -187,3 +187,12 @@ def test_the_explicit_fallback_is_confirmed_again_tighter_while_that_lowers_its_
     assert found.settings is not None and (found.settings.method, found.settings.backend, found.settings.rtol) == ("RK45", "compiled", 1e-9)
     assert "confirmed by DOP853 (compiled) at the same tolerance" in found.description
     assert 7.2e-9 < found.own_error < 1e-7
+
+
+def test_a_second_method_that_cannot_finish_at_the_reference_rtol_confirms_looser_before_radau() -> None:
+    """Over a long horizon compiled RK45 at 2.5e-14 runs out of its steps (round-off): it confirms at
+    100 x and 1e4 x that rtol (no looser than 1/100 of the loosest implicit rtol) before Radau in
+    Python, which took 20000 steps to fail on the multiplier pendulum's t_end x 10."""
+    assert reference.looser_confirmations(2.5e-14, 1e-7) == (2.5e-12, 2.5e-10)
+    assert reference.looser_confirmations(2.5e-14, 1e-9) == (2.5e-12,)
+    assert reference.looser_confirmations(1e-10, 1e-7) == ()
