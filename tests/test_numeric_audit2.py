@@ -166,3 +166,33 @@ def test_a_doomed_implicit_reference_goes_to_the_explicit_fallback_at_once() -> 
     assert "cannot finish within its budget" in found.description
     assert "confirmed by DOP853 (compiled)" in found.description
     assert found.own_error < 1e-7
+
+
+def test_the_explicit_fallback_is_confirmed_again_tighter_while_that_lowers_its_own_error() -> None:
+    """The damped chain of k = 1e7 (tests/numeric_audit3): Radau cannot finish within its budget, the
+    reference is compiled RK45 at 1e-9, whose true error (against the matrix exponential, audit 3)
+    is 7.2e-9; compiled DOP853 confirming it at 1e-7 and 1e-8 is itself 5.1e-7 off at its
+    stability-limited steps, so the reference's own error was 5.1e-7 and `stress` on this file
+    undecided in audit 3. Confirmed again a decade tighter while the disagreement shrinks: at most
+    the primary's rtol, and the own error stays a bound on the true error (7.2e-9)."""
+    from lagrange_cli.numeric import compile, stress
+
+    if not compile.numba_available():
+        pytest.skip("the explicit fallback needs numba")
+    assert reference.confirmation_ladder(1e-7, 1e-9) == (1e-8, 1e-9)
+    assert reference.confirmation_ladder(1e-7, 1e-7) == ()
+    model = _model(HERE / "numeric_audit3" / "spring_chain_4_damped.yaml")
+    setup = Setup(20.0, tuple(np.linspace(0.0, 20.0, 2001).tolist()), max_steps=60_000)
+    found = reference.computed_reference(model, setup, stress.reference_tolerance(1e-6), implicit=stress.implicit_reference_tolerances(1e-6))
+    assert found.settings is not None and (found.settings.method, found.settings.backend, found.settings.rtol) == ("RK45", "compiled", 1e-9)
+    assert "confirmed by DOP853 (compiled) at the same tolerance" in found.description
+    assert 7.2e-9 < found.own_error < 1e-7
+
+
+def test_a_second_method_that_cannot_finish_at_the_reference_rtol_confirms_looser_before_radau() -> None:
+    """Over a long horizon compiled RK45 at 2.5e-14 runs out of its steps (round-off): it confirms at
+    100 x and 1e4 x that rtol (no looser than 1/100 of the loosest implicit rtol) before Radau in
+    Python, which took 20000 steps to fail on the multiplier pendulum's t_end x 10."""
+    assert reference.looser_confirmations(2.5e-14, 1e-7) == (2.5e-12, 2.5e-10)
+    assert reference.looser_confirmations(2.5e-14, 1e-9) == (2.5e-12,)
+    assert reference.looser_confirmations(1e-10, 1e-7) == ()

@@ -166,6 +166,23 @@ BLOWUP = (Status.NONFINITE, Status.SINGULAR, Status.STEP_COLLAPSE)
 """How a run ends when the solution itself may blow up (not a budget or a convergence failure)."""
 
 
+LOOSER_CONFIRMATION = 100.0
+"""Where the compiled second method cannot finish at the explicit reference's rtol, it confirms at this
+times that rtol (`looser_confirmations`) before Radau is tried."""
+
+
+def looser_confirmations(rtol: float, loosest: float) -> tuple[float, ...]:
+    """The rtols at which the compiled second method confirms an explicit reference at `rtol` after it
+    could not finish at `rtol` itself: LOOSER_CONFIRMATION x looser each time, no looser than
+    1/100 of `loosest` (the loosest implicit rtol, 0.1 x the accuracy asked), at most two."""
+    rungs: list[float] = []
+    r = rtol
+    while len(rungs) < 2 and r * LOOSER_CONFIRMATION <= loosest / 100 * (1 + 1e-9):
+        r = float(f"{r * LOOSER_CONFIRMATION:.12g}")
+        rungs.append(r)
+    return tuple(rungs)
+
+
 def implicit_tolerance(tolerance: float) -> float:
     """The rtol of an implicit reference run standing in for an explicit one at `tolerance`."""
     return max(tolerance, IMPLICIT_TIGHTEST)
@@ -307,7 +324,11 @@ def _computed_reference(model: Model, setup: Setup, tolerance: float, hint: str,
         for rtol in explicit_tolerances(tolerance, rtols[-1]):
             main = run(model, primary, rtol, capped, reference=True)
             if not main.failed:
-                confirmations = [(second, rtol), (Candidate("Radau"), max(rtols[0], rtol))]
+                # the second method at the same rtol, else (round-off-limited there over a long horizon) compiled at
+                # LOOSER_CONFIRMATION x it, before Radau in Python (the multiplier pendulum and the hoop over t_end x 10:
+                # RK45 at 2.5e-14 ran out of its 2e6 steps, then Radau at 1e-10 its 20000, a third of `stress`'s time)
+                looser = [(second, r) for r in looser_confirmations(rtol, rtols[-1])] if second.backend == "compiled" else []
+                confirmations = [(second, rtol), *looser, (Candidate("Radau"), max(rtols[0], rtol))]
                 found = _confirmed(model, capped, main, rtol, confirmations, time.perf_counter() - began)
                 return replace(found, description=f"{found.description} (looser than rtol {tol_text(tolerance)}: {'; '.join(tried)})") if tried else found
             tried.append(_stopped(model, primary, rtol, capped, main))
@@ -377,6 +398,19 @@ cannot lower (the k = 1e10 pendulum at r = 0.01: RK45 at rtol 1e-10, 3.1 s, and 
 agree to 3e-11; either disagrees with DOP853 at 1e-7 by 9e-9)."""
 
 
+def confirmation_ladder(loosest: float, primary: float) -> tuple[float, ...]:
+    """The rtols at which compiled DOP853 confirms the explicit fallback again after the loosest:
+    a decade tighter each, down to the primary run's rtol (a confirmation tighter than the primary
+    measures the primary's error, which a tighter one cannot lower): at most two more runs, the
+    primary being at most 1/FALLBACK_SPREAD x tighter than the loosest."""
+    rungs: list[float] = []
+    r = loosest
+    while r / 10 >= primary * (1 - 1e-9):
+        r = float(f"{r / 10:.12g}")
+        rungs.append(r)
+    return tuple(rungs)
+
+
 def _explicit_fallback(model: Model, setup: Setup, rtols: tuple[float, ...], why: str, seconds: float) -> Reference | None:
     """Where Radau is round-off-limited at every rtol (a stiff spring written in its length: its
     Newton iterations and error estimate drown in the rounding of k (r - l)), compiled RK45 at the
@@ -402,17 +436,30 @@ def _explicit_fallback(model: Model, setup: Setup, rtols: tuple[float, ...], why
         if not main.failed:
             confirmations = [(Candidate("DOP853", "compiled"), rtols[-1]), (Candidate("DOP853", "compiled"), rtol), (Candidate("Radau"), rtols[-1])]
             found = _confirmed(model, attempt, main, rtol, list(dict.fromkeys(confirmations)), seconds)
-            closer = float(f"{10 * rtol:.12g}")
-            if not found.own_error <= rtols[-1] and closer < rtols[-1]:
-                # the confirmation at the loosest rtol disagrees by more than that rtol (its own error, not the primary's):
-                # confirmed again a decade from the primary (accuracy's ladder to 1e-8 on the k = 1e10 pendulum: 1.3e-8 at
-                # DOP853's 1e-8, 2e-9 at 1e-9, which the fastest-run table's 1e-7 row needs)
-                again = _confirmed(model, attempt, main, rtol, [(Candidate("DOP853", "compiled"), closer)], seconds)
-                found = again if math.isfinite(again.own_error) and not found.own_error <= again.own_error else found
+            # the confirmation at the loosest rtol may disagree by more than that rtol (its own error, not the primary's):
+            # accuracy's ladder to 1e-8 on the k = 1e10 pendulum: 1.3e-8 at DOP853's 1e-8, 2e-9 at 1e-9; the damped chain of
+            # k = 1e7: DOP853 at 1e-8 is itself 5.1e-7 off the exact solution at its stability-limited steps, at 1e-9 5.7e-8,
+            # while the primary RK45 at 1e-9 is 7.2e-9 off
+            found = _tightened(model, attempt, main, rtol, found, Candidate("DOP853", "compiled"), confirmation_ladder(rtols[-1], rtol), rtols[-1], seconds)
             return replace(found, description=f"{found.description} (explicit, stability-limited: {why})")
         if main.outcome != Status.BUDGET:
             return None
     return None
+
+
+def _tightened(model: Model, setup: Setup, main: Trajectory, tolerance: float, found: Reference, confirmer: Candidate, rungs: tuple[float, ...], enough: float, seconds: float) -> Reference:
+    """`found` confirmed again by `confirmer` at each of `rungs` (tighter and tighter) while its own
+    error is above `enough` and each confirmation lowers it: a confirmation run's own error, not
+    the primary's, may set the disagreement (a round-off- or stability-limited explicit run at a
+    moderate rtol). Each own error is a disagreement of two finished runs, as the first."""
+    for rtol in rungs:
+        if found.own_error <= enough:
+            break
+        again = _confirmed(model, setup, main, tolerance, [(confirmer, rtol)], seconds)
+        if not (math.isfinite(again.own_error) and again.own_error < found.own_error):
+            break  # round-off, or the primary's own error: a tighter confirmation will not lower it
+        found = again
+    return found
 
 
 def _confirmed(model: Model, setup: Setup, main: Trajectory, tolerance: float, confirmations: list[tuple[Candidate, float]], seconds: float) -> Reference:

@@ -44,8 +44,9 @@ output (`diagnostics.condition_peak`), and a coordinate singularity names the co
 change of coordinates to make.
 
 Budget: compiled candidates (auto first) run before scipy's; once a method meets the accuracy,
-the others' runs are capped at LOSING (scipy's RK45: NAIVE_LOSING) times its work, counted in
-right-hand side evaluations (`work`), and only runs that could tie are timed again.
+the others' runs are capped at LOSING (scipy's RK45: NAIVE_LOSING; a scipy run after a compiled
+one met it: PYTHON_AFTER_COMPILED) times its work, counted in right-hand side evaluations (`work`),
+and only runs that could tie are timed again.
 
 Timing: each method's final run (and scipy's default run) is timed again TIMED_RUNS times after
 the ladders, in turns (`runs.interleave`), and methods within TIE_MARGIN (10%) of the recommended
@@ -417,11 +418,19 @@ def _regime(model: Model, regime: Regime, target: float, candidates: Sequence[Ca
             continue
         last: Point | None = None
         stalls = 0
+        spent = 0.0  # the work of this method's runs so far
+        previous_tolerance = rungs[0]
         for tolerance in rungs:
             if say:
                 say(f"{candidate.label} {tol_text(tolerance)}")
-            previous, last = last, _capped(model, candidate, tolerance, setup, reference, scale, best, last)
+            if best is not None and _remaining(candidate, best, spent) <= 0 and last is not None:
+                reason = f"not run tighter: its runs already took {spent / max(work(best), 1e-300):.2g} x the work of {best.method} ({best.setting}), which meets the accuracy"
+                last = runs[(candidate, previous_tolerance)] = replace(last, reason=reason)
+                break
+            previous, last = last, _capped(model, candidate, tolerance, setup, reference, scale, best, last, spent)
             runs[(candidate, tolerance)] = last
+            spent += work(last)
+            previous_tolerance = tolerance
             if not last.ok or last.error + own <= target:
                 break
             if best is not None and work(last) > _losing(candidate, best, last) * work(best):
@@ -429,6 +438,15 @@ def _regime(model: Model, regime: Regime, target: float, candidates: Sequence[Ca
                     ratio = work(last) / max(work(best), 1e-300)
                     last = runs[(candidate, tolerance)] = replace(last, reason=f"not run tighter: it already took {ratio:.2g} x the work of {best.method} ({best.setting}), which meets the accuracy")
                 break  # tighter tolerances cost more still: it cannot be the recommendation
+            growth = predicted_growth(previous, last)
+            if best is not None and work(last) * growth > _remaining(candidate, best, spent):
+                ratio = work(last) * growth / max(work(best), 1e-300)
+                reason = (
+                    f"not run tighter: its work grew {growth:.2g} x from the rtol before, so the next would take about {ratio:.2g} x the work of"
+                    f" {best.method} ({best.setting}), which meets the accuracy: above what it may spend"
+                )
+                last = runs[(candidate, tolerance)] = replace(last, reason=reason)
+                break  # it would be stopped at its cap: it cannot be the recommendation
             stalled = previous is not None and previous.ok and previous.error < SATURATED and last.error > previous.error / STALLED
             stalls = stalls + 1 if stalled else 0
             if stalls == 2:
@@ -487,10 +505,10 @@ def stability_steps(model: Model, setup: Setup, method: str) -> float:
     return measured.worst.decay * setup.t_end / interval
 
 
-def _capped(model: Model, candidate: Candidate, tolerance: float, setup: Setup, reference: Reference, scale: np.ndarray, best: Point | None, last: Point | None) -> Point:
+def _capped(model: Model, candidate: Candidate, tolerance: float, setup: Setup, reference: Reference, scale: np.ndarray, best: Point | None, last: Point | None, spent: float = 0.0) -> Point:
     """`measure`, within the step budget `_cap` leaves it once `best` meets the accuracy; an explicit
     run that its stability limit alone would take past STABILITY_MARGIN x that budget is not run."""
-    cap = _cap(candidate, best, last, setup)
+    cap = _cap(candidate, best, last, setup, spent)
     method = candidate.method if candidate.method != "auto" else ""
     needed = stability_steps(model, setup, method)
     allowed = cap * (COMPILED_STEPS if backend_for(candidate) == "compiled" else 1)
@@ -518,18 +536,50 @@ nor tie with it (compiled DOP853 over the k = 1e10 pendulum's long horizon: 1.6 
 at rtol 1e-5, then 3.5 s at 1e-6 to meet the accuracy 2.4 x slower)."""
 
 
+PYTHON_AFTER_COMPILED = 2.0
+"""Once a compiled run meets the accuracy, a scipy run (Python right-hand side) is stopped at this
+many times its work: `work` already counts a compiled evaluation as 1/COMPILED_STEPS of a scipy one,
+where it costs 1/400-1/500 as much (73 ns against 31-62 us), so such a run is already 8x slower
+than the compiled one and cannot be the recommendation nor tie with it (the penalty pendulum of
+k = 1e9: scipy's RK45, Radau, BDF and LSODA spent 38 of the defaults regime's 46 s losing to
+compiled DOP853's 0.05 s run at 10-30x)."""
+
+
+def predicted_growth(previous: Point | None, last: Point | None) -> float:
+    """How many times its work a method's next, tighter run will take, predicted from the last two
+    finished runs of its ladder (their ratio, at least 1); 1 when there are not two (no prediction).
+    Counted in evaluations: scipy's Radau over the damped chain's long horizon took 11 s to be
+    stopped at its cap at rtol 1e-7, its work growing steadily from rung to rung."""
+    if previous is None or last is None or not (previous.ok and last.ok) or not (work(previous) > 0):
+        return 1.0
+    return max(1.0, work(last) / work(previous))
+
+
 def _losing(candidate: Candidate, best: Point | None = None, last: Point | None = None) -> float:
-    """How many times `best`'s work a candidate may spend (LOSING; scipy's RK45 NAIVE_LOSING), or
+    """How many times `best`'s work a candidate may spend (LOSING; scipy's RK45 NAIVE_LOSING; a scipy
+    run once a compiled `best` meets the accuracy PYTHON_AFTER_COMPILED), or
     (with `last`, a finished run of it on `best`'s backend) go on from: SAME_BACKEND_LOSING."""
     if best is not None and last is not None and last.ok and best.ran is not None and last.ran is not None and last.ran.backend == best.ran.backend and candidate != NAIVE:
         return SAME_BACKEND_LOSING.get(last.ran.backend, LOSING)
+    if best is not None and best.ran is not None and best.ran.backend == "compiled" and candidate != AUTO and backend_for(candidate) == "python":
+        return PYTHON_AFTER_COMPILED
     return NAIVE_LOSING if candidate == NAIVE else LOSING
 
 
-def _cap(candidate: Candidate, best: Point | None, last: Point | None, setup: Setup) -> int:
+def _remaining(candidate: Candidate, best: Point, spent: float) -> float:
+    """The work a candidate's next run may spend once `best` meets the accuracy: `_losing` x its work,
+    less what the candidate's earlier runs spent when they are scipy runs after a compiled `best`
+    (PYTHON_AFTER_COMPILED: the whole ladder's, so that four rungs of BDF and LSODA do not each spend
+    it; scipy's BDF, LSODA and Radau over the damped chain's long horizon, 33598, 59836 and 9306
+    steps, were most of its 24 s)."""
+    allowed = _losing(candidate, best) * work(best)
+    return allowed - spent if _losing(candidate, best) == PYTHON_AFTER_COMPILED else allowed
+
+
+def _cap(candidate: Candidate, best: Point | None, last: Point | None, setup: Setup, spent: float = 0.0) -> int:
     """The step budget of a candidate's next run: the setup's, or, once `best` meets the accuracy,
     what `_losing` x its work buys this candidate (in scipy steps, as budgets count them)."""
-    return capped_steps(candidate, math.inf if best is None else _losing(candidate) * work(best), last, setup)
+    return capped_steps(candidate, math.inf if best is None else max(_remaining(candidate, best, spent), 1.0), last, setup)
 
 
 def _retimed(model: Model, points: list[Point], naive_default: Point | None, setup: Setup, target: float, own: float) -> tuple[list[Point], Point | None]:
