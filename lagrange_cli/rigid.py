@@ -1,5 +1,5 @@
 """Reading bodies and point references (FORMAT.md version 2: orientation, full inertia, pivot, center,
-points, force and torque loads), for `spec._Reader`.
+points, force and torque loads), for the frontend's `Reader` (frontend/reader.py).
 
 Bodies are read on demand (`Places.body`), so that a pivot, a position or a `relative_to` may name any
 other body or particle whatever the order of the file; the names being read form a stack, and a name
