@@ -45,6 +45,20 @@ Vector = list[se.Basic]
 ZERO = se.Integer(0)
 
 
+def load_model(file: str, shared: bool = False) -> Model:
+    """The model of a system file, or a bundled system's name (`spec.resolve`): read, validated and
+    derived (`shared` as for `derive`). What every command that needs the equations starts with."""
+    return load_system_and_model(file, shared)[1]
+
+
+def load_system_and_model(file: str, shared: bool = False) -> tuple[SystemSpec, Model]:
+    """`load_model` for a command that also needs the validated file (its symmetries, its `draw` block)."""
+    from lagrange_cli.spec import load, resolve
+
+    system = load(resolve(file))
+    return system, derive(system, shared=shared)
+
+
 def derive(spec: SystemSpec, shared: bool = False) -> Model:
     """File to equations: eliminate constraints, build L and R, apply Lagrange's equation, and
     validate the result (`validate.validate`), so that every later stage sees a sound model.

@@ -26,8 +26,8 @@ if TYPE_CHECKING:
     import yaml
 
     from lagrange_cli.expr import Scope
+    from lagrange_cli.frontend.nodes import Body, Particle, SystemSpec
     from lagrange_cli.model import Model
-    from lagrange_cli.spec import Body, Particle, SystemSpec
 
 INPUT_KEYS = ("value", "description")
 LOAD_FIELDS = ("force", "torque", "forces", "torques", "frame_forces")
@@ -210,7 +210,7 @@ def signal_expressions(model: Model, entries: Iterable[tuple[str, str, Any, Any]
     expression parser. An unknown input or name is a `SpecError` at its place in the option."""
     from lagrange_cli.errors import Span, fail
     from lagrange_cli.expr import Scope, parse_expression
-    from lagrange_cli.spec import time_derivative
+    from lagrange_cli.frontend.nodes import time_derivative
 
     known = [i.name for i in model.inputs]
     symbols: dict[str, sp.Expr] = {str(s): s for s in (*model.q, *model.qd, *(p.symbol for p in model.parameters))}

@@ -1,5 +1,5 @@
 """Reading bodies and point references (FORMAT.md version 2: orientation, full inertia, pivot, center,
-points, force and torque loads), for `spec._Reader`.
+points, force and torque loads), for the frontend's `Reader` (frontend/reader.py).
 
 Bodies are read on demand (`Places.body`), so that a pivot, a position or a `relative_to` may name any
 other body or particle whatever the order of the file; the names being read form a stack, and a name
@@ -21,7 +21,8 @@ from lagrange_cli import kinematics as kin
 from lagrange_cli.expr import Scope, _closest, numeric_value
 
 if TYPE_CHECKING:
-    from lagrange_cli.spec import Body, _Reader
+    from lagrange_cli.frontend.nodes import Body
+    from lagrange_cli.frontend.reader import Reader as _Reader
 
 BODY_KEYS = ("mass", "position", "inertia", "angular_velocity", "orientation", "pivot", "center", "points", "force", "torque")
 ORIENTATION_KEYS = ("axis", "angle", "sequence", "angles", "kind", "matrix", "relative_to")
@@ -179,7 +180,7 @@ class Places:
     # -- a body -------------------------------------------------------------------------------
 
     def read_body(self, name: str, value: yaml.Node) -> Body | None:
-        from lagrange_cli.spec import Body
+        from lagrange_cli.frontend.nodes import Body
 
         r = self.reader
         fields = {k: v for k, _, v in r.mapping(value, f"body '{name}'", BODY_KEYS)}
@@ -307,7 +308,7 @@ class Places:
 
     def plain_body(self, name: str, fields: dict[str, yaml.Node], mass: sp.Expr, inertia: Vec, spans: dict[str, Any]) -> Body | None:
         """A body without orientation (version 1), which may still take loads at its centre of mass."""
-        from lagrange_cli.spec import Body
+        from lagrange_cli.frontend.nodes import Body
 
         r = self.reader
         position = self.place(fields["position"], f"the position of '{name}'", self.config)
@@ -694,6 +695,6 @@ def _det(m: list[list[float]]) -> float:
 
 
 def _kind(node: yaml.Node) -> str:
-    from lagrange_cli.spec import _kind as kind
+    from lagrange_cli.frontend.source import kind
 
     return kind(node)

@@ -52,7 +52,7 @@ from sympy.core.function import AppliedUndef
 from lagrange_cli.errors import Diagnostic, Span, SpecError
 
 if TYPE_CHECKING:
-    from lagrange_cli.spec import Body, Particle, SystemSpec
+    from lagrange_cli.frontend.nodes import Body, Particle, SystemSpec
 
 Dim = tuple[int, ...]
 SCALE = 720720  # the least common multiple of 1..16: exponents with those denominators are exact
@@ -380,7 +380,7 @@ class _FileCheck:
             self.entries.append(_Entry(f"the kinetic energy of {kind} '{name}'", spans.get("mass"), [("m*v**2/2", mul(mass, power(speed, 2)))]))
             if gravity is not None:
                 self.entries.append(_Entry(f"the weight of {kind} '{name}'", self.spec.sources.get("gravity"), [("m*g.x", mul(mul(mass, gravity), length))]))
-        from lagrange_cli.spec import Particle  # spec imports this module
+        from lagrange_cli.frontend.nodes import Particle  # the frontend imports this module
 
         if isinstance(item, Particle):
             if item.damping is not None and speed is not None:

@@ -44,7 +44,7 @@ def test_only_the_cli_imports_typer_and_rich() -> None:
 def test_emitters_do_not_import_the_frontend_or_the_deriver() -> None:
     for name, found in modules().items():
         if name.startswith("lagrange_cli.emit"):
-            assert not any(i.startswith(("lagrange_cli.spec", "lagrange_cli.expr", "lagrange_cli.derive")) for i in found), name
+            assert not any(i.startswith(("lagrange_cli.spec", "lagrange_cli.frontend", "lagrange_cli.expr", "lagrange_cli.derive")) for i in found), name
 
 
 def test_model_depends_only_on_errors_and_symengine() -> None:
@@ -59,7 +59,7 @@ def test_symbolic_modules_import_no_numerics() -> None:
             assert not any(i.split(".")[0] in ("numpy", "scipy", "matplotlib") for i in found), name
 
 
-FRONTEND = ("lagrange_cli.spec", "lagrange_cli.expr", "lagrange_cli.derive", "lagrange_cli.files", "lagrange_cli.cli")
+FRONTEND = ("lagrange_cli.spec", "lagrange_cli.frontend", "lagrange_cli.expr", "lagrange_cli.derive", "lagrange_cli.files", "lagrange_cli.cli")
 """What `numeric` may not import: the frontend (files in, the spec, the deriver) and the CLI."""
 NUMERIC_EXCEPTIONS = {
     ("lagrange_cli.numeric.settings", "lagrange_cli.expr"): "the library's `simulate(until=...)` takes the stop condition as text and parses it with the safe parser",
@@ -153,3 +153,86 @@ def test_the_api_imports_numerics_only_inside_functions() -> None:
         top = [node for node in tree.body if isinstance(node, (ast.Import, ast.ImportFrom))]
         found = {alias.name for node in top if isinstance(node, ast.Import) for alias in node.names} | {node.module or "" for node in top if isinstance(node, ast.ImportFrom)}
         assert not any(i.split(".")[0] in ("numpy", "scipy", "matplotlib", "typer", "rich") for i in found), name
+
+
+FRONTEND_MAY_IMPORT = ("errors", "expr", "units", "model", "inputs", "rigid", "kinematics", "hamilton", "files", "_symengine", "frontend")
+"""What lagrange_cli/frontend/ may import from the package: the model level (errors, the safe expression parser,
+units, the model's types, the readers of `inputs` and `bodies`, the file guards) and itself; never numeric, emit,
+cli or derive (the frontend reads files, it does not derive or run them)."""
+
+
+def lagrange_imports(found: set[str]) -> set[str]:
+    """The lagrange_cli modules among `found`, as their first component under lagrange_cli (`lagrange_cli.x.y` -> `x`)."""
+    return {i.split(".")[1] for i in found if i.startswith("lagrange_cli.")}
+
+
+def test_the_frontend_imports_only_the_model_level() -> None:
+    found = {name: lagrange_imports(imported) - set(FRONTEND_MAY_IMPORT) for name, imported in modules().items() if name.startswith("lagrange_cli.frontend")}
+    assert len(found) >= 8, sorted(found)  # the package is there, split in modules
+    assert not {k: v for k, v in found.items() if v}, found
+
+
+def test_the_node_types_import_no_yaml() -> None:
+    """nodes.py is what the rest of the program sees of a file: dataclasses of sympy expressions, no YAML nodes."""
+    found = imports(PACKAGE / "frontend" / "nodes.py")
+    assert not any(i.split(".")[0] == "yaml" for i in found), found
+    assert not any(i.startswith("lagrange_cli.frontend") for i in found), found
+
+
+def test_spec_only_reexports() -> None:
+    """lagrange_cli/spec.py is the frontend's public entry point: a docstring, imports and `__all__`, no code;
+    everything it imports is in `__all__` and everything in `__all__` is imported."""
+    tree = ast.parse((PACKAGE / "spec.py").read_text())
+    imported: set[str] = set()
+    exported: list[str] = []
+    for node in tree.body:
+        if isinstance(node, ast.ImportFrom):
+            if node.module != "__future__":
+                imported.update(alias.asname or alias.name for alias in node.names)
+        elif isinstance(node, ast.Assign) and [getattr(t, "id", None) for t in node.targets] == ["__all__"]:
+            exported = [ast.literal_eval(e) for e in node.value.elts]  # type: ignore[attr-defined]
+        else:
+            assert isinstance(node, ast.Expr) and isinstance(node.value, ast.Constant) and node is tree.body[0], ast.dump(node)[:200]
+    assert exported and len(exported) == len(set(exported))
+    assert imported == set(exported), imported ^ set(exported)
+
+
+def spec_names(path: Path) -> set[str]:
+    """The names a file takes from lagrange_cli.spec: `from lagrange_cli.spec import X`, and `spec.X`
+    where `spec` is the module (`from lagrange_cli import spec`)."""
+    tree = ast.parse(path.read_text())
+    found = set()
+    module = False
+    for node in ast.walk(tree):
+        if isinstance(node, ast.ImportFrom) and node.module == "lagrange_cli.spec":
+            found.update(alias.name for alias in node.names)
+        elif isinstance(node, ast.ImportFrom) and node.module == "lagrange_cli" and any(alias.name == "spec" and alias.asname is None for alias in node.names):
+            module = True
+    if module:
+        found.update(node.attr for node in ast.walk(tree) if isinstance(node, ast.Attribute) and isinstance(node.value, ast.Name) and node.value.id == "spec")
+    return found
+
+
+def test_every_name_taken_from_spec_resolves() -> None:
+    """Every `spec.X` and `from lagrange_cli.spec import X` in the package, the tests and the benchmarks still
+    resolves now that the code lives in frontend/. A file that binds the module as `spec` may also name a
+    `SystemSpec` (or an importlib `ModuleSpec`) `spec`: an attribute of those counts as resolved there."""
+    import dataclasses
+    import importlib.machinery
+
+    from lagrange_cli import spec
+
+    fields = {f.name for f in dataclasses.fields(spec.SystemSpec)} | set(dir(spec.SystemSpec))
+    fields |= set(dir(importlib.machinery.ModuleSpec("m", None)))  # a benchmark loader's `spec = spec_from_file_location(...)`
+    files = [*PACKAGE.rglob("*.py"), *(ROOT / "tests").rglob("*.py"), *(ROOT / "benchmarks").rglob("*.py")]
+    used = {str(path.relative_to(ROOT)): spec_names(path) for path in files}
+    assert sum(len(v) for v in used.values()) > 50  # the check sees the uses
+    assert {"parse", "load", "resolve", "SpecError", "time_derivative", "MAX_COORDINATES"} <= set().union(*used.values())
+    missing = {name: sorted(n for n in names if not hasattr(spec, n) and n not in fields) for name, names in used.items()}
+    assert not {k: v for k, v in missing.items() if v}, missing
+
+
+def test_the_spec_name_check_can_fail(tmp_path: Path) -> None:
+    source = tmp_path / "m.py"
+    source.write_text("from lagrange_cli import spec\nfrom lagrange_cli.spec import parse, Nowhere\nspec.load\nspec.gone\n")
+    assert spec_names(source) == {"parse", "Nowhere", "load", "gone"}

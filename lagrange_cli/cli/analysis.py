@@ -17,12 +17,6 @@ if TYPE_CHECKING:
     from lagrange_cli.model import Model
 
 
-def _model(file: str) -> Model:
-    from lagrange_cli import derive, spec
-
-    return derive.derive(spec.load(spec.resolve(file)))
-
-
 @app.command()
 def info(
     file: Annotated[str, typer.Argument(help="A system file, or the name of a bundled system.")],
@@ -39,12 +33,12 @@ def info(
 ) -> None:
     """Degrees of freedom, generalized momenta, ignorable coordinates, the energy function and the Hamiltonian."""
     check_outputs(output_path, reading=file)
-    from lagrange_cli import analysis, derive, noether, report, spec
+    from lagrange_cli import analysis, noether, report
+    from lagrange_cli.derive import load_system_and_model
     from lagrange_cli.errors import LagrangeError, fail
 
     try:
-        system = spec.load(spec.resolve(file))
-        model = derive.derive(system)
+        system, model = load_system_and_model(file)
         if routh:
             from lagrange_cli import routh as reduction
 
@@ -70,10 +64,11 @@ def equilibria(
 ) -> None:
     """Equilibrium points (symbolic where possible, else numeric), each with its stability."""
     from lagrange_cli import report
+    from lagrange_cli.derive import load_model
     from lagrange_cli.errors import LagrangeError
 
     try:
-        model = _model(file)
+        model = load_model(file)
         found = report.equilibria(model, _ranges(model, ranges))
     except LagrangeError as error:
         fail_with(error)
@@ -100,12 +95,13 @@ def linearize(
     import json
 
     from lagrange_cli import analysis, report, statespace
+    from lagrange_cli.derive import load_model
     from lagrange_cli.errors import LagrangeError
 
     if latex and as_json:
         fail_with(_usage("choose one of --latex, --json", "a single output format"))
     try:
-        model = _model(file)
+        model = load_model(file)
         point, given = _operating_point(model, about)
         wanted = state_space or latex or lqr or lqr_q is not None or lqr_r is not None or bool(model.inputs or model.outputs)
         if wanted:

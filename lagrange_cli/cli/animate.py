@@ -31,14 +31,13 @@ def animate(
     to_stdout = str(output_path) == "-"
     try:
         from lagrange_cli import animate as core
-        from lagrange_cli import derive, spec
         from lagrange_cli.cli.numeric import assignments_of
+        from lagrange_cli.derive import load_system_and_model
 
         core.check_output(Path("motion.html") if to_stdout else output_path)
         if view is not None and view.lower() not in core.VIEWS:
             raise LagrangeError(f"--view {view!r}: unknown view\n  expected: one of {', '.join(core.VIEWS)}")
-        system = spec.load(spec.resolve(file))
-        model = derive.derive(system, shared=True)  # compiled from the symengine forms
+        system, model = load_system_and_model(file, shared=True)  # compiled from the symengine forms
         core.scene(system, model)  # nothing to draw: refused before the run
         parameters, values = assignments_of(model, set_ or [], "--set"), assignments_of(model, initial or [], "--initial")
         run = core.simulate_for(model, speed=speed, fps=fps, t_end=t_end, method=method, parameters=parameters, initial=values)

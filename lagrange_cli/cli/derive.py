@@ -79,10 +79,9 @@ def derive(
 
     try:
         target, name = _target(to, text, latex, python, numba, standalone, prefix, output_path)
-        from lagrange_cli import derive as core
-        from lagrange_cli import spec
+        from lagrange_cli.derive import load_model
 
-        model = core.derive(spec.load(spec.resolve(file)), shared=target in SHARED_TARGETS and form is not Form.hamilton)
+        model = load_model(file, shared=target in SHARED_TARGETS and form is not Form.hamilton)
         if form is Form.hamilton:
             output(_hamilton(model, target, numba, standalone, name), output_path)
             return

@@ -56,8 +56,7 @@ def simulate(
     from lagrange_cli.errors import LagrangeError
 
     try:
-        from lagrange_cli import derive as core
-        from lagrange_cli import spec
+        from lagrange_cli.derive import load_model
         from lagrange_cli.numeric import output as out
         from lagrange_cli.numeric.simulate import simulate as run
 
@@ -65,7 +64,7 @@ def simulate(
             out.check_suffix(output_path, out.DATA_SUFFIXES, "output")
         if plot is not None:
             out.check_plot(plot)
-        model = core.derive(spec.load(spec.resolve(file)), shared=True)  # compiled from the symengine forms
+        model = load_model(file, shared=True)  # compiled from the symengine forms
         parameters, values = assignments_of(model, set_ or [], "--set"), assignments_of(model, initial or [], "--initial")
         model = inputs_of(model, input_ or [])
         with _Progress(quiet) as progress:

@@ -15,16 +15,8 @@ if TYPE_CHECKING:
     from rich.console import Console
 
     from lagrange_cli.cli.boundary import Item
-    from lagrange_cli.model import Model
     from lagrange_cli.numeric.accuracy import Candidate, Point, Study
     from lagrange_cli.numeric.stress import Diagnosis, Outcome, Report
-
-
-def _model(file: str) -> Model:
-    from lagrange_cli import derive as core
-    from lagrange_cli import spec
-
-    return core.derive(spec.load(spec.resolve(file)), shared=True)  # compiled from the symengine forms
 
 
 def _candidates(methods: list[str] | None) -> list[Candidate] | None:
@@ -122,13 +114,14 @@ def accuracy(
 
     try:
         from lagrange_cli.cli.numeric import assignments_of
+        from lagrange_cli.derive import load_model
         from lagrange_cli.numeric import accuracy as core
         from lagrange_cli.numeric import output as out
 
         if plot is not None:
             out.check_plot(plot)
         ladder = _tolerances(tolerances)  # before any work
-        model = _model(file)
+        model = load_model(file, shared=True)  # compiled from the symengine forms
         with Reporter("accuracy", "run", quiet) as reporter:
             result = core.study(
                 model,
@@ -263,10 +256,11 @@ def stress(
 
     try:
         from lagrange_cli.cli.boundary import check_names
+        from lagrange_cli.derive import load_model
         from lagrange_cli.numeric import stress as core
 
         scales = _scales(scale or [])  # before any work
-        model = _model(file)
+        model = load_model(file, shared=True)  # compiled from the symengine forms
         check_names([item for item, _ in scales], [p.name for p in model.parameters], "parameter", model.source)
         with Reporter("stress", "regime", quiet) as reporter:
             report = core.stress(
