@@ -15,6 +15,7 @@ if TYPE_CHECKING:
     from rich.console import Console
 
     from lagrange_cli.cli.boundary import Item
+    from lagrange_cli.model import Model
     from lagrange_cli.numeric.accuracy import Candidate, Point, Study
     from lagrange_cli.numeric.stress import Diagnosis, Outcome, Report
 
