@@ -397,6 +397,8 @@ def measure(model: Model, candidate: Candidate, tolerance: float, setup: Setup, 
     this tolerance), so a study measures the method as `simulate` runs it. `paced`: see `run`."""
     step = None
     empty = unrun(candidate, tolerance)
+    if candidate.method == "symplectic" and not compile.numba_available():  # not the compiled path's hint: no python backend here
+        return replace(empty, reason=f"the symplectic method runs only compiled, with numba: {compile.NUMBA_HINT}", failure=Failure.NOT_APPLICABLE)
     try:
         decided = settings_for(model, candidate, tolerance, setup, step)
         needed = fixed_steps(decided)
