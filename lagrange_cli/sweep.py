@@ -65,7 +65,7 @@ LYAPUNOV_SEPARATION = 1e-8
 MAX_CROSSINGS = 100_000
 SWEEP_SAMPLES = 201
 CONNECT_TIMEOUT = 10  # seconds to reach a Dask scheduler
-TASKS_PER_WORKER = 8
+TASKS_PER_WORKER = 4
 """A Dask task carries several batches, about this many tasks per worker: Dask's fixed cost per task (scheduling,
 transfers; a few ms) is then small against the task's runs, which lockstep lanes make cheap (benchmarks/sweep_bench.py),
 while a lost worker's tasks stay small to rerun and rows still stream back batch by batch."""

@@ -251,15 +251,15 @@ def test_dask_cluster_gives_exactly_the_local_results(cluster, tmp_path: Path) -
 
 def test_dask_tasks_carry_consecutive_batches() -> None:
     batches = [[k] for k in range(50)]
-    groups = library._task_groups(batches, 2)  # 50 batches, 2 workers: 3 batches a task (about 8 tasks a worker)
-    assert [b for group in groups for b in group] == batches and {len(g) for g in groups[:-1]} == {3}
+    groups = library._task_groups(batches, 2)  # 50 batches, 2 workers: 6 batches a task (about 4 tasks a worker)
+    assert [b for group in groups for b in group] == batches and {len(g) for g in groups[:-1]} == {6}
     assert library._task_groups(batches[:5], 2) == [[b] for b in batches[:5]]  # never fewer than one batch a task
     assert len(library._task_groups([[k] for k in range(10**5)], 1)[0]) == library.MAX_BATCHES_PER_TASK
 
 
 def test_dask_tasks_of_several_batches_give_the_local_rows(cluster) -> None:  # type: ignore[no-untyped-def]
     pendulum = model("double_pendulum")
-    axes = [Axis("initial", "theta", -2, 2, 8), Axis("initial", "phi", -2, 2, 5)]  # 40 batches of 1: tasks of 2
+    axes = [Axis("initial", "theta", -2, 2, 8), Axis("initial", "phi", -2, 2, 5)]  # 40 batches of 1: tasks of 5
     seen: list[int] = []
     local = library.sweep(pendulum, axes, measures=["final"], t_end=1, batch=1)
     remote = library.sweep(pendulum, axes, measures=["final"], t_end=1, batch=1, scheduler=cluster.scheduler_address, on_batch=lambda rows, done, total: seen.append(done))
