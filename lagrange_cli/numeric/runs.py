@@ -24,7 +24,7 @@ from lagrange_cli.errors import LagrangeError
 from lagrange_cli.model import Model
 from lagrange_cli.numeric import compile, policy
 from lagrange_cli.numeric.settings import METHODS, Settings, validate
-from lagrange_cli.numeric.simulate import InvariantKind, Trajectory, integrate, run_seconds
+from lagrange_cli.numeric.simulate import InvariantKind, Trajectory, fixed_steps, integrate, run_seconds
 from lagrange_cli.numeric.status import Failure, Status
 
 if TYPE_CHECKING:
@@ -382,13 +382,6 @@ def capped_steps(candidate: Candidate, allowed: float, last: Point | None, setup
     per_step = last.nfev / last.steps if last is not None and last.steps else EVALUATIONS_PER_STEP.get(candidate.method, 6)
     steps = allowed / max(per_step, 1.0)  # compiled runs get COMPILED_STEPS x this, at 1/COMPILED_STEPS the cost each
     return max(1, min(setup.steps, math.ceil(steps)))
-
-
-def fixed_steps(settings: Settings) -> float:
-    """The steps a fixed-step (symplectic) run takes to t_end (0 for an adaptive method)."""
-    if settings.method != "symplectic" or not settings.step:
-        return 0.0
-    return abs(settings.t_end - settings.t0) / settings.step
 
 
 def measure(model: Model, candidate: Candidate, tolerance: float, setup: Setup, reference: Reference, scale: np.ndarray, repeats: int = 3, paced: bool = False) -> Point:
