@@ -67,7 +67,7 @@ def main() -> None:
     parser.add_argument("--runs", type=int, default=10_000)
     parser.add_argument("--rtol", type=float, default=RTOL)
     parser.add_argument("--atol", type=float, default=ATOL)
-    parser.add_argument("--rounds", type=int, default=3, help="rounds of the parallel comparison (1 worker, 2 workers, LocalCluster), all reported")
+    parser.add_argument("--rounds", type=int, default=7, help="rounds of each parallel comparison (1 worker against 2; 2 workers against LocalCluster), all reported, medians in the table")
     parser.add_argument("--write", action="store_true")
     arguments = parser.parse_args()
     rtol, atol = arguments.rtol, arguments.atol
@@ -83,10 +83,17 @@ def main() -> None:
 
     from distributed import LocalCluster
 
-    # The parallel comparison needs two free cores: it is run `--rounds` times, interleaved, each round with the
-    # load average at its end; the table shows the round with the fastest --workers 2, the list below all of them.
-    rounds: list[tuple[float, float, float, float, float, float, str]] = []
+    # The parallel comparisons need two free cores. Each is run `--rounds` times, its contestants interleaved, each round
+    # with the load average at its end; the table shows the medians of the rounds' times and ratios, the list below every round.
+    # 1 worker against 2 runs with no Dask cluster up: an idle LocalCluster (a scheduler in this process, two workers and
+    # their nannies) takes about 15% of a core between them (heartbeats, its profiler), which would be charged to the threads.
+    # LocalCluster against --workers 2 runs with the cluster up, both contestants beside the same idle processes.
+    local_rounds: list[tuple[float, float, float, float, str]] = []  # wall 1 worker, wall 2 workers, CPU 1, CPU 2, load
+    dask_rounds: list[tuple[float, float, str]] = []  # wall 2 workers, wall LocalCluster, load
     before: list[tuple[float, float, Any]] = []  # (wall, CPU, table) of the sweep without lanes (library.LANES = False), each round
+
+    def load_now() -> str:
+        return ", ".join(f"{x:.1f}" for x in os.getloadavg())
 
     def without_lanes() -> None:
         library.LANES = False
@@ -98,24 +105,32 @@ def main() -> None:
         library._RUNNERS.clear()
         library.sweep(model, axes, **{**options, "sample": 8})
 
+    rounds = max(1, arguments.rounds)
+    for _ in range(rounds):
+        one, table = timed(lambda: library.sweep(model, axes, **options))
+        two, table_two = timed(lambda: library.sweep(model, axes, workers=2, **options))
+        without_lanes()
+        assert table.rows == table_two.rows
+        local_rounds.append((one, two, CPU[id(table)], CPU[id(table_two)], load_now()))
     with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster:
         library.sweep(model, axes, scheduler=cluster.scheduler_address, **{**options, "sample": 8})  # every worker derives and loads once
-        for _ in range(max(1, arguments.rounds)):
-            one, table = timed(lambda: library.sweep(model, axes, **options))
-            two, table_two = timed(lambda: library.sweep(model, axes, workers=2, **options))
+        for _ in range(rounds):
+            two_beside, table_two = timed(lambda: library.sweep(model, axes, workers=2, **options))
             dask, table_dask = timed(lambda: library.sweep(model, axes, scheduler=cluster.scheduler_address, **options))
-            without_lanes()
-            assert table.rows == table_two.rows and table_dask.rows == table.rows
-            rounds.append((one, two, dask, CPU[id(table)], CPU[id(table_two)], CPU[id(table_dask)], ", ".join(f"{x:.1f}" for x in os.getloadavg())))
-    one, two, dask, _, cpu_two, _, _ = min(rounds, key=lambda r: r[1])
-    cpu_one = float(np.median([r[3] for r in rounds]))  # the sequential contestants compare by CPU time: the rounds' median
+            assert table_dask.rows == table.rows and table_two.rows == table.rows
+            dask_rounds.append((two_beside, dask, load_now()))
+    one, two = float(np.median([r[0] for r in local_rounds])), float(np.median([r[1] for r in local_rounds]))
+    speedup = float(np.median([r[0] / r[1] for r in local_rounds]))
+    two_beside, dask = float(np.median([r[0] for r in dask_rounds])), float(np.median([r[1] for r in dask_rounds]))
+    dask_ratio = float(np.median([r[1] / r[0] for r in dask_rounds]))
+    cpu_one = float(np.median([r[2] for r in local_rounds]))  # the sequential contestants compare by CPU time: the rounds' median
+    cpu_two = float(np.median([r[3] for r in local_rounds]))
     cpu_before = float(np.median([b[1] for b in before]))
     wall_before, table_before = before[0][0], before[0][2]
     lane_runner = next(r for r in library._RUNNERS.values() if r.model is model and r.lanes_entry is not None)
     from lagrange_cli.numeric.lanes import LANES
 
-    starts = [lane_runner.point(values) for values in points]
-    y0s, ps = np.array([y for y, _ in starts]), np.array([p for _, p in starts])
+    y0s, ps = lane_runner.points(points)
     control = lane_runner._control(0.0, T_END)
     ts = np.array(lane_runner.settings.t_eval, dtype=float)
     lane_cpu = time.process_time()
@@ -169,10 +184,10 @@ def main() -> None:
         "",
         "| contestant | runs timed | CPU s (all runs) | wall s (all runs) | CPU per run | the sweep (1 worker) is faster by |",
         "|---|---|---|---|---|---|",
-        f"| `lagrange sweep` compiled DOP853, 1 worker (CPU: median of the rounds) | {n} | {cpu_one:.2f} | {one:.2f} | {cpu_one / n * 1e3:.3f} ms | 1x |",
+        f"| `lagrange sweep` compiled DOP853, 1 worker (medians of the rounds) | {n} | {cpu_one:.2f} | {one:.2f} | {cpu_one / n * 1e3:.3f} ms | 1x |",
         f"| before: `lagrange sweep` without lanes (`sweep.LANES = False`: ensemble.batch, run by run in one compiled call), 1 worker (CPU: median of the rounds) | {n} | {cpu_before:.2f} | {wall_before:.2f} | {cpu_before / n * 1e3:.3f} ms | {cpu_before / cpu_one:.2f}x |",
-        f"| `lagrange sweep --workers 2` (2 threads, GIL released in the compiled loop) | {n} | {cpu_two:.2f} | {two:.2f} | | wall: speed-up {one / two:.2f}x over 1 worker |",
-        f"| `lagrange sweep --scheduler` (2-worker LocalCluster, processes) | {n} | (in the workers) | {dask:.2f} | | wall: {dask / two:.2f}x the time of --workers 2 |",
+        f"| `lagrange sweep --workers 2` (2 threads, GIL released in the compiled loop; medians) | {n} | {cpu_two:.2f} | {two:.2f} | | wall: speed-up {speedup:.2f}x over 1 worker (median of the rounds' ratios) |",
+        f"| `lagrange sweep --scheduler` (2-worker LocalCluster, processes; medians) | {n} | (in the workers) | {dask:.2f} | | wall: {dask_ratio:.2f}x the time of --workers 2 beside the same cluster ({two_beside:.2f} s; median of the rounds' ratios) |",
         f"| peer: Python loop over `solve_ivp` (DOP853) on lambdify(cse=True) | {PEER_SAMPLE}, extrapolated | {peer_all:.1f} | {peer_wall / PEER_SAMPLE * n:.1f} | {peer_time / PEER_SAMPLE * 1e3:.2f} ms | {peer_all / cpu_one:.0f}x (wall {peer_wall / PEER_SAMPLE * n / one:.0f}x) |",
         f"| Python loop over lagrange's API `simulate`, tuned (compiled DOP853, samples=2) | {API_SAMPLE}, extrapolated | {api_all:.1f} | {api_wall / API_SAMPLE * n:.1f} | {api_time / API_SAMPLE * 1e3:.3f} ms | {api_all / cpu_one:.1f}x (wall {api_wall / API_SAMPLE * n / one:.1f}x) |",
         f"| Python loop over `simulate` as documented (auto: {default_method}, 1001 samples) | {DEFAULT_SAMPLE}, extrapolated | {default_all:.1f} | {default_wall / DEFAULT_SAMPLE * n:.1f} | {default_time / DEFAULT_SAMPLE * 1e3:.3f} ms | {default_all / cpu_one:.1f}x |",
@@ -180,20 +195,21 @@ def main() -> None:
         f"- Against the peer: {peer_all / cpu_one:.0f}x in CPU time (target >= 100x); against a loop over `simulate`: {api_all / cpu_one:.1f}x tuned, {default_all / cpu_one:.1f}x with its defaults (target >= 5x).",
         f"- Lanes ({LANES} runs in lockstep, numeric/lanes.py) against the same sweep without them: {cpu_before / cpu_one:.2f}x (CPU, median of the rounds: "
         + ", ".join(f"{b[1]:.2f} s" for b in before)
-        + f" without, {', '.join(f'{r[3]:.2f} s' for r in rounds)} with); the tuned `simulate` loop against the sweep without lanes: {api_all / cpu_before:.1f}x.",
+        + f" without, {', '.join(f'{r[2]:.2f} s' for r in local_rounds)} with); the tuned `simulate` loop against the sweep without lanes: {api_all / cpu_before:.1f}x.",
         f"- Per evaluation: {lane_evaluations / n:.0f} lane evaluations a run (idle lanes at the end of each batch of {BATCH} included), the whole run"
         f" {lane_cpu / lane_evaluations * 1e9:.1f} ns a lane evaluation (the lane loop called directly, batch by batch, CPU {lane_cpu:.2f} s); without lanes"
         f" {cpu_before / lane_evaluations * 1e9:.1f} ns an evaluation at the same count.",
         f"- Lanes against no lanes: statuses {'identical' if same_status else 'DIFFERENT'}; final states (relative, largest component) median {np.median(lanes_against_before):.1e},"
         f" 90% {np.quantile(lanes_against_before, 0.9):.1e}, max {lanes_against_before.max():.1e} (the right-hand side differs by round-off, which the"
         f" step-size controller and the chaotic runs amplify); true error without lanes: median {np.median(true_error_before):.1e}, {100 * np.mean(true_error_before <= 1e-6):.0f}% of runs within 1e-6.",
-        f"- Two local workers: {one / two:.2f}x one worker (target >= 1.7x). The CPU time of the process was {cpu_one:.1f} s with one worker and",
-        f"  {cpu_two:.1f} s with two (the threads run the compiled loop with the GIL released); load average at the start {load_start}.",
-        f"- 2-worker LocalCluster: {dask / two:.2f}x the time of `--workers 2` (target <= 1.3x; Dask adds its scheduling and transfers per",
-        "  task); its rows equal the local run's exactly.",
-        "- Every round of the parallel comparison (wall s: 1 worker, --workers 2, LocalCluster; speed-up of 2 workers; LocalCluster / --workers 2; CPU s of this process with 1 worker; os.getloadavg at the round's end): "
-        + "; ".join(f"{a:.2f}, {b:.2f}, {c:.2f} ({a / b:.2f}x, {c / b:.2f}x; CPU {d:.2f}; load {g})" for a, b, c, d, _e, _f, g in rounds)
+        f"- Two local workers: {speedup:.2f}x one worker, the median of {rounds} rounds (target >= 1.7x). The CPU time of the process was {cpu_one:.1f} s with one worker and",
+        f"  {cpu_two:.1f} s with two (the threads run the compiled loop with the GIL released); load average at the start {load_start}. No Dask cluster was up.",
+        "  Every round (wall s: 1 worker, --workers 2; speed-up; CPU s of this process with 1 and 2 workers; os.getloadavg at the round's end): "
+        + "; ".join(f"{a:.2f}, {b:.2f} ({a / b:.2f}x; CPU {c:.2f}, {d:.2f}; load {g})" for a, b, c, d, g in local_rounds)
         + ".",
+        f"- 2-worker LocalCluster: {dask_ratio:.2f}x the time of `--workers 2`, the median of {rounds} rounds (target <= 1.3x; Dask adds its scheduling,",
+        "  transfers and its idle processes' heartbeats); its rows equal the local run's exactly. Every round (wall s: --workers 2 beside the idle",
+        "  cluster, LocalCluster; ratio; os.getloadavg at the round's end): " + "; ".join(f"{a:.2f}, {b:.2f} ({b / a:.2f}x; load {g})" for a, b, g in dask_rounds) + ".",
         f"- `simulate` as documented picks its own method ({default_method}) and keeps 1001 samples with their invariants: more",
         "  than the sweep computes, so the tuned loop is the fair comparison.",
         f"- The sweep's final states agree with the peer's on its {PEER_SAMPLE} runs to a median of {np.median(agreement):.1e} (max {agreement.max():.1e}: chaotic runs amplify the tolerance).",

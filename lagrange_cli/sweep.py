@@ -426,18 +426,23 @@ class Runner:
 
     def point(self, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(y0, p) of a point: the base state and parameters with the axes' values."""
+        y0s, ps = self.points(values.reshape(1, -1))
+        return y0s[0], ps[0]
+
+    def points(self, chunk: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The (y0, p) of every point of `chunk` as two arrays, row k that of `point(chunk[k])`."""
         import numpy as np
 
-        y0 = np.array(self.settings.y0, dtype=float)
-        values_p = list(self.settings.values)
-        for axis, value in zip(self.job.axes, values.tolist(), strict=True):
-            if axis.kind == "set":
-                values_p[self.parameter_names.index(axis.name)] = value
-            else:
-                y0[self.names.index(axis.name)] = value
         from lagrange_cli.numeric.settings import code_parameters
 
-        return y0, np.array(code_parameters(values_p, self.settings.alpha), dtype=float)
+        y0s = np.tile(np.array(self.settings.y0, dtype=float), (len(chunk), 1))
+        ps = np.tile(np.array(code_parameters(self.settings.values, self.settings.alpha), dtype=float), (len(chunk), 1))
+        for j, axis in enumerate(self.job.axes):
+            if axis.kind == "set":
+                ps[:, self.parameter_names.index(axis.name)] = chunk[:, j]
+            else:
+                y0s[:, self.names.index(axis.name)] = chunk[:, j]
+        return y0s, ps
 
     def batch(self, indices: Sequence[int], chunk: np.ndarray) -> list[list[Any]]:
         """The rows of points `chunk` (numbered `indices`): one compiled call for the whole batch
@@ -453,8 +458,7 @@ class Runner:
 
         from lagrange_cli.numeric import status as st
 
-        starts = [self.point(values) for values in chunk]
-        y0s, ps = np.array([y for y, _ in starts]), np.array([p for _, p in starts])
+        y0s, ps = self.points(chunk)
         ts = np.array(self.settings.t_eval, dtype=float)
         control = self._control(self.settings.t0, self.settings.t_end)
         if self.lanes_entry is not None:
@@ -482,8 +486,7 @@ class Runner:
 
         from lagrange_cli.numeric import status as st
 
-        starts = [self.point(values) for values in chunk]
-        y0s, ps = np.array([y for y, _ in starts]), np.array([p for _, p in starts])
+        y0s, ps = self.points(chunk)
         ts = np.array(self.settings.t_eval, dtype=float)
         control = self._control(self.settings.t0, self.settings.t_end)
         codes, t_last, y_last, counts, times, states = self.sections_entry(self.pair, y0s, ps, control, ts, self.budget, MAX_CROSSINGS, self.accel, self.event)
@@ -859,6 +862,8 @@ def _ordered(pool: ThreadPoolExecutor, runner: Runner, grid: np.ndarray, batches
 
 def _dask(address: str, job: Job, grid: np.ndarray, batches: list[list[int]]) -> Iterator[tuple[list[list[Any]], int]]:
     """Batches as tasks of a `dask.distributed` cluster (lost workers' tasks are rerun by Dask), in order."""
+    import numpy as np
+
     try:
         from distributed import Client
     except ImportError:
@@ -872,7 +877,8 @@ def _dask(address: str, job: Job, grid: np.ndarray, batches: list[list[int]]) ->
         # Every worker builds the system now, all at once, ahead of its batches (priority): not at its first batch,
         # which a short sweep (or the first sweep of a session) may never send it, leaving the cost to the next sweep.
         ready = [client.submit(_dask_prepare, shared, workers=[worker], allow_other_workers=True, priority=1, pure=False) for worker in client.scheduler_info()["workers"]]
-        futures = [(client.submit(_dask_task, shared, [(list(indices), grid[indices]) for indices in group], pure=False), group) for group in _task_groups(batches, len(ready))]
+        # Indices travel as arrays: Dask walks every element of a list argument looking for futures (30 000 calls a sweep of 10^4).
+        futures = [(client.submit(_dask_task, shared, [(np.asarray(indices, dtype=np.int64), grid[indices]) for indices in group], pure=False), group) for group in _task_groups(batches, len(ready))]
         for future, group in futures:
             yield from zip(future.result(), (len(indices) for indices in group), strict=True)
         client.gather(ready, errors="skip")  # every worker built (one that failed says so through its batches' results)
@@ -891,10 +897,10 @@ def _task_groups(batches: list[list[int]], workers: int) -> list[list[list[int]]
     return [batches[i : i + per] for i in range(0, len(batches), per)]
 
 
-def _dask_task(job: Job, group: list[tuple[list[int], np.ndarray]]) -> list[list[list[Any]]]:
+def _dask_task(job: Job, group: list[tuple[np.ndarray, np.ndarray]]) -> list[list[list[Any]]]:
     """The rows of each batch of a task's `group` of (indices, points)."""
     runner = runner_for(job)
-    return [runner.batch(indices, chunk) for indices, chunk in group]
+    return [runner.batch(indices.tolist(), chunk) for indices, chunk in group]
 
 
 # -- output and resume -----------------------------------------------------------------------------
