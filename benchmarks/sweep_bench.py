@@ -207,7 +207,7 @@ def main() -> None:
         "  Every round (wall s: 1 worker, --workers 2; speed-up; CPU s of this process with 1 and 2 workers; os.getloadavg at the round's end): "
         + "; ".join(f"{a:.2f}, {b:.2f} ({a / b:.2f}x; CPU {c:.2f}, {d:.2f}; load {g})" for a, b, c, d, g in local_rounds)
         + ".",
-        f"- 2-worker LocalCluster: {dask_ratio:.2f}x the time of `--workers 2`, the median of {rounds} rounds (target <= 1.3x; Dask adds its scheduling,",
+        f"- 2-worker LocalCluster: {dask_ratio:.2f}x the time of `--workers 2`, the median of {rounds} rounds' ratios ({dask / two_beside:.2f}x as the ratio of the medians; target <= 1.3x; Dask adds its scheduling,",
         "  transfers and its idle processes' heartbeats); its rows equal the local run's exactly. Every round (wall s: --workers 2 beside the idle",
         "  cluster, LocalCluster; ratio; os.getloadavg at the round's end): " + "; ".join(f"{a:.2f}, {b:.2f} ({b / a:.2f}x; load {g})" for a, b, g in dask_rounds) + ".",
         f"- `simulate` as documented picks its own method ({default_method}) and keeps 1001 samples with their invariants: more",
