@@ -16,7 +16,7 @@ from pathlib import Path
 import yaml
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-import numeric_audit3 as audit  # noqa: E402
+import numeric_audit3 as audit
 
 
 def main() -> None:
