@@ -487,13 +487,26 @@ def _regime(model: Model, regime: Regime, target: float, candidates: Sequence[Ca
             " (round-off limits how well two methods agree here)"
         )
     elif recommended is None and own > target:
-        open_reason = f"the reference's own error ({reference.own_error:.1e}) is above the accuracy asked: no run can be shown to meet it (round-off limits how well two methods agree here)"
+        open_reason = f"the reference's own error ({reference.own_error:.1e}) is above the accuracy asked: no run can be shown to meet it (round-off limits how well two methods agree here){_closest(ordered, own, target)}"
     elif recommended is None and own > REFERENCE_ROOM * target:
         open_reason = (
             f"the reference's own error ({reference.own_error:.1e}) leaves the runs less than {1 - REFERENCE_ROOM:.0%} of the accuracy asked, and no rung of the ladder"
-            " (its tightest 10 x the reference's rtol) comes within what is left: a failure of the methods cannot be told from the reference's"
+            f" comes within what is left: a failure of the methods cannot be told from the reference's{_closest(ordered, own, target)}"
         )
     return Outcome(regime, setup.t_end, reference.description, reference.own_error, tuple(ordered), diagnosis, recommended, naive, auto, naive_default, tied, open_reason)
+
+
+def _closest(points: Sequence[Point], own: float, target: float) -> str:
+    """ "; the closest run ..." with the numbers of an open verdict: the run nearest the reference, and
+    what its distance says of its true error (at least that distance minus the own error)."""
+    finished = [p for p in points if p.ok and math.isfinite(p.error)]
+    if not finished:
+        return ""
+    best = min(finished, key=lambda p: p.error)
+    text = f"; the closest run, {best.method} ({best.setting}), is {best.error:.1e} off the reference"
+    if math.isfinite(own) and best.error - own > target:
+        text += f", so at least {best.error - own:.1e} off the true solution: no run measured meets {tol_text(target)}, though the ladder may not have been run to its end"
+    return text
 
 
 STABILITY_INTERVAL = {"RK45": diagnostics.STABILITY, "DOP853": policy.DOP853_STABILITY}
