@@ -484,7 +484,7 @@ def _regime(model: Model, regime: Regime, target: float, candidates: Sequence[Ca
     elif recommended is None and any(p.ok and p.error <= target for p in ordered):
         open_reason = (
             f"runs come within {tol_text(target)} of the reference, but the reference's own error ({reference.own_error:.1e}) leaves open whether they meet it"
-            " (round-off limits how well two methods agree here)"
+            f" (round-off limits how well two methods agree here){_closest(ordered, own, target)}"
         )
     elif recommended is None and own > target:
         open_reason = f"the reference's own error ({reference.own_error:.1e}) is above the accuracy asked: no run can be shown to meet it (round-off limits how well two methods agree here){_closest(ordered, own, target)}"
@@ -505,7 +505,10 @@ def _closest(points: Sequence[Point], own: float, target: float) -> str:
     best = min(finished, key=lambda p: p.error)
     text = f"; the closest run, {best.method} ({best.setting}), is {best.error:.1e} off the reference"
     if math.isfinite(own) and best.error - own > target:
-        text += f", so at least {best.error - own:.1e} off the true solution: no run measured meets {tol_text(target)}, though the ladder may not have been run to its end"
+        text += (
+            f", so at least {best.error - own:.1e} off the true solution as far as the own error bounds the reference's:"
+            f" no run measured meets {tol_text(target)}, though the ladder may not have been run to its end"
+        )
     return text
 
 
