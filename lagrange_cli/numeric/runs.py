@@ -267,13 +267,13 @@ at that pace, exceed this times its budget: it cannot finish within the budget (
 class Unaffordable(Exception):
     """A paced run was stopped: at its pace it needs `needed` steps, above PACE_MARGIN x its `budget`."""
 
-    def __init__(self, steps: int, fraction: float, needed: float, budget: int) -> None:
+    def __init__(self, steps: int, fraction: float, needed: float, budget: int, margin: float = PACE_MARGIN) -> None:
         super().__init__(steps)
-        self.steps, self.fraction, self.needed, self.budget = steps, fraction, needed, budget
+        self.steps, self.fraction, self.needed, self.budget, self.margin = steps, fraction, needed, budget, margin
 
 
-def _paced(budget: int, then: Progress | None) -> Progress:
-    """A progress report, told once a step (scipy's runs), that raises Unaffordable (`PACE_MARGIN`)."""
+def _paced(budget: int, then: Progress | None, margin: float = PACE_MARGIN) -> Progress:
+    """A progress report, told once a step (scipy's runs), that raises Unaffordable (above `margin`, PACE_MARGIN unless told)."""
     taken = 0
 
     def progress(fraction: float) -> None:
@@ -281,8 +281,8 @@ def _paced(budget: int, then: Progress | None) -> Progress:
         taken += 1
         if taken >= PACE_AFTER * budget:
             needed = taken / fraction if fraction > 0 else math.inf
-            if needed > PACE_MARGIN * budget:
-                raise Unaffordable(taken, fraction, needed, budget)
+            if needed > margin * budget:
+                raise Unaffordable(taken, fraction, needed, budget, margin)
         if then is not None:
             then(fraction)
 
@@ -322,18 +322,19 @@ def run(
     reference: bool = False,
     settings: Settings | None = None,
     paced: bool = False,
+    pace_margin: float = PACE_MARGIN,
 ) -> Trajectory:
     """One run of the study, within its step budget (the reference's when `reference`) and, when
     `timed` and the setup has one, its time limit (raises TimeLimit, LagrangeError); `paced`: a
     Python run is stopped once its pace shows it cannot finish within its budget (raises
-    Unaffordable, see PACE_MARGIN). `settings`: those of an earlier run of the same point, so that a
+    Unaffordable, above `pace_margin`: see PACE_MARGIN). `settings`: those of an earlier run of the same point, so that a
     repeat decides nothing again."""
     limit = setup.time_limit if timed and not reference else None
     decided = settings if settings is not None else settings_for(model, candidate, tolerance, setup, step)
     budget = run_steps(decided, setup.reference_steps if reference else setup.steps)
     progress = _time_limit(limit) if limit is not None else None
     if paced and not reference and decided.backend == "python":
-        progress = _paced(budget, progress)
+        progress = _paced(budget, progress, pace_margin)
     return integrate(model, decided, progress, budget)
 
 
@@ -363,8 +364,11 @@ def unrun(candidate: Candidate, tolerance: float, status: PointStatus = PointSta
     return replace(empty, status=status, reason=reason, failure=failure) if reason or failure is not None else empty
 
 
-EVALUATIONS_PER_STEP = {"RK45": 6, "DOP853": 12, "Radau": 6, "BDF": 2, "LSODA": 2, "symplectic": 8, "auto": 12}
-"""Rough right-hand side evaluations per step of each method (Radau and BDF also factorise), to turn a work cap into steps."""
+EVALUATIONS_PER_STEP = {"RK45": 6, "DOP853": 12, "Radau": 18, "BDF": 4, "LSODA": 2, "symplectic": 8, "auto": 12}
+"""Rough right-hand side evaluations per step of each method (as `work` counts them: nfev + 2 njev), to turn
+a work cap into steps before a method's first run tells its own. scipy's Radau takes about 19 (its Newton
+iterations over three stages and finite-difference Jacobians: 43513 in 2279 steps and 567154 in 29216 on the
+penalty pendulum of k = 1e9; 6 before, so that its first capped run spent 3 x its cap), BDF about 3.7."""
 
 
 def work(point: Point) -> float:
@@ -384,10 +388,12 @@ def capped_steps(candidate: Candidate, allowed: float, last: Point | None, setup
     return max(1, min(setup.steps, math.ceil(steps)))
 
 
-def measure(model: Model, candidate: Candidate, tolerance: float, setup: Setup, reference: Reference, scale: np.ndarray, repeats: int = 3, paced: bool = False) -> Point:
+def measure(
+    model: Model, candidate: Candidate, tolerance: float, setup: Setup, reference: Reference, scale: np.ndarray, repeats: int = 3, paced: bool = False, pace_margin: float = PACE_MARGIN
+) -> Point:
     """Run one point (warm-up, then timed repeats) and compare it with the reference. The
     symplectic method's step is the one `policy.decide` chooses for `simulate` (its pilot run at
-    this tolerance), so a study measures the method as `simulate` runs it. `paced`: see `run`."""
+    this tolerance), so a study measures the method as `simulate` runs it. `paced`, `pace_margin`: see `run`."""
     step = None
     empty = unrun(candidate, tolerance)
     if candidate.method == "symplectic" and not compile.numba_available():  # not the compiled path's hint: no python backend here
@@ -399,10 +405,10 @@ def measure(model: Model, candidate: Candidate, tolerance: float, setup: Setup, 
             ran = Ran(decided.method, decided.backend)
             reason = f"its fixed step {decided.step:.3g} needs {needed:.3g} steps to t_end, above the step budget ({run_steps(decided, setup.steps)}); not run"
             return replace(empty, resolved=str(ran), ran=ran, settings=decided, step=decided.step, status=PointStatus.OVER_BUDGET, reason=reason, failure=Failure.BUDGET)
-        first = run(model, candidate, tolerance, setup, step=step, settings=decided, paced=paced)
+        first = run(model, candidate, tolerance, setup, step=step, settings=decided, paced=paced, pace_margin=pace_margin)
     except Unaffordable as over:
         ran = Ran(decided.method, decided.backend)
-        reason = f"stopped after {over.steps} steps, which at that pace need about {over.needed:.3g} to t_end, above {PACE_MARGIN:g} x its step budget ({over.budget}), at {100 * over.fraction:.2g}% of the time span"
+        reason = f"stopped after {over.steps} steps, which at that pace need about {over.needed:.3g} to t_end, above {over.margin:g} x its step budget ({over.budget}), at {100 * over.fraction:.2g}% of the time span"
         return replace(empty, resolved=str(ran), ran=ran, settings=decided, steps=over.steps, status=PointStatus.OVER_BUDGET, reason=reason, failure=Failure.BUDGET)
     except TimeLimit as over:
         reason = f"stopped by the time limit ({setup.time_limit:g} s, --budget) at {100 * over.fraction:.0f}% of the time span"
