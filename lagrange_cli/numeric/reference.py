@@ -568,6 +568,8 @@ def _horizon(model: Model, setup: Setup, tolerance: float) -> Horizon | None:
     primary, _ = reference_candidates(model, setup, tolerance)
     if primary.method in IMPLICIT:
         return None  # stiff (dissipative) at the start: two more tight implicit runs would cost more than the whole study
+    if model.constraints:
+        return None  # moving the state would violate the constraints (decided before the base run, which was then thrown away: 2e6 steps a regime)
     if primary.backend == "compiled":
         setup = replace(setup, reference_max_steps=min(setup.reference_steps, EXPLICIT_REFERENCE_STEPS))  # as the reference's own attempts
     base = explicit_attempt(model, primary, tolerance, setup).trajectory if primary.backend == "compiled" else run(model, primary, tolerance, setup, reference=True)
@@ -575,8 +577,6 @@ def _horizon(model: Model, setup: Setup, tolerance: float) -> Horizon | None:
         return None
     names = [*model.coordinates, *(f"{c}_dot" for c in model.coordinates)]
     moved = {n: v + tolerance * max(1.0, abs(v)) for n, v in zip(names, base.settings.y0, strict=True)}
-    if model.constraints:
-        return None  # moving the state would violate the constraints
     other = run(model, primary, tolerance, replace(setup, initial=moved), reference=True)
     if other.failed or len(other.t) != len(base.t):
         return None
