@@ -64,3 +64,17 @@ def test_a_scipy_run_that_can_only_lose_to_a_compiled_one_stops_once_its_pace_ne
     # Radau's first capped run: PYTHON_AFTER_COMPILED x 12000 work at about 18 evaluations a step
     cap = stress._cap(Candidate("Radau"), best, None, Setup(1.0, (0.0, 1.0)))
     assert cap == int(np.ceil(stress.PYTHON_AFTER_COMPILED * 12_000 / runs.EVALUATIONS_PER_STEP["Radau"]))
+
+
+def test_the_horizon_of_a_system_with_kept_constraints_runs_nothing(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Moving the state would violate the constraints, so there is no horizon: decided before any run
+    (its base run, 2e6 steps at 2.5e-14 on the multiplier pendulum, used to be run and thrown away)."""
+
+    def refuse(*args: object, **kwargs: object) -> None:
+        raise AssertionError("a run")
+
+    monkeypatch.setattr(reference, "run", refuse)
+    monkeypatch.setattr(reference, "explicit_attempt", refuse)
+    model = model_from(ROOT / "systems" / "pendulum_multiplier.yaml")
+    assert model.constraints
+    assert reference._horizon(model, starting(model, Setup(1.0, (0.0, 0.5, 1.0))), 1e-12) is None
