@@ -267,13 +267,13 @@ at that pace, exceed this times its budget: it cannot finish within the budget (
 class Unaffordable(Exception):
     """A paced run was stopped: at its pace it needs `needed` steps, above PACE_MARGIN x its `budget`."""
 
-    def __init__(self, steps: int, fraction: float, needed: float, budget: int, margin: float = PACE_MARGIN) -> None:
+    def __init__(self, steps: int, fraction: float, needed: float, budget: int) -> None:
         super().__init__(steps)
-        self.steps, self.fraction, self.needed, self.budget, self.margin = steps, fraction, needed, budget, margin
+        self.steps, self.fraction, self.needed, self.budget = steps, fraction, needed, budget
 
 
-def _paced(budget: int, then: Progress | None, margin: float = PACE_MARGIN) -> Progress:
-    """A progress report, told once a step (scipy's runs), that raises Unaffordable (above `margin`, PACE_MARGIN unless told)."""
+def _paced(budget: int, then: Progress | None) -> Progress:
+    """A progress report, told once a step (scipy's runs), that raises Unaffordable (`PACE_MARGIN`)."""
     taken = 0
 
     def progress(fraction: float) -> None:
@@ -281,8 +281,8 @@ def _paced(budget: int, then: Progress | None, margin: float = PACE_MARGIN) -> P
         taken += 1
         if taken >= PACE_AFTER * budget:
             needed = taken / fraction if fraction > 0 else math.inf
-            if needed > margin * budget:
-                raise Unaffordable(taken, fraction, needed, budget, margin)
+            if needed > PACE_MARGIN * budget:
+                raise Unaffordable(taken, fraction, needed, budget)
         if then is not None:
             then(fraction)
 
@@ -322,19 +322,18 @@ def run(
     reference: bool = False,
     settings: Settings | None = None,
     paced: bool = False,
-    pace_margin: float = PACE_MARGIN,
 ) -> Trajectory:
     """One run of the study, within its step budget (the reference's when `reference`) and, when
     `timed` and the setup has one, its time limit (raises TimeLimit, LagrangeError); `paced`: a
     Python run is stopped once its pace shows it cannot finish within its budget (raises
-    Unaffordable, above `pace_margin`: see PACE_MARGIN). `settings`: those of an earlier run of the same point, so that a
+    Unaffordable, see PACE_MARGIN). `settings`: those of an earlier run of the same point, so that a
     repeat decides nothing again."""
     limit = setup.time_limit if timed and not reference else None
     decided = settings if settings is not None else settings_for(model, candidate, tolerance, setup, step)
     budget = run_steps(decided, setup.reference_steps if reference else setup.steps)
     progress = _time_limit(limit) if limit is not None else None
     if paced and not reference and decided.backend == "python":
-        progress = _paced(budget, progress, pace_margin)
+        progress = _paced(budget, progress)
     return integrate(model, decided, progress, budget)
 
 
@@ -388,12 +387,10 @@ def capped_steps(candidate: Candidate, allowed: float, last: Point | None, setup
     return max(1, min(setup.steps, math.ceil(steps)))
 
 
-def measure(
-    model: Model, candidate: Candidate, tolerance: float, setup: Setup, reference: Reference, scale: np.ndarray, repeats: int = 3, paced: bool = False, pace_margin: float = PACE_MARGIN
-) -> Point:
+def measure(model: Model, candidate: Candidate, tolerance: float, setup: Setup, reference: Reference, scale: np.ndarray, repeats: int = 3, paced: bool = False) -> Point:
     """Run one point (warm-up, then timed repeats) and compare it with the reference. The
     symplectic method's step is the one `policy.decide` chooses for `simulate` (its pilot run at
-    this tolerance), so a study measures the method as `simulate` runs it. `paced`, `pace_margin`: see `run`."""
+    this tolerance), so a study measures the method as `simulate` runs it. `paced`: see `run`."""
     step = None
     empty = unrun(candidate, tolerance)
     if candidate.method == "symplectic" and not compile.numba_available():  # not the compiled path's hint: no python backend here
@@ -405,10 +402,10 @@ def measure(
             ran = Ran(decided.method, decided.backend)
             reason = f"its fixed step {decided.step:.3g} needs {needed:.3g} steps to t_end, above the step budget ({run_steps(decided, setup.steps)}); not run"
             return replace(empty, resolved=str(ran), ran=ran, settings=decided, step=decided.step, status=PointStatus.OVER_BUDGET, reason=reason, failure=Failure.BUDGET)
-        first = run(model, candidate, tolerance, setup, step=step, settings=decided, paced=paced, pace_margin=pace_margin)
+        first = run(model, candidate, tolerance, setup, step=step, settings=decided, paced=paced)
     except Unaffordable as over:
         ran = Ran(decided.method, decided.backend)
-        reason = f"stopped after {over.steps} steps, which at that pace need about {over.needed:.3g} to t_end, above {over.margin:g} x its step budget ({over.budget}), at {100 * over.fraction:.2g}% of the time span"
+        reason = f"stopped after {over.steps} steps, which at that pace need about {over.needed:.3g} to t_end, above {PACE_MARGIN:g} x its step budget ({over.budget}), at {100 * over.fraction:.2g}% of the time span"
         return replace(empty, resolved=str(ran), ran=ran, settings=decided, steps=over.steps, status=PointStatus.OVER_BUDGET, reason=reason, failure=Failure.BUDGET)
     except TimeLimit as over:
         reason = f"stopped by the time limit ({setup.time_limit:g} s, --budget) at {100 * over.fraction:.0f}% of the time span"

@@ -69,7 +69,6 @@ from lagrange_cli.numeric.reference import HORIZON_THRESHOLD, IMPLICIT, IMPLICIT
 from lagrange_cli.numeric.runs import (
     ATOL_RATIO,
     COMPILED_STEPS,
-    PACE_MARGIN,
     TIGHTEST,
     Candidate,
     Point,
@@ -520,8 +519,7 @@ def _capped(model: Model, candidate: Candidate, tolerance: float, setup: Setup, 
         )
         return unrun(candidate, tolerance, PointStatus.OVER_BUDGET, reason, Failure.BUDGET)
     paced = best is not None and cap < setup.steps  # a run that can only lose to `best`: stopped as soon as its pace shows it cannot finish
-    margin = PYTHON_PACE_MARGIN if _losing(candidate, best) == PYTHON_AFTER_COMPILED else PACE_MARGIN
-    point = measure(model, candidate, tolerance, replace(setup, max_steps=cap) if cap < setup.steps else setup, reference, scale, repeats=0, paced=paced, pace_margin=margin)
+    point = measure(model, candidate, tolerance, replace(setup, max_steps=cap) if cap < setup.steps else setup, reference, scale, repeats=0, paced=paced)
     if cap < setup.steps and point.failure == Failure.BUDGET and best is not None and point.steps and point.nfev:
         done = point.reason.rpartition(" at ")[2]
         reason = f"stopped after {point.steps} steps at {done}: it already took {work(point) / max(work(best), 1e-300):.0f} x the work of {best.method} ({best.setting}), which meets the accuracy"
@@ -538,17 +536,15 @@ nor tie with it (compiled DOP853 over the k = 1e10 pendulum's long horizon: 1.6 
 at rtol 1e-5, then 3.5 s at 1e-6 to meet the accuracy 2.4 x slower)."""
 
 
-PYTHON_AFTER_COMPILED = 0.5
+PYTHON_AFTER_COMPILED = 2.0
 """Once a compiled run meets the accuracy, a scipy run (Python right-hand side) is stopped at this
 many times its work: `work` already counts a compiled evaluation as 1/COMPILED_STEPS of a scipy one,
-where it costs 1/400-1/500 as much (73 ns against 31-62 us), so such a run is already 2x slower
-than the compiled one (more for Radau and BDF, whose factorisations `work` does not count) and cannot
-be the recommendation nor tie with it (the penalty pendulum of k = 1e9: scipy's RK45, Radau, BDF and
-LSODA spent 38 of the defaults regime's 46 s losing to compiled DOP853's 0.05 s run at 10-30x; at 2 x,
-the value before, Radau and BDF still took 20-50 s over its long horizon)."""
-PYTHON_PACE_MARGIN = 1.0
-"""Such a run is also stopped as soon as its pace (`runs.PACE_MARGIN`) needs more than its cap: were it to
-finish, it would lose all the same."""
+where it costs 1/170-1/500 as much (73-170 ns against 29-62 us), so such a run is already 3-8x slower
+than the compiled one and cannot be the recommendation nor tie with it (the penalty pendulum of
+k = 1e9: scipy's RK45, Radau, BDF and LSODA spent 38 of the defaults regime's 46 s losing to
+compiled DOP853's 0.05 s run at 10-30x). Not lower: 0.5 was tried, and on the stiff elastic pendulum
+started near r = 0 (compiled evaluations 170 ns, LSODA's 29 us) it stopped LSODA's ladder before rtol
+1e-8, whose run is 2x faster than compiled RK45's, so the recommendation became the slower method."""
 
 
 def predicted_growth(previous: Point | None, last: Point | None) -> float:
