@@ -192,9 +192,15 @@ def implicit_tolerance(tolerance: float) -> float:
     return max(tolerance, IMPLICIT_TIGHTEST)
 
 
-def _stopped(model: Model, candidate: Candidate, tolerance: float, setup: Setup, trajectory: Trajectory) -> str:
-    """Why a reference run gave no reference, with the time, the state and the cause."""
+def _stopped(model: Model, candidate: Candidate, tolerance: float, setup: Setup, trajectory: Trajectory, needed: float | None = None) -> str:
+    """Why a reference run gave no reference, with the time, the state and the cause (`needed`: the steps
+    its probe's pace needs, when only the probe ran: `explicit_attempt`)."""
     what = f"{trajectory.settings.method} ({trajectory.settings.backend}), rtol {tol_text(tolerance)}"
+    if needed is not None:
+        return (
+            f"the reference run ({what}) cannot reach t = {setup.t_end:g} within its budget: a probe of {trajectory.stats.steps} steps reached t = {trajectory.t_last:.6g},"
+            f" a pace of about {needed:.3g} steps to t_end; state there: {state_text(model, trajectory.y_last)}"
+        )
     if over_step_budget(trajectory):
         return (
             f"the reference run ({what}) did not reach t = {setup.t_end:g} within {trajectory.stats.steps} steps"
@@ -237,6 +243,52 @@ def explicit_tolerances(tolerance: float, loosest: float) -> tuple[float, ...]:
     while len(rungs) < EXPLICIT_ATTEMPTS and rungs[-1] * 100 <= loosest * (1 + 1e-9):
         rungs.append(float(f"{rungs[-1] * 100:.12g}"))
     return tuple(rungs)
+
+
+PACE_PROBE = 0.1
+"""A compiled explicit reference run (`explicit_attempt`) first runs with this share of its step budget ..."""
+PACE_SKIP = 1.25
+"""... and, where that probe does not finish, is not run in full when its pace (steps over the share of the
+window done) needs more than this times its budget: it would spend the whole budget to learn that it
+cannot finish (the penalty pendulum of k = 1e9: DOP853 at rtol 2.5e-14 spent 2e6 compiled steps to reach
+t = 0.08 of 5, three times a regime, in its reference and its horizon)."""
+PACE_EXTENSION = 4.0
+"""Where an explicit run at the reference's rtol is the last before a costlier one (Radau stepping in
+Python), and for a compiled confirmation, the budget is raised to PACE_ROOM x what its pace needs, up to
+this times its budget (and the reference budget of --max-steps): the multiplier pendulum's long horizon,
+whose confirmation (compiled RK45 at 2.5e-14) ran out of its 2e6 steps, leaving the regime undecided."""
+PACE_ROOM = 1.25
+
+
+@dataclass(frozen=True)
+class Attempt:
+    """An explicit reference run (`explicit_attempt`): its trajectory, and when only its probe ran, the
+    compiled steps its pace needs to the window's end (else None)."""
+
+    trajectory: Trajectory
+    needed: float | None = None
+
+
+def explicit_attempt(model: Model, candidate: Candidate, rtol: float, setup: Setup, ceiling: int = 0) -> Attempt:
+    """A compiled explicit reference run within `setup`'s reference budget, paced: a probe with PACE_PROBE
+    of the budget first (when it finishes or fails it is the run: the same steps as a run with the whole
+    budget); where it runs out, its pace (compiled steps over the share of the window done) says how many
+    steps the run needs. Above PACE_SKIP x the budget (`ceiling` > 0: above the budget raised to at most
+    PACE_EXTENSION x, and `ceiling`) it is not run (the probe returned, `needed` set); else it runs in full,
+    with PACE_ROOM x what it needs when `ceiling` allows more than the budget. Counted in steps, never timed."""
+    budget = setup.reference_steps
+    probe = run(model, candidate, rtol, replace(setup, reference_max_steps=max(1, math.ceil(PACE_PROBE * budget))), reference=True)
+    if not over_step_budget(probe):
+        return Attempt(probe)
+    span = setup.t_end - probe.settings.t0
+    done = (probe.t_last - probe.settings.t0) / span if span > 0 else 0.0
+    needed = probe.stats.steps / done if done > 0 else math.inf  # compiled steps (a compiled run's budget is COMPILED_STEPS x the setup's)
+    scale = COMPILED_STEPS if probe.settings.backend == "compiled" else 1
+    limit = min(PACE_EXTENSION * budget, max(ceiling, budget)) if ceiling else PACE_SKIP * budget
+    if needed > limit * scale:
+        return Attempt(probe, needed)
+    steps = max(budget, min(math.floor(limit), math.ceil(PACE_ROOM * needed / scale))) if ceiling else budget
+    return Attempt(run(model, candidate, rtol, replace(setup, reference_max_steps=steps), reference=True))
 
 
 def _implicit_budget(model: Model, setup: Setup) -> int:
@@ -325,19 +377,25 @@ def _computed_reference(model: Model, setup: Setup, tolerance: float, hint: str,
     if primary.method not in IMPLICIT:
         capped = replace(setup, reference_max_steps=min(setup.reference_steps, EXPLICIT_REFERENCE_STEPS)) if primary.backend == "compiled" else setup
         tried: list[str] = []
-        for rtol in explicit_tolerances(tolerance, rtols[-1]):
-            main = run(model, primary, rtol, capped, reference=True)
+        attempts = explicit_tolerances(tolerance, rtols[-1])
+        for k, rtol in enumerate(attempts):
+            # at the reference's own rtol, the last explicit attempt may have more steps where its pace says they suffice (Radau
+            # in Python comes next); a looser one may not: DOP853 at 2.5e-10 over the penalty pendulum's long horizon, given
+            # them, disagreed with RK45 by 3.2e-7 but was 7e-7 off an independent reference, too close to the accuracy to vouch
+            extend = setup.reference_steps if k == len(attempts) - 1 and rtol <= tolerance * (1 + 1e-9) else 0
+            paced = explicit_attempt(model, primary, rtol, capped, extend) if primary.backend == "compiled" else None
+            main = paced.trajectory if paced is not None else run(model, primary, rtol, capped, reference=True)
             if not main.failed:
                 # the second method at the same rtol, else (round-off-limited there over a long horizon) compiled at
                 # LOOSER_CONFIRMATION x it, before Radau in Python (the multiplier pendulum and the hoop over t_end x 10:
                 # RK45 at 2.5e-14 ran out of its 2e6 steps, then Radau at 1e-10 its 20000, a third of `stress`'s time)
                 looser = [(second, r) for r in looser_confirmations(rtol, rtols[-1])] if second.backend == "compiled" else []
                 confirmations = [(second, rtol), *looser, (Candidate("Radau"), max(rtols[0], rtol))]
-                found = _confirmed(model, capped, main, rtol, confirmations, time.perf_counter() - began)
+                found = _confirmed(model, capped, main, rtol, confirmations, time.perf_counter() - began, ceiling=setup.reference_steps)
                 if implicit:  # `stress` (its loosest implicit rtol, 0.1 x the accuracy, is what a reference must reach to vouch)
                     found = _converged(model, capped, main, rtol, found, primary, rtols[-1], time.perf_counter() - began)
                 return replace(found, description=f"{found.description} (looser than rtol {tol_text(tolerance)}: {'; '.join(tried)})") if tried else found
-            tried.append(_stopped(model, primary, rtol, capped, main))
+            tried.append(_stopped(model, primary, rtol, capped, main, paced.needed if paced is not None else None))
             if main.outcome != Status.BUDGET:
                 break  # a blow-up or a singular matrix: a looser tolerance will not pass it
             if stiff_at(model, setup, main.t_last, main.y_last):
@@ -509,14 +567,17 @@ def _tightened(model: Model, setup: Setup, main: Trajectory, tolerance: float, f
     return found
 
 
-def _confirmed(model: Model, setup: Setup, main: Trajectory, tolerance: float, confirmations: list[tuple[Candidate, float]], seconds: float) -> Reference:
+def _confirmed(model: Model, setup: Setup, main: Trajectory, tolerance: float, confirmations: list[tuple[Candidate, float]], seconds: float, ceiling: int = 0) -> Reference:
     """`main` as the reference, confirmed by the first of `confirmations` that finishes (own error:
-    their largest scaled disagreement), unconfirmed (own error nan) when none does."""
+    their largest scaled disagreement), unconfirmed (own error nan) when none does. A compiled
+    explicit confirmation is paced (`explicit_attempt`, up to `ceiling` steps when > 0): one that cannot
+    finish does not spend its whole budget to learn it."""
     scale = component_scale(main.y)
     own, confirm = math.nan, f"unconfirmed: {', '.join(c.method for c, _ in confirmations)} did not finish"
     confirmed_rtol = math.nan
     for candidate, rtol in confirmations:
-        other = run(model, candidate, rtol, setup, reference=True)
+        paced = candidate.backend == "compiled" and candidate.method in ("RK45", "DOP853")
+        other = explicit_attempt(model, candidate, rtol, setup, ceiling).trajectory if paced else run(model, candidate, rtol, setup, reference=True)
         if not other.failed and len(other.t) == len(main.t):
             own = float(np.max(scaled_errors(other.y, main.y, scale)))
             at = "at the same tolerance" if rtol == tolerance else f"at rtol {tol_text(rtol)}"
@@ -554,13 +615,13 @@ def horizon(model: Model, setup: Setup, tolerance: float) -> Horizon | None:
 
 def _horizon(model: Model, setup: Setup, tolerance: float) -> Horizon | None:
     if model.constraints:
-        return None  # moving the state would violate the constraints (checked before the base run: 3 s of DOP853 at 2.5e-14 over the multiplier pendulum's t = 1e4)
+        return None  # moving the state would violate the constraints (decided before the base run, which was then thrown away: up to 2e6 steps a regime)
     primary, _ = reference_candidates(model, setup, tolerance)
     if primary.method in IMPLICIT:
         return None  # stiff (dissipative) at the start: two more tight implicit runs would cost more than the whole study
     if primary.backend == "compiled":
         setup = replace(setup, reference_max_steps=min(setup.reference_steps, EXPLICIT_REFERENCE_STEPS))  # as the reference's own attempts
-    base = run(model, primary, tolerance, setup, reference=True)
+    base = explicit_attempt(model, primary, tolerance, setup).trajectory if primary.backend == "compiled" else run(model, primary, tolerance, setup, reference=True)
     if base.failed:
         return None
     names = [*model.coordinates, *(f"{c}_dot" for c in model.coordinates)]

@@ -568,10 +568,12 @@ at rtol 1e-5, then 3.5 s at 1e-6 to meet the accuracy 2.4 x slower)."""
 PYTHON_AFTER_COMPILED = 2.0
 """Once a compiled run meets the accuracy, a scipy run (Python right-hand side) is stopped at this
 many times its work: `work` already counts a compiled evaluation as 1/COMPILED_STEPS of a scipy one,
-where it costs 1/400-1/500 as much (73 ns against 31-62 us), so such a run is already 8x slower
+where it costs 1/170-1/500 as much (73-170 ns against 29-62 us), so such a run is already 3-8x slower
 than the compiled one and cannot be the recommendation nor tie with it (the penalty pendulum of
 k = 1e9: scipy's RK45, Radau, BDF and LSODA spent 38 of the defaults regime's 46 s losing to
-compiled DOP853's 0.05 s run at 10-30x)."""
+compiled DOP853's 0.05 s run at 10-30x). Not lower: 0.5 was tried, and on the stiff elastic pendulum
+started near r = 0 (compiled evaluations 170 ns, LSODA's 29 us) it stopped LSODA's ladder before rtol
+1e-8, whose run is 2x faster than compiled RK45's, so the recommendation became the slower method."""
 
 
 def predicted_growth(previous: Point | None, last: Point | None) -> float:
