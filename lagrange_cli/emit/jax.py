@@ -153,6 +153,7 @@ class _Writer(Storage):
         self.signals = frozenset(i.name for i in model.inputs)
         Storage.__init__(self, model.n + len(model.constraints))
         self.uses_chunks = False
+        self.uses_columns = False
         n = model.n
         self.upper = [(i, j) for i in range(n) for j in range(i, n)]
         forms = model.symengine
@@ -235,6 +236,10 @@ class _Writer(Storage):
         c = results[len(self.mass) + n + n * k :]
         body = [*self.unpack("y", self.uses_inputs(exprs)), *lines]
         zero = {ij for ij, expr in zip(self.upper, self.mass, strict=True) if expr == 0}
+        if not k and n >= COLUMNS_MIN:
+            self.uses_columns = self.uses_kept = True
+            rows = ", ".join("(" + ", ".join(m[(min(i, j), max(i, j))] for j in range(n)) + ",)" for i in range(n))
+            return [*body, f"_x = _spd_solve(({rows},), _array([{', '.join(f)}]))"]
         if n + k <= UNROLLED_MAX:
             mass = {ij: (None if ij in zero else code) for ij, code in m.items()}
             jacobian = [[None if self.jacobian[r * n + j] == 0 else a[r * n + j] for j in range(n)] for r in range(k)]
@@ -313,6 +318,7 @@ class _Writer(Storage):
             "real power) the result is NaN, and a singular mass matrix gives inf or NaN: code under jax.jit cannot raise.",
             *SINCOS_NOTE * self.uses_sincos,
             *CHUNKS_NOTE * self.uses_chunks,
+            *COLUMNS_NOTE * self.uses_columns,
         ]
         if self.definitions:
             header += ["", written_definitions(self.definitions)]
@@ -327,8 +333,10 @@ class _Writer(Storage):
             f"NP = {len(model.parameters)}",
             *input_constants(model),
         ]
-        head = docstring("\n".join([*header, ""])) + "\n\n" + ("import jax\n" if self.uses_sincos or self.uses_chunks else "") + "import jax.numpy as jnp\n\n" + "\n".join(constants)
-        helpers = [*_helpers(model), *kept_helper(self.uses_kept), *sincos_helper(self.uses_sincos), *chunks_helper(self.uses_chunks)]
+        head = (
+            docstring("\n".join([*header, ""])) + "\n\n" + ("import jax\n" if self.uses_sincos or self.uses_chunks or self.uses_columns else "") + "import jax.numpy as jnp\n\n" + "\n".join(constants)
+        )
+        helpers = [*_helpers(model), *kept_helper(self.uses_kept), *sincos_helper(self.uses_sincos), *chunks_helper(self.uses_chunks), *columns_helper(self.uses_columns)]
         return head + "\n\n\n" + "\n\n\n".join([*helpers, *functions]) + "\n"
 
     def outputs(self) -> str:
@@ -503,6 +511,77 @@ def chunks_helper(used: bool = True) -> list[str]:
         "return _chunked",
     ]
     return [f"_CHUNK = {CHUNK}", define("_in_chunks", "f", doc, body)]
+
+
+COLUMNS_MIN = 5
+"""Smallest n (coordinates; no kept constraints) whose rhs solves M q_ddot = F by `_spd_solve` (`columns_helper`: L D L^T
+one column of L at a time, each column one fused loop over the batch) rather than by `unrolled_solve` or `jnp.linalg.solve`
+(benchmarks/jax_bench.py --columns-min; BENCHMARKS.md, helper `jaxvec`, 2026-11-27)."""
+
+COLUMNS_NOTE = [
+    "",
+    "rhs solves M q_ddot = F by _spd_solve: L D L^T without pivoting (M is symmetric positive definite), a column",
+    "of L at a time as one array, so that under jax.vmap each column is one loop over the batch; it is wrapped in",
+    "jax.lax.custom_linear_solve, so jax.grad and jax.jvp differentiate x = M^-1 F (through M and F) with the same",
+    "solve. (Not jnp.linalg.solve: XLA on CPU runs that as one LAPACK call per state, several times slower here.)",
+]
+"""The module docstring's paragraph on `_spd_solve`."""
+
+
+def columns_helper(used: bool = True) -> list[str]:
+    """The definitions of `_ldl_columns`, `_ldl_batched` and `_spd_solve` (nothing when not `used`); the module imports
+    `jax` and defines `_kept`."""
+    if not used:
+        return []
+    columns = [
+        "_n = len(a)",
+        "_lows, _scaled = [], []",
+        "for _j in range(_n):",
+        "    _v = jnp.stack([a[_i][_j] for _i in range(_j, _n)] + [b[_j]])",
+        "    for _k in range(_j):",
+        "        _v = _v - _lows[_k][_j - _k - 1 :] * _scaled[_k][_j - _k - 1]",
+        "    _v = _kept(_v)",
+        "    _scaled.append(_v[1:])",
+        "    _lows.append(_v[1:] / _v[0])",
+        "_x = [b[0]] * _n",
+        "for _j in reversed(range(_n)):",
+        "    _s = _lows[_j][_n - _j - 1]",
+        "    for _i in range(_j + 1, _n):",
+        "        _s = _s - _lows[_j][_i - _j - 1] * _x[_i]",
+        "    _x[_j] = _kept(_s) if _j else _s",
+        "return jnp.stack(_x)",
+    ]
+    columns_doc = (
+        "x of a x = b, for a (rows of n scalars, symmetric positive definite: only a[i][j] with i >= j is read) and b (n\n"
+        "values); each scalar may be an array of a batch (the batch last), and so is each component of x. Left-looking\n"
+        "L D L^T of the bordered matrix [[a, b], [b^T, 0]] without pivoting (no square roots): column j of L and D L^T\n"
+        "is one array a[j:, j] - sum_k L[j:, k] (D L^T)[k, j] (stored, `_kept`), and the bordered row gives\n"
+        "w = D^-1 L^-1 b; then x = L^-T w, one component at a time."
+    )
+    batched_doc = (
+        "_ldl_columns(a, b), with a batching rule: under jax.vmap each scalar of a is an array of the batch and b\n"
+        "is moved to (n, batch), so that every column of L is one loop over n - j times the batch values."
+    )
+    rule = [
+        "a = jax.tree.map(lambda _e, _t: _e if _t else jnp.broadcast_to(_e, (size,)), a, batched[0])",
+        "b = jnp.moveaxis(b, 0, -1) if batched[1] else jnp.broadcast_to(b[..., None], (*b.shape, size))",
+        "return jnp.moveaxis(_ldl_columns(a, b), -1, 0), True",
+    ]
+    solve_doc = (
+        "x of a x = b for a symmetric positive definite a (rows of n scalars) and an array b of n values, by\n"
+        "_ldl_batched inside jax.lax.custom_linear_solve (symmetric): jax.jvp and jax.grad differentiate x = a^-1 b\n"
+        "through a and b by the same solve."
+    )
+    solve = [
+        "_matvec = lambda _v: jnp.stack([sum(_e * _v[_j] for _j, _e in enumerate(_row)) for _row in a])",
+        "return jax.lax.custom_linear_solve(_matvec, b, lambda _f, _r: _ldl_batched(a, _r), symmetric=True)",
+    ]
+    return [
+        define("_ldl_columns", "a, b", columns_doc, columns),
+        "@jax.custom_batching.custom_vmap\n" + define("_ldl_batched", "a, b", batched_doc, ["return _ldl_columns(a, b)"]),
+        "@_ldl_batched.def_vmap\n" + define("_ldl_batched_rule", "size, batched, a, b", "The batching rule of _ldl_batched.", rule),
+        define("_spd_solve", "a, b", solve_doc, solve),
+    ]
 
 
 def kept(code: str) -> str:
