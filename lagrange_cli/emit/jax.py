@@ -6,9 +6,12 @@ and `rhs(t, y, p)` with y = [q..., q_dot...] (with kept constraints also `accele
 `multipliers` and `constraint_residuals`). Every function is straight-line jnp code (no Python
 control flow on values, no in-place updates), so `jax.jit`, `jax.vmap` and `jax.grad` apply;
 the accelerations solve M q_ddot = F (or [[M, -A^T], [A, 0]] [q_ddot, lambda] = [F, -c] for kept
-constraints, as in the Python module): by unrolled scalar L D L^T code (`unrolled_solve`; the Schur
-complement for kept constraints) up to `UNROLLED_MAX` unknowns, which `jax.vmap` turns into
-elementwise operations over the batch, and by `jnp.linalg.solve` above. From n + k = `CHUNKED_MIN` the
+constraints, as in the Python module): without kept constraints, from `COLUMNS_MIN` coordinates, by the
+module's `_spd_solve` (`columns_helper`: L D L^T a column at a time, each column one array, the batch last under
+`jax.vmap`, inside `jax.lax.custom_linear_solve` for the derivatives); otherwise by unrolled scalar L D L^T code
+(`unrolled_solve`; the Schur complement for kept constraints) up to `UNROLLED_MAX` unknowns, which `jax.vmap`
+turns into elementwise operations over the batch, and by `jnp.linalg.solve` above (one LAPACK call per state on
+CPU, the slowest of the three over a batch: BENCHMARKS.md). From n + k = `CHUNKED_MIN` the
 module's `rhs` goes through `_in_chunks`, so that `jax.vmap` over many states evaluates it `CHUNK` states at a
 time (same values; derivatives of the plain function); below `KEEP_MIN` nothing is stored through `_kept`. `emit_hamilton` writes
 Hamilton's equations (`derive --to jax --form hamilton`). `p` is optional everywhere: None means the file's
