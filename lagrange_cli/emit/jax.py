@@ -239,7 +239,7 @@ class _Writer(Storage):
         c = results[len(self.mass) + n + n * k :]
         body = [*self.unpack("y", self.uses_inputs(exprs)), *lines]
         zero = {ij for ij, expr in zip(self.upper, self.mass, strict=True) if expr == 0}
-        if not k and n >= COLUMNS_MIN:
+        if not k and n >= COLUMNS_MIN and 2 * len(zero) <= len(self.upper):
             self.uses_columns = self.uses_kept = True
             rows = ", ".join("(" + ", ".join(m[(min(i, j), max(i, j))] for j in range(n)) + ",)" for i in range(n))
             return [*body, f"_x = _spd_solve(({rows},), _array([{', '.join(f)}]))"]
@@ -519,7 +519,9 @@ def chunks_helper(used: bool = True) -> list[str]:
 COLUMNS_MIN = 5
 """Smallest n (coordinates; no kept constraints) whose rhs solves M q_ddot = F by `_spd_solve` (`columns_helper`: L D L^T
 one column of L at a time, each column one fused loop over the batch) rather than by `unrolled_solve` or `jnp.linalg.solve`
-(benchmarks/jax_bench.py --columns-min; BENCHMARKS.md, helper `jaxvec`, 2026-11-27)."""
+(benchmarks/jax_bench.py --columns-min; BENCHMARKS.md, helper `jaxvec`, 2026-11-27). Only for a mass matrix with at most half
+its upper triangle structurally zero: `_spd_solve` does the dense work, where `unrolled_solve` skips the zeros (a diagonal M
+costs n divisions); that bound is a judgement, not a measurement."""
 
 COLUMNS_NOTE = [
     "",
