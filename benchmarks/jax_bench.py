@@ -10,6 +10,8 @@ Python loop over the pure-Python module's `rhs`, both in the same run.
     .venv/bin/python benchmarks/jax_bench.py --keep-min 1       # `_kept` at every size (the module before `KEEP_MIN`)
     .venv/bin/python benchmarks/jax_bench.py --threads both     # XLA's default threads and one thread, each in its own process
     .venv/bin/python benchmarks/jax_bench.py --columns-min 1000 # never the module's `_spd_solve` (the unrolled solve up to UNROLLED_MAX)
+    .venv/bin/python benchmarks/jax_bench.py --ab-columns-min 1000 --sizes 5 10 15 20   # that module against the default one,
+                                                                # one process, interleaved rounds (CPU time medians)
     .venv/bin/python benchmarks/jax_bench.py --array-solve left # the first array solves tried (ARRAY_SOLVES; helper `jaxvec`): not kept
 
 For each system: `derive --to jax` (64-bit mode) and `derive --to python`; 10^4 states drawn with
@@ -211,6 +213,46 @@ def bench(label: str, text: str, states: int, folder: Path) -> dict[str, Any]:
     }
 
 
+def ab_columns(sizes: list[int], other: int, states: int, rounds: int = 21, calls: int = 4) -> None:
+    """The general chain of each size written with COLUMNS_MIN = `other` ("other") and as by default ("default"), both
+    jitted in this process and timed in interleaved rounds of `calls` calls (CPU time, `time.process_time`); prints the
+    median and the least round per call of each, and checks that the two agree."""
+    import jax
+    import jax.numpy as jnp
+
+    from lagrange_cli import derive, spec
+    from lagrange_cli.emit import jax as jax_target
+
+    default = jax_target.COLUMNS_MIN
+    print(f"interleaved in one process, {rounds} rounds of {calls} calls, {states} states, CPU ms per call (median / least), load average {os.getloadavg()}")
+    print(f"| n | COLUMNS_MIN = {other} | COLUMNS_MIN = {default} (default) | default / other |")
+    print("|---|---|---|---|")
+    with tempfile.TemporaryDirectory() as folder:
+        for n in sizes:
+            model = derive.derive(spec.parse(pendulum.Chain("general", n).yaml(), f"chain_{n}.yaml"))
+            functions = {}
+            for label, value in (("other", other), ("default", default)):
+                jax_target.COLUMNS_MIN = value
+                module = load(jax_target.emit(model), Path(folder) / f"chain_{n}_{label}.py")
+                functions[label] = jax.jit(jax.vmap(module.rhs, in_axes=(None, 0, None)))
+            jax_target.COLUMNS_MIN = default
+            ys = jnp.asarray(np.random.default_rng(0).uniform(-1.0, 1.0, (states, 2 * n)))
+            results = {label: f(0.0, ys, None).block_until_ready() for label, f in functions.items()}
+            np.testing.assert_allclose(np.asarray(results["default"]), np.asarray(results["other"]), rtol=1e-9, atol=1e-11)
+            times: dict[str, list[float]] = {label: [] for label in functions}
+            for _ in range(rounds):
+                for label, f in functions.items():
+                    start = time.process_time()
+                    for _ in range(calls - 1):
+                        f(0.0, ys, None)
+                    f(0.0, ys, None).block_until_ready()
+                    times[label].append((time.process_time() - start) / calls)
+            cells = {label: f"{statistics.median(v) * 1e3:.3f} / {min(v) * 1e3:.3f}" for label, v in times.items()}
+            ratio = statistics.median(times["default"]) / statistics.median(times["other"])
+            print(f"| {n} | {cells['other']} | {cells['default']} | {ratio:.2f} |", flush=True)
+    print(f"load average at the end {os.getloadavg()}")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--states", type=int, default=10_000)
@@ -221,6 +263,7 @@ def main() -> None:
     parser.add_argument("--no-chunks", action="store_true", help="lagrange_cli.emit.jax.CHUNKED_MIN = infinity: rhs evaluates the whole batch at once")
     parser.add_argument("--keep-min", type=int, default=None, help="override lagrange_cli.emit.jax.KEEP_MIN (1: `_kept` at every size)")
     parser.add_argument("--columns-min", type=int, default=None, help="override lagrange_cli.emit.jax.COLUMNS_MIN (1000: never `_spd_solve`)")
+    parser.add_argument("--ab-columns-min", type=int, default=None, help="only: the chains of --sizes with this COLUMNS_MIN against the default, interleaved in one process")
     parser.add_argument("--array-solve", choices=sorted(ARRAY_SOLVES), default=None, help="the solve on arrays (ARRAY_SOLVES) instead of the unrolled one, at every n")
     parser.add_argument("--chunk", type=int, default=None, help="override lagrange_cli.emit.jax.CHUNK (states per chunk)")
     parser.add_argument(
@@ -243,6 +286,9 @@ def main() -> None:
     os.sched_setaffinity(0, cpus)
     from lagrange_cli.emit import jax as jax_target
 
+    if args.ab_columns_min is not None:
+        ab_columns(args.sizes, args.ab_columns_min, args.states)
+        return
     if args.unrolled_max is not None:
         jax_target.UNROLLED_MAX = args.unrolled_max
     jax_target.KEEP = not args.no_kept

@@ -516,12 +516,14 @@ def chunks_helper(used: bool = True) -> list[str]:
     return [f"_CHUNK = {CHUNK}", define("_in_chunks", "f", doc, body)]
 
 
-COLUMNS_MIN = 5
+COLUMNS_MIN = 11
 """Smallest n (coordinates; no kept constraints) whose rhs solves M q_ddot = F by `_spd_solve` (`columns_helper`: L D L^T
-one column of L at a time, each column one fused loop over the batch) rather than by `unrolled_solve` or `jnp.linalg.solve`
-(benchmarks/jax_bench.py --columns-min; BENCHMARKS.md, helper `jaxvec`, 2026-11-27). Only for a mass matrix with at most half
-its upper triangle structurally zero: `_spd_solve` does the dense work, where `unrolled_solve` skips the zeros (a diagonal M
-costs n divisions); that bound is a judgement, not a measurement."""
+one column of L at a time, each column one fused loop over the batch) rather than by `unrolled_solve` or `jnp.linalg.solve`.
+Measured (benchmarks/jax_bench.py --ab-columns-min 1000; BENCHMARKS.md, helper `jaxvec`, 2026-11-27): CPU time 10-25%
+lower at 15 and 20 links in every interleaved run; at 5 and 10 links faster in one run and slower or equal in another, so
+not used there (11 to 14 not measured). Only for a mass matrix with at most half its upper triangle structurally zero:
+`_spd_solve` does the dense work, where `unrolled_solve` skips the zeros (a diagonal M costs n divisions); that bound is a
+judgement, not a measurement."""
 
 COLUMNS_NOTE = [
     "",
