@@ -6,9 +6,12 @@ and `rhs(t, y, p)` with y = [q..., q_dot...] (with kept constraints also `accele
 `multipliers` and `constraint_residuals`). Every function is straight-line jnp code (no Python
 control flow on values, no in-place updates), so `jax.jit`, `jax.vmap` and `jax.grad` apply;
 the accelerations solve M q_ddot = F (or [[M, -A^T], [A, 0]] [q_ddot, lambda] = [F, -c] for kept
-constraints, as in the Python module): by unrolled scalar L D L^T code (`unrolled_solve`; the Schur
-complement for kept constraints) up to `UNROLLED_MAX` unknowns, which `jax.vmap` turns into
-elementwise operations over the batch, and by `jnp.linalg.solve` above. From n + k = `CHUNKED_MIN` the
+constraints, as in the Python module): without kept constraints, from `COLUMNS_MIN` coordinates, by the
+module's `_spd_solve` (`columns_helper`: L D L^T a column at a time, each column one array, the batch last under
+`jax.vmap`, inside `jax.lax.custom_linear_solve` for the derivatives); otherwise by unrolled scalar L D L^T code
+(`unrolled_solve`; the Schur complement for kept constraints) up to `UNROLLED_MAX` unknowns, which `jax.vmap`
+turns into elementwise operations over the batch, and by `jnp.linalg.solve` above (one LAPACK call per state on
+CPU, the slowest of the three over a batch: BENCHMARKS.md). From n + k = `CHUNKED_MIN` the
 module's `rhs` goes through `_in_chunks`, so that `jax.vmap` over many states evaluates it `CHUNK` states at a
 time (same values; derivatives of the plain function); below `KEEP_MIN` nothing is stored through `_kept`. `emit_hamilton` writes
 Hamilton's equations (`derive --to jax --form hamilton`). `p` is optional everywhere: None means the file's
@@ -153,6 +156,7 @@ class _Writer(Storage):
         self.signals = frozenset(i.name for i in model.inputs)
         Storage.__init__(self, model.n + len(model.constraints))
         self.uses_chunks = False
+        self.uses_columns = False
         n = model.n
         self.upper = [(i, j) for i in range(n) for j in range(i, n)]
         forms = model.symengine
@@ -235,6 +239,10 @@ class _Writer(Storage):
         c = results[len(self.mass) + n + n * k :]
         body = [*self.unpack("y", self.uses_inputs(exprs)), *lines]
         zero = {ij for ij, expr in zip(self.upper, self.mass, strict=True) if expr == 0}
+        if not k and n >= COLUMNS_MIN and 2 * len(zero) <= len(self.upper):
+            self.uses_columns = self.uses_kept = True
+            rows = ", ".join("(" + ", ".join(m[(min(i, j), max(i, j))] for j in range(n)) + ",)" for i in range(n))
+            return [*body, f"_x = _spd_solve(({rows},), _array([{', '.join(f)}]))"]
         if n + k <= UNROLLED_MAX:
             mass = {ij: (None if ij in zero else code) for ij, code in m.items()}
             jacobian = [[None if self.jacobian[r * n + j] == 0 else a[r * n + j] for j in range(n)] for r in range(k)]
@@ -313,6 +321,7 @@ class _Writer(Storage):
             "real power) the result is NaN, and a singular mass matrix gives inf or NaN: code under jax.jit cannot raise.",
             *SINCOS_NOTE * self.uses_sincos,
             *CHUNKS_NOTE * self.uses_chunks,
+            *COLUMNS_NOTE * self.uses_columns,
         ]
         if self.definitions:
             header += ["", written_definitions(self.definitions)]
@@ -327,8 +336,10 @@ class _Writer(Storage):
             f"NP = {len(model.parameters)}",
             *input_constants(model),
         ]
-        head = docstring("\n".join([*header, ""])) + "\n\n" + ("import jax\n" if self.uses_sincos or self.uses_chunks else "") + "import jax.numpy as jnp\n\n" + "\n".join(constants)
-        helpers = [*_helpers(model), *kept_helper(self.uses_kept), *sincos_helper(self.uses_sincos), *chunks_helper(self.uses_chunks)]
+        head = (
+            docstring("\n".join([*header, ""])) + "\n\n" + ("import jax\n" if self.uses_sincos or self.uses_chunks or self.uses_columns else "") + "import jax.numpy as jnp\n\n" + "\n".join(constants)
+        )
+        helpers = [*_helpers(model), *kept_helper(self.uses_kept), *sincos_helper(self.uses_sincos), *chunks_helper(self.uses_chunks), *columns_helper(self.uses_columns)]
         return head + "\n\n\n" + "\n\n\n".join([*helpers, *functions]) + "\n"
 
     def outputs(self) -> str:
@@ -503,6 +514,81 @@ def chunks_helper(used: bool = True) -> list[str]:
         "return _chunked",
     ]
     return [f"_CHUNK = {CHUNK}", define("_in_chunks", "f", doc, body)]
+
+
+COLUMNS_MIN = 11
+"""Smallest n (coordinates; no kept constraints) whose rhs solves M q_ddot = F by `_spd_solve` (`columns_helper`: L D L^T
+one column of L at a time, each column one fused loop over the batch) rather than by `unrolled_solve` or `jnp.linalg.solve`.
+Measured (benchmarks/jax_bench.py --ab-columns-min 1000; BENCHMARKS.md, helper `jaxvec`, 2026-11-27): CPU time 10-25%
+lower at 15 and 20 links in every interleaved run; at 5 and 10 links faster in one run and slower or equal in another, so
+not used there (11 to 14 not measured). Only for a mass matrix with at most half its upper triangle structurally zero:
+`_spd_solve` does the dense work, where `unrolled_solve` skips the zeros (a diagonal M costs n divisions); that bound is a
+judgement, not a measurement."""
+
+COLUMNS_NOTE = [
+    "",
+    "rhs solves M q_ddot = F by _spd_solve: L D L^T without pivoting (M is symmetric positive definite), a column",
+    "of L at a time as one array, so that under jax.vmap each column is one loop over the batch; it is wrapped in",
+    "jax.lax.custom_linear_solve, so jax.grad and jax.jvp differentiate x = M^-1 F (through M and F) with the same",
+    "solve. (Not jnp.linalg.solve: XLA on CPU runs that as one LAPACK call per state, several times slower here.)",
+]
+"""The module docstring's paragraph on `_spd_solve`."""
+
+
+def columns_helper(used: bool = True) -> list[str]:
+    """The definitions of `_ldl_columns`, `_ldl_batched` and `_spd_solve` (nothing when not `used`); the module imports
+    `jax` and defines `_kept`."""
+    if not used:
+        return []
+    columns = [
+        "_n = len(a)",
+        "_lows, _scaled = [], []",
+        "for _j in range(_n):",
+        "    _v = jnp.stack([a[_i][_j] for _i in range(_j, _n)] + [b[_j]])",
+        "    for _k in range(_j):",
+        "        _v = _v - _lows[_k][_j - _k - 1 :] * _scaled[_k][_j - _k - 1]",
+        "    _v = _kept(_v)",
+        "    _scaled.append(_v[1:])",
+        "    _lows.append(_v[1:] / _v[0])",
+        "_x = [b[0]] * _n",
+        "for _j in reversed(range(_n)):",
+        "    _s = _lows[_j][_n - _j - 1]",
+        "    for _i in range(_j + 1, _n):",
+        "        _s = _s - _lows[_j][_i - _j - 1] * _x[_i]",
+        "    _x[_j] = _kept(_s) if _j else _s",
+        "return jnp.stack(_x)",
+    ]
+    columns_doc = (
+        "x of a x = b, for a (rows of n scalars, symmetric positive definite: only a[i][j] with i >= j is read) and b (n\n"
+        "values); each scalar may be an array of a batch (the batch last), and so is each component of x. Left-looking\n"
+        "L D L^T of the bordered matrix [[a, b], [b^T, 0]] without pivoting (no square roots): column j of L and D L^T\n"
+        "is one array a[j:, j] - sum_k L[j:, k] (D L^T)[k, j] (stored, `_kept`), and the bordered row gives\n"
+        "w = D^-1 L^-1 b; then x = L^-T w, one component at a time."
+    )
+    batched_doc = (
+        "_ldl_columns(a, b), with a batching rule: under jax.vmap each scalar of a is an array of the batch and b\n"
+        "is moved to (n, batch), so that every column of L is one loop over n - j times the batch values."
+    )
+    rule = [
+        "a = jax.tree.map(lambda _e, _t: _e if _t else jnp.broadcast_to(_e, (size,)), a, batched[0])",
+        "b = jnp.moveaxis(b, 0, -1) if batched[1] else jnp.broadcast_to(b[..., None], (*b.shape, size))",
+        "return jnp.moveaxis(_ldl_columns(a, b), -1, 0), True",
+    ]
+    solve_doc = (
+        "x of a x = b for a symmetric positive definite a (rows of n scalars) and an array b of n values, by\n"
+        "_ldl_batched inside jax.lax.custom_linear_solve (symmetric): jax.jvp and jax.grad differentiate x = a^-1 b\n"
+        "through a and b by the same solve."
+    )
+    solve = [
+        "_matvec = lambda _v: jnp.stack([sum(_e * _v[_j] for _j, _e in enumerate(_row)) for _row in a])",
+        "return jax.lax.custom_linear_solve(_matvec, b, lambda _f, _r: _ldl_batched(a, _r), symmetric=True)",
+    ]
+    return [
+        define("_ldl_columns", "a, b", columns_doc, columns),
+        "@jax.custom_batching.custom_vmap\n" + define("_ldl_batched", "a, b", batched_doc, ["return _ldl_columns(a, b)"]),
+        "@_ldl_batched.def_vmap\n" + define("_ldl_batched_rule", "size, batched, a, b", "The batching rule of _ldl_batched.", rule),
+        define("_spd_solve", "a, b", solve_doc, solve),
+    ]
 
 
 def kept(code: str) -> str:
