@@ -139,3 +139,25 @@ def test_sweep_takes_the_stages() -> None:
         rows = [line.split(",") for line in result.stdout.splitlines() if line[:2] in ("0,", "1,")]
         errors[stages] = max(float(row[-1]) for row in rows)
     assert errors[3] < 1e-3 * errors[1], errors
+
+
+def test_a_run_longer_than_simulates_budget_prints_the_budget_it_needs(study, model) -> None:  # type: ignore[no-untyped-def]
+    """A study's budget (stress: 60 000 scipy steps, 100 x as many compiled) can exceed `simulate`'s default (20 000 and
+    10^6): the printed command then gives `--max-steps`, so that it runs to the end as the study's run did."""
+    from dataclasses import replace
+
+    from lagrange_cli.numeric.integrators import MAX_STEPS
+
+    point = next(p for p in study.points if p.ok and p.ran is not None and p.ran.method == "DOP853")
+    assert "--max-steps" not in (simulate_options(point) or [])  # within the default: nothing to add
+    longer = replace(point, steps=MAX_STEPS[point.ran.backend] + 1)
+    command = simulate_command("simple_pendulum", model, longer)
+    assert command is not None and parsed(command)["max_steps"] == 2 * (MAX_STEPS[point.ran.backend] + 1)
+
+
+@pytest.mark.parametrize(("budget", "code"), [("5", 1), ("0", 2), ("x", 2)])
+def test_simulate_max_steps_is_the_run_budget(budget: str, code: int) -> None:
+    result = runner.invoke(app, ["simulate", FILE, "--method", "RK45", "--backend", "python", "--t-end", "10", "--max-steps", budget, "-q"])
+    assert result.exit_code == code, result.output
+    if code == 1:
+        assert "stopped after 5 steps (the step budget)" in result.output and "--max-steps" in result.output, result.output

@@ -59,6 +59,7 @@ check_runs = _checker(f"a whole number from 1 to {MAX_RUNS}", lambda x: 1 <= x <
 check_seed = _checker("a whole number from 0 to 2**32 - 1", lambda x: 0 <= x <= 2**32 - 1)
 check_workers = _checker("a whole number from 1 to 256", lambda x: 1 <= x <= 256)
 check_batch = _checker("a whole number from 1 to 1000000", lambda x: 1 <= x <= 1_000_000)
+check_steps = _checker("a whole number from 1 to 1000000000", lambda x: 1 <= x <= 1e9)
 
 
 # --- NAME=VALUE options --------------------------------------------------------------------------

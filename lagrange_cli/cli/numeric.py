@@ -11,7 +11,7 @@ from typing import TYPE_CHECKING, Annotated, Any
 import typer
 
 from lagrange_cli.cli import app, check_outputs, fail_with, write_atomically
-from lagrange_cli.cli.boundary import check_fraction, check_positive, check_samples, check_stages
+from lagrange_cli.cli.boundary import check_fraction, check_positive, check_samples, check_stages, check_steps
 
 if TYPE_CHECKING:
     from lagrange_cli.model import Model
@@ -36,6 +36,9 @@ def simulate(
     ] = None,
     max_step: Annotated[float | None, typer.Option("--max-step", help="Largest step of adaptive methods.", callback=check_positive)] = None,
     samples: Annotated[int | None, typer.Option(help="Number of evenly spaced output times (default 1001).", callback=check_samples)] = None,
+    max_steps: Annotated[
+        int | None, typer.Option("--max-steps", callback=check_steps, help="Step budget of the run: it stops (exit 1) after this many steps (default 20000 through scipy, 1000000 compiled).")
+    ] = None,
     until: Annotated[str | None, typer.Option(help='Stop when this expression of the state crosses zero, e.g. "lambda_c" or "x - 1".')] = None,
     input_: Annotated[
         list[str] | None,
@@ -82,6 +85,7 @@ def simulate(
                 until=until,
                 backend=backend,
                 max_step=max_step,
+                max_steps=max_steps,
                 progress=progress,
                 projection=projection,
             )

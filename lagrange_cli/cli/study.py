@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING, Annotated
 import typer
 
 from lagrange_cli.cli import app, check_outputs, fail_with, write_atomically
-from lagrange_cli.cli.boundary import _checker, check_fraction, check_positive, check_repeats, check_samples, inert, plain
+from lagrange_cli.cli.boundary import check_fraction, check_positive, check_repeats, check_samples, check_steps, inert, plain
 
 if TYPE_CHECKING:
     from rich.console import Console
@@ -84,7 +84,6 @@ STUDY_STEPS, STRESS_STEPS = 200_000, 60_000  # accuracy.MAX_STEPS and stress.MAX
 STEPS_HELP = "Step budget of one run, counted (never timed) so that results do not depend on the machine's load: scipy steps; compiled runs may take 100 x as many, reference runs 10 x."
 TIME_LIMIT_HELP = "Optional safety net: seconds after which one measured run is stopped and reported as undecided (never as failed). Default: none."
 QUIET_HELP = "Show no progress on stderr."
-check_steps = _checker("a whole number from 1 to 1000000000", lambda x: 1 <= x <= 1e9)
 
 
 def _write_text(path: Path, text: str) -> None:

@@ -34,6 +34,10 @@ def simulate_options(point: Point) -> list[str] | None:
         options += ["--rtol", exact_text(s.rtol), "--atol", exact_text(s.atol)]
         if math.isfinite(s.max_step):
             options += ["--max-step", exact_text(s.max_step)]
+    from lagrange_cli.numeric.integrators import MAX_STEPS
+
+    if point.steps > MAX_STEPS.get(point.ran.backend, 0):  # the study's budget is larger than simulate's default
+        options += ["--max-steps", str(2 * point.steps)]  # any budget above what the run took gives the same run
     return options
 
 

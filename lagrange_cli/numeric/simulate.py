@@ -40,7 +40,7 @@ FAILURES = {
     integrators.STEP_COLLAPSE: "the step size collapsed below the spacing of floating-point numbers (a singularity, or a problem too stiff for this method: try --method Radau)",
     integrators.NO_CONVERGENCE: "the implicit stage equations did not converge (the step is too large for this motion: give a smaller --step)",
 }
-BUDGET_HINT = "shorten t_end (--t-end), loosen the tolerances (--rtol/--atol), give a larger --step, or raise the budget (max_steps)"
+BUDGET_HINT = "shorten t_end (--t-end), loosen the tolerances (--rtol/--atol), give a larger --step, or raise the budget (--max-steps)"
 
 
 class InvariantKind(enum.StrEnum):
