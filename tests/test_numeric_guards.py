@@ -106,7 +106,7 @@ def test_a_run_without_end_stops_at_its_step_budget() -> None:
     model = model_of(particle("k*x**2/2", v0=0.0))
     trajectory = simulate(model, backend="python", t_end=1e300, max_steps=300)
     assert trajectory.failed and trajectory.stats.steps == 300
-    assert "stopped after 300 steps" in trajectory.message and "of t_end = 1e+300" in trajectory.message and "max_steps" in trajectory.message
+    assert "stopped after 300 steps" in trajectory.message and "of t_end = 1e+300" in trajectory.message and "--max-steps" in trajectory.message
     assert integrators.MAX_STEPS["python"] <= 100_000 and integrators.MAX_STEPS["compiled"] <= 10_000_000
 
 
