@@ -26,6 +26,7 @@ from lagrange_cli.numeric.runs import ATOL_RATIO, COMPILED_STEPS, REFERENCE_STEP
 from lagrange_cli.numeric.settings import Settings, code_parameters
 from lagrange_cli.numeric.simulate import Trajectory, integrate, state_text
 from lagrange_cli.numeric.status import Status
+from lagrange_cli.numeric.tableaux import EXPLICIT
 
 HORIZON_THRESHOLD = 1e-3  # separation (scaled) at which nearby trajectories have parted
 CHAOS_GROWTH = 100.0  # growth over the second half of the time to part, above which it is exponential
@@ -65,6 +66,8 @@ class Reference:
     """What the primary reference run ran (to run parts of it again, densely: `dense`)."""
     confirmed_rtol: float = field(default=math.nan, compare=False)
     """The rtol of the run that confirmed it (nan: exact, or unconfirmed)."""
+    confirmation: str = field(default="", compare=False)
+    """How it was confirmed, for people ("RK45 (compiled) at the same tolerance"; "" when exact)."""
 
 
 @dataclass(frozen=True)
@@ -547,7 +550,7 @@ def _converged(model: Model, setup: Setup, main: Trajectory, tolerance: float, f
         return found  # not converging with the tolerance as the method's order says (round-off, a shared defect, not yet asymptotic): no bound
     ratio = far.own_error / max(near.own_error, 1e-300)
     how = f"the same method {CONVERGENCE_STEP:g} x looser, {ratio:.2g} x closer than at {CONVERGENCE_STEP**2:g} x looser: the error converges with the tolerance"
-    before = found.description.split(", ", 2)[-1].removeprefix("confirmed by ")
+    before = found.confirmation
     before = f"{before} disagreed by {found.own_error:.1e}" if math.isfinite(found.own_error) else before
     return replace(near, description=f"{near.description} ({how}; {before})")
 
@@ -574,18 +577,19 @@ def _confirmed(model: Model, setup: Setup, main: Trajectory, tolerance: float, c
     finish does not spend its whole budget to learn it."""
     scale = component_scale(main.y)
     own, confirm = math.nan, f"unconfirmed: {', '.join(c.method for c, _ in confirmations)} did not finish"
-    confirmed_rtol = math.nan
+    confirmed_rtol, confirmation = math.nan, confirm
     for candidate, rtol in confirmations:
-        paced = candidate.backend == "compiled" and candidate.method in ("RK45", "DOP853")
+        paced = candidate.backend == "compiled" and candidate.method in EXPLICIT
         other = explicit_attempt(model, candidate, rtol, setup, ceiling).trajectory if paced else run(model, candidate, rtol, setup, reference=True)
         if not other.failed and len(other.t) == len(main.t):
             own = float(np.max(scaled_errors(other.y, main.y, scale)))
             at = "at the same tolerance" if rtol == tolerance else f"at rtol {tol_text(rtol)}"
-            confirm = f"confirmed by {other.settings.method} ({other.settings.backend}) {at}"
+            confirmation = f"{other.settings.method} ({other.settings.backend}) {at}"
+            confirm = f"confirmed by {confirmation}"
             confirmed_rtol = rtol
             break
     description = f"{main.settings.method} ({main.settings.backend}) at rtol {tol_text(tolerance)}, atol {tol_text(tolerance * ATOL_RATIO)}, {confirm}"
-    return Reference("computed", description, own, main.t, main.y, main.energy, seconds, main.settings, confirmed_rtol)
+    return Reference("computed", description, own, main.t, main.y, main.energy, seconds, main.settings, confirmed_rtol, confirmation)
 
 
 def dense(model: Model, reference: Reference) -> Callable[[float, np.ndarray, float, int], tuple[np.ndarray, np.ndarray] | None] | None:
