@@ -17,7 +17,8 @@ import sympy as sp
 from sympy.core.function import AppliedUndef
 
 from lagrange_cli.algebra import expandable, tame_numbers
-from lagrange_cli.errors import DerivationError
+from lagrange_cli.errors import DerivationError, Span, fail
+from lagrange_cli.expr import Scope, numeric_value, parse_expression
 from lagrange_cli.model import Model
 
 HAMILTONIAN_MAX_N = 3
@@ -185,6 +186,32 @@ def _check_constraints_allow_rest(model: Model) -> None:
             raise DerivationError(f"{model.source}: the velocity constraint '{c.name}' does not allow rest (its velocity-free term {c.bias} is not zero), so the system has no equilibria")
 
 
+def point_value(model: Model, name: str, text: str, span: Span) -> sp.Expr:
+    """A coordinate's value at an operating point, given as text: a number (`pi/2`) or an
+    expression in the file's parameters (`L + g*m/k`, as `equilibria` prints it), kept exact, so
+    that the linearization is in those parameters. Coordinates, velocities and `t` are refused with
+    a caret at `span`, and so is a value that is not a finite real number at the parameters' values."""
+    symbols = {p.name: p.symbol for p in model.parameters}
+    others = {c: "a coordinate" for c in model.coordinates} | {f"{c}_dot": "a velocity" for c in model.coordinates} | {"t": "the time"}
+    scope = Scope(symbols, {}, sp.Symbol("t"), lambda e: e, what="numbers, pi, E, the parameters and functions of them", elsewhere={k: v for k, v in others.items() if k not in symbols})
+    value = parse_expression(text, span, scope)
+    values = {p.symbol: p.value for p in model.parameters if p.value is not None}
+    if value.free_symbols - set(values):
+        return value  # a parameter without a value: the point stays symbolic in it
+    try:
+        number = numeric_value(value, values)
+    except (ValueError, OverflowError, TypeError):
+        number = math.nan
+    if not math.isfinite(number):
+        example = f", or an expression in the parameters such as {' + '.join(list(symbols)[:2])}" if symbols else ""
+        raise fail(span, f"the value of '{name}' must be a finite real number at the parameters' values, got '{text.strip()}'", f"a number such as 0 or pi/2{example}")
+    return value
+
+
+class NotAnEquilibrium(DerivationError):
+    """The point asked for is not an equilibrium (the CLI adds how to find one)."""
+
+
 def linearize(model: Model, point: Mapping[sp.Symbol, sp.Expr], values: Mapping[str, float] | None = None) -> Linearization:
     """Linearize about an equilibrium (q0, q_dot = 0): K0 = -d(F + A^T lambda0)/dq, C0 = -dF/dq_dot,
     M0 = M(q0), reduced to independent coordinates (and velocities) when constraints are kept."""
@@ -213,7 +240,7 @@ def linearize(model: Model, point: Mapping[sp.Symbol, sp.Expr], values: Mapping[
     residual = [simplified(f + sum((a0[k, i] * multipliers[m] for k, m in enumerate(model.multipliers)), sp.Integer(0))) for i, f in enumerate(forcing)]
     if any(r != 0 for r in residual) and not _numerically_zero(residual, values):
         _refuse_undefined(general, "linearize", residual)
-        raise DerivationError(f"{model.source}: {_point_text(point)} is not an equilibrium: the generalized forces there are {[str(r) for r in residual]}")
+        raise NotAnEquilibrium(f"{model.source}: {_point_text(point)} is not an equilibrium: the generalized forces there are {[str(r) for r in residual]}")
     total = [f + sum((c.jacobian[i] * multipliers[c.multiplier] for c in model.constraints), sp.Integer(0)) for i, f in enumerate(model.forcing)]
     stiffness = sp.Matrix([[simplified(-at(sp.diff(f, q), full)) for q in model.q] for f in total])
     damping = sp.Matrix([[simplified(-at(sp.diff(f, v), full)) for v in model.qd] for f in model.forcing])

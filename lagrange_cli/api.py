@@ -527,15 +527,25 @@ class System:
 
     def linearize(self, about: Mapping[str, Any] | None = None) -> Report:
         """The linearization about an equilibrium (`{"theta": 0, "phi": "pi"}`; unnamed
-        coordinates 0; a value is a number or a constant expression such as `"pi/2"`), as
+        coordinates 0; a value is a number, a constant expression such as `"pi/2"`, or an
+        expression in the parameters such as `"L + g*m/k"`), as
         `lagrange linearize` prints it; `value` is the `analysis.Linearization`."""
         import json
 
         from lagrange_cli import analysis, report
 
-        point = {self._coordinate(name): _exact(value, f"the value of '{name}'") for name, value in (about or {}).items()}
+        point = {self._coordinate(name): self._point_value(name, value) for name, value in (about or {}).items()}
         lin = analysis.linearize(self.model, point)
         return Report(report.linearization_text(self.model, lin), lin, json.dumps(report.linearization_json(self.model, lin), indent=2) + "\n")
+
+    def _point_value(self, name: str, value: Any) -> sp.Expr:
+        """A coordinate's value: a number, or text that may use the parameters (`"L + g*m/k"`)."""
+        from lagrange_cli import analysis
+        from lagrange_cli.errors import Span
+
+        if isinstance(value, str):
+            return analysis.point_value(self.model, name, value, Span(f"the value of '{name}'", 1, 1, value))
+        return _exact(value, f"the value of '{name}'")
 
     def state_space(self, about: Mapping[str, Any] | None = None, lqr: tuple[Sequence[float] | None, Sequence[float] | None] | None = None) -> dict[str, Any]:
         """The state-space linearization dx/dt = A x + B du, y - y0 = C x + D du about an operating
@@ -551,7 +561,7 @@ class System:
             if name in signals:
                 given[name] = _exact(value, f"the value of '{name}'")
             else:
-                point[self._coordinate(name)] = _exact(value, f"the value of '{name}'")
+                point[self._coordinate(name)] = self._point_value(name, value)
         ss = statespace.state_space(self.model, point, given)
         result: dict[str, Any] = {**ss.arrays(), "state": ss.state, "inputs": ss.inputs, "outputs": ss.outputs, "about": dict(ss.about)}
         result.update(controllability_rank=ss.controllability_rank, symbolic=dict(ss.symbolic), notes=ss.notes)

@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import math
 
+import pytest
 import sympy as sp
 from typer.testing import CliRunner
 
@@ -89,3 +90,73 @@ def test_numeric_search_when_sympy_cannot_solve(tmp_path) -> None:
         x = float(point[model.q[0]])
         assert abs(-math.sin(x) + 0.6 * x + math.exp(x / 7) * (1 + x / 7)) < 1e-8
     assert points
+
+
+ELASTIC_IN_R = """title: elastic pendulum in r
+coordinates: [r, phi]
+parameters: {m: 0.7, k: 230.0, L: 0.8, g: 9.81, c: 0.05}
+gravity: [0, -g]
+particles:
+  bob: {mass: m, position: [r*sin(phi), -r*cos(phi)]}
+potential: k*(r - L)**2/2
+dissipation: c*r_dot**2/2
+"""
+
+
+def test_about_takes_the_equilibrium_as_equilibria_prints_it(tmp_path) -> None:
+    """`equilibria` prints r = L + g*m/k; `--about` accepts that text, and the linearization is in
+    the parameters (the same matrices as `equilibria` gives about that point)."""
+    path = tmp_path / "elastic.yaml"
+    path.write_text(ELASTIC_IN_R)
+    listed = runner.invoke(app, ["equilibria", str(path), "--json"])
+    assert listed.exit_code == 0, listed.output
+    result = runner.invoke(app, ["linearize", str(path), "--about", "r=L + g*m/k", "--json"])
+    assert result.exit_code == 0, result.output
+    data = json.loads(result.stdout)
+    assert data["point"] == {"r": "L + g*m/k", "phi": "0"}
+    m, k, L, g = sp.symbols("m k L g")
+    assert sp.simplify(sp.sympify(data["K0"][1][1]) - g * m * (L * k + g * m) / k) == 0
+    assert sp.sympify(data["K0"][0][0]) == k and sp.sympify(data["C0"][0][0]) == sp.Symbol("c")
+    # numbers still work and give the same stiffness at the parameters' values
+    numeric = json.loads(runner.invoke(app, ["linearize", str(path), "--about", f"r={0.8 + 9.81 * 0.7 / 230.0!r}", "--json"]).stdout)
+    at_values = {m: 0.7, k: 230.0, L: 0.8, g: 9.81}
+    assert float(sp.sympify(numeric["K0"][1][1]).xreplace(at_values)) == pytest.approx(9.81 * 0.7 * (0.8 * 230 + 9.81 * 0.7) / 230)
+
+
+@pytest.mark.parametrize(
+    ("about", "message"),
+    [
+        ("r=phi", "'phi' is a coordinate, which cannot appear here"),
+        ("r=r_dot", "'r_dot' is a velocity"),
+        ("r=q", "unknown name 'q'"),
+        ("r=1/(k - 230)", "must be a finite real number at the parameters' values"),
+        ("r=L + g*m/k,phi=pi", "is not an equilibrium"),
+    ],
+)
+def test_about_with_parameters_refuses_bad_values(tmp_path, about: str, message: str) -> None:
+    path = tmp_path / "elastic.yaml"
+    path.write_text(ELASTIC_IN_R)
+    result = runner.invoke(app, ["linearize", str(path), "--about", about])
+    assert result.exit_code == 2 and message in result.output, result.output
+    assert "Traceback" not in result.output
+
+
+def test_default_point_not_an_equilibrium_says_how_to_find_one(tmp_path) -> None:
+    path = tmp_path / "elastic.yaml"
+    path.write_text(ELASTIC_IN_R)
+    result = runner.invoke(app, ["linearize", str(path)])
+    assert result.exit_code == 2
+    assert "the default point (every coordinate 0) is not an equilibrium" in result.output
+    assert "lagrange equilibria" in result.output and "--about" in result.output
+
+
+def test_api_linearize_about_parameters(tmp_path) -> None:
+    from lagrange_cli.api import load
+
+    path = tmp_path / "elastic.yaml"
+    path.write_text(ELASTIC_IN_R)
+    system = load(path)
+    report = system.linearize({"r": "L + g*m/k"})
+    assert "about r = L + g*m/k, phi = 0" in str(report)
+    with pytest.raises(Exception, match="'phi' is a coordinate"):
+        system.linearize({"r": "phi"})

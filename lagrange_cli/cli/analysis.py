@@ -81,7 +81,8 @@ def linearize(
     about: Annotated[
         list[str] | None,
         typer.Option(
-            "--about", help="The operating point: name=value for coordinates and inputs, repeated or separated by commas, e.g. theta=0,phi=pi (unnamed coordinates are 0, inputs their default)."
+            "--about",
+            help="The operating point: name=value for coordinates and inputs, repeated or separated by commas, e.g. theta=0,phi=pi; a coordinate's value may use the parameters, e.g. r=l+m*g/k (unnamed coordinates are 0, inputs their default).",
         ),
     ] = None,
     as_json: Annotated[bool, typer.Option("--json", help="JSON instead of text.")] = False,
@@ -110,6 +111,9 @@ def linearize(
             gain = statespace.lqr(ss, _weights("--lqr-q", lqr_q), _weights("--lqr-r", lqr_r)) if lqr or lqr_q is not None or lqr_r is not None else None
         else:
             lin = analysis.linearize(model, point)
+    except analysis.NotAnEquilibrium as error:
+        where = "the point of --about" if about else "the default point (every coordinate 0)"
+        fail_with(analysis.NotAnEquilibrium(f"{error}\n  {where} is not an equilibrium; `lagrange equilibria {file}` lists the equilibria: give one with --about (its values may use the parameters)"))
     except LagrangeError as error:
         fail_with(error)
     if latex:
@@ -157,12 +161,13 @@ def _point(model: Model, about: list[str] | None) -> dict[sp.Symbol, sp.Expr]:
 
 def _operating_point(model: Model, about: list[str] | None) -> tuple[dict[sp.Symbol, sp.Expr], dict[str, sp.Expr]]:
     """The coordinates' and the inputs' values of `--about` (exact: pi stays pi)."""
+    from lagrange_cli import analysis
     from lagrange_cli.cli.boundary import assignments, check_names, constant
 
     items = assignments("--about", about, f"{model.coordinates[0]}=0")
     signals = [i.name for i in model.inputs]
     check_names(items, [*model.coordinates, *signals], "coordinate or input" if signals else "coordinate", model.source)
-    point = {model.q[model.coordinates.index(item.name)]: constant(item, f"the value of '{item.name}'")[0] for item in items if item.name in model.coordinates}
+    point = {model.q[model.coordinates.index(item.name)]: analysis.point_value(model, item.name, item.value, item.span()) for item in items if item.name in model.coordinates}
     given = {item.name: constant(item, f"the value of '{item.name}'")[0] for item in items if item.name in signals}
     return point, given
 
