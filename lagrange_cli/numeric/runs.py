@@ -264,6 +264,13 @@ at that pace, exceed this times its budget: it cannot finish within the budget (
 1% of the span). Counted in steps, never timed; only Python runs (whose progress is told every step)."""
 
 
+PACE_STEPS = 20
+"""... and never before this many steps: a run's first steps are tiny by design (scipy's initial step,
+then growing by at most 10 x a step), so a pace judged from them is no pace (scipy's Radau on an
+elastic pendulum, capped at 6 steps, was judged after 2 to need 7.96e4 steps to t_end where 20 steps
+had covered 0.18% of a 10 x longer window). A run whose budget is below it is stopped by its budget."""
+
+
 class Unaffordable(Exception):
     """A paced run was stopped: at its pace it needs `needed` steps, above PACE_MARGIN x its `budget`."""
 
@@ -279,7 +286,7 @@ def _paced(budget: int, then: Progress | None) -> Progress:
     def progress(fraction: float) -> None:
         nonlocal taken
         taken += 1
-        if taken >= PACE_AFTER * budget:
+        if taken >= max(PACE_AFTER * budget, PACE_STEPS):
             needed = taken / fraction if fraction > 0 else math.inf
             if needed > PACE_MARGIN * budget:
                 raise Unaffordable(taken, fraction, needed, budget)

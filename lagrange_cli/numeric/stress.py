@@ -66,7 +66,7 @@ from lagrange_cli.errors import LagrangeError
 from lagrange_cli.model import Model
 from lagrange_cli.numeric import accuracy as study
 from lagrange_cli.numeric import compile, diagnostics, policy
-from lagrange_cli.numeric.reference import HORIZON_THRESHOLD, IMPLICIT, IMPLICIT_TIGHTEST, PILOT_RTOL, Horizon, Reference, ReferenceFailed, dense, implicit_tolerances, prepare
+from lagrange_cli.numeric.reference import CONVERGENCE_STEP, HORIZON_THRESHOLD, IMPLICIT, IMPLICIT_TIGHTEST, PILOT_RTOL, Horizon, Reference, ReferenceFailed, dense, implicit_tolerances, prepare
 from lagrange_cli.numeric.runs import (
     ATOL_RATIO,
     COMPILED_STEPS,
@@ -484,16 +484,34 @@ def _regime(model: Model, regime: Regime, target: float, candidates: Sequence[Ca
     elif recommended is None and any(p.ok and p.error <= target for p in ordered):
         open_reason = (
             f"runs come within {tol_text(target)} of the reference, but the reference's own error ({reference.own_error:.1e}) leaves open whether they meet it"
-            f" (round-off limits how well two methods agree here){_closest(ordered, own, target)}"
+            f" ({_why_own(reference)}){_closest(ordered, own, target)}"
         )
     elif recommended is None and own > target:
-        open_reason = f"the reference's own error ({reference.own_error:.1e}) is above the accuracy asked: no run can be shown to meet it (round-off limits how well two methods agree here){_closest(ordered, own, target)}"
+        open_reason = f"the reference's own error ({reference.own_error:.1e}) is above the accuracy asked: no run can be shown to meet it ({_why_own(reference)}){_closest(ordered, own, target)}"
     elif recommended is None and own > REFERENCE_ROOM * target:
         open_reason = (
             f"the reference's own error ({reference.own_error:.1e}) leaves the runs less than {1 - REFERENCE_ROOM:.0%} of the accuracy asked, and no rung of the ladder"
             f" comes within what is left: a failure of the methods cannot be told from the reference's{_closest(ordered, own, target)}"
         )
     return Outcome(regime, setup.t_end, reference.description, reference.own_error, tuple(ordered), diagnosis, recommended, naive, auto, naive_default, tied, open_reason)
+
+
+def _why_own(reference: Reference) -> str:
+    """Why the reference's own error is what it is, for an open verdict: a confirmation at a looser rtol
+    than the reference's measures its own error (it could not finish tighter), else the two methods
+    agree no better at equal terms (round-off, or the system's sensitivity)."""
+    s = reference.settings
+    if reference.convergence == reference.own_error:
+        return (
+            f"it is the disagreement of the reference's own method at a {CONVERGENCE_STEP:g} x looser rtol, an upper bound of the reference's error while that converges"
+            " with the tolerance (the second method agreed better, but two methods at equal rtols may share an error)"
+        )
+    if s is not None and math.isfinite(reference.confirmed_rtol) and reference.confirmed_rtol > s.rtol * (1 + 1e-9):
+        return (
+            f"its confirmation, {reference.confirmation}, ran looser than the reference's rtol {tol_text(s.rtol)}: the disagreement is mostly that run's"
+            " own error, and no tighter confirmation finished or came closer"
+        )
+    return "the two methods, at equal terms, agree no better: round-off, or the trajectory's sensitivity, limits how well they can agree here"
 
 
 def _closest(points: Sequence[Point], own: float, target: float) -> str:
@@ -667,7 +685,9 @@ def diagnose(model: Model, setup: Setup, reference: Reference, points: Sequence[
             )
         )
     findings += base.findings
-    by_method = {(candidate.method, tolerance): point for (candidate, tolerance), point in runs.items()}
+    # finished runs only: a run stopped by its cap or its pace took a few steps of its initial transient (scipy's Radau,
+    # stopped after 2 steps on a non-stiff elastic pendulum, "against" DOP853's 153 to t_end)
+    by_method = {(candidate.method, tolerance): point for (candidate, tolerance), point in runs.items() if point.status == PointStatus.FINISHED}
     for tolerance in ladder(target):
         implicit = by_method.get(("Radau", tolerance))
         explicit = max((by_method[(m, tolerance)] for m in ("RK45", "DOP853") if (m, tolerance) in by_method), key=lambda p: p.steps, default=None)
