@@ -567,10 +567,14 @@ def _capped(model: Model, candidate: Candidate, tolerance: float, setup: Setup, 
         return unrun(candidate, tolerance, PointStatus.OVER_BUDGET, reason, Failure.BUDGET)
     paced = best is not None and cap < setup.steps  # a run that can only lose to `best`: stopped as soon as its pace shows it cannot finish
     point = measure(model, candidate, tolerance, replace(setup, max_steps=cap) if cap < setup.steps else setup, reference, scale, repeats=0, paced=paced)
-    if cap < setup.steps and point.failure == Failure.BUDGET and best is not None and point.steps and point.nfev:
-        done = point.reason.rpartition(" at ")[2]
-        reason = f"stopped after {point.steps} steps at {done}: it already took {work(point) / max(work(best), 1e-300):.0f} x the work of {best.method} ({best.setting}), which meets the accuracy"
-        point = replace(point, reason=reason)
+    if cap < setup.steps and point.failure == Failure.BUDGET and best is not None and point.steps:
+        beaten = f"{best.method} ({best.setting}), which meets the accuracy"
+        if point.nfev:  # stopped by its cap
+            done = point.reason.rpartition(" at ")[2]
+            reason = f"stopped after {point.steps} steps at {done}: it already took {work(point) / max(work(best), 1e-300):.2g} x the work of {beaten}"
+        else:  # stopped by its pace (`runs.PACE_MARGIN`) before its cap
+            reason = f"{point.reason}; its budget is {_losing(candidate, best):g} x the work of {beaten}: it could only lose"
+        point = replace(point, status=PointStatus.CAPPED, reason=reason)
     return point
 
 
@@ -685,15 +689,9 @@ def diagnose(model: Model, setup: Setup, reference: Reference, points: Sequence[
             )
         )
     findings += base.findings
-    # finished runs only: a run stopped by its cap or its pace took a few steps of its initial transient (scipy's Radau,
-    # stopped after 2 steps on a non-stiff elastic pendulum, "against" DOP853's 153 to t_end)
-    by_method = {(candidate.method, tolerance): point for (candidate, tolerance), point in runs.items() if point.status == PointStatus.FINISHED}
-    for tolerance in ladder(target):
-        implicit = by_method.get(("Radau", tolerance))
-        explicit = max((by_method[(m, tolerance)] for m in ("RK45", "DOP853") if (m, tolerance) in by_method), key=lambda p: p.steps, default=None)
-        if explicit and implicit and explicit.steps and implicit.steps and explicit.steps > EXPLOSION * implicit.steps:
-            findings.append(Finding("explicit step count explodes", f"{explicit.method} took {explicit.steps} steps against Radau's {implicit.steps} at rtol {tol_text(tolerance)}"))
-            break
+    found = _explosion(runs, target)
+    if found is not None:
+        findings.append(found)
     for point in points:
         if point.status == PointStatus.FAILED and point.failure in FAILURE_FINDINGS:
             findings.append(Finding(f"{point.method} ({point.setting}) failed", point.reason.removeprefix(f"{model.source}: ")))
@@ -705,6 +703,20 @@ def diagnose(model: Model, setup: Setup, reference: Reference, points: Sequence[
         if point.ok and point.constraint_drift is not None and point.constraint_drift > target and point.candidate == NAIVE:
             findings.append(Finding(f"{point.method} ({point.setting})", f"constraint drift {point.constraint_drift:.1e}"))
     return replace(base, findings=tuple(findings))
+
+
+def _explosion(runs: Mapping[tuple[Candidate, float], Point], target: float) -> Finding | None:
+    """ "explicit step count explodes" where, at some rtol of the ladder, an explicit run took more than
+    EXPLOSION x the steps of Radau's at the same rtol, both finished: a run stopped by its cap or its pace
+    took a few steps of its initial transient, which say nothing of its count to t_end (scipy's Radau,
+    stopped after 2 steps on a non-stiff elastic pendulum, "against" DOP853's 153 to t_end)."""
+    by_method = {(candidate.method, tolerance): point for (candidate, tolerance), point in runs.items() if point.status == PointStatus.FINISHED}
+    for tolerance in ladder(target):
+        implicit = by_method.get(("Radau", tolerance))
+        explicit = max((by_method[(m, tolerance)] for m in ("RK45", "DOP853") if (m, tolerance) in by_method), key=lambda p: p.steps, default=None)
+        if explicit and implicit and explicit.steps and implicit.steps and explicit.steps > EXPLOSION * implicit.steps:
+            return Finding("explicit step count explodes", f"{explicit.method} took {explicit.steps} steps against Radau's {implicit.steps} at rtol {tol_text(tolerance)}, both to t_end")
+    return None
 
 
 def _measure(model: Model, setup: Setup, t: np.ndarray, y: np.ndarray, rerun: diagnostics.Rerun | None, t_end: float) -> Diagnosis:
