@@ -110,3 +110,19 @@ def test_a_bundled_non_stiff_system_gets_no_finding_from_runs_that_could_only_lo
     capped = [p for p in python if p.status == PointStatus.CAPPED]
     assert capped and all("which meets the accuracy" in p.reason for p in capped)
     assert not any(p.method in f for p in capped for f in outcome.diagnosis.findings)
+
+
+def test_accuracy_marks_a_losing_run_capped(monkeypatch: pytest.MonkeyPatch) -> None:
+    """`accuracy`'s run stopped at LOSING x the cheapest run's work at its rtol is "capped", with why (audit4's F1:
+    no Radau row, "over budget after 3 steps"); a run the user's budget stops stays "over step budget"."""
+    from lagrange_cli.numeric import accuracy
+
+    model = model_from(ROOT / "tests" / "numeric_audit2" / "elastic_pendulum_r_k1e8.yaml")
+    monkeypatch.setattr(accuracy, "default_candidates", lambda model: (Candidate("RK45", "python"), Candidate("LSODA")))
+    found = accuracy.study(model, tolerances=[1e-4, 1e-5], t_end=0.5, samples=11, repeats=0)
+    at = {(p.candidate.method, p.tolerance): p for p in found.points if p.candidate is not None}
+    explicit, lsoda, tighter = at[("RK45", 1e-4)], at[("LSODA", 1e-4)], at[("RK45", 1e-5)]
+    assert lsoda.ok and explicit.status == PointStatus.CAPPED and "x the work of the cheapest run at rtol 1e-04" in explicit.reason
+    assert tighter.method == explicit.method and tighter.status == PointStatus.CAPPED and "was capped already" in tighter.reason
+    starved = accuracy.study(model, candidates=[Candidate("RK45", "python")], tolerances=[1e-4], t_end=0.5, samples=11, repeats=0, max_steps=3)
+    assert starved.points[0].status == PointStatus.OVER_BUDGET
