@@ -126,3 +126,11 @@ def test_accuracy_marks_a_losing_run_capped(monkeypatch: pytest.MonkeyPatch) -> 
     assert tighter.method == explicit.method and tighter.status == PointStatus.CAPPED and "was capped already" in tighter.reason
     starved = accuracy.study(model, candidates=[Candidate("RK45", "python")], tolerances=[1e-4], t_end=0.5, samples=11, repeats=0, max_steps=3)
     assert starved.points[0].status == PointStatus.OVER_BUDGET
+
+
+def test_a_high_energy_regime_from_rest_says_how_its_velocities_were_set() -> None:
+    """audit4's F3: a file at rest got "high energy (velocities x 3)" with velocities that are not 3 x 0."""
+    rest = next(r for r in stress.regimes(model_from(ELASTIC), ()) if r.name.startswith("high energy"))
+    assert "at rest in the file" in rest.name and any(rest.initial.values())
+    moving = next(r for r in stress.regimes(model_from(ROOT / "systems" / "spherical_pendulum.yaml"), ()) if r.name.startswith("high energy"))
+    assert moving.name == "high energy (velocities x 3)"

@@ -248,7 +248,9 @@ def regimes(model: Model, scales: Sequence[tuple[str, Sequence[float]]], long_fa
         return tuple(result)
     longer = min(MAX_SAMPLES, max(SAMPLES, round((SAMPLES - 1) * long_factor) + 1))
     result = [Regime("defaults", base.t_end, {}, {}), Regime(f"long horizon (t_end x {long_factor:g})", base.t_end * long_factor, {}, {}, longer)]
-    result.append(Regime(f"high energy (velocities x {energy_factor:g})", base.t_end, {}, _high_energy(model, base.values, base.y0, energy_factor)))
+    at_rest = not any(base.y0[model.n :])  # then "x 3" would be 0: the velocities come from the slowest mode (`_high_energy`), and the name says so
+    how = f"velocities x {energy_factor:g}" if not at_rest else f"at rest in the file: velocities {energy_factor:g} x the slowest mode's rate x each coordinate's size"
+    result.append(Regime(f"high energy ({how})", base.t_end, {}, _high_energy(model, base.values, base.y0, energy_factor)))
     singular = _near_singular(model, base.values, base.y0)
     if singular is not None:
         result.append(Regime(singular[0], base.t_end, {}, singular[1]))
