@@ -68,6 +68,8 @@ class Reference:
     """The rtol of the run that confirmed it (nan: exact, or unconfirmed)."""
     confirmation: str = field(default="", compare=False)
     """How it was confirmed, for people ("RK45 (compiled) at the same tolerance"; "" when exact)."""
+    confirmer: Candidate | None = field(default=None, compare=False)
+    """The method (and backend) of the run that confirmed it (None: exact, or unconfirmed)."""
     convergence: float = field(default=math.nan, compare=False)
     """The disagreement of the primary's own method at CONVERGENCE_STEP x its rtol, where it is the own error
     (above the confirmation's: `_floored`); nan otherwise."""
@@ -576,7 +578,7 @@ def _vouched(model: Model, setup: Setup, main: Trajectory, tolerance: float, fou
     regime undecided although DOP853 at 1e-9, 1e-10 and 1e-11 come within 2.6e-8, 5.3e-9 and 3.0e-10 of
     it (1117-1948 compiled steps)."""
     looser = math.isfinite(found.confirmed_rtol) and found.confirmed_rtol > tolerance * (1 + 1e-9)
-    if found.own_error <= enough or not looser or "(compiled)" not in found.confirmation:
+    if found.own_error <= enough or not looser or found.confirmer is None or found.confirmer.backend != "compiled":
         return found
     before = found
     for method in VOUCHING:
@@ -632,6 +634,7 @@ def _confirmed(model: Model, setup: Setup, main: Trajectory, tolerance: float, c
     scale = component_scale(main.y)
     own, confirm = math.nan, f"unconfirmed: {', '.join(c.method for c, _ in confirmations)} did not finish"
     confirmed_rtol, confirmation = math.nan, confirm
+    confirmer: Candidate | None = None
     for candidate, rtol in confirmations:
         paced = candidate.backend == "compiled" and candidate.method in EXPLICIT
         other = explicit_attempt(model, candidate, rtol, setup, ceiling).trajectory if paced else run(model, candidate, rtol, setup, reference=True)
@@ -640,10 +643,10 @@ def _confirmed(model: Model, setup: Setup, main: Trajectory, tolerance: float, c
             at = "at the same tolerance" if rtol == tolerance else f"at rtol {tol_text(rtol)}"
             confirmation = f"{other.settings.method} ({other.settings.backend}) {at}"
             confirm = f"confirmed by {confirmation}"
-            confirmed_rtol = rtol
+            confirmed_rtol, confirmer = rtol, candidate
             break
     description = f"{main.settings.method} ({main.settings.backend}) at rtol {tol_text(tolerance)}, atol {tol_text(tolerance * ATOL_RATIO)}, {confirm}"
-    return Reference("computed", description, own, main.t, main.y, main.energy, seconds, main.settings, confirmed_rtol, confirmation)
+    return Reference("computed", description, own, main.t, main.y, main.energy, seconds, main.settings, confirmed_rtol, confirmation, confirmer)
 
 
 def dense(model: Model, reference: Reference) -> Callable[[float, np.ndarray, float, int], tuple[np.ndarray, np.ndarray] | None] | None:
