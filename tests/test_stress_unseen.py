@@ -134,3 +134,15 @@ def test_a_high_energy_regime_from_rest_says_how_its_velocities_were_set() -> No
     assert "at rest in the file" in rest.name and any(rest.initial.values())
     moving = next(r for r in stress.regimes(model_from(ROOT / "systems" / "spherical_pendulum.yaml"), ()) if r.name.startswith("high energy"))
     assert moving.name == "high energy (velocities x 3)"
+
+
+def test_growing_modes_of_an_orbit_that_is_not_chaotic_are_not_called_instability() -> None:
+    """audit4's F4, F7: "unstable modes: growth rate up to 7.33/s" on Kepler's orbit and a trammel, both integrable.
+    The finding is "growing modes in the linearization", and where runs started apart were not found chaotic it says
+    so, with the growth measured (not "no exponential growth": a 3400 x growth is not none, audit4 F6)."""
+    found = stress.Finding(stress.GROWING, "growth rate up to 7.33/s (a saddle, chaos or constraint drift; not stiffness: decays matched by growth are not counted)")
+    parting = reference.Horizon(2.5e-14, False, 0.0, math.inf, 3.4e3)
+    local = stress._local(found, parting)
+    assert local.kind == stress.GROWING and local.detail.startswith(found.detail)
+    assert "end 3.4e+03 x farther apart, growing less than 100 x over the window's second half: not counted as chaos" in local.detail
+    assert "unstable" not in str(local)

@@ -66,7 +66,20 @@ from lagrange_cli.errors import LagrangeError
 from lagrange_cli.model import Model
 from lagrange_cli.numeric import accuracy as study
 from lagrange_cli.numeric import compile, diagnostics, policy
-from lagrange_cli.numeric.reference import CONVERGENCE_STEP, HORIZON_THRESHOLD, IMPLICIT, IMPLICIT_TIGHTEST, PILOT_RTOL, Horizon, Reference, ReferenceFailed, dense, implicit_tolerances, prepare
+from lagrange_cli.numeric.reference import (
+    CHAOS_GROWTH,
+    CONVERGENCE_STEP,
+    HORIZON_THRESHOLD,
+    IMPLICIT,
+    IMPLICIT_TIGHTEST,
+    PILOT_RTOL,
+    Horizon,
+    Reference,
+    ReferenceFailed,
+    dense,
+    implicit_tolerances,
+    prepare,
+)
 from lagrange_cli.numeric.runs import (
     ATOL_RATIO,
     COMPILED_STEPS,
@@ -479,7 +492,7 @@ def _regime(model: Model, regime: Regime, target: float, candidates: Sequence[Ca
     tied = ties(meeting, recommended, target - own) if recommended is not None else ()
     naive = next((p for p in ordered if p.candidate == NAIVE), None)
     auto = next((p for p in ordered if p.candidate == AUTO), None)
-    diagnosis = diagnose(model, setup, reference, ordered, runs, target, horizon if setup.t_end < regime.t_end else None)
+    diagnosis = diagnose(model, setup, reference, ordered, runs, target, horizon if setup.t_end < regime.t_end else None, parting=horizon)
     open_reason = ""
     if recommended is None and not math.isfinite(reference.own_error):
         open_reason = "the reference is unconfirmed (its second method did not finish), so no run can be shown to meet the accuracy"
@@ -677,10 +690,22 @@ def _without_reference(model: Model, regime: Regime, setup: Setup, error: Refere
     return Outcome(regime, setup.t_end, "none", math.nan, (), diagnosis, None, None, None, open_reason=open_reason)
 
 
-def diagnose(model: Model, setup: Setup, reference: Reference, points: Sequence[Point], runs: Mapping[tuple[Candidate, float], Point], target: float, horizon: Horizon | None = None) -> Diagnosis:
+def diagnose(
+    model: Model,
+    setup: Setup,
+    reference: Reference,
+    points: Sequence[Point],
+    runs: Mapping[tuple[Candidate, float], Point],
+    target: float,
+    horizon: Horizon | None = None,
+    parting: Horizon | None = None,
+) -> Diagnosis:
     """Stiffness, time scales and conditioning along the reference, and what the runs showed
-    (`horizon`: the chaos that cut the window short)."""
+    (`horizon`: the chaos that cut the window short; `parting`: how nearby trajectories parted, measured
+    whether or not they cut it, which says whether growing modes of the linearization are chaos)."""
     base = _measure(model, setup, reference.t, reference.y, dense(model, reference), setup.t_end)
+    if parting is not None and not parting.chaotic:
+        base = replace(base, findings=tuple(_local(f, parting) if f.kind == GROWING else f for f in base.findings))
     findings: list[Finding] = []
     if horizon is not None:
         findings.append(
@@ -707,6 +732,21 @@ def diagnose(model: Model, setup: Setup, reference: Reference, points: Sequence[
     return replace(base, findings=tuple(findings))
 
 
+GROWING = "growing modes in the linearization"
+"""The finding of a positive eigenvalue along the run (x t_end above diagnostics.STIFF): "unstable modes" before,
+which read as instability on integrable systems (Kepler's orbit near periapsis, a trammel passing its potential's
+saddle: audit4 F4, F7)."""
+
+
+def _local(finding: Finding, parting: Horizon) -> Finding:
+    """A GROWING finding where runs started `parting.delta` apart were not found chaotic (`reference.CHAOS_GROWTH`)."""
+    return Finding(
+        finding.kind,
+        f"{finding.detail}; runs started {tol_text(parting.delta)} apart end {parting.growth:.2g} x farther apart, growing less than {CHAOS_GROWTH:g} x over"
+        " the window's second half: not counted as chaos (a saddle passed, or an effect of the coordinates, makes a linearization grow locally)",
+    )
+
+
 def _explosion(runs: Mapping[tuple[Candidate, float], Point], target: float) -> Finding | None:
     """ "explicit step count explodes" where, at some rtol of the ladder, an explicit run took more than
     EXPLOSION x the steps of Radau's at the same rtol, both finished: a run stopped by its cap or its pace
@@ -723,7 +763,7 @@ def _explosion(runs: Mapping[tuple[Candidate, float], Point], target: float) -> 
 
 def _measure(model: Model, setup: Setup, t: np.ndarray, y: np.ndarray, rerun: diagnostics.Rerun | None, t_end: float) -> Diagnosis:
     """The spectrum (stiffness, time scales, growth) and cond M along the states (t, y), with the
-    findings they make: stiff, two time scales, unstable modes, near a coordinate singularity
+    findings they make: stiff, two time scales, growing modes, near a coordinate singularity
     (with the coordinate to change)."""
     s: Settings = starting(model, setup).start  # type: ignore[assignment]
     module = compile.build(model, "python", jacobian=True).module
@@ -771,7 +811,7 @@ def _measure(model: Model, setup: Setup, t: np.ndarray, y: np.ndarray, rerun: di
     elif scales > SCALES and rate * t_end > FAST_RADIANS:
         findings.append(Finding("two time scales (highly oscillatory, not dissipative)", f"fastest rate {rate:.3g}/s, {scales:.3g} x the slowest"))
     if growth * t_end > diagnostics.STIFF:
-        findings.append(Finding("unstable modes", f"growth rate up to {growth:.3g}/s (a saddle, chaos or constraint drift; not stiffness: decays matched by growth are not counted)"))
+        findings.append(Finding(GROWING, f"growth rate up to {growth:.3g}/s (a saddle, chaos or constraint drift; not stiffness: decays matched by growth are not counted)"))
     if peak is not None and peak.condition > diagnostics.SINGULAR_CONDITION:
         findings.append(_singularity(model, s.values, condition, peak))
     if not spectra:
