@@ -337,3 +337,12 @@ def test_only_runs_that_can_be_the_fastest_are_timed_again() -> None:
     assert set(calls) == {"RK45", "DOP853", "Radau"} and "BDF" not in calls
     assert [p.seconds for p in timed[:4]] == [0.05, 0.5, 0.075, 0.5] and timed[4] is points[4]
     assert timed[3].runs == 1 and timed[0].runs >= 1
+
+
+def test_a_window_not_cut_for_chaos_does_not_claim_no_exponential_growth() -> None:
+    """audit4's F6: "not chaotic: ... separate by 3.4e-08 by the end (no exponential growth)" on a chaotic double
+    well, a 3400 x growth; the line now says what was measured (the growth, and the rule it fell below)."""
+    found = runner.invoke(app, ["accuracy", str(ROOT / "systems" / "simple_pendulum.yaml"), "--t-end", "2", "--method", "DOP853:python", "-q"])
+    assert found.exit_code == 0, found.output
+    assert "no exponential growth" not in found.output
+    assert "not counted as chaotic: runs started 1e-11 apart separate by" in found.output and "growing less than 100 x over the second half" in found.output

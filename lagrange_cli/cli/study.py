@@ -171,6 +171,7 @@ def _report_study(result: Study, to_stderr: bool, file: str, model: Model) -> No
     from rich.table import Table
 
     from lagrange_cli.numeric.accuracy import HORIZON_THRESHOLD, TIE_MARGIN, tol_text
+    from lagrange_cli.numeric.reference import CHAOS_GROWTH
 
     console = _console(to_stderr)
     window = f"t = 0 .. {result.t_end:.4g}" + (f" (of {result.full_t_end:g})" if result.t_end < result.full_t_end else "")
@@ -185,7 +186,10 @@ def _report_study(result: Study, to_stderr: bool, file: str, model: Model) -> No
         elif h.chaotic:
             console.print(f"chaotic: runs started {tol_text(h.delta)} apart separate exponentially (about {h.lyapunov:.2g}/s) but stay within {HORIZON_THRESHOLD:.0e} up to t = {result.full_t_end:g}")
         else:
-            console.print(f"not chaotic: runs started {tol_text(h.delta)} apart separate by {h.growth * h.delta:.1e} by the end (no exponential growth)")
+            console.print(
+                f"not counted as chaotic: runs started {tol_text(h.delta)} apart separate by {h.growth * h.delta:.1e} by the end ({h.growth:.2g} x),"
+                f" growing less than {CHAOS_GROWTH:g} x over the second half"
+            )
     for note in result.notes:
         console.print(f"  [dim]{inert(note)}[/dim]", markup=True)
     table = Table(title="runs", title_justify="left", box=None, padding=(0, 1))

@@ -235,13 +235,17 @@ def _capped(model: Model, candidate: Candidate, tolerance: float, setup: Setup, 
     """One point of the study, within LOSING x `cheapest`'s work; not run when the candidate's
     looser run (`last`) ran out of its budget already (a tighter tolerance takes more steps)."""
     if last is not None and last.failure == Failure.BUDGET:
-        reason = last.reason if not last.steps else f"not run: at rtol {tol_text(last.tolerance)} it ran out of its budget already ({last.reason})"
-        return unrun(candidate, tolerance, PointStatus.OVER_BUDGET, reason, Failure.BUDGET)
+        capped = last.status == PointStatus.CAPPED
+        how = "was capped already, a tighter rtol costing more" if capped else "ran out of its budget already"
+        reason = last.reason if not last.steps else f"not run: at rtol {tol_text(last.tolerance)} it {how} ({last.reason})"
+        return unrun(candidate, tolerance, PointStatus.CAPPED if capped else PointStatus.OVER_BUDGET, reason, Failure.BUDGET)
     cap = capped_steps(candidate, LOSING * cheapest, last, setup)
     capped = cap < setup.steps  # then a losing run: stopped as soon as its pace shows it cannot finish (`runs.PACE_MARGIN`)
     point = measure(model, candidate, tolerance, replace(setup, max_steps=cap) if capped else setup, reference, scale, repeats=0, paced=capped)
     if capped and point.failure == Failure.BUDGET and point.steps and point.nfev:
-        point = replace(point, reason=f"stopped after {point.steps} steps: {LOSING:g} x the work of the cheapest run at rtol {tol_text(tolerance)}")
+        point = replace(point, status=PointStatus.CAPPED, reason=f"stopped after {point.steps} steps: {LOSING:g} x the work of the cheapest run at rtol {tol_text(tolerance)}")
+    elif capped and point.failure == Failure.BUDGET and point.steps:
+        point = replace(point, status=PointStatus.CAPPED, reason=f"{point.reason}; its budget is {LOSING:g} x the work of the cheapest run at rtol {tol_text(tolerance)}")
     return point
 
 

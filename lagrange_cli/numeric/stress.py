@@ -66,7 +66,20 @@ from lagrange_cli.errors import LagrangeError
 from lagrange_cli.model import Model
 from lagrange_cli.numeric import accuracy as study
 from lagrange_cli.numeric import compile, diagnostics, policy
-from lagrange_cli.numeric.reference import HORIZON_THRESHOLD, IMPLICIT, IMPLICIT_TIGHTEST, PILOT_RTOL, Horizon, Reference, ReferenceFailed, dense, implicit_tolerances, prepare
+from lagrange_cli.numeric.reference import (
+    CHAOS_GROWTH,
+    CONVERGENCE_STEP,
+    HORIZON_THRESHOLD,
+    IMPLICIT,
+    IMPLICIT_TIGHTEST,
+    PILOT_RTOL,
+    Horizon,
+    Reference,
+    ReferenceFailed,
+    dense,
+    implicit_tolerances,
+    prepare,
+)
 from lagrange_cli.numeric.runs import (
     ATOL_RATIO,
     COMPILED_STEPS,
@@ -248,7 +261,9 @@ def regimes(model: Model, scales: Sequence[tuple[str, Sequence[float]]], long_fa
         return tuple(result)
     longer = min(MAX_SAMPLES, max(SAMPLES, round((SAMPLES - 1) * long_factor) + 1))
     result = [Regime("defaults", base.t_end, {}, {}), Regime(f"long horizon (t_end x {long_factor:g})", base.t_end * long_factor, {}, {}, longer)]
-    result.append(Regime(f"high energy (velocities x {energy_factor:g})", base.t_end, {}, _high_energy(model, base.values, base.y0, energy_factor)))
+    at_rest = not any(base.y0[model.n :])  # then "x 3" would be 0: the velocities come from the slowest mode (`_high_energy`), and the name says so
+    how = f"velocities x {energy_factor:g}" if not at_rest else f"at rest in the file: velocities {energy_factor:g} x the slowest mode's rate x each coordinate's size"
+    result.append(Regime(f"high energy ({how})", base.t_end, {}, _high_energy(model, base.values, base.y0, energy_factor)))
     singular = _near_singular(model, base.values, base.y0)
     if singular is not None:
         result.append(Regime(singular[0], base.t_end, {}, singular[1]))
@@ -477,23 +492,41 @@ def _regime(model: Model, regime: Regime, target: float, candidates: Sequence[Ca
     tied = ties(meeting, recommended, target - own) if recommended is not None else ()
     naive = next((p for p in ordered if p.candidate == NAIVE), None)
     auto = next((p for p in ordered if p.candidate == AUTO), None)
-    diagnosis = diagnose(model, setup, reference, ordered, runs, target, horizon if setup.t_end < regime.t_end else None)
+    diagnosis = diagnose(model, setup, reference, ordered, runs, target, horizon if setup.t_end < regime.t_end else None, parting=horizon)
     open_reason = ""
     if recommended is None and not math.isfinite(reference.own_error):
         open_reason = "the reference is unconfirmed (its second method did not finish), so no run can be shown to meet the accuracy"
     elif recommended is None and any(p.ok and p.error <= target for p in ordered):
         open_reason = (
             f"runs come within {tol_text(target)} of the reference, but the reference's own error ({reference.own_error:.1e}) leaves open whether they meet it"
-            f" (round-off limits how well two methods agree here){_closest(ordered, own, target)}"
+            f" ({_why_own(reference)}){_closest(ordered, own, target)}"
         )
     elif recommended is None and own > target:
-        open_reason = f"the reference's own error ({reference.own_error:.1e}) is above the accuracy asked: no run can be shown to meet it (round-off limits how well two methods agree here){_closest(ordered, own, target)}"
+        open_reason = f"the reference's own error ({reference.own_error:.1e}) is above the accuracy asked: no run can be shown to meet it ({_why_own(reference)}){_closest(ordered, own, target)}"
     elif recommended is None and own > REFERENCE_ROOM * target:
         open_reason = (
             f"the reference's own error ({reference.own_error:.1e}) leaves the runs less than {1 - REFERENCE_ROOM:.0%} of the accuracy asked, and no rung of the ladder"
             f" comes within what is left: a failure of the methods cannot be told from the reference's{_closest(ordered, own, target)}"
         )
     return Outcome(regime, setup.t_end, reference.description, reference.own_error, tuple(ordered), diagnosis, recommended, naive, auto, naive_default, tied, open_reason)
+
+
+def _why_own(reference: Reference) -> str:
+    """Why the reference's own error is what it is, for an open verdict: a confirmation at a looser rtol
+    than the reference's measures its own error (it could not finish tighter), else the two methods
+    agree no better at equal terms (round-off, or the system's sensitivity)."""
+    s = reference.settings
+    if reference.convergence == reference.own_error:
+        return (
+            f"it is the disagreement of the reference's own method at a {CONVERGENCE_STEP:g} x looser rtol, an upper bound of the reference's error while that converges"
+            " with the tolerance (the second method agreed better, but two methods at equal rtols may share an error)"
+        )
+    if s is not None and math.isfinite(reference.confirmed_rtol) and reference.confirmed_rtol > s.rtol * (1 + 1e-9):
+        return (
+            f"its confirmation, {reference.confirmation}, ran looser than the reference's rtol {tol_text(s.rtol)}: the disagreement is mostly that run's"
+            " own error, and no tighter confirmation finished or came closer"
+        )
+    return "the two methods, at equal terms, agree no better: round-off, or the trajectory's sensitivity, limits how well they can agree here"
 
 
 def _closest(points: Sequence[Point], own: float, target: float) -> str:
@@ -549,10 +582,14 @@ def _capped(model: Model, candidate: Candidate, tolerance: float, setup: Setup, 
         return unrun(candidate, tolerance, PointStatus.OVER_BUDGET, reason, Failure.BUDGET)
     paced = best is not None and cap < setup.steps  # a run that can only lose to `best`: stopped as soon as its pace shows it cannot finish
     point = measure(model, candidate, tolerance, replace(setup, max_steps=cap) if cap < setup.steps else setup, reference, scale, repeats=0, paced=paced)
-    if cap < setup.steps and point.failure == Failure.BUDGET and best is not None and point.steps and point.nfev:
-        done = point.reason.rpartition(" at ")[2]
-        reason = f"stopped after {point.steps} steps at {done}: it already took {work(point) / max(work(best), 1e-300):.0f} x the work of {best.method} ({best.setting}), which meets the accuracy"
-        point = replace(point, reason=reason)
+    if cap < setup.steps and point.failure == Failure.BUDGET and best is not None and point.steps:
+        beaten = f"{best.method} ({best.setting}), which meets the accuracy"
+        if point.nfev:  # stopped by its cap
+            done = point.reason.rpartition(" at ")[2]
+            reason = f"stopped after {point.steps} steps at {done}: it already took {work(point) / max(work(best), 1e-300):.2g} x the work of {beaten}"
+        else:  # stopped by its pace (`runs.PACE_MARGIN`) before its cap
+            reason = f"{point.reason}; its budget is {_losing(candidate, best):g} x the work of {beaten}: it could only lose"
+        point = replace(point, status=PointStatus.CAPPED, reason=reason)
     return point
 
 
@@ -653,10 +690,22 @@ def _without_reference(model: Model, regime: Regime, setup: Setup, error: Refere
     return Outcome(regime, setup.t_end, "none", math.nan, (), diagnosis, None, None, None, open_reason=open_reason)
 
 
-def diagnose(model: Model, setup: Setup, reference: Reference, points: Sequence[Point], runs: Mapping[tuple[Candidate, float], Point], target: float, horizon: Horizon | None = None) -> Diagnosis:
+def diagnose(
+    model: Model,
+    setup: Setup,
+    reference: Reference,
+    points: Sequence[Point],
+    runs: Mapping[tuple[Candidate, float], Point],
+    target: float,
+    horizon: Horizon | None = None,
+    parting: Horizon | None = None,
+) -> Diagnosis:
     """Stiffness, time scales and conditioning along the reference, and what the runs showed
-    (`horizon`: the chaos that cut the window short)."""
+    (`horizon`: the chaos that cut the window short; `parting`: how nearby trajectories parted, measured
+    whether or not they cut it, which says whether growing modes of the linearization are chaos)."""
     base = _measure(model, setup, reference.t, reference.y, dense(model, reference), setup.t_end)
+    if parting is not None and not parting.chaotic:
+        base = replace(base, findings=tuple(_local(f, parting) if f.kind == GROWING else f for f in base.findings))
     findings: list[Finding] = []
     if horizon is not None:
         findings.append(
@@ -667,13 +716,9 @@ def diagnose(model: Model, setup: Setup, reference: Reference, points: Sequence[
             )
         )
     findings += base.findings
-    by_method = {(candidate.method, tolerance): point for (candidate, tolerance), point in runs.items()}
-    for tolerance in ladder(target):
-        implicit = by_method.get(("Radau", tolerance))
-        explicit = max((by_method[(m, tolerance)] for m in ("RK45", "DOP853") if (m, tolerance) in by_method), key=lambda p: p.steps, default=None)
-        if explicit and implicit and explicit.steps and implicit.steps and explicit.steps > EXPLOSION * implicit.steps:
-            findings.append(Finding("explicit step count explodes", f"{explicit.method} took {explicit.steps} steps against Radau's {implicit.steps} at rtol {tol_text(tolerance)}"))
-            break
+    found = _explosion(runs, target)
+    if found is not None:
+        findings.append(found)
     for point in points:
         if point.status == PointStatus.FAILED and point.failure in FAILURE_FINDINGS:
             findings.append(Finding(f"{point.method} ({point.setting}) failed", point.reason.removeprefix(f"{model.source}: ")))
@@ -687,9 +732,38 @@ def diagnose(model: Model, setup: Setup, reference: Reference, points: Sequence[
     return replace(base, findings=tuple(findings))
 
 
+GROWING = "growing modes in the linearization"
+"""The finding of a positive eigenvalue along the run (x t_end above diagnostics.STIFF): "unstable modes" before,
+which read as instability on integrable systems (Kepler's orbit near periapsis, a trammel passing its potential's
+saddle: audit4 F4, F7)."""
+
+
+def _local(finding: Finding, parting: Horizon) -> Finding:
+    """A GROWING finding where runs started `parting.delta` apart were not found chaotic (`reference.CHAOS_GROWTH`)."""
+    return Finding(
+        finding.kind,
+        f"{finding.detail}; runs started {tol_text(parting.delta)} apart end {parting.growth:.2g} x farther apart, growing less than {CHAOS_GROWTH:g} x over"
+        " the window's second half: not counted as chaos (a saddle passed, or an effect of the coordinates, makes a linearization grow locally)",
+    )
+
+
+def _explosion(runs: Mapping[tuple[Candidate, float], Point], target: float) -> Finding | None:
+    """ "explicit step count explodes" where, at some rtol of the ladder, an explicit run took more than
+    EXPLOSION x the steps of Radau's at the same rtol, both finished: a run stopped by its cap or its pace
+    took a few steps of its initial transient, which say nothing of its count to t_end (scipy's Radau,
+    stopped after 2 steps on a non-stiff elastic pendulum, "against" DOP853's 153 to t_end)."""
+    by_method = {(candidate.method, tolerance): point for (candidate, tolerance), point in runs.items() if point.status == PointStatus.FINISHED}
+    for tolerance in ladder(target):
+        implicit = by_method.get(("Radau", tolerance))
+        explicit = max((by_method[(m, tolerance)] for m in ("RK45", "DOP853") if (m, tolerance) in by_method), key=lambda p: p.steps, default=None)
+        if explicit and implicit and explicit.steps and implicit.steps and explicit.steps > EXPLOSION * implicit.steps:
+            return Finding("explicit step count explodes", f"{explicit.method} took {explicit.steps} steps against Radau's {implicit.steps} at rtol {tol_text(tolerance)}, both to t_end")
+    return None
+
+
 def _measure(model: Model, setup: Setup, t: np.ndarray, y: np.ndarray, rerun: diagnostics.Rerun | None, t_end: float) -> Diagnosis:
     """The spectrum (stiffness, time scales, growth) and cond M along the states (t, y), with the
-    findings they make: stiff, two time scales, unstable modes, near a coordinate singularity
+    findings they make: stiff, two time scales, growing modes, near a coordinate singularity
     (with the coordinate to change)."""
     s: Settings = starting(model, setup).start  # type: ignore[assignment]
     module = compile.build(model, "python", jacobian=True).module
@@ -737,7 +811,7 @@ def _measure(model: Model, setup: Setup, t: np.ndarray, y: np.ndarray, rerun: di
     elif scales > SCALES and rate * t_end > FAST_RADIANS:
         findings.append(Finding("two time scales (highly oscillatory, not dissipative)", f"fastest rate {rate:.3g}/s, {scales:.3g} x the slowest"))
     if growth * t_end > diagnostics.STIFF:
-        findings.append(Finding("unstable modes", f"growth rate up to {growth:.3g}/s (a saddle, chaos or constraint drift; not stiffness: decays matched by growth are not counted)"))
+        findings.append(Finding(GROWING, f"growth rate up to {growth:.3g}/s (a saddle, chaos or constraint drift; not stiffness: decays matched by growth are not counted)"))
     if peak is not None and peak.condition > diagnostics.SINGULAR_CONDITION:
         findings.append(_singularity(model, s.values, condition, peak))
     if not spectra:
