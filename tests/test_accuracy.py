@@ -201,7 +201,21 @@ def test_a_reference_over_its_budget_says_where_it_stopped() -> None:
     with pytest.raises(accuracy.ReferenceFailed) as caught:
         accuracy.computed_reference(model, setup, 1e-10)
     message = str(caught.value)
-    assert caught.value.exit_code == 1 and "within" in message and "stopped at t = " in message and "state: theta = " in message, message
+    assert caught.value.exit_code == 1 and "within" in message and "reached t = " in message and "state there: theta = " in message, message
+    # not stiff where the explicit runs stopped: their steps were short for accuracy, so Radau in Python (fewer steps allowed) is not run
+    assert "Radau (python) not tried: the explicit runs were not stiff where they stopped" in message, message
+    assert "Radau (python), rtol" not in message  # no Radau run was made
+
+
+def test_a_stiff_reference_still_runs_radau() -> None:
+    """On a stiff system Radau is still run as the reference (ACCURACY_LIMITED skips it only after explicit
+    runs that were not stiff where they stopped): over a budget of 1 step, its own run is what stops."""
+    model = model_from(ROOT / "systems" / "stiff_spring_pendulum_damped.yaml")
+    setup = accuracy.Setup(10.0, tuple(float(t) for t in range(11)), max_steps=1, reference_max_steps=1)
+    with pytest.raises(accuracy.ReferenceFailed) as caught:
+        accuracy.computed_reference(model, setup, 1e-10)
+    message = str(caught.value)
+    assert "Radau (python) not tried" not in message and "the reference run (Radau (python), rtol" in message and "stopped at t = " in message, message
 
 
 def test_the_error_is_the_largest_over_the_samples_not_an_average() -> None:

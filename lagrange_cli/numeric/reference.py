@@ -382,6 +382,7 @@ def _computed_reference(model: Model, setup: Setup, tolerance: float, hint: str,
     began = time.perf_counter()
     reasons: list[str] = []
     main: Trajectory | None = None
+    paced_need: float | None = None  # the compiled steps the last explicit attempt's pace needs, where it ran out of budget not stiff
     if primary.method not in IMPLICIT:
         capped = replace(setup, reference_max_steps=min(setup.reference_steps, EXPLICIT_REFERENCE_STEPS)) if primary.backend == "compiled" else setup
         tried: list[str] = []
@@ -404,13 +405,24 @@ def _computed_reference(model: Model, setup: Setup, tolerance: float, hint: str,
                     found = _converged(model, capped, main, rtol, found, primary, rtols[-1], time.perf_counter() - began)
                 return replace(found, description=f"{found.description} (looser than rtol {tol_text(tolerance)}: {'; '.join(tried)})") if tried else found
             tried.append(_stopped(model, primary, rtol, capped, main, paced.needed if paced is not None else None))
+            paced_need = None
             if main.outcome != Status.BUDGET:
                 break  # a blow-up or a singular matrix: a looser tolerance will not pass it
             if stiff_at(model, setup, main.t_last, main.y_last):
                 tried.append(f"stiff where it stopped (t = {main.t_last:.6g}): its steps are stability-limited, a looser rtol would not lengthen them")
                 break
+            paced_need = paced.needed if paced is not None else None
         reasons.append("; ".join(tried))
     attempt = replace(setup, reference_max_steps=_implicit_budget(model, setup))
+    if paced_need is not None and paced_need > ACCURACY_LIMITED * attempt.reference_steps:
+        # the explicit runs' steps were short for accuracy, not stability (not stiff where they stopped): an implicit method of
+        # lower order needs at least as many, and Radau in Python has far fewer (audit4 F4: Kepler near r = 0 spent a
+        # 60000-step Radau run on a reference the explicit probes had already shown out of reach)
+        reasons.append(
+            f"Radau (python) not tried: the explicit runs were not stiff where they stopped, so their steps were limited by accuracy, and their pace"
+            f" needs about {paced_need:.3g} steps, more than {ACCURACY_LIMITED:g} x an implicit reference's budget of {attempt.reference_steps}"
+        )
+        raise ReferenceFailed(f"{model.source}: " + "; and ".join(reasons) + f"; give a shorter --t-end{hint} or a larger --max-steps", trajectory=main, attempts=tuple(reasons))
     why = reasons[0] if reasons else "stiff at the start, where an explicit reference would be stability-limited"
     radau: Trajectory | None = None
     skipped: list[str] = []
@@ -458,6 +470,12 @@ def _computed_reference(model: Model, setup: Setup, tolerance: float, hint: str,
     if blowup:
         message += f"; {'both stop' if main is not radau else 'it stops'} near t = {main.t_last:.6g}: the solution itself blows up or reaches a singular configuration there"
     raise ReferenceFailed(f"{message}; give a shorter --t-end{hint} or a larger --max-steps", blowup=blowup, trajectory=main, attempts=tuple(reasons))
+
+
+ACCURACY_LIMITED = 10.0
+"""Radau in Python is not tried as a reference where the explicit attempts ran out of budget, were not
+stiff where they stopped, and their pace needs more than this many times Radau's step budget in compiled
+steps: their steps were limited by accuracy, which a lower-order implicit method does not lengthen."""
 
 
 EXPLICIT_MARGIN = 50.0
