@@ -66,14 +66,18 @@ LYAPUNOV_SEGMENTS = 50
 LYAPUNOV_SEPARATION = 1e-8
 MAX_CROSSINGS = 100_000
 SWEEP_SAMPLES = 201
+"""Samples of a run when a measure needs them and `samples` is not given."""
 CONNECT_TIMEOUT = 10  # seconds to reach a Dask scheduler
 TASKS_PER_WORKER = 2
 """A Dask task carries several batches: each takes 1/(TASKS_PER_WORKER x workers) of the batches left (`_task_groups`),
 so about 5 tasks a worker, large first: Dask's fixed cost per task (scheduling, transfers; a few ms) is then small
 against the task's runs, which lockstep lanes make cheap (benchmarks/sweep_bench.py), the last tasks are small (the
 workers finish together), a lost worker's tasks stay small to rerun and rows still stream back batch by batch."""
+AHEAD = 8
+"""`--workers N` keeps AHEAD x N batches submitted beyond the one being delivered (in order): a thread held up
+(another process's turn on its core) does not leave the others idle once they have run the few batches after its own
+(they were 2 x N; rows held waiting are the table's anyway)."""
 MAX_BATCHES_PER_TASK = 64
-"""Samples of a run when a measure needs them and `samples` is not given."""
 _CALL = re.compile(r"^\s*(max|min|mean|period)\s*\((.*)\)\s*$", re.S)
 
 
@@ -919,18 +923,33 @@ def _rows(runner: Runner, grid: np.ndarray, indices: list[int]) -> list[list[Any
 
 
 def _ordered(pool: ThreadPoolExecutor, runner: Runner, grid: np.ndarray, batches: list[list[int]], workers: int) -> Iterator[tuple[list[list[Any]], int]]:
-    """Batches on the threads, a few ahead, results in order."""
-    pending: list[tuple[Any, int]] = []
-    queue = iter(batches)
-    for indices in itertools.islice(queue, 2 * workers):
-        pending.append((pool.submit(_rows, runner, grid, indices), len(indices)))
+    """Batches on the threads, AHEAD per thread ahead of the one delivered, results in order. Each of the last
+    `workers` batches is run in `workers` pieces (its rows joined in order): the threads then finish within a piece
+    of each other, where one thread ran a last whole batch while the others idled (a run's row does not depend on
+    the batch it is run with)."""
+    pending: list[tuple[list[Any], int]] = []
+    tail = len(batches) - workers
+    queue = iter([_pieces(indices, workers) if k >= tail else [indices] for k, indices in enumerate(batches)])
+
+    def submit(pieces: list[list[int]]) -> None:
+        pending.append(([pool.submit(_rows, runner, grid, piece) for piece in pieces], sum(len(piece) for piece in pieces)))
+
+    for pieces in itertools.islice(queue, AHEAD * workers):
+        submit(pieces)
     while pending:
-        future, size = pending.pop(0)
-        rows = future.result()
+        futures, size = pending.pop(0)
+        rows = [row for future in futures for row in future.result()]
         following = next(queue, None)
         if following is not None:
-            pending.append((pool.submit(_rows, runner, grid, following), len(following)))
+            submit(following)
         yield rows, size
+
+
+def _pieces(indices: list[int], count: int) -> list[list[int]]:
+    """`indices` cut into `count` consecutive pieces of nearly equal length (fewer when it is shorter)."""
+    count = max(1, min(count, len(indices)))
+    bounds = [len(indices) * j // count for j in range(count + 1)]
+    return [indices[a:b] for a, b in itertools.pairwise(bounds)]
 
 
 _CLIENTS: dict[str, Any] = {}

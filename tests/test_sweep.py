@@ -131,6 +131,18 @@ def test_threads_give_the_results_of_one_worker() -> None:
     assert one.rows == two.rows and [r[0] for r in one.rows] == list(range(12))
 
 
+def test_threads_run_the_last_batches_in_pieces_with_the_same_rows() -> None:
+    """The last `workers` batches of --workers are run in pieces on the threads (in lanes here, 100 runs a batch
+    cut in halves) and joined: the rows of one worker, every batch delivered once, whole, in order."""
+    assert library._pieces(list(range(7)), 2) == [[0, 1, 2], [3, 4, 5, 6]] and library._pieces([5], 3) == [[5]]
+    pendulum = model("double_pendulum")
+    axes = [Axis("initial", "theta", -2, 2, 20), Axis("initial", "phi", -2, 2, 15)]
+    one = library.sweep(pendulum, axes, t_end=2, batch=100)
+    sizes: list[int] = []
+    two = library.sweep(pendulum, axes, t_end=2, batch=100, workers=2, on_batch=lambda rows, done, total: sizes.append(len(rows)))
+    assert two.rows == one.rows and sizes == [100, 100, 100] and [r[0] for r in two.rows] == list(range(300))
+
+
 # -- resume --------------------------------------------------------------------------------------------
 
 
