@@ -62,6 +62,25 @@ def timed(run: Any) -> tuple[float, Any]:
     return time.perf_counter() - began, value
 
 
+def cluster_processes(address: str) -> tuple[list[Any], list[Any]]:
+    """The psutil processes of a local cluster's workers and of their nannies (empty lists without psutil)."""
+    try:
+        import psutil
+    except ImportError:
+        return [], []
+    from distributed import Client
+
+    with Client(address, set_as_default=False) as client:
+        pids = list(client.run(os.getpid).values())
+    workers = [psutil.Process(pid) for pid in pids]
+    return workers, [process.parent() for process in workers]
+
+
+def cpu_of(processes: list[Any]) -> float:
+    """User + system CPU seconds of `processes` so far."""
+    return sum(sum(process.cpu_times()[:2]) for process in processes)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser()
     parser.add_argument("--runs", type=int, default=10_000)
@@ -69,6 +88,7 @@ def main() -> None:
     parser.add_argument("--atol", type=float, default=ATOL)
     parser.add_argument("--rounds", type=int, default=7, help="rounds of each parallel comparison (1 worker against 2; 2 workers against LocalCluster), all reported, medians in the table")
     parser.add_argument("--write", action="store_true")
+    parser.add_argument("--parallel-only", action="store_true", help="only the two parallel comparisons (a quick pass), printed round by round; no sequential contestants")
     arguments = parser.parse_args()
     rtol, atol = arguments.rtol, arguments.atol
     load_start = ", ".join(f"{x:.1f}" for x in os.getloadavg())
@@ -89,7 +109,7 @@ def main() -> None:
     # their nannies) takes about 15% of a core between them (heartbeats, its profiler), which would be charged to the threads.
     # LocalCluster against --workers 2 runs with the cluster up, both contestants beside the same idle processes.
     local_rounds: list[tuple[float, float, float, float, str]] = []  # wall 1 worker, wall 2 workers, CPU 1, CPU 2, load
-    dask_rounds: list[tuple[float, float, str]] = []  # wall 2 workers, wall LocalCluster, load
+    dask_rounds: list[tuple[float, float, str, float, float, float, float]] = []  # wall 2 workers, wall LocalCluster, load; CPU: 2 workers, this process, workers, nannies (LocalCluster)
     before: list[tuple[float, float, Any]] = []  # (wall, CPU, table) of the sweep without lanes (library.LANES = False), each round
 
     def load_now() -> str:
@@ -109,16 +129,23 @@ def main() -> None:
     for _ in range(rounds):
         one, table = timed(lambda: library.sweep(model, axes, **options))
         two, table_two = timed(lambda: library.sweep(model, axes, workers=2, **options))
-        without_lanes()
+        if not arguments.parallel_only:
+            without_lanes()
         assert table.rows == table_two.rows
         local_rounds.append((one, two, CPU[id(table)], CPU[id(table_two)], load_now()))
     with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster:
         library.sweep(model, axes, scheduler=cluster.scheduler_address, **{**options, "sample": 8})  # every worker derives and loads once
+        workers, nannies = cluster_processes(cluster.scheduler_address)
         for _ in range(rounds):
             two_beside, table_two = timed(lambda: library.sweep(model, axes, workers=2, **options))
+            before_workers, before_nannies = cpu_of(workers), cpu_of(nannies)
             dask, table_dask = timed(lambda: library.sweep(model, axes, scheduler=cluster.scheduler_address, **options))
             assert table_dask.rows == table.rows and table_two.rows == table.rows
-            dask_rounds.append((two_beside, dask, load_now()))
+            dask_rounds.append((two_beside, dask, load_now(), CPU[id(table_two)], CPU[id(table_dask)], cpu_of(workers) - before_workers, cpu_of(nannies) - before_nannies))
+        library.close_clients()  # the sweeps' kept client, before the cluster goes
+    if arguments.parallel_only:
+        print(parallel_report(local_rounds, dask_rounds, load_start))
+        return
     one, two = float(np.median([r[0] for r in local_rounds])), float(np.median([r[1] for r in local_rounds]))
     speedup = float(np.median([r[0] / r[1] for r in local_rounds]))
     two_beside, dask = float(np.median([r[0] for r in dask_rounds])), float(np.median([r[1] for r in dask_rounds]))
@@ -209,7 +236,12 @@ def main() -> None:
         + ".",
         f"- 2-worker LocalCluster: {dask_ratio:.2f}x the time of `--workers 2`, the median of {rounds} rounds' ratios ({dask / two_beside:.2f}x as the ratio of the medians; target <= 1.3x; Dask adds its scheduling,",
         "  transfers and its idle processes' heartbeats); its rows equal the local run's exactly. Every round (wall s: --workers 2 beside the idle",
-        "  cluster, LocalCluster; ratio; os.getloadavg at the round's end): " + "; ".join(f"{a:.2f}, {b:.2f} ({b / a:.2f}x; load {g})" for a, b, g in dask_rounds) + ".",
+        "  cluster, LocalCluster; ratio; os.getloadavg at the round's end; CPU s: --workers 2's process, and the LocalCluster sweep's in this process",
+        "  (client and scheduler), its two workers and their two nannies, psutil): "
+        + "; ".join(f"{a:.2f}, {b:.2f} ({b / a:.2f}x; load {g}; CPU {c:.2f} against {d:.2f} + {w:.2f} + {m:.2f})" for a, b, g, c, d, w, m in dask_rounds)
+        + ".",
+        f"  CPU (load-independent companion, medians): --workers 2 {np.median([r[3] for r in dask_rounds]):.2f} s; the LocalCluster sweep {np.median([r[4] + r[5] + r[6] for r in dask_rounds]):.2f} s in all"
+        f" ({np.median([r[4] for r in dask_rounds]):.2f} s client and scheduler, {np.median([r[5] for r in dask_rounds]):.2f} s workers, {np.median([r[6] for r in dask_rounds]):.2f} s nannies): {np.median([(r[4] + r[5] + r[6]) / r[3] for r in dask_rounds]):.2f}x.",
         f"- `simulate` as documented picks its own method ({default_method}) and keeps 1001 samples with their invariants: more",
         "  than the sweep computes, so the tuned loop is the fair comparison.",
         f"- The sweep's final states agree with the peer's on its {PEER_SAMPLE} runs to a median of {np.median(agreement):.1e} (max {agreement.max():.1e}: chaotic runs amplify the tolerance).",
@@ -222,6 +254,24 @@ def main() -> None:
     print(report)
     if arguments.write:
         write_section(report)
+
+
+def parallel_report(local_rounds: list[Any], dask_rounds: list[Any], load_start: str) -> str:
+    """The two parallel comparisons, every round and the medians (`--parallel-only`)."""
+    lines = [
+        f"{time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}; load average at the start {load_start}",
+        "1 worker against --workers 2 (no cluster up): wall s, wall s, speed-up; CPU s of the process; load",
+    ]
+    lines += [f"  {a:.3f} {b:.3f} {a / b:.2f}x; CPU {c:.3f} {d:.3f}; load {g}" for a, b, c, d, g in local_rounds]
+    lines.append(
+        f"  median speed-up {np.median([r[0] / r[1] for r in local_rounds]):.2f}x (target >= 1.7x); median CPU {np.median([r[2] for r in local_rounds]):.3f} s, {np.median([r[3] for r in local_rounds]):.3f} s"
+    )
+    lines.append("--workers 2 against the LocalCluster (beside the idle cluster): wall s, wall s, ratio; CPU s: --workers 2, then the cluster sweep's client+scheduler, workers, nannies; load")
+    lines += [f"  {a:.3f} {b:.3f} {b / a:.2f}x; CPU {c:.3f} against {d:.3f} + {w:.3f} + {m:.3f}; load {g}" for a, b, g, c, d, w, m in dask_rounds]
+    lines.append(
+        f"  median ratio {np.median([r[1] / r[0] for r in dask_rounds]):.2f}x (target <= 1.3x); CPU of the cluster sweep in all over --workers 2's: {np.median([(r[4] + r[5] + r[6]) / r[3] for r in dask_rounds]):.2f}x"
+    )
+    return "\n".join(lines)
 
 
 def write_section(text: str) -> None:

@@ -33,7 +33,9 @@ Measures (`measures`, strings):
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
+import functools
 import hashlib
 import itertools
 import json
@@ -64,13 +66,18 @@ LYAPUNOV_SEGMENTS = 50
 LYAPUNOV_SEPARATION = 1e-8
 MAX_CROSSINGS = 100_000
 SWEEP_SAMPLES = 201
-CONNECT_TIMEOUT = 10  # seconds to reach a Dask scheduler
-TASKS_PER_WORKER = 4
-"""A Dask task carries several batches, about this many tasks per worker: Dask's fixed cost per task (scheduling,
-transfers; a few ms) is then small against the task's runs, which lockstep lanes make cheap (benchmarks/sweep_bench.py),
-while a lost worker's tasks stay small to rerun and rows still stream back batch by batch."""
-MAX_BATCHES_PER_TASK = 64
 """Samples of a run when a measure needs them and `samples` is not given."""
+CONNECT_TIMEOUT = 10  # seconds to reach a Dask scheduler
+TASKS_PER_WORKER = 2
+"""A Dask task carries several batches: each takes 1/(TASKS_PER_WORKER x workers) of the batches left (`_task_groups`),
+so about 5 tasks a worker, large first: Dask's fixed cost per task (scheduling, transfers; a few ms) is then small
+against the task's runs, which lockstep lanes make cheap (benchmarks/sweep_bench.py), the last tasks are small (the
+workers finish together), a lost worker's tasks stay small to rerun and rows still stream back batch by batch."""
+AHEAD = 8
+"""`--workers N` keeps AHEAD x N batches submitted beyond the one being delivered (in order): a thread held up
+(another process's turn on its core) does not leave the others idle once they have run the few batches after its own
+(they were 2 x N; rows held waiting are the table's anyway)."""
+MAX_BATCHES_PER_TASK = 64
 _CALL = re.compile(r"^\s*(max|min|mean|period)\s*\((.*)\)\s*$", re.S)
 
 
@@ -295,7 +302,7 @@ class Job:
     options: tuple[tuple[str, Any], ...]
     """Settings of `settings.validate` (t_end, method, rtol, atol, step, samples, parameters, initial, until, backend, max_step)."""
 
-    @property
+    @functools.cached_property
     def key(self) -> str:
         return hashlib.sha256(json.dumps([self.text, self.filename, [dataclasses.astuple(a) for a in self.axes], self.measures, self.section, self.options], default=repr).encode()).hexdigest()[:24]
 
@@ -398,6 +405,8 @@ class Runner:
         if self.section is not None:
             self.conditions = [_vectorised(model, c) for c in self.section.conditions]
         self.columns = self._columns()
+        self.plain = all(m.kind in ("final", "t_event") for m in self.measures)
+        """Every measure is read off the run's end: a batch's rows are made from its arrays (`ended`, `rows`)."""
 
     def _lanes(self, model: Model, settings: Any) -> tuple[Any, Any]:
         """(the lane loop, the system's `_accel_lanes`) when the batch can run in lockstep lanes (numeric/lanes.py:
@@ -454,11 +463,55 @@ class Runner:
             for k, values in zip(indices, chunk, strict=True):
                 result += self.run_point(k, values)
             return result
+        if self.plain:
+            return self.rows(self._ended(indices, chunk))
+        return self._measured_batch(indices, chunk)
+
+    def ended(self, indices: Sequence[int], chunk: np.ndarray) -> list[list[Any]] | Ended:
+        """`batch`: its rows, or, when every measure is read off a run's end (`final`, `t_event`) on the compiled
+        explicit path, how its runs ended as a few arrays (`Ended`: what a Dask task sends back; `rows` makes the rows)."""
+        if not (self.fast and self.section is None and self.plain) or len(indices) == 0:
+            return self.batch(indices, chunk)
+        return self._ended(indices, chunk)
+
+    def _ended(self, indices: Sequence[int], chunk: np.ndarray) -> Ended:
+        import numpy as np
+
+        y0s, ps = self.points(chunk)
+        codes, t_last, y_last, _ = self._integrate_batch(y0s, ps)
+        return Ended(np.asarray(indices, dtype=np.int64), chunk, codes, t_last, y_last)
+
+    def rows(self, ended: Ended) -> list[list[Any]]:
+        """The rows of `ended` (the rows `batch` gives), built from its arrays a list at a time: a row costs a
+        microsecond or so of Python, not a run's `measured_rows` (an Outcome, numpy's errstate, measures one by one)."""
         import numpy as np
 
         from lagrange_cli.numeric import status as st
 
-        y0s, ps = self.points(chunk)
+        rows: list[list[Any]] = []
+        finals = [m.kind == "final" for m in self.measures]
+        only_final = finals == [True]
+        for b, (k, head, code, t, y) in enumerate(zip(ended.indices.tolist(), ended.chunk.tolist(), ended.codes.tolist(), ended.t_last.tolist(), ended.y_last.tolist(), strict=True)):
+            if code == st.DONE and only_final:
+                rows.append([k, *head, "finished", "", *y])
+            elif code in (st.DONE, st.EVENT):
+                row = [k, *head, "event" if code == st.EVENT else "finished", ""]
+                for final in finals:
+                    if final:
+                        row += y
+                    else:
+                        row.append(t if code == st.EVENT else math.nan)
+                rows.append(row)
+            else:  # a failed run: its reason, and NaN for every measure (as `_measured` gives)
+                no_samples = np.empty((0, ended.y_last.shape[1]))
+                reason = Outcome.failed(self, code, t, ended.y_last[b], no_samples[:, 0], no_samples, []).reason
+                rows.append([k, *head, "failed", reason, *([math.nan] * (len(self.columns) - len(head) - 3))])
+        return rows
+
+    def _integrate_batch(self, y0s: np.ndarray, ps: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """(codes, t_last, y_last, ys) of the runs from y0s with ps: one compiled call (lanes where they apply)."""
+        import numpy as np
+
         ts = np.array(self.settings.t_eval, dtype=float)
         control = self._control(self.settings.t0, self.settings.t_end)
         if self.lanes_entry is not None:
@@ -467,6 +520,17 @@ class Runner:
             codes, t_last, y_last, ys, _, _ = self.lanes_entry(self.pair, y0s, ps, control, ts, self.budget, width, self.accel, self.lanes_accel)
         else:
             codes, t_last, y_last, ys, _ = self.batch_entry(self.pair, y0s, ps, control, ts, self.budget, self.accel, self.event)
+        return codes, t_last, y_last, ys
+
+    def _measured_batch(self, indices: Sequence[int], chunk: np.ndarray) -> list[list[Any]]:
+        """`batch`'s rows on the compiled explicit path, run by run through `measured_rows` (any measure)."""
+        import numpy as np
+
+        from lagrange_cli.numeric import status as st
+
+        y0s, ps = self.points(chunk)
+        ts = np.array(self.settings.t_eval, dtype=float)
+        codes, t_last, y_last, ys = self._integrate_batch(y0s, ps)
         exponents = self.lyapunov_batch(y0s, ps) if any(m.kind == "lyapunov" for m in self.measures) else None
         rows: list[list[Any]] = []
         for b, (k, values) in enumerate(zip(indices, chunk, strict=True)):
@@ -711,6 +775,19 @@ class Runner:
         return rows
 
 
+@dataclass(frozen=True)
+class Ended:
+    """How a batch's runs ended, as arrays: the points' indices and values (`chunk`), and per run its status code,
+    last time and last state (`Runner.ended`; `Runner.rows` makes the rows). A Dask task sends these back rather than
+    rows: a few arrays pickle and travel at memory speed, where a list per row costs the client a Python object each."""
+
+    indices: np.ndarray
+    chunk: np.ndarray
+    codes: np.ndarray
+    t_last: np.ndarray
+    y_last: np.ndarray
+
+
 @dataclass
 class Outcome:
     """How one run ended: status (finished, event, failed), the reason of a failure, the last
@@ -819,7 +896,7 @@ def sweep(
             on_batch(rows, count, len(grid))
 
     if scheduler is not None:
-        for rows, size in _dask(scheduler, job, grid, batches):
+        for rows, size in _dask(scheduler, job, runner, grid, batches):
             deliver(rows, size)
     elif workers == 1:
         for indices in batches:
@@ -846,61 +923,149 @@ def _rows(runner: Runner, grid: np.ndarray, indices: list[int]) -> list[list[Any
 
 
 def _ordered(pool: ThreadPoolExecutor, runner: Runner, grid: np.ndarray, batches: list[list[int]], workers: int) -> Iterator[tuple[list[list[Any]], int]]:
-    """Batches on the threads, a few ahead, results in order."""
-    pending: list[tuple[Any, int]] = []
-    queue = iter(batches)
-    for indices in itertools.islice(queue, 2 * workers):
-        pending.append((pool.submit(_rows, runner, grid, indices), len(indices)))
+    """Batches on the threads, AHEAD per thread ahead of the one delivered, results in order. Each of the last
+    `workers` batches is run in `workers` pieces (its rows joined in order): the threads then finish within a piece
+    of each other, where one thread ran a last whole batch while the others idled (a run's row does not depend on
+    the batch it is run with)."""
+    pending: list[tuple[list[Any], int]] = []
+    tail = len(batches) - workers
+    queue = iter([_pieces(indices, workers) if k >= tail else [indices] for k, indices in enumerate(batches)])
+
+    def submit(pieces: list[list[int]]) -> None:
+        pending.append(([pool.submit(_rows, runner, grid, piece) for piece in pieces], sum(len(piece) for piece in pieces)))
+
+    for pieces in itertools.islice(queue, AHEAD * workers):
+        submit(pieces)
     while pending:
-        future, size = pending.pop(0)
-        rows = future.result()
+        futures, size = pending.pop(0)
+        rows = [row for future in futures for row in future.result()]
         following = next(queue, None)
         if following is not None:
-            pending.append((pool.submit(_rows, runner, grid, following), len(following)))
+            submit(following)
         yield rows, size
 
 
-def _dask(address: str, job: Job, grid: np.ndarray, batches: list[list[int]]) -> Iterator[tuple[list[list[Any]], int]]:
-    """Batches as tasks of a `dask.distributed` cluster (lost workers' tasks are rerun by Dask), in order."""
+def _pieces(indices: list[int], count: int) -> list[list[int]]:
+    """`indices` cut into `count` consecutive pieces of nearly equal length (fewer when it is shorter)."""
+    count = max(1, min(count, len(indices)))
+    bounds = [len(indices) * j // count for j in range(count + 1)]
+    return [indices[a:b] for a, b in itertools.pairwise(bounds)]
+
+
+_CLIENTS: dict[str, Any] = {}
+"""A `distributed.Client` per scheduler address, kept for the next sweep of this process (connecting and closing
+cost about 20-45 ms, against a sweep of 10^4 double-pendulum runs of about 0.5 s on two workers); closed at exit."""
+_PREPARED: set[tuple[str, str, str]] = set()
+"""(scheduler address, worker address, Job.key): a worker known to have built the runner of the job."""
+_CLIENTS_LOCK = threading.Lock()
+
+
+def _client(address: str) -> Any:
+    """The kept client of `address`, or a new one (a client whose scheduler went away is replaced: connecting again
+    then fails with a clean error)."""
+    from distributed import Client
+
+    with _CLIENTS_LOCK:
+        client = _CLIENTS.get(address)
+        if client is not None and client.status == "running":
+            return client
+        if client is not None:
+            _forget(address)
+        try:
+            client = Client(address, timeout=CONNECT_TIMEOUT, set_as_default=False)
+        except (OSError, TimeoutError, ValueError) as error:
+            raise LagrangeError(f"--scheduler {address}: cannot connect to a Dask scheduler ({error})") from None
+        if not _CLIENTS:
+            import atexit
+
+            atexit.register(close_clients)
+        _CLIENTS[address] = client
+        return client
+
+
+def _forget(address: str) -> None:
+    """Drop (and close) the kept client of `address` (call with _CLIENTS_LOCK held)."""
+    client = _CLIENTS.pop(address, None)
+    for prepared in [p for p in _PREPARED if p[0] == address]:
+        _PREPARED.discard(prepared)
+    if client is not None:
+        with contextlib.suppress(Exception):  # a client of a scheduler that is gone may fail to close: it is dropped anyway
+            client.close(timeout=CONNECT_TIMEOUT)
+
+
+def close_clients() -> None:
+    """Close the Dask clients kept for later sweeps (at exit; or before their cluster is shut down)."""
+    with _CLIENTS_LOCK:
+        for address in list(_CLIENTS):
+            _forget(address)
+
+
+def _dask(address: str, job: Job, runner: Runner, grid: np.ndarray, batches: list[list[int]]) -> Iterator[tuple[list[list[Any]], int]]:
+    """Batches as tasks of a `dask.distributed` cluster (lost workers' tasks are rerun by Dask), in order. A task sends
+    back how its runs ended as arrays where it can (`Ended`), and `runner` (this process's) makes their rows."""
     import numpy as np
 
     try:
-        from distributed import Client
+        import distributed  # noqa: F401
     except ImportError:
         raise LagrangeError("--scheduler needs dask.distributed: install it with `pip install 'dask[distributed]'`") from None
+    from concurrent.futures import CancelledError
+
+    client = _client(address)
+    futures: list[Any] = []
+    finished = False
     try:
-        client = Client(address, timeout=CONNECT_TIMEOUT, set_as_default=False)
-    except (OSError, TimeoutError, ValueError) as error:
-        raise LagrangeError(f"--scheduler {address}: cannot connect to a Dask scheduler ({error})") from None
-    try:
-        shared = client.scatter(job, broadcast=True)
-        # Every worker builds the system now, all at once, ahead of its batches (priority): not at its first batch,
-        # which a short sweep (or the first sweep of a session) may never send it, leaving the cost to the next sweep.
-        ready = [client.submit(_dask_prepare, shared, workers=[worker], allow_other_workers=True, priority=1, pure=False) for worker in client.scheduler_info()["workers"]]
+        # The job (the file's text and settings, a few kB) goes with each task: no scatter, whose round trip to every
+        # worker cost more than the copies. Every worker builds the system at the start, all at once, ahead of its
+        # batches (priority): not at its first batch, which a short sweep (or the first sweep of a session) may never
+        # send it, leaving the cost to the next sweep; a worker known to have built it (a kept client) is not asked again.
+        workers = list(client.scheduler_info()["workers"])
+        ready = [client.submit(_dask_prepare, job, workers=[worker], allow_other_workers=True, priority=1, pure=False) for worker in workers if (address, worker, job.key) not in _PREPARED]
         # Indices travel as arrays: Dask walks every element of a list argument looking for futures (30 000 calls a sweep of 10^4).
-        futures = [(client.submit(_dask_task, shared, [(np.asarray(indices, dtype=np.int64), grid[indices]) for indices in group], pure=False), group) for group in _task_groups(batches, len(ready))]
+        futures = [(client.submit(_dask_task, job, [(np.asarray(indices, dtype=np.int64), grid[indices]) for indices in group], pure=False), group) for group in _task_groups(batches, len(workers))]
         for future, group in futures:
-            yield from zip(future.result(), (len(indices) for indices in group), strict=True)
-        client.gather(ready, errors="skip")  # every worker built (one that failed says so through its batches' results)
+            for result, indices in zip(future.result(), group, strict=True):
+                yield (runner.rows(result) if isinstance(result, Ended) else result), len(indices)
+        if ready:  # every worker built (one that failed says so through its batches' results)
+            _PREPARED.update((address, worker, job.key) for worker in client.gather(ready, errors="skip"))
+        finished = True
+    except (CancelledError, OSError, TimeoutError) as error:
+        if client.status == "running" and not isinstance(error, CancelledError):
+            raise  # a task's own error, not the connection's
+        with _CLIENTS_LOCK:
+            _forget(address)
+        raise LagrangeError(f"--scheduler {address}: the Dask scheduler was lost during the sweep ({type(error).__name__}: {error}); run it again") from None
     finally:
-        client.close()
+        if not finished and futures and address in _CLIENTS and _CLIENTS[address] is client:
+            with contextlib.suppress(Exception):  # an interrupted sweep's tasks stop (the kept client would hold them)
+                client.cancel([f for f, _ in futures], force=True)
 
 
-def _dask_prepare(job: Job) -> None:
+def _dask_prepare(job: Job) -> str:
+    """Build the job's runner on this worker: its address."""
+    from distributed import get_worker
+
     runner_for(job)
+    return str(get_worker().address)
 
 
 def _task_groups(batches: list[list[int]], workers: int) -> list[list[list[int]]]:
-    """Consecutive batches grouped into Dask tasks: about TASKS_PER_WORKER tasks per worker, each of at least one
-    batch and at most MAX_BATCHES_PER_TASK."""
-    per = max(1, min(MAX_BATCHES_PER_TASK, len(batches) // (TASKS_PER_WORKER * max(1, workers))))
-    return [batches[i : i + per] for i in range(0, len(batches), per)]
+    """Consecutive batches grouped into Dask tasks, large first and smaller towards the end (guided): each task takes
+    1/(TASKS_PER_WORKER x workers) of the batches left, at least one and at most MAX_BATCHES_PER_TASK. Few tasks keep
+    Dask's fixed cost per task small; small last tasks keep the workers finishing together (with equal tasks, one
+    worker idled about half a task at the end while the other finished its last)."""
+    groups, at = [], 0
+    while at < len(batches):
+        per = max(1, min(MAX_BATCHES_PER_TASK, math.ceil((len(batches) - at) / (TASKS_PER_WORKER * max(1, workers)))))
+        groups.append(batches[at : at + per])
+        at += per
+    return groups
 
 
-def _dask_task(job: Job, group: list[tuple[np.ndarray, np.ndarray]]) -> list[list[list[Any]]]:
-    """The rows of each batch of a task's `group` of (indices, points)."""
+def _dask_task(job: Job, group: list[tuple[np.ndarray, np.ndarray]]) -> list[list[list[Any]] | Ended]:
+    """How the runs of each batch of a task's `group` of (indices, points) ended (`Runner.ended`: arrays, or rows)."""
     runner = runner_for(job)
-    return [runner.batch(indices.tolist(), chunk) for indices, chunk in group]
+    return [runner.ended(indices.tolist(), chunk) for indices, chunk in group]
 
 
 # -- output and resume -----------------------------------------------------------------------------

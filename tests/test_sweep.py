@@ -131,6 +131,18 @@ def test_threads_give_the_results_of_one_worker() -> None:
     assert one.rows == two.rows and [r[0] for r in one.rows] == list(range(12))
 
 
+def test_threads_run_the_last_batches_in_pieces_with_the_same_rows() -> None:
+    """The last `workers` batches of --workers are run in pieces on the threads (in lanes here, 100 runs a batch
+    cut in halves) and joined: the rows of one worker, every batch delivered once, whole, in order."""
+    assert library._pieces(list(range(7)), 2) == [[0, 1, 2], [3, 4, 5, 6]] and library._pieces([5], 3) == [[5]]
+    pendulum = model("double_pendulum")
+    axes = [Axis("initial", "theta", -2, 2, 20), Axis("initial", "phi", -2, 2, 15)]
+    one = library.sweep(pendulum, axes, t_end=2, batch=100)
+    sizes: list[int] = []
+    two = library.sweep(pendulum, axes, t_end=2, batch=100, workers=2, on_batch=lambda rows, done, total: sizes.append(len(rows)))
+    assert two.rows == one.rows and sizes == [100, 100, 100] and [r[0] for r in two.rows] == list(range(300))
+
+
 # -- resume --------------------------------------------------------------------------------------------
 
 
@@ -235,6 +247,7 @@ def cluster():  # type: ignore[no-untyped-def]
     distributed = pytest.importorskip("distributed")
     with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=":0") as local:  # any free port: another test process may hold 8787
         yield local
+        library.close_clients()  # the sweeps' kept client, before its scheduler goes
 
 
 DASK_AXES = [Axis("initial", "theta", -2, 2, 4), Axis("initial", "phi", -2, 2, 3)]
@@ -249,12 +262,35 @@ def test_dask_cluster_gives_exactly_the_local_results(cluster, tmp_path: Path) -
     assert remote.read_text() == local.read_text() and len(rows(remote)) == 12
 
 
-def test_dask_tasks_carry_consecutive_batches() -> None:
-    batches = [[k] for k in range(50)]
-    groups = library._task_groups(batches, 2)  # 50 batches, 2 workers: 6 batches a task (about 4 tasks a worker)
-    assert [b for group in groups for b in group] == batches and {len(g) for g in groups[:-1]} == {6}
-    assert library._task_groups(batches[:5], 2) == [[b] for b in batches[:5]]  # never fewer than one batch a task
+def test_dask_tasks_carry_consecutive_batches_large_first() -> None:
+    batches = [[k] for k in range(40)]
+    groups = library._task_groups(batches, 2)  # 40 batches, 2 workers: each task a quarter of the batches left
+    assert [b for group in groups for b in group] == batches
+    assert [len(g) for g in groups] == [10, 8, 6, 4, 3, 3, 2, 1, 1, 1, 1]
+    assert library._task_groups(batches[:3], 2) == [[b] for b in batches[:3]]  # never fewer than one batch a task
     assert len(library._task_groups([[k] for k in range(10**5)], 1)[0]) == library.MAX_BATCHES_PER_TASK
+
+
+def test_rows_from_arrays_are_the_run_by_run_rows() -> None:
+    """A batch whose measures are read off the runs' ends (final, t_event) makes its rows from the compiled call's
+    arrays (Runner.ended / Runner.rows, what a Dask task sends back): the rows of the general path (Runner._measured_batch,
+    an Outcome and measured_rows per run) bit for bit, failed runs (a singular mass matrix at x = -1) and events included,
+    in lanes and in the run-by-run batch (an event)."""
+    elastic = model("elastic_pendulum")
+    axes = [Axis("initial", "x", -1.0, 0.3, 3), Axis("initial", "theta", 0.2, 1.4, 4)]
+    for extra in ({"measures": ["final"]}, {"measures": ["t_event", "final"], "until": "theta"}):
+        options = {"t_end": 5, "rtol": 1e-9, "method": "DOP853", "backend": "compiled", "batch": 5, **extra}
+        table = library.sweep(elastic, axes, **options)
+        runner = next(r for r in library._RUNNERS.values() if r.model is elastic and r.job.measures == tuple(extra["measures"]) and dict(r.job.options).get("until") == extra.get("until"))
+        assert runner.plain and (runner.lanes_entry is None) == ("until" in extra)  # lanes; an event: ensemble.batch
+        grid = library.points(axes)
+        ended = runner.ended(list(range(len(grid))), grid)
+        assert isinstance(ended, library.Ended)
+        general = runner._measured_batch(list(range(len(grid))), grid)
+        assert repr(runner.rows(ended)) == repr(general) == repr(table.rows)  # bit for bit (NaN included)
+        status = table.column("status").tolist()
+        assert status[:4] == ["failed"] * 4 and "singular" in table.rows[0][table.columns.index("reason")]
+        assert set(status[4:]) == ({"event"} if "until" in extra else {"finished"})
 
 
 def test_dask_tasks_of_several_batches_give_the_local_rows(cluster) -> None:  # type: ignore[no-untyped-def]
@@ -308,6 +344,28 @@ def test_every_dask_worker_builds_the_system_once_even_for_one_batch(cluster) ->
         key = next(k for k, r in library._RUNNERS.items() if r.model is pendulum and r.job.measures == ("final", "max(theta)"))
         built = client.run(_built_on_worker, key)
     assert len(built) == 2 and all(built.values())
+
+
+def test_dask_client_is_kept_and_a_lost_scheduler_is_a_clean_error() -> None:
+    """The client of a scheduler is kept for the next sweep of the process (no connect and close per sweep); when the
+    scheduler goes away, the next sweep says it cannot connect (a LagrangeError), and the kept client is dropped."""
+    distributed = pytest.importorskip("distributed")
+    pendulum = model("simple_pendulum")
+    axes = [Axis("set", "g", 1, 2, 3)]
+    local = library.sweep(pendulum, axes, t_end=1)
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=False, dashboard_address=":0") as cluster:
+        address = cluster.scheduler_address
+        assert library.sweep(pendulum, axes, t_end=1, scheduler=address).rows == local.rows
+        kept = library._CLIENTS[address]
+        assert library.sweep(pendulum, axes, t_end=1, scheduler=address).rows == local.rows and library._CLIENTS[address] is kept
+    old = library.CONNECT_TIMEOUT
+    library.CONNECT_TIMEOUT = 1
+    try:
+        with pytest.raises(library.LagrangeError, match=f"--scheduler {address}: "):
+            library.sweep(pendulum, axes, t_end=1, scheduler=address)
+    finally:
+        library.CONNECT_TIMEOUT = old
+    assert address not in library._CLIENTS and kept.status != "running"
 
 
 def test_dask_is_imported_only_for_a_scheduler(tmp_path: Path) -> None:
