@@ -45,6 +45,9 @@ import sympy as sp
 import yaml
 from scipy.integrate import solve_ivp
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from numeric_audit3 import Ref, _error, _rhs, _syms, fmt, qd, traceback_in  # audit 3's derivation and measures, shared
+
 ROOT = Path(__file__).resolve().parent.parent
 AUDIT = ROOT / "tests" / "numeric_audit4"
 PY = sys.executable
@@ -78,38 +81,6 @@ class System:
     @property
     def identity(self) -> bool:
         return bool(self.names)
-
-
-def qd(s: sp.Symbol) -> sp.Symbol:
-    return sp.Symbol(f"{s}_d")
-
-
-def _rhs(s: System) -> Callable[[float, np.ndarray], np.ndarray]:
-    """Euler-Lagrange with Rayleigh dissipation, generalized forces and multipliers, derived here:
-    [[M, -A^T], [A, 0]] [qdd, lambda] = [f, -r] with A = dc/dqd, r = dc/dq qd + dc/dt."""
-    q, v = s.q, [qd(x) for x in s.q]
-    n, L = len(q), s.T - s.V
-    Q = s.Q or [sp.Integer(0)] * n
-    M = sp.Matrix(n, n, lambda i, j: sp.diff(L, v[i], v[j]))
-    f = sp.Matrix([Q[i] - sp.diff(s.D, v[i]) + sp.diff(L, q[i]) - sum(sp.diff(L, v[i], q[j]) * v[j] for j in range(n)) - sp.diff(L, v[i], t) for i in range(n)])
-    k = len(s.constraints)
-    if k:
-        A = sp.Matrix(k, n, lambda i, j: sp.diff(s.constraints[i], v[j]))
-        r = sp.Matrix([sum(sp.diff(c, q[j]) * v[j] for j in range(n)) + sp.diff(c, t) for c in s.constraints])
-        M = sp.Matrix(sp.BlockMatrix([[M, -A.T], [A, sp.zeros(k, k)]]))
-        f = sp.Matrix([*f, *(-r)])
-    Mf = sp.lambdify([t, *q, *v], M, "numpy")
-    ff = sp.lambdify([t, *q, *v], f, "numpy")
-
-    def rhs(time_: float, y: np.ndarray) -> np.ndarray:
-        a = np.linalg.solve(np.asarray(Mf(time_, *y), dtype=float), np.asarray(ff(time_, *y), dtype=float).ravel())
-        return np.concatenate([y[n:], a[:n]])
-
-    return rhs
-
-
-def _syms(names: str) -> list[sp.Symbol]:
-    return list(sp.symbols(names))
 
 
 def _kepler_polar(ts: np.ndarray, e: float, a: float, k: float) -> np.ndarray:
@@ -283,16 +254,6 @@ def systems() -> dict[str, System]:
     return out
 
 
-@dataclass
-class Ref:
-    t_end: float
-    y: np.ndarray
-    """lagrange's coordinates and velocities at linspace(0, t_end, SAMPLES)."""
-    own: float
-    how: str
-    cpu: float
-
-
 def reference(name: str, s: System, t_end: float, file_t_end: float, energy: float = 1.0, moved: str = "") -> Ref:
     """The independent reference at the SAMPLES sample times (cached on disk by system, t_end and
     velocity factor). `energy` multiplies the initial velocities (stress's high-energy regime): the
@@ -336,16 +297,6 @@ def reference(name: str, s: System, t_end: float, file_t_end: float, energy: flo
     return Ref(t_end, y, own, how, cpu)
 
 
-def _error(y: np.ndarray, ref: np.ndarray, wrap: tuple[int, ...] = ()) -> float:
-    """Maximum over samples of max_i |y_i - ref_i| / max(1, max|ref_i|)."""
-    if y.shape != ref.shape or not np.all(np.isfinite(y)):
-        return math.inf
-    d = np.abs(y - ref)
-    for i in wrap:
-        d[:, i] = np.abs(np.remainder(y[:, i] - ref[:, i] + np.pi, 2 * np.pi) - np.pi)
-    return float(np.max(d / np.maximum(1.0, np.max(np.abs(ref), axis=0))))
-
-
 CACHE = os.environ.get("LAGRANGE_CACHE_DIR", "")
 REUSE = False
 STRESS_ONLY = False
@@ -363,10 +314,6 @@ def cli(*args: str, cache: str = "") -> tuple[subprocess.CompletedProcess[str], 
     return done, (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime), wall
 
 
-def traceback_in(done: subprocess.CompletedProcess[str]) -> bool:
-    return "Traceback" in done.stderr or "Traceback" in done.stdout
-
-
 def run_simulate(s: System, ref: Ref, opts: list[str], tmp: Path, initial: list[str] = []) -> dict[str, object]:  # noqa: B006
     out = tmp / "run.npz"
     done, cpu, wall = cli("simulate", str(AUDIT / s.file), *initial, *opts, "--t-end", repr(ref.t_end), "--samples", str(SAMPLES), "-q", "-o", str(out))
@@ -381,12 +328,6 @@ def run_simulate(s: System, ref: Ref, opts: list[str], tmp: Path, initial: list[
     if done.returncode != 0:
         row["stderr"] = done.stderr[-400:]
     return row
-
-
-def ran_of(point: dict[str, object]) -> tuple[str, str]:
-    text = str(point.get("ran") or point["method"])
-    method, _, backend = text.partition(" (")
-    return method.strip(), backend.rstrip(")") or "auto"
 
 
 def velocities_initial(path: str, energy: float) -> list[str]:
@@ -539,10 +480,6 @@ def cold(name: str, s: System, tmp: Path) -> dict[str, object]:
         out[label] = {"exit": done.returncode, "cpu": cpu, "wall": wall, "traceback": traceback_in(done)}
         print(f"# cold {name} {label}: exit {done.returncode}, CPU {cpu:.1f} s, wall {wall:.1f} s", file=sys.stderr, flush=True)
     return out
-
-
-def fmt(x: object) -> str:
-    return f"{x:.1e}" if isinstance(x, float) and math.isfinite(x) else str(x)
 
 
 def table(results: list[dict[str, object]]) -> str:
