@@ -36,7 +36,6 @@ import subprocess
 import sys
 import tempfile
 import time
-from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -46,6 +45,7 @@ import yaml
 from scipy.integrate import solve_ivp
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+import numeric_audit3
 from numeric_audit3 import Ref, _error, _rhs, _syms, fmt, qd, traceback_in  # audit 3's derivation and measures, shared
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -59,22 +59,9 @@ G = 9.81
 
 
 @dataclass
-class System:
-    file: str
-    q: list[sp.Symbol]
-    T: sp.Expr
-    V: sp.Expr
-    y0: list[float]
-    stiff: bool
-    to_lagrange: Callable[[np.ndarray], np.ndarray]
-    """reference rows (own coordinates, own velocities) -> lagrange's coordinates and velocities."""
-    D: sp.Expr = sp.S.Zero
-    Q: list[sp.Expr] = field(default_factory=list)
-    constraints: list[sp.Expr] = field(default_factory=list)
-    """velocity-level constraints c(q, qd, t) = 0, linear in qd (d/dt of a holonomic one)."""
-    exact: Callable[[np.ndarray], np.ndarray] | None = None
-    wrap: tuple[int, ...] = ()
-    """components compared modulo 2 pi."""
+class System(numeric_audit3.System):
+    """Audit 3's system record, and the names of a reference in the file's own coordinates."""
+
     names: list[str] = field(default_factory=list)
     """the file's coordinates and velocities, when the reference is in the file's coordinates (identity map)."""
 
