@@ -360,3 +360,26 @@ def test_a_window_not_cut_for_chaos_does_not_claim_no_exponential_growth() -> No
     assert found.exit_code == 0, found.output
     assert "no exponential growth" not in found.output
     assert "not counted as chaotic: runs started 1e-11 apart separate by" in found.output and "growing less than 100 x over the second half" in found.output
+
+
+def test_fastest_among_one_methods_runs_within_timing_noise_is_the_least_work() -> None:
+    """audit 4's bead: compiled DOP853 at rtol 1e-7 (95 steps, 0.263 ms) timed faster than its own runs at
+    1e-3 (32 steps, 0.391 ms) and 1e-5 (56 steps, 0.301 ms). Within TIMING_NOISE, more evaluations of the same
+    method are not faster: each level's fastest is the loosest run that reaches it. A run of another method, or
+    one truly slower (beyond the noise), is judged by its time as before."""
+    from dataclasses import replace
+
+    ran = accuracy.Ran("DOP853", "compiled")
+
+    def run(rtol: float, steps: int, seconds: float, error: float) -> accuracy.Point:
+        return accuracy.Point("DOP853", str(ran), rtol, None, "finished", "", error, error, 0.0, None, seconds, 1, 0.0, 12 * steps, 0, steps, candidate=Candidate("DOP853"), ran=ran, max_error=error)
+
+    loose, middle, tight = run(1e-3, 32, 3.91e-4, 4.4e-4), run(1e-5, 56, 3.01e-4, 3.4e-6), run(1e-7, 95, 2.63e-4, 2.0e-8)
+    picked = dict(accuracy.fastest([loose, middle, tight]))
+    assert picked[1e-1] is loose and picked[1e-3] is loose and picked[1e-4] is middle and picked[1e-5] is middle and picked[1e-6] is tight
+    slow_loose = replace(loose, seconds=2e-3)  # beyond the noise: the time decides
+    assert dict(accuracy.fastest([slow_loose, middle, tight]))[1e-3] is middle
+    other = timed_point(Candidate("RK45"), 3.0e-4, error=1e-4)  # another method's run is judged by its time
+    quick = replace(tight, seconds=2.9e-4)
+    assert dict(accuracy.fastest([other, quick]))[1e-3] is quick
+    assert dict(accuracy.fastest([replace(other, seconds=2.8e-4), quick]))[1e-3].method == "RK45"
