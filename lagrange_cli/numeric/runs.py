@@ -209,6 +209,8 @@ class Point:
     """The largest error at any sample (the samples are the dense output at evenly spaced times)."""
     settings: Settings | None = field(default=None, compare=False, repr=False)
     """What ran, decided (to time it again without deciding anything again)."""
+    reached: float | None = None
+    """The share of the time span done when a run was stopped by its step budget or its pace (None otherwise)."""
 
     @property
     def ok(self) -> bool:
@@ -436,7 +438,7 @@ def measure(model: Model, candidate: Candidate, tolerance: float, setup: Setup, 
             f"stopped after {over.steps} steps at {100 * over.fraction:.2g}% of the time span: at that pace (that of the latter half of its steps)"
             f" it would not finish within {PACE_MARGIN:g} x its step budget ({over.budget})"
         )
-        return replace(empty, resolved=str(ran), ran=ran, settings=decided, steps=over.steps, status=PointStatus.OVER_BUDGET, reason=reason, failure=Failure.BUDGET)
+        return replace(empty, resolved=str(ran), ran=ran, settings=decided, steps=over.steps, status=PointStatus.OVER_BUDGET, reason=reason, failure=Failure.BUDGET, reached=over.fraction)
     except TimeLimit as over:
         reason = f"stopped by the time limit ({setup.time_limit:g} s, --budget) at {100 * over.fraction:.0f}% of the time span"
         return replace(empty, status=PointStatus.UNDECIDED, reason=reason, failure=Failure.TIME_LIMIT)
@@ -462,7 +464,7 @@ def measure(model: Model, candidate: Candidate, tolerance: float, setup: Setup, 
         times = f" x {COMPILED_STEPS} for a compiled run" if first.settings.backend == "compiled" else ""
         done = (first.t_last - first.settings.t0) / (setup.t_end - first.settings.t0) if setup.t_end > first.settings.t0 else 0.0
         reason = f"stopped after {first.stats.steps} steps (the step budget, --max-steps {setup.steps}{times}) at {100 * done:.0f}% of the time span"
-        return replace(base, status=PointStatus.OVER_BUDGET, reason=reason, failure=Failure.BUDGET)
+        return replace(base, status=PointStatus.OVER_BUDGET, reason=reason, failure=Failure.BUDGET, reached=done)
     if first.failed:
         return replace(base, status=PointStatus.FAILED, reason=first.message, failure=Failure.of(first.outcome) or Failure.NONFINITE)
     found = errors(first, reference, scale)

@@ -585,7 +585,7 @@ def _capped(model: Model, candidate: Candidate, tolerance: float, setup: Setup, 
     if cap < setup.steps and point.failure == Failure.BUDGET and best is not None and point.steps:
         beaten = f"{best.method} ({best.setting}), which meets the accuracy"
         if point.nfev:  # stopped by its cap
-            done = point.reason.rpartition(" at ")[2]
+            done = f"{100 * point.reached:.0f}% of the time span" if point.reached is not None else "its step budget"
             reason = f"stopped after {point.steps} steps at {done}: it already took {work(point) / max(work(best), 1e-300):.2g} x the work of {beaten}"
         else:  # stopped by its pace (`runs.PACE_MARGIN`) before its cap
             reason = f"{point.reason}; its budget is {_losing(candidate, best):g} x the work of {beaten}: it could only lose"
