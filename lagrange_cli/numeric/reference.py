@@ -422,7 +422,7 @@ def _computed_reference(model: Model, setup: Setup, tolerance: float, hint: str,
             f"Radau (python) not tried: the explicit runs were not stiff where they stopped, so their steps were limited by accuracy, and their pace"
             f" needs about {paced_need:.3g} steps, more than {ACCURACY_LIMITED:g} x an implicit reference's budget of {attempt.reference_steps}"
         )
-        raise ReferenceFailed(f"{model.source}: " + "; and ".join(reasons) + f"; give a shorter --t-end{hint} or a larger --max-steps", trajectory=main, attempts=tuple(reasons))
+        raise _no_reference(model, reasons, hint, main)
     why = reasons[0] if reasons else "stiff at the start, where an explicit reference would be stability-limited"
     radau: Trajectory | None = None
     skipped: list[str] = []
@@ -466,10 +466,16 @@ def _computed_reference(model: Model, setup: Setup, tolerance: float, hint: str,
             return fallback
     main = main if main is not None else radau
     blowup = main.outcome in BLOWUP and radau.outcome in BLOWUP and abs(radau.t_last - main.t_last) <= 0.01 * max(setup.t_end, 1e-300)
-    message = f"{model.source}: " + "; and ".join(reasons)
-    if blowup:
-        message += f"; {'both stop' if main is not radau else 'it stops'} near t = {main.t_last:.6g}: the solution itself blows up or reaches a singular configuration there"
-    raise ReferenceFailed(f"{message}; give a shorter --t-end{hint} or a larger --max-steps", blowup=blowup, trajectory=main, attempts=tuple(reasons))
+    where = f"{'both stop' if main is not radau else 'it stops'} near t = {main.t_last:.6g}: the solution itself blows up or reaches a singular configuration there"
+    raise _no_reference(model, reasons, hint, main, where if blowup else "")
+
+
+def _no_reference(model: Model, reasons: list[str], hint: str, main: Trajectory | None, blowup: str = "") -> ReferenceFailed:
+    """The failure of `_computed_reference`: why each attempt could not make it (`reasons`), where the
+    solution itself blows up (`blowup`, "" when it does not), and the options that would help (`hint`:
+    the one that loosens the reference, as the calling command names it)."""
+    message = f"{model.source}: " + "; and ".join(reasons) + (f"; {blowup}" if blowup else "")
+    return ReferenceFailed(f"{message}; give a shorter --t-end{hint} or a larger --max-steps", blowup=bool(blowup), trajectory=main, attempts=tuple(reasons))
 
 
 ACCURACY_LIMITED = 10.0

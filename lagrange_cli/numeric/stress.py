@@ -492,7 +492,7 @@ def _regime(model: Model, regime: Regime, target: float, candidates: Sequence[Ca
     tied = ties(meeting, recommended, target - own) if recommended is not None else ()
     naive = next((p for p in ordered if p.candidate == NAIVE), None)
     auto = next((p for p in ordered if p.candidate == AUTO), None)
-    diagnosis = diagnose(model, setup, reference, ordered, runs, target, horizon if setup.t_end < regime.t_end else None, parting=horizon)
+    diagnosis = diagnose(model, setup, reference, ordered, runs, target, horizon, cut=setup.t_end < regime.t_end)
     open_reason = ""
     if recommended is None and not math.isfinite(reference.own_error):
         open_reason = "the reference is unconfirmed (its second method did not finish), so no run can be shown to meet the accuracy"
@@ -698,16 +698,16 @@ def diagnose(
     runs: Mapping[tuple[Candidate, float], Point],
     target: float,
     horizon: Horizon | None = None,
-    parting: Horizon | None = None,
+    cut: bool = False,
 ) -> Diagnosis:
     """Stiffness, time scales and conditioning along the reference, and what the runs showed
-    (`horizon`: the chaos that cut the window short; `parting`: how nearby trajectories parted, measured
-    whether or not they cut it, which says whether growing modes of the linearization are chaos)."""
+    (`horizon`: how nearby trajectories parted, which says whether growing modes of the linearization are
+    chaos; `cut`: whether that chaos cut the window short)."""
     base = _measure(model, setup, reference.t, reference.y, dense(model, reference), setup.t_end)
-    if parting is not None and not parting.chaotic:
-        base = replace(base, findings=tuple(_local(f, parting) if f.kind == GROWING else f for f in base.findings))
+    if horizon is not None and not horizon.chaotic:
+        base = replace(base, findings=tuple(_local(f, horizon) if f.kind == GROWING else f for f in base.findings))
     findings: list[Finding] = []
-    if horizon is not None:
+    if horizon is not None and cut:
         findings.append(
             Finding(
                 "chaotic",
