@@ -63,7 +63,9 @@ def timed(run: Any) -> tuple[float, Any]:
 
 
 def cluster_processes(address: str) -> tuple[list[Any], list[Any]]:
-    """The psutil processes of a local cluster's workers and of their nannies (empty lists without psutil)."""
+    """The psutil processes of a local cluster's workers and of their nannies (empty lists without psutil). The nannies
+    of a LocalCluster run in the process that made it (this one: its CPU is this process's, counted once as the client's
+    and scheduler's), so only a nanny in another process is listed."""
     try:
         import psutil
     except ImportError:
@@ -73,7 +75,25 @@ def cluster_processes(address: str) -> tuple[list[Any], list[Any]]:
     with Client(address, set_as_default=False) as client:
         pids = list(client.run(os.getpid).values())
     workers = [psutil.Process(pid) for pid in pids]
-    return workers, [process.parent() for process in workers]
+    parents = {process.parent().pid for process in workers} - {os.getpid()}
+    return workers, [psutil.Process(pid) for pid in sorted(parents)]
+
+
+def thread_cpu(processes: list[Any]) -> list[dict[int, float]]:
+    """User + system CPU seconds of every thread of each of `processes` so far."""
+    return [{t.id: t.user_time + t.system_time for t in process.threads()} for process in processes]
+
+
+def task_and_rest(before: list[dict[int, float]], after: list[dict[int, float]]) -> tuple[float, float]:
+    """CPU seconds between `before` and `after` (thread_cpu) of the workers' busiest thread each (the one running the
+    tasks: one thread a worker) and of all their other threads (Dask's event loop: messages, transfers, heartbeats,
+    its profiler and system monitor)."""
+    task = rest = 0.0
+    for a, b in zip(before, after, strict=True):
+        spent = sorted((b[k] - a.get(k, 0.0) for k in b), reverse=True)
+        task += spent[0] if spent else 0.0
+        rest += sum(spent[1:])
+    return task, rest
 
 
 def cpu_of(processes: list[Any]) -> float:
@@ -109,7 +129,9 @@ def main() -> None:
     # their nannies) takes about 15% of a core between them (heartbeats, its profiler), which would be charged to the threads.
     # LocalCluster against --workers 2 runs with the cluster up, both contestants beside the same idle processes.
     local_rounds: list[tuple[float, float, float, float, str]] = []  # wall 1 worker, wall 2 workers, CPU 1, CPU 2, load
-    dask_rounds: list[tuple[float, float, str, float, float, float, float]] = []  # wall 2 workers, wall LocalCluster, load; CPU: 2 workers, this process, workers, nannies (LocalCluster)
+    dask_rounds: list[
+        tuple[float, float, str, float, float, float, float, float, float]
+    ] = []  # wall 2 workers, wall LocalCluster, load; CPU: 2 workers, this process, workers, nannies elsewhere, workers' task threads, their other threads
     before: list[tuple[float, float, Any]] = []  # (wall, CPU, table) of the sweep without lanes (library.LANES = False), each round
 
     def load_now() -> str:
@@ -138,10 +160,11 @@ def main() -> None:
         workers, nannies = cluster_processes(cluster.scheduler_address)
         for _ in range(rounds):
             two_beside, table_two = timed(lambda: library.sweep(model, axes, workers=2, **options))
-            before_workers, before_nannies = cpu_of(workers), cpu_of(nannies)
+            before_workers, before_nannies, before_threads = cpu_of(workers), cpu_of(nannies), thread_cpu(workers)
             dask, table_dask = timed(lambda: library.sweep(model, axes, scheduler=cluster.scheduler_address, **options))
+            task, rest = task_and_rest(before_threads, thread_cpu(workers))
             assert table_dask.rows == table.rows and table_two.rows == table.rows
-            dask_rounds.append((two_beside, dask, load_now(), CPU[id(table_two)], CPU[id(table_dask)], cpu_of(workers) - before_workers, cpu_of(nannies) - before_nannies))
+            dask_rounds.append((two_beside, dask, load_now(), CPU[id(table_two)], CPU[id(table_dask)], cpu_of(workers) - before_workers, cpu_of(nannies) - before_nannies, task, rest))
         library.close_clients()  # the sweeps' kept client, before the cluster goes
     if arguments.parallel_only:
         print(parallel_report(local_rounds, dask_rounds, load_start))
@@ -237,11 +260,14 @@ def main() -> None:
         f"- 2-worker LocalCluster: {dask_ratio:.2f}x the time of `--workers 2`, the median of {rounds} rounds' ratios ({dask / two_beside:.2f}x as the ratio of the medians; target <= 1.3x; Dask adds its scheduling,",
         "  transfers and its idle processes' heartbeats); its rows equal the local run's exactly. Every round (wall s: --workers 2 beside the idle",
         "  cluster, LocalCluster; ratio; os.getloadavg at the round's end; CPU s: --workers 2's process, and the LocalCluster sweep's in this process",
-        "  (client and scheduler), its two workers and their two nannies, psutil): "
-        + "; ".join(f"{a:.2f}, {b:.2f} ({b / a:.2f}x; load {g}; CPU {c:.2f} against {d:.2f} + {w:.2f} + {m:.2f})" for a, b, g, c, d, w, m in dask_rounds)
+        "  (client, scheduler and the LocalCluster's nannies), its two workers (psutil; of which their task threads, and their other threads: Dask's event loop): "
+        + "; ".join(
+            f"{a:.2f}, {b:.2f} ({b / a:.2f}x; load {g}; CPU {c:.2f} against {d:.2f} + {w:.2f} (tasks {t:.2f}, the rest {r:.2f}){f' + nannies {m:.2f}' if m else ''})"
+            for a, b, g, c, d, w, m, t, r in dask_rounds
+        )
         + ".",
         f"  CPU (load-independent companion, medians): --workers 2 {np.median([r[3] for r in dask_rounds]):.2f} s; the LocalCluster sweep {np.median([r[4] + r[5] + r[6] for r in dask_rounds]):.2f} s in all"
-        f" ({np.median([r[4] for r in dask_rounds]):.2f} s client and scheduler, {np.median([r[5] for r in dask_rounds]):.2f} s workers, {np.median([r[6] for r in dask_rounds]):.2f} s nannies): {np.median([(r[4] + r[5] + r[6]) / r[3] for r in dask_rounds]):.2f}x.",
+        f" ({np.median([r[4] for r in dask_rounds]):.2f} s client, scheduler and nannies, {np.median([r[5] for r in dask_rounds]):.2f} s workers: tasks {np.median([r[7] for r in dask_rounds]):.2f} s, the rest {np.median([r[8] for r in dask_rounds]):.2f} s): {np.median([(r[4] + r[5] + r[6]) / r[3] for r in dask_rounds]):.2f}x.",
         f"- `simulate` as documented picks its own method ({default_method}) and keeps 1001 samples with their invariants: more",
         "  than the sweep computes, so the tuned loop is the fair comparison.",
         f"- The sweep's final states agree with the peer's on its {PEER_SAMPLE} runs to a median of {np.median(agreement):.1e} (max {agreement.max():.1e}: chaotic runs amplify the tolerance).",
@@ -266,10 +292,15 @@ def parallel_report(local_rounds: list[Any], dask_rounds: list[Any], load_start:
     lines.append(
         f"  median speed-up {np.median([r[0] / r[1] for r in local_rounds]):.2f}x (target >= 1.7x); median CPU {np.median([r[2] for r in local_rounds]):.3f} s, {np.median([r[3] for r in local_rounds]):.3f} s"
     )
-    lines.append("--workers 2 against the LocalCluster (beside the idle cluster): wall s, wall s, ratio; CPU s: --workers 2, then the cluster sweep's client+scheduler, workers, nannies; load")
-    lines += [f"  {a:.3f} {b:.3f} {b / a:.2f}x; CPU {c:.3f} against {d:.3f} + {w:.3f} + {m:.3f}; load {g}" for a, b, g, c, d, w, m in dask_rounds]
+    lines.append(
+        "--workers 2 against the LocalCluster (beside the idle cluster): wall s, wall s, ratio; CPU s: --workers 2, then the cluster sweep's"
+        " client+scheduler+nannies (this process), workers (their task threads, their other threads)[, nannies in other processes]; load"
+    )
+    lines += [f"  {a:.3f} {b:.3f} {b / a:.2f}x; CPU {c:.3f} against {d:.3f} + {w:.3f} ({t:.3f}, {r:.3f}){f' + {m:.3f}' if m else ''}; load {g}" for a, b, g, c, d, w, m, t, r in dask_rounds]
     lines.append(
         f"  median ratio {np.median([r[1] / r[0] for r in dask_rounds]):.2f}x (target <= 1.3x); CPU of the cluster sweep in all over --workers 2's: {np.median([(r[4] + r[5] + r[6]) / r[3] for r in dask_rounds]):.2f}x"
+        f" (medians: this process {np.median([r[4] for r in dask_rounds]):.3f} s, the workers' task threads {np.median([r[7] for r in dask_rounds]):.3f} s, their other threads {np.median([r[8] for r in dask_rounds]):.3f} s;"
+        f" --workers 2 {np.median([r[3] for r in dask_rounds]):.3f} s)"
     )
     return "\n".join(lines)
 

@@ -8,13 +8,17 @@ The sweep is benchmarks/sweep_bench.py's (10^4 double-pendulum runs to t = 10, r
    the threads inside the compiled lane loop (time.thread_time around each call); this part holds the GIL.
 2. The fixed cost of a sweep through a 2-worker LocalCluster: a sweep of 8 runs, wall and CPU of this process
    (client and scheduler), median of 15.
-3. An idle LocalCluster's CPU per second (its scheduler in this process, its workers and nannies: psutil).
-4. During a 10^4-run sweep through the cluster: the workers' CPU, and the part of it outside the thread running
-   the sweep's tasks (Dask's event loop, heartbeats, its statistical profiler, transfers).
+3. An idle LocalCluster's CPU per second (its scheduler and its nannies in this process, its workers: psutil).
+4. During a 10^4-run sweep's tasks through the cluster: the workers' CPU, and the part of it outside the thread running
+   the sweep's tasks (Dask's event loop, heartbeats, its statistical profiler, transfers); the tasks as they are
+   (`sweep._dask_task`: a task's runs in one compiled call, one `Ended` back) and as they were (a compiled call and an
+   `Ended` per batch), interleaved.
+5. The same with Dask's statistical profiler stopped on the workers (what it costs; Dask's, not the sweep's: users keep it).
 """
 
 from __future__ import annotations
 
+import itertools
 import os
 import sys
 import threading
@@ -34,11 +38,27 @@ from lagrange_cli import derive, spec  # noqa: E402
 from lagrange_cli import sweep as library  # noqa: E402
 
 
-def _task_thread_cpu(job: Any, group: Any) -> tuple[Any, float]:
+def _task_thread_cpu(job: Any, indices: Any, chunk: Any, sizes: list[int]) -> tuple[Any, float]:
     """sweep._dask_task on a worker, and the CPU time of the thread that ran it."""
     began = time.thread_time()
-    result = library._dask_task(job, group)
+    result = library._dask_task(job, indices, chunk, sizes)
     return result, time.thread_time() - began
+
+
+def _per_batch_task_thread_cpu(job: Any, indices: Any, chunk: Any, sizes: list[int]) -> tuple[Any, float]:
+    """The task as it was before (a compiled call and an `Ended` per batch), and the CPU time of its thread."""
+    began = time.thread_time()
+    runner = library.runner_for(job)
+    bounds = np.cumsum([0, *sizes]).tolist()
+    result = [runner.ended(indices[a:b].tolist(), chunk[a:b]) for a, b in itertools.pairwise(bounds)]
+    return result, time.thread_time() - began
+
+
+def _profiler(on: bool, dask_worker: Any = None) -> bool:
+    """Start or stop Dask's statistical profiler on this worker (section 5 only)."""
+    callback = dask_worker.periodic_callbacks["profile"]
+    (callback.start if on else callback.stop)()
+    return True
 
 
 def main() -> None:
@@ -89,7 +109,10 @@ def main() -> None:
 
         with Client(address, set_as_default=False) as client:
             workers = [psutil.Process(pid) for pid in client.run(os.getpid).values()]
-        nannies = [worker.parent() for worker in workers]
+        # A LocalCluster's nannies are objects of the process that made it (this one), not processes of their own:
+        # counting the workers' parent processes would count this process again (once per worker).
+        nannies = [psutil.Process(pid) for pid in sorted({worker.parent().pid for worker in workers} - {os.getpid()})]
+        print(f"   the workers' nannies run in {'this process' if not nannies else 'processes ' + str([n.pid for n in nannies])}")
 
         def cpu(processes: list[Any]) -> float:
             return sum(sum(process.cpu_times()[:2]) for process in processes)
@@ -105,13 +128,20 @@ def main() -> None:
         job = library.Job(text, "chain_2.yaml", tuple(axes), ("final",), None, tuple(sorted((k, v) for k, v in options.items() if k not in ("text", "sample", "seed", "measures", "batch"))))
         grid = library.points(axes, 10_000, 0)
         batches = [list(range(k, k + 250)) for k in range(0, 10_000, 250)]
+        tasks = [(np.asarray([i for b in group for i in b], dtype=np.int64), [len(b) for b in group]) for group in library._task_groups(batches, 2)]
+        kinds = {"4. tasks as they are (one compiled call a task)": _task_thread_cpu, "4. tasks as they were (a call per batch)": _per_batch_task_thread_cpu}
         with Client(address, set_as_default=False) as client:
-            for _ in range(3):
-                w0 = cpu(workers)
-                futures = [client.submit(_task_thread_cpu, job, [(np.asarray(b, dtype=np.int64), grid[b]) for b in group], pure=False) for group in library._task_groups(batches, 2)]
-                in_tasks = sum(seconds for _, seconds in client.gather(futures))
-                spent = cpu(workers) - w0
-                print(f"4. a 10^4-run sweep's tasks: workers' CPU {spent:.3f} s, in the tasks' thread {in_tasks:.3f} s, outside it {spent - in_tasks:.3f} s")
+            for profiled in (True, False):
+                client.run(_profiler, profiled)
+                for _ in range(3):
+                    for name, task in kinds.items():
+                        w0 = cpu(workers)
+                        futures = [client.submit(task, job, indices, grid[indices], sizes, pure=False) for indices, sizes in tasks]
+                        in_tasks = sum(seconds for _, seconds in client.gather(futures))
+                        spent = cpu(workers) - w0
+                        label = name if profiled else "5. " + name[3:] + ", Dask's profiler stopped"
+                        print(f"{label}: workers' CPU {spent:.3f} s, in the tasks' thread {in_tasks:.3f} s, outside it {spent - in_tasks:.3f} s")
+            client.run(_profiler, True)
         close()
 
 

@@ -407,6 +407,8 @@ class Runner:
         self.columns = self._columns()
         self.plain = all(m.kind in ("final", "t_event") for m in self.measures)
         """Every measure is read off the run's end: a batch's rows are made from its arrays (`ended`, `rows`)."""
+        self.arrays = self.fast and self.section is None and self.plain
+        """How a batch's runs ended comes back from the compiled explicit path as arrays (`ended`: an `Ended`)."""
 
     def _lanes(self, model: Model, settings: Any) -> tuple[Any, Any]:
         """(the lane loop, the system's `_accel_lanes`) when the batch can run in lockstep lanes (numeric/lanes.py:
@@ -470,7 +472,7 @@ class Runner:
     def ended(self, indices: Sequence[int], chunk: np.ndarray) -> list[list[Any]] | Ended:
         """`batch`: its rows, or, when every measure is read off a run's end (`final`, `t_event`) on the compiled
         explicit path, how its runs ended as a few arrays (`Ended`: what a Dask task sends back; `rows` makes the rows)."""
-        if not (self.fast and self.section is None and self.plain) or len(indices) == 0:
+        if not self.arrays or len(indices) == 0:
             return self.batch(indices, chunk)
         return self._ended(indices, chunk)
 
@@ -787,6 +789,10 @@ class Ended:
     t_last: np.ndarray
     y_last: np.ndarray
 
+    def part(self, start: int, stop: int) -> Ended:
+        """The runs start..stop-1 (views of the arrays)."""
+        return Ended(self.indices[start:stop], self.chunk[start:stop], self.codes[start:stop], self.t_last[start:stop], self.y_last[start:stop])
+
 
 @dataclass
 class Outcome:
@@ -1021,11 +1027,21 @@ def _dask(address: str, job: Job, runner: Runner, grid: np.ndarray, batches: lis
         # send it, leaving the cost to the next sweep; a worker known to have built it (a kept client) is not asked again.
         workers = list(client.scheduler_info()["workers"])
         ready = [client.submit(_dask_prepare, job, workers=[worker], allow_other_workers=True, priority=1, pure=False) for worker in workers if (address, worker, job.key) not in _PREPARED]
-        # Indices travel as arrays: Dask walks every element of a list argument looking for futures (30 000 calls a sweep of 10^4).
-        futures = [(client.submit(_dask_task, job, [(np.asarray(indices, dtype=np.int64), grid[indices]) for indices in group], pure=False), group) for group in _task_groups(batches, len(workers))]
+        # A task's batches travel as two arrays (its points' indices and values, one after the other) and their sizes: Dask
+        # walks every element of a list argument looking for futures, and pickles each array as frames of its own.
+        futures = []
+        for group in _task_groups(batches, len(workers)):
+            indices = np.fromiter(itertools.chain.from_iterable(group), dtype=np.int64, count=sum(map(len, group)))
+            futures.append((client.submit(_dask_task, job, indices, grid[indices], [len(b) for b in group], pure=False), group))
         for future, group in futures:
-            for result, indices in zip(future.result(), group, strict=True):
-                yield (runner.rows(result) if isinstance(result, Ended) else result), len(indices)
+            result = future.result()
+            if isinstance(result, Ended):  # the whole task's runs: each batch's rows from its share of the arrays
+                bounds = list(itertools.accumulate((len(b) for b in group), initial=0))
+                for a, b in itertools.pairwise(bounds):
+                    yield runner.rows(result.part(a, b)), b - a
+            else:
+                for rows, batch_indices in zip(result, group, strict=True):
+                    yield rows, len(batch_indices)
         if ready:  # every worker built (one that failed says so through its batches' results)
             _PREPARED.update((address, worker, job.key) for worker in client.gather(ready, errors="skip"))
         finished = True
@@ -1062,10 +1078,18 @@ def _task_groups(batches: list[list[int]], workers: int) -> list[list[list[int]]
     return groups
 
 
-def _dask_task(job: Job, group: list[tuple[np.ndarray, np.ndarray]]) -> list[list[list[Any]] | Ended]:
-    """How the runs of each batch of a task's `group` of (indices, points) ended (`Runner.ended`: arrays, or rows)."""
+def _dask_task(job: Job, indices: np.ndarray, chunk: np.ndarray, sizes: list[int]) -> Ended | list[list[list[Any]]]:
+    """How a task's runs ended: the points `chunk` (numbered `indices`), its batches of `sizes` one after the other.
+    When every measure is read off a run's end on the compiled explicit path, all its runs in one compiled call and one
+    `Ended` (the lanes are refilled across the batches: fewer idle lanes at the end of each batch's last runs, and one
+    object to pickle and send, not five arrays a batch); otherwise the rows of each batch (`Runner.batch`)."""
+    import numpy as np
+
     runner = runner_for(job)
-    return [runner.ended(indices.tolist(), chunk) for indices, chunk in group]
+    if runner.arrays:
+        return runner._ended(indices.tolist(), chunk)
+    bounds = np.cumsum([0, *sizes]).tolist()
+    return [runner.batch(indices[a:b].tolist(), chunk[a:b]) for a, b in itertools.pairwise(bounds)]
 
 
 # -- output and resume -----------------------------------------------------------------------------

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import csv
+import itertools
 import math
 from pathlib import Path
 
@@ -291,6 +292,42 @@ def test_rows_from_arrays_are_the_run_by_run_rows() -> None:
         status = table.column("status").tolist()
         assert status[:4] == ["failed"] * 4 and "singular" in table.rows[0][table.columns.index("reason")]
         assert set(status[4:]) == ({"event"} if "until" in extra else {"finished"})
+
+
+def test_a_dask_task_runs_its_batches_in_one_compiled_call() -> None:
+    """A task of several batches whose measures are read off the runs' ends runs them in one compiled call (the lanes
+    refilled across its batches) and sends back one Ended; each batch's share of it gives that batch's local rows. With
+    another measure (max), the task sends back each batch's rows, as a thread would make them."""
+    pendulum = model("double_pendulum")
+    axes = [Axis("initial", "theta", -2, 2, 5), Axis("initial", "phi", -2, 2, 4)]  # 20 points
+    grid = points(axes)
+    sizes = [6, 6, 6, 2]
+    indices = np.arange(len(grid), dtype=np.int64)
+    for measures in (["final"], ["final", "max(phi)"]):
+        local = library.sweep(pendulum, axes, measures=measures, t_end=2, batch=6)
+        job = library.Job(library._source_text(pendulum), pendulum.source, tuple(axes), tuple(measures), None, (("t_end", 2),))
+        runner = library.runner_for(job)
+        calls = [0]
+        entry = runner.lanes_entry
+        assert entry is not None
+
+        def counted(*arguments, entry=entry, calls=calls):  # type: ignore[no-untyped-def]
+            calls[0] += 1
+            return entry(*arguments)
+
+        runner.lanes_entry = counted
+        try:
+            result = library._dask_task(job, indices, grid[indices], sizes)
+        finally:
+            runner.lanes_entry = entry
+        if measures == ["final"]:
+            assert isinstance(result, library.Ended) and calls[0] == 1
+            bounds = [0, 6, 12, 18, 20]
+            batches = [runner.rows(result.part(a, b)) for a, b in itertools.pairwise(bounds)]
+        else:
+            assert isinstance(result, list) and calls[0] == len(sizes)
+            batches = result
+        assert [len(b) for b in batches] == sizes and [row for b in batches for row in b] == local.rows
 
 
 def test_dask_tasks_of_several_batches_give_the_local_rows(cluster) -> None:  # type: ignore[no-untyped-def]
