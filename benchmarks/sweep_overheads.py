@@ -14,6 +14,9 @@ The sweep is benchmarks/sweep_bench.py's (10^4 double-pendulum runs to t = 10, r
    (`sweep._dask_task`: a task's runs in one compiled call, one `Ended` back) and as they were (a compiled call and an
    `Ended` per batch), interleaved.
 5. The same with Dask's statistical profiler stopped on the workers (what it costs; Dask's, not the sweep's: users keep it).
+6. The lane loop's work (lane evaluations, idle lanes included: a count, independent of load) of the sweep's runs cut
+   as each contestant cuts them: a call per batch (1 worker), --workers 2 (its last batches in pieces), a call per
+   Dask task (`_task_groups` with 2 workers), and one call for all.
 """
 
 from __future__ import annotations
@@ -94,6 +97,21 @@ def main() -> None:
         total = time.process_time() - began
         print(f"1. workers {workers}: process CPU {total:.3f} s, in the compiled calls {inside[0]:.3f} s, Python outside them {total - inside[0]:.3f} s")
     runner.lanes_entry = entry
+
+    from lagrange_cli.numeric.lanes import LANES
+
+    grid = library.points(axes, 10_000, 0)
+    ts, control = np.array(runner.settings.t_eval, dtype=float), runner._control(runner.settings.t0, runner.settings.t_end)
+    batches = [list(range(k, k + 250)) for k in range(0, 10_000, 250)]
+    cuts = {
+        "a call per batch (1 worker)": batches,
+        "--workers 2 (the last 2 batches in 2 pieces each)": batches[:-2] + [p for b in batches[-2:] for p in library._pieces(b, 2)],
+        "a call per Dask task (2 workers)": [[i for b in group for i in b] for group in library._task_groups(batches, 2)],
+        "one call for all runs": [list(range(10_000))],
+    }
+    for name, pieces in cuts.items():
+        evaluations = sum(int(runner.lanes_entry(runner.pair, *runner.points(grid[piece]), control, ts, runner.budget, LANES, runner.accel, runner.lanes_accel)[5]) for piece in pieces)
+        print(f"6. {name}: {len(pieces)} calls, {evaluations} lane evaluations ({evaluations / 10_000:.1f} a run)")
 
     close = getattr(library, "close_clients", lambda: None)
     with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster:
