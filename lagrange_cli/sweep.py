@@ -58,7 +58,7 @@ if TYPE_CHECKING:
     import numpy as np
 
 BATCH = 64
-"""Runs per batch: a batch is the unit of work of a thread or a Dask task, and of writing and resuming."""
+"""Runs per batch: a batch is the unit of work of a thread (a Dask task carries several: `_dask_task`), and of writing and resuming."""
 LANES = True
 """Whether a batch on the compiled explicit path runs in lockstep lanes where it can (numeric/lanes.py); False:
 run by run in one compiled call (ensemble.batch), as before (benchmarks/sweep_bench.py measures both)."""
