@@ -25,7 +25,8 @@ once the transient is over (LSODA's own step at the end of the pilot, hence its 
 the run). Then:
 
 - not stiff anywhere along the pilot (see `diagnostics.stiff`: oscillatory or saddle
-  eigenvalues are not stiffness) -> DOP853;
+  eigenvalues are not stiffness, nor a decay about as fast as the solution itself changes,
+  `diagnostics.own_rate`: an orbit's angular velocity falling as r grows) -> DOP853;
 - stiff, but the explicit steps cost less compiled than the implicit steps (explicit steps <=
   IMPLICIT_COST x implicit steps) -> DOP853. The explicit steps are first estimated from the
   decay (decay x t_end / DOP853_STABILITY); where that estimate would pick DOP853, a short
