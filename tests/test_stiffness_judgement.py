@@ -116,3 +116,25 @@ def test_true_stiffness_is_still_stiff(path: object) -> None:
     assert reference.stiff_at(model, setup, t, here)  # past the transient, on the slow motion
     judged = diagnostics.spectrum(diagnostics.jacobian(rhs, t, here), diagnostics.own_rate(rhs(t, here), here))  # type: ignore[arg-type]
     assert judged is not None and judged.decay > 3 * diagnostics.OWN * judged.own  # with room: a factor 3 beyond the line (the chain: 5)
+
+
+def test_a_fast_transient_is_the_solutions_motion_only_while_it_lasts() -> None:
+    """Audit 1's cart with a 1e6/s damper, started moving (where `auto` once took DOP853, 21 x slower than
+    Radau): at t = 0 the cart's velocity itself dies at that rate (own rate ~1e6/s), so one linearisation
+    there sees its own motion; along the pilot, past the transient, the solution moves at a few per
+    second and the same decay is stiffness: the reference is implicit, `auto` takes a stiff method and
+    `stress`'s diagnosis says stiff."""
+    model = model_from(ROOT / "tests" / "numeric_audit_pilot" / "cart_pendulum_damped.yaml").with_definitions()
+    s = policy.resolve(model, method="DOP853", backend="python")
+    start = policy.initial_spectrum(model, s.values, s.y0)
+    assert start is not None and start.decay == 0 and start.followed > 1e5  # the transient, at t = 0
+    measured = policy.pilot(model, s)
+    assert measured is not None and measured.t_worst > 0 and measured.worst.decay > 1e5 and diagnostics.stiff(measured.worst, s.t_end)
+    setup = Setup(s.t_end, (), {}, {})
+    assert reference.stiff_start(model, setup)
+    assert policy.resolve(model, method="auto", backend="python").method in ("LSODA", "Radau", "BDF")  # the pilot decides (no compiled attempt)
+    rhs, _ = _rhs(model, setup)
+    solved = scipy.integrate.solve_ivp(lambda t, y: rhs(t, y), (0.0, s.t_end), np.array(s.y0), method="LSODA", rtol=1e-8, atol=1e-11, t_eval=np.linspace(0.0, s.t_end, 201))
+    assert solved.success
+    found = stress._measure(model, setup, solved.t, solved.y.T, None, s.t_end)
+    assert any(f.kind.startswith("stiff") for f in found.findings) and found.decay_span is not None and found.decay_span > 1e6, found
