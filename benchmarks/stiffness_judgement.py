@@ -90,15 +90,25 @@ def _trajectory(rhs, y0, t_end):  # type: ignore[no-untyped-def]
 
     times = np.linspace(0.0, t_end, 2001)
     out = [y0]
+
+    def f(t, y):  # type: ignore[no-untyped-def]
+        value = rhs(t, y)
+        if value is None or not np.all(np.isfinite(value)):
+            raise FloatingPointError
+        return value
+
     with warnings.catch_warnings(), np.errstate(all="ignore"):
         warnings.simplefilter("ignore")
-        solver = scipy.integrate.LSODA(lambda t, y: rhs(t, y), 0.0, y0, t_end, rtol=1e-8, atol=1e-11)
+        solver = scipy.integrate.LSODA(f, 0.0, y0, t_end, rtol=1e-8, atol=1e-11)
         k, steps = 1, 0
         while k < len(times):
             if solver.status != "running" or steps >= CAP:
                 return None, None
             t0 = solver.t
-            solver.step()
+            try:
+                solver.step()
+            except FloatingPointError:  # a blow-up: no trajectory to t_end
+                return None, None
             steps += 1
             if solver.status == "failed":
                 return None, None
@@ -128,7 +138,7 @@ def measure(files: list[str], out: str | None) -> None:
             rhs = policy.safe_rhs(compile.build(model, "python").module, code_parameters(s.values, 0.0 if model.constraints else None))
             times, states = _trajectory(rhs, np.array(s.y0), regime.t_end)
             if times is None:
-                print(f"| {Path(path).name} | {regime.name} | - | - | (LSODA did not reach t_end in {CAP} steps) |", flush=True)
+                print(f"| {Path(path).name} | {regime.name} | - | - | (LSODA did not reach t_end: a blow-up, or over {CAP} steps) |", flush=True)
                 continue
             found = stress._measure(model, setup, times, states, None, regime.t_end)
             stiff = next((f.kind for f in found.findings if f.kind.startswith("stiff")), "")

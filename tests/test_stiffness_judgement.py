@@ -138,3 +138,37 @@ def test_a_fast_transient_is_the_solutions_motion_only_while_it_lasts() -> None:
     assert solved.success
     found = stress._measure(model, setup, solved.t, solved.y.T, None, s.t_end)
     assert any(f.kind.startswith("stiff") for f in found.findings) and found.decay_span is not None and found.decay_span > 1e6, found
+
+
+HENON_HEILES = """\
+title: Henon-Heiles at energy 1/8, in polar coordinates (audit 5's system)
+coordinates: [r, phi]
+parameters:
+  m: {value: 1.0}
+  lam: {value: 1.0}
+particles:
+  p: {mass: m, position: [r*cos(phi), r*sin(phi)]}
+potential: m*r**2/2 + lam*r**3*sin(3*phi)/3
+initial: {r: 0.1, phi: -1.5707963267948966, r_dot: 0.25, phi_dot: 4.205155565889725}
+simulate: {t_end: 60}
+"""
+
+
+def test_a_conservative_orbit_passing_the_polar_origin_is_not_stiff() -> None:
+    """audit5 F2: Henon-Heiles (no dissipation at all) started at r = 0.01 (`stress`'s near-singular regime)
+    was found "stiff (explicit affordable): a mode decays at up to 47.7/s (x t_end = 2.86e+03), stiffness
+    ratio 2.48e+05"; its defaults showed "decay x t_end 471, stiffness ratio 936". Each passage near r = 0
+    makes phi_dot = L / r^2 rise and fall at about r_dot / r: the orbit's own motion."""
+    from tests.helpers import model_of
+
+    model = model_of(HENON_HEILES, "henon_heiles_polar.yaml").with_definitions()
+    regime = next(r for r in stress.regimes(model, ()) if r.name.startswith("near singular"))
+    assert regime.initial.get("r") == 0.01
+    setup = Setup(regime.t_end, (), regime.parameters, regime.initial)
+    rhs, s = _rhs(model, setup)
+    solved = scipy.integrate.solve_ivp(lambda t, y: rhs(t, y), (0.0, regime.t_end), np.array(s.y0), method="LSODA", rtol=1e-8, atol=1e-11, t_eval=np.linspace(0.0, regime.t_end, 2001))
+    assert solved.success
+    found = stress._measure(model, setup, solved.t, solved.y.T, None, regime.t_end)
+    assert found.decay_span == 0 and found.followed > diagnostics.STIFF, found  # the decay is there, as the orbit's own motion
+    assert not any(f.kind.startswith("stiff") for f in found.findings), found.findings
+    assert not reference.stiff_start(model, setup)
