@@ -811,7 +811,9 @@ def _measure(model: Model, setup: Setup, t: np.ndarray, y: np.ndarray, rerun: di
         findings.append(
             Finding(
                 f"stiff{cheap}",
-                f"a mode decays at up to {decay:.3g}/s (x t_end = {decay * t_end:.3g}), stiffness ratio {stiffness:.3g}, about {steps:.3g} stability-limited explicit steps",
+                f"a mode decays at up to {decay:.3g}/s (x t_end = {decay * t_end:.3g}), stiffness ratio {stiffness:.3g}, at most about {steps:.3g} stability-limited"
+                f" RK45 steps (the fastest decay x t_end / {diagnostics.STABILITY:g}; DOP853, stable to about {policy.DOP853_STABILITY:g}, half as many; fewer where"
+                " the decay is slower along part of the run)",
             )
         )
     elif scales > SCALES and rate * t_end > FAST_RADIANS:
