@@ -365,7 +365,8 @@ def _measurements(d: Diagnosis) -> str:
     if d.rate is None:
         spectrum = f"stiffness and time scales not measured ({d.unmeasured or 'no state was reached'})"
     else:
-        spectrum = f"decay x t_end {d.decay_span:.3g}, stiffness ratio {d.stiffness_ratio:.3g}, time scales {d.scale_ratio:.3g}, fastest rate {d.rate:.3g}/s"
+        own = f" (decays up to {d.followed:.3g} x t_end are the solution's own motion, as fast as it changes: not stiffness)" if d.followed > (d.decay_span or 0.0) else ""
+        spectrum = f"decay x t_end {d.decay_span:.3g}{own}, stiffness ratio {d.stiffness_ratio:.3g}, time scales {d.scale_ratio:.3g}, fastest rate {d.rate:.3g}/s"
     if d.condition is None:
         conditioning = "cond M not measured (M could not be evaluated at any state reached)"
     elif not math.isfinite(d.condition):

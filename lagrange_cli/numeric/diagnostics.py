@@ -2,7 +2,9 @@
 
 - `spectrum(J)`: from the eigenvalues lambda of the Jacobian df/dy, the fastest decay
   max(-Re lambda) among real-dominated eigenvalues (|Re| > |Im|: dissipative stiffness) that
-  have no matching growth (see below), the fastest growth max Re lambda, the spectral radius
+  have no matching growth (see below) and are faster than OWN x the rate at which the solution
+  itself changes there (`own_rate`: slower ones are its own motion, such as an orbit's angular
+  velocity falling as r grows), the fastest growth max Re lambda, the spectral radius
   max |lambda| (the fastest time scale, oscillatory or not), and the slowest non-zero |lambda|;
   their ratios are the stiffness ratio and the ratio of time scales.
 - `choose(spectrum, t_end)`: the method `simulate --method auto` picks and the label `stress`
@@ -39,6 +41,14 @@ FAR = 100.0
 """decay / slowest rate above which a decaying mode is far faster than the motion of interest."""
 MATCHED = 0.5
 """a decay d is matched (a saddle's +-pair, not stiffness) when some eigenvalue grows at >= MATCHED x d."""
+OWN = 10.0
+"""a decay d is the solution's own motion (not stiffness) where the solution itself changes at d / OWN
+or faster (`own_rate`): an explicit method then needs steps of a fraction of 1 / that rate for
+accuracy alone, so h d stays within its stability interval (3-6) and an implicit method buys no
+longer steps (Kepler's escape in polar coordinates: phi_dot = L / r^2 decays at 2 r_dot / r, twice
+its own rate, all along the run). Measured after the transients, the audits' stiff systems have
+decay / own rate 50-250 (a chain of springs of mixed stiffness) to 1e4-8e5 (dampers of 1e5-1e6/s,
+springs of k = 1e8-1e11 written in their length)."""
 STABILITY = 3.0
 """|h lambda| on the negative real axis that RK45 and DOP853 stay stable for (about 3)."""
 PER_RADIAN = 10.0
@@ -82,6 +92,11 @@ class Spectrum:
     growth: float = 0.0
     """max Re(lambda), 0 when nothing grows: an unstable mode (a saddle near a singular or
     inverted configuration, or chaos), which an implicit method does not help with."""
+    own: float = 0.0
+    """The rate at which the solution itself changes at that state (`own_rate`); 0 where not measured."""
+    followed: float = 0.0
+    """The fastest unmatched decay left out of `decay` because the solution itself changes that fast
+    (at most OWN x `own`): its own motion, which an explicit method resolves for accuracy anyway (0: none)."""
 
     @property
     def stiffness_ratio(self) -> float:
@@ -94,8 +109,9 @@ class Spectrum:
         return self.rate / self.slowest if self.slowest > 0 else 1.0
 
 
-def spectrum(jacobian: np.ndarray) -> Spectrum | None:
-    """The rates of `jacobian`, or None when it is not finite."""
+def spectrum(jacobian: np.ndarray, own: float = 0.0) -> Spectrum | None:
+    """The rates of `jacobian`, or None when it is not finite; with `own`, the solution's own rate
+    there (`own_rate`), decays of at most OWN x `own` are its motion (`Spectrum.followed`), not stiffness."""
     if not np.all(np.isfinite(jacobian)):
         return None
     eigenvalues = np.linalg.eigvals(jacobian)
@@ -105,13 +121,33 @@ def spectrum(jacobian: np.ndarray) -> Spectrum | None:
     rate = float(np.max(sizes)) if len(sizes) else 0.0
     growth = max(0.0, float(np.max(eigenvalues.real))) if len(eigenvalues) else 0.0
     decays = [-e.real for e in eigenvalues if -e.real > abs(e.imag) and growth < MATCHED * -e.real]
+    faster = [d for d in decays if d > OWN * own]
+    followed = max((d for d in decays if d <= OWN * own), default=0.0)
     nonzero = sizes[sizes > 1e-9 * rate] if rate > 0 else sizes[:0]
-    return Spectrum(max(decays, default=0.0), rate, float(np.min(nonzero)) if len(nonzero) else 0.0, growth)
+    return Spectrum(max(faster, default=0.0), rate, float(np.min(nonzero)) if len(nonzero) else 0.0, growth, own, followed)
+
+
+def own_rate(f: np.ndarray | None, y: np.ndarray) -> float:
+    """How fast the solution itself changes at a state y where dy/dt = f: ||f|| / ||y|| (0 where f is
+    unknown or nothing moves, inf where y = 0 moves). A decay much faster than this is a mode the
+    solution has left, where an explicit method's step is limited by stability, not accuracy
+    (stiffness: the damped stiff springs and dampers of the audits, decay / own rate 50-1e5 after
+    their transients); one about as fast is the solution's own motion (Kepler's escape in polar
+    coordinates: phi_dot = L / r^2 decays at 2 r_dot / r, own rate about r_dot / r, all along the
+    run). ||f|| / ||y|| rather than ||d2y/dt2|| / ||dy/dt||: on the escape, r_dot dominates dy/dt and
+    hardly changes, so the latter falls to 1e-7/s while phi_dot still decays at 2 / t."""
+    if f is None:
+        return 0.0
+    size, moving = float(np.linalg.norm(y)), float(np.linalg.norm(f))
+    if not (math.isfinite(size) and math.isfinite(moving)) or moving == 0.0:
+        return 0.0
+    return moving / size if size > 0 else math.inf
 
 
 def stiff(found: Spectrum, t_end: float) -> bool:
-    """A decay (already free of matched growth, see `spectrum`) fast over the run (decay x t_end >
-    STIFF) and far faster than the slowest motion (stiffness ratio decay / slowest > FAR)."""
+    """A decay (already free of matched growth and of the solution's own motion, see `spectrum`) fast
+    over the run (decay x t_end > STIFF) and far faster than the slowest motion (stiffness ratio
+    decay / slowest > FAR)."""
     return found.decay * t_end > STIFF and found.stiffness_ratio > FAR
 
 

@@ -25,7 +25,8 @@ once the transient is over (LSODA's own step at the end of the pilot, hence its 
 the run). Then:
 
 - not stiff anywhere along the pilot (see `diagnostics.stiff`: oscillatory or saddle
-  eigenvalues are not stiffness) -> DOP853;
+  eigenvalues are not stiffness, nor a decay about as fast as the solution itself changes,
+  `diagnostics.own_rate`: an orbit's angular velocity falling as r grows) -> DOP853;
 - stiff, but the explicit steps cost less compiled than the implicit steps (explicit steps <=
   IMPLICIT_COST x implicit steps) -> DOP853. The explicit steps are first estimated from the
   decay (decay x t_end / DOP853_STABILITY); where that estimate would pick DOP853, a short
@@ -347,8 +348,9 @@ def initial_spectrum(model: Model, p: Sequence[float], y0: Sequence[float]) -> d
     trajectory. Kept constraints without stabilisation (alpha = 0): alpha is chosen from these rates."""
     functions = compile.build(model, "python")
     rhs = safe_rhs(functions.module, code_parameters(p, 0.0 if model.constraints else None))
-    found = diagnostics.jacobian(rhs, 0.0, np.array(y0, dtype=float))
-    return diagnostics.spectrum(found) if found is not None else None
+    y = np.array(y0, dtype=float)
+    found = diagnostics.jacobian(rhs, 0.0, y)
+    return diagnostics.spectrum(found, diagnostics.own_rate(rhs(0.0, y), y)) if found is not None else None
 
 
 def safe_rhs(module: object, p: tuple[float, ...]) -> Callable[[float, np.ndarray], np.ndarray | None]:
@@ -387,6 +389,8 @@ class Pilot:
     """Times LSODA switched between Adams (non-stiff) and BDF (stiff) along the pilot."""
     bdf: bool | None = None
     """Whether LSODA stepped with BDF (it judged the problem stiff) at the end of the pilot; None where unknown."""
+    followed: float = 0.0
+    """The fastest decay sampled that was the solution's own motion (`diagnostics.Spectrum.followed`), not stiffness."""
 
     def implicit_steps(self, t_end: float) -> float:
         """The steps an implicit method takes over the run: the pilot's, then the rest at its settled step."""
@@ -421,7 +425,7 @@ def _pilot(model: Model, settings: Settings) -> Pilot | None:
     rhs = safe_rhs(functions.module, code_parameters(settings.values, 0.0 if model.constraints else None))
     y0 = np.array(settings.y0, dtype=float)
     first = diagnostics.jacobian(rhs, 0.0, y0)
-    start = diagnostics.spectrum(first) if first is not None else None
+    start = diagnostics.spectrum(first, diagnostics.own_rate(rhs(0.0, y0), y0)) if first is not None else None
     if start is None:
         return None
 
@@ -431,7 +435,8 @@ def _pilot(model: Model, settings: Settings) -> Pilot | None:
             raise _Unevaluable
         return value
 
-    worst, t_worst, spectra = start, 0.0, 0
+    worst, t_worst, spectra, followed = start, 0.0, 0, start.followed
+    last_followed = [start.followed]  # the fastest decay that was the solution's own motion at the last state sampled
     slowest = [start.slowest] if start.slowest > 0 else []
     times = [0.0]
     every = max(1, PILOT_STEPS // PILOT_SPECTRA)
@@ -446,9 +451,13 @@ def _pilot(model: Model, settings: Settings) -> Pilot | None:
         return recent > SETTLED * before
 
     def unsettled() -> bool:
-        """LSODA still in Adams on a problem that looks stiff, or just switched: its step is not yet that of its method."""
+        """LSODA still in Adams on a problem that looks stiff, or just switched: its step is not yet that of its method;
+        or still in a fast transient: at the last state sampled the solution itself changed as fast as a decay that would
+        be stiff over the run (`diagnostics.own_rate`), so whether that decay is stiffness shows only once it is over
+        (the damped spring of k = 1e10 in r started at r = 0.01: 200 steps at rtol 1e-7 reach t = 1.2e-4, in the transient)."""
         adams_on_stiff = method[0] == 1 and diagnostics.stiff(worst, settings.t_end)
-        return adams_on_stiff or (switched[0] > 0 and len(times) - 1 - switched[1] < 2 * PILOT_TAIL)
+        transient = last_followed[0] * settings.t_end > diagnostics.STIFF
+        return adams_on_stiff or transient or (switched[0] > 0 and len(times) - 1 - switched[1] < 2 * PILOT_TAIL)
 
     y_reached = y0
     with warnings.catch_warnings(), np.errstate(all="ignore"):
@@ -466,11 +475,14 @@ def _pilot(model: Model, settings: Settings) -> Pilot | None:
                     switched[0], switched[1] = switched[0] + 1, len(times) - 1
                 method[0] = now
                 if (len(times) - 1) % every == 0 or solver.status != "running":
-                    found = diagnostics.jacobian(rhs, float(solver.t), np.array(solver.y, dtype=float))
-                    sampled = diagnostics.spectrum(found) if found is not None else None
+                    here = np.array(solver.y, dtype=float)
+                    found = diagnostics.jacobian(rhs, float(solver.t), here)
+                    sampled = diagnostics.spectrum(found, diagnostics.own_rate(rhs(float(solver.t), here), here)) if found is not None else None
                     spectra += 1
                     if sampled is not None and sampled.slowest > 0:
                         slowest.append(sampled.slowest)
+                    last_followed[0] = sampled.followed if sampled is not None else 0.0
+                    followed = max(followed, last_followed[0])
                     if sampled is not None and sampled.decay > worst.decay:
                         worst, t_worst = sampled, float(solver.t)
         except _Unevaluable:
@@ -482,7 +494,7 @@ def _pilot(model: Model, settings: Settings) -> Pilot | None:
     tail = min(PILOT_TAIL, since if since > 0 else steps)
     settled = (times[-1] - times[-1 - tail]) / tail if tail > 0 else 0.0
     bdf = None if method[0] is None else method[0] == 2
-    return Pilot(steps, times[-1], times[-1] >= settings.t_end, worst, t_worst, settled, spectra, tuple(float(v) for v in y_reached), switches=switched[0], bdf=bdf)
+    return Pilot(steps, times[-1], times[-1] >= settings.t_end, worst, t_worst, settled, spectra, tuple(float(v) for v in y_reached), switches=switched[0], bdf=bdf, followed=followed)
 
 
 def _lsoda_method(solver: object) -> int | None:
@@ -730,9 +742,13 @@ def choose(model: Model, settings: Settings, found: diagnostics.Spectrum | None,
     where = f"at t = {measured.t_worst:.3g}" if measured.t_worst > 0 else "at the start"
     span = f"a pilot run of {measured.steps} LSODA steps to t = {measured.t_reached:.3g}, {measured.spectra + 1} Jacobians sampled"
     if not diagnostics.stiff(worst, t_end):
+        own = f"; decays of up to {measured.followed:.3g}/s are the solution's own motion (within {diagnostics.OWN:g} x the rate it changes at there)" if measured.followed > worst.decay else ""
         if worst.decay > 0:
-            return "DOP853", f"not stiff along {span}: fastest unmatched decay {worst.decay:.3g}/s ({where}) x t_end {t_end:g} = {worst.decay * t_end:.3g}, slowest rate {worst.slowest:.3g}/s{goes_on}"
-        return "DOP853", f"not stiff along {span}: no decaying mode faster than the motion (fastest rate {worst.rate:.3g}/s){goes_on}"
+            return (
+                "DOP853",
+                f"not stiff along {span}: fastest unmatched decay {worst.decay:.3g}/s ({where}) x t_end {t_end:g} = {worst.decay * t_end:.3g}, slowest rate {worst.slowest:.3g}/s{own}{goes_on}",
+            )
+        return "DOP853", f"not stiff along {span}: no decaying mode faster than the motion (fastest rate {worst.rate:.3g}/s){own}{goes_on}"
     explicit, implicit = measured.explicit_steps(t_end), measured.implicit_steps(t_end)
     lsoda = f"about {implicit:.3g} LSODA steps (its step settled to {measured.settled_step:.3g} over {span}{', in BDF' if measured.bdf else ''})"
     numbers = f"decay {worst.decay:.3g}/s ({where}) x t_end {t_end:g}: about {explicit:.3g} stability-limited DOP853 steps, against {lsoda}"

@@ -165,6 +165,9 @@ class Diagnosis:
     """Why the measurements that are None could not be made."""
     condition_at: float | None = None
     """When cond M peaked."""
+    followed: float = 0.0
+    """max over the trajectory of the fastest decay that was the solution's own motion (within
+    diagnostics.OWN x the rate it changes at, `diagnostics.own_rate`) x t_end: not stiffness, not in `decay_span`."""
 
 
 @dataclass(frozen=True)
@@ -768,10 +771,12 @@ def _measure(model: Model, setup: Setup, t: np.ndarray, y: np.ndarray, rerun: di
     s: Settings = starting(model, setup).start  # type: ignore[assignment]
     module = compile.build(model, "python", jacobian=True).module
     p = list(policy.code_parameters(s.values, 0.0 if model.constraints else None))
+    rhs = policy.safe_rhs(module, tuple(p))
     spectra = []
     for k in np.linspace(0, len(t) - 1, min(25, len(t))).astype(int):
         try:
-            found = diagnostics.spectrum(np.asarray(module._jac(float(t[k]), y[k].tolist(), p), dtype=float))
+            state = np.asarray(y[k], dtype=float)  # a decay about as fast as the solution itself changes is its own motion, not stiffness
+            found = diagnostics.spectrum(np.asarray(module._jac(float(t[k]), y[k].tolist(), p), dtype=float), diagnostics.own_rate(rhs(float(t[k]), state), state))
         except (ArithmeticError, ValueError, TypeError, np.linalg.LinAlgError):  # also complex values
             found = None
         if found is not None:
@@ -794,6 +799,7 @@ def _measure(model: Model, setup: Setup, t: np.ndarray, y: np.ndarray, rerun: di
     slow = [x.slowest for x in spectra if x.slowest > 0]
     scales = rate / float(np.median(slow)) if slow else 1.0
     growth = max((x.growth for x in spectra), default=0.0)
+    followed = max((x.followed for x in spectra), default=0.0)
     if growth >= diagnostics.MATCHED * decay:
         decay = 0.0  # matched by growth somewhere along the run (a saddle's +-pair, chaos): not stiffness
     # the slowest rate that makes the largest per-state stiffness ratio, so that `stiff` judges by that ratio
@@ -805,7 +811,9 @@ def _measure(model: Model, setup: Setup, t: np.ndarray, y: np.ndarray, rerun: di
         findings.append(
             Finding(
                 f"stiff{cheap}",
-                f"a mode decays at up to {decay:.3g}/s (x t_end = {decay * t_end:.3g}), stiffness ratio {stiffness:.3g}, about {steps:.3g} stability-limited explicit steps",
+                f"a mode decays at up to {decay:.3g}/s (x t_end = {decay * t_end:.3g}), stiffness ratio {stiffness:.3g}, at most about {steps:.3g} stability-limited"
+                f" RK45 steps (the fastest decay x t_end / {diagnostics.STABILITY:g}; DOP853, stable to about {policy.DOP853_STABILITY:g}, half as many; fewer where"
+                " the decay is slower along part of the run)",
             )
         )
     elif scales > SCALES and rate * t_end > FAST_RADIANS:
@@ -816,7 +824,9 @@ def _measure(model: Model, setup: Setup, t: np.ndarray, y: np.ndarray, rerun: di
         findings.append(_singularity(model, s.values, condition, peak))
     if not spectra:
         return Diagnosis(None, None, None, None, peak.condition if peak else None, tuple(findings), unmeasured="; ".join(unmeasured), condition_at=peak.t if peak else None)
-    return Diagnosis(decay * t_end, stiffness, scales, rate, peak.condition if peak else None, tuple(findings), unmeasured="; ".join(unmeasured), condition_at=peak.t if peak else None)
+    return Diagnosis(
+        decay * t_end, stiffness, scales, rate, peak.condition if peak else None, tuple(findings), unmeasured="; ".join(unmeasured), condition_at=peak.t if peak else None, followed=followed * t_end
+    )
 
 
 def _singularity(model: Model, values: Sequence[float], condition: Callable[[float, np.ndarray], float], peak: diagnostics.Peak) -> Finding:
@@ -884,6 +894,7 @@ def json_text(report: Report) -> str:
                 "max_mass_condition_at": number(o.diagnosis.condition_at),
                 "stiffness_ratio": number(o.diagnosis.stiffness_ratio),
                 "decay_x_t_end": number(o.diagnosis.decay_span),
+                "own_motion_decay_x_t_end": number(o.diagnosis.followed),
                 "time_scale_ratio": number(o.diagnosis.scale_ratio),
                 "max_mass_condition": number(o.diagnosis.condition),
                 "findings": [str(f) for f in o.diagnosis.findings],
