@@ -94,6 +94,7 @@ from lagrange_cli.numeric.runs import (
     component_scale,
     measure,
     retime,
+    settings_for,
     start_of,
     starting,
     ties,
@@ -429,6 +430,7 @@ def _regime(model: Model, regime: Regime, target: float, candidates: Sequence[Ca
     own = reference.own_error if math.isfinite(reference.own_error) else math.inf
     points: dict[Candidate, Point] = {}
     runs: dict[tuple[Candidate, float], Point] = {}
+    made: dict[Settings, Point] = {}  # every run of the regime by its decided settings, so that none is made twice
     best: Point | None = None
     looser = reference.settings is not None and (reference.settings.method in IMPLICIT or reference.settings.rtol > ref_tol * (1 + 1e-9))
     floor = 10 * reference.settings.rtol if looser and reference.settings is not None else 0.0
@@ -450,7 +452,7 @@ def _regime(model: Model, regime: Regime, target: float, candidates: Sequence[Ca
                 reason = f"not run tighter: its runs already took {spent / max(work(best), 1e-300):.2g} x the work of {best.method} ({best.setting}), which meets the accuracy"
                 last = runs[(candidate, previous_tolerance)] = replace(last, reason=reason)
                 break
-            previous, last = last, _capped(model, candidate, tolerance, setup, reference, scale, best, last, spent)
+            previous, last = last, _capped(model, candidate, tolerance, setup, reference, scale, best, last, spent, made)
             runs[(candidate, tolerance)] = last
             spent += work(last)
             previous_tolerance = tolerance
@@ -567,10 +569,50 @@ def stability_steps(model: Model, setup: Setup, method: str) -> float:
     return measured.worst.decay * setup.t_end / interval
 
 
-def _capped(model: Model, candidate: Candidate, tolerance: float, setup: Setup, reference: Reference, scale: np.ndarray, best: Point | None, last: Point | None, spent: float = 0.0) -> Point:
+def _made_key(settings: Settings) -> Settings:
+    """What makes two runs the same run: their decided settings, less the notes saying why they were chosen."""
+    return replace(settings, notes=())
+
+
+def _same_run(model: Model, candidate: Candidate, tolerance: float, setup: Setup, made: Mapping[Settings, Point], cap: int) -> Point | None:
+    """An earlier run of the regime with the settings this one decides to (`auto`'s run of the method it
+    resolved to: compiled DOP853 at the same rtol) that finished, or failed, within this run's step budget
+    `cap`: the run is deterministic, so running it again takes the same steps to the same result (on the
+    trammel, auto's four compiled DOP853 runs were made again by DOP853's ladder, 8 of the defaults' 32 s).
+    None when there is none: the run is made."""
+    if not made or candidate == AUTO:
+        return None
+    try:
+        decided = settings_for(model, candidate, tolerance, setup)
+    except LagrangeError:
+        return None
+    earlier = made.get(_made_key(decided))
+    if earlier is None or earlier.status not in (PointStatus.FINISHED, PointStatus.FAILED) or earlier.failure in (Failure.BUDGET, Failure.TIME_LIMIT):
+        return None
+    if earlier.steps > cap * (COMPILED_STEPS if decided.backend == "compiled" else 1):
+        return None
+    return replace(earlier, method=candidate.label, candidate=candidate)
+
+
+def _capped(
+    model: Model,
+    candidate: Candidate,
+    tolerance: float,
+    setup: Setup,
+    reference: Reference,
+    scale: np.ndarray,
+    best: Point | None,
+    last: Point | None,
+    spent: float = 0.0,
+    made: dict[Settings, Point] | None = None,
+) -> Point:
     """`measure`, within the step budget `_cap` leaves it once `best` meets the accuracy; an explicit
-    run that its stability limit alone would take past STABILITY_MARGIN x that budget is not run."""
+    run that its stability limit alone would take past STABILITY_MARGIN x that budget is not run; a run
+    the regime has made already (`made`, by decided settings: `_same_run`) is not made again."""
     cap = _cap(candidate, best, last, setup, spent)
+    again = _same_run(model, candidate, tolerance, setup, made, cap) if made is not None else None
+    if again is not None:
+        return again
     method = candidate.method if candidate.method != "auto" else ""
     needed = stability_steps(model, setup, method)
     allowed = cap * (COMPILED_STEPS if backend_for(candidate) == "compiled" else 1)
@@ -590,6 +632,8 @@ def _capped(model: Model, candidate: Candidate, tolerance: float, setup: Setup, 
         else:  # stopped by its pace (`runs.PACE_MARGIN`) before its cap
             reason = f"{point.reason}; its budget is {_losing(candidate, best):g} x the work of {beaten}: it could only lose"
         point = replace(point, status=PointStatus.CAPPED, reason=reason)
+    if made is not None and point.settings is not None:
+        made.setdefault(_made_key(point.settings), point)
     return point
 
 

@@ -1,0 +1,45 @@
+"""Issue 15, `stress` and `accuracy` within their budget on unseen systems: no run made twice in a regime,
+and budgets spent only where the verdict is still open. Counted: assertions are on runs, steps and
+evaluations, never on time."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import pytest
+
+from lagrange_cli.numeric import compile, runs, stress
+from lagrange_cli.numeric.runs import Candidate, Setup
+from lagrange_cli.numeric.simulate import Trajectory
+
+from .conftest import ROOT
+from .helpers import model_from
+
+pytestmark = pytest.mark.usefixtures("private_cache")
+
+
+@pytest.mark.skipif(not compile.numba_available(), reason="auto resolves to compiled DOP853 here")
+def test_a_regime_makes_no_run_twice(monkeypatch: pytest.MonkeyPatch) -> None:
+    """auto's ladder resolves to compiled DOP853 at each rtol: DOP853's own ladder takes those runs, not
+    the same runs again (the trammel's defaults made each of the four twice, a quarter of the regime)."""
+    model = model_from(ROOT / "systems" / "double_pendulum.yaml").with_definitions()
+    made: list[tuple[object, ...]] = []
+    real = runs.run
+
+    def counted(model: Any, candidate: Candidate, tolerance: float, setup: Setup, **options: Any) -> Trajectory:
+        found = real(model, candidate, tolerance, setup, **options)
+        if not options.get("reference"):
+            s = found.settings
+            made.append((s.method, s.backend, s.rtol, s.atol, s.t_end, s.step))
+        return found
+
+    monkeypatch.setattr(runs, "run", counted)
+    regime = stress.regimes(model, ())[0]
+    outcome = stress._regime(model, regime, 1e-6, stress.default_candidates(model), Setup(0.0, (), max_steps=stress.MAX_STEPS), None)
+    assert len(made) == len(set(made)), sorted(made)
+    auto = outcome.auto
+    dop = next(p for p in outcome.points if p.candidate == Candidate("DOP853"))
+    assert auto is not None and auto.resolved == "DOP853 (compiled)" and auto.ok
+    # the same run, reported under each name: the same steps, evaluations and error
+    assert dop.ok and (dop.tolerance, dop.steps, dop.nfev, dop.error) == (auto.tolerance, auto.steps, auto.nfev, auto.error)
+    assert dop.method == "DOP853" and auto.method == "auto"
