@@ -43,3 +43,19 @@ def test_a_regime_makes_no_run_twice(monkeypatch: pytest.MonkeyPatch) -> None:
     # the same run, reported under each name: the same steps, evaluations and error
     assert dop.ok and (dop.tolerance, dop.steps, dop.nfev, dop.error) == (auto.tolerance, auto.steps, auto.nfev, auto.error)
     assert dop.method == "DOP853" and auto.method == "auto"
+
+
+def test_a_python_run_that_cannot_finish_is_stopped_by_its_pace_before_anything_meets() -> None:
+    """No run has met the accuracy yet (no cap): a scipy run is still stopped once its pace shows it cannot
+    finish within PACE_MARGIN x its budget, after PACE_AFTER of it, not run to the end of its budget
+    (audit4 F7: the trammel's long horizon ran four scipy methods to 60000 steps each)."""
+    model = model_from(ROOT / "systems" / "double_pendulum.yaml").with_definitions()
+    budget = 400
+    setup = runs.starting(model, Setup(1000.0, (0.0, 1000.0), max_steps=budget))
+    unused: Any = None  # the run never finishes, so it is never compared with a reference
+    point = stress._capped(model, Candidate("Radau"), 1e-8, setup, unused, unused, None, None)
+    assert point.status == runs.PointStatus.OVER_BUDGET and "at that pace" in point.reason, point.reason
+    assert point.steps <= max(runs.PACE_STEPS, runs.PACE_AFTER * budget) + 1, point.steps
+    # a user's method in `accuracy` still gets its whole budget: the same run, not paced, spends it
+    whole = runs.measure(model, Candidate("Radau"), 1e-8, setup, unused, unused, repeats=0)
+    assert whole.status == runs.PointStatus.OVER_BUDGET and whole.steps >= budget
