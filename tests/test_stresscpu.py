@@ -23,6 +23,7 @@ def test_a_regime_makes_no_run_twice(monkeypatch: pytest.MonkeyPatch) -> None:
     """auto's ladder resolves to compiled DOP853 at each rtol: DOP853's own ladder takes those runs, not
     the same runs again (the trammel's defaults made each of the four twice, a quarter of the regime)."""
     model = model_from(ROOT / "systems" / "double_pendulum.yaml").with_definitions()
+    compile.build(model, "numba")  # auto picks the compiled backend for a system compiled already (else, for a short run, Python)
     made: list[tuple[object, ...]] = []
     real = runs.run
 
