@@ -60,3 +60,21 @@ def test_a_python_run_that_cannot_finish_is_stopped_by_its_pace_before_anything_
     # a user's method in `accuracy` still gets its whole budget: the same run, not paced, spends it
     whole = runs.measure(model, Candidate("Radau"), 1e-8, setup, unused, unused, repeats=0)
     assert whole.status == runs.PointStatus.OVER_BUDGET and whole.steps >= budget
+
+
+def test_where_the_verdict_can_only_stay_open_a_python_run_stops_once_its_pace_exceeds_its_budget() -> None:
+    """The reference's own error above REFERENCE_ROOM x the accuracy (`open_only`): no run met it yet, so a
+    run out of its budget changes nothing, and one whose pace needs more than OPEN_PACE_MARGIN x its budget
+    is stopped after PACE_AFTER of it; elsewhere such a run (needing about 2 x its budget) runs to its end."""
+    model = model_from(ROOT / "systems" / "double_pendulum.yaml").with_definitions()
+    setup = runs.starting(model, Setup(40.0, (0.0, 40.0), max_steps=stress.MAX_STEPS))
+    needed = runs.run(model, Candidate("Radau"), 1e-6, setup).stats.steps
+    assert needed > 200, needed
+    budget = needed // 2
+    small = runs.replace(setup, max_steps=budget)
+    unused: Any = None  # neither run finishes, so neither is compared with a reference
+    wide = stress._capped(model, Candidate("Radau"), 1e-6, small, unused, unused, None, None)
+    assert wide.status == runs.PointStatus.OVER_BUDGET and wide.steps >= budget, (wide.steps, budget, wide.reason)
+    tight = stress._capped(model, Candidate("Radau"), 1e-6, small, unused, unused, None, None, open_only=True)
+    assert tight.status == runs.PointStatus.OVER_BUDGET and tight.steps < budget, (tight.steps, budget)
+    assert f"within {stress.OPEN_PACE_MARGIN:g} x its step budget ({budget})" in tight.reason, tight.reason
