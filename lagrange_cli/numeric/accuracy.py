@@ -249,9 +249,11 @@ stiff spring written in its length, round-off-limited, spent 30 s each of a 77 s
 default candidates: the methods a user names (`--method`) each get the whole step budget."""
 
 
-def _capped(model: Model, candidate: Candidate, tolerance: float, setup: Setup, reference: Reference, scale: np.ndarray, last: Point | None, cheapest: float) -> Point:
+def _capped(model: Model, candidate: Candidate, tolerance: float, setup: Setup, reference: Reference, scale: np.ndarray, last: Point | None, cheapest: float, paced: bool = False) -> Point:
     """One point of the study, within LOSING x `cheapest`'s work; not run when the candidate's
-    looser run (`last`) ran out of its budget already (a tighter tolerance takes more steps)."""
+    looser run (`last`) ran out of its budget already (a tighter tolerance takes more steps).
+    `paced`: a Python run is stopped once its pace shows it cannot finish within its budget even
+    when it is not capped (a run out of its budget is "over step budget" either way)."""
     if last is not None and last.failure == Failure.BUDGET:
         capped = last.status == PointStatus.CAPPED
         how = "was capped already, a tighter rtol costing more" if capped else "ran out of its budget already"
@@ -259,7 +261,7 @@ def _capped(model: Model, candidate: Candidate, tolerance: float, setup: Setup, 
         return unrun(candidate, tolerance, PointStatus.CAPPED if capped else PointStatus.OVER_BUDGET, reason, Failure.BUDGET)
     cap = capped_steps(candidate, LOSING * cheapest, last, setup)
     capped = cap < setup.steps  # then a losing run: stopped as soon as its pace shows it cannot finish (`runs.PACE_MARGIN`)
-    point = measure(model, candidate, tolerance, replace(setup, max_steps=cap) if capped else setup, reference, scale, repeats=0, paced=capped)
+    point = measure(model, candidate, tolerance, replace(setup, max_steps=cap) if capped else setup, reference, scale, repeats=0, paced=capped or paced)
     if capped and point.failure == Failure.BUDGET and point.steps and point.nfev:
         point = replace(point, status=PointStatus.CAPPED, reason=f"stopped after {point.steps} steps: {LOSING:g} x the work of the cheapest run at rtol {tol_text(tolerance)}")
     elif capped and point.failure == Failure.BUDGET and point.steps:
@@ -317,7 +319,8 @@ def study(
             if progress:
                 progress(Step(len(found_points) + 1, total, what, what))
             limit = cheapest.get(tolerance, math.inf) if not candidates else math.inf  # methods the user named are measured in full
-            found_points[(candidate, tolerance)] = last = _capped(model, candidate, tolerance, setup, reference, scale, last, limit)
+            # the methods a user named get their whole budget; the default ones are stopped once their pace shows they cannot finish
+            found_points[(candidate, tolerance)] = last = _capped(model, candidate, tolerance, setup, reference, scale, last, limit, paced=not candidates)
             if last.ok:
                 cheapest[tolerance] = min(cheapest.get(tolerance, math.inf), work(last))
             if progress:

@@ -281,12 +281,12 @@ had covered 0.18% of a 10 x longer window). A run whose budget is below it is st
 class Unaffordable(Exception):
     """A paced run was stopped: at its pace it needs `needed` steps, above PACE_MARGIN x its `budget`."""
 
-    def __init__(self, steps: int, fraction: float, needed: float, budget: int) -> None:
+    def __init__(self, steps: int, fraction: float, needed: float, budget: int, margin: float = PACE_MARGIN) -> None:
         super().__init__(steps)
-        self.steps, self.fraction, self.needed, self.budget = steps, fraction, needed, budget
+        self.steps, self.fraction, self.needed, self.budget, self.margin = steps, fraction, needed, budget, margin
 
 
-def _paced(budget: int, then: Progress | None) -> Progress:
+def _paced(budget: int, then: Progress | None, margin: float = PACE_MARGIN) -> Progress:
     """A progress report, told once a step (scipy's runs), that raises Unaffordable (`PACE_MARGIN`). The
     pace is that of the latter half of the steps so far (`remaining`): the first steps are tiny by design."""
     done: list[float] = []
@@ -296,8 +296,8 @@ def _paced(budget: int, then: Progress | None) -> Progress:
         taken = len(done)
         if taken >= max(PACE_AFTER * budget, PACE_STEPS):
             needed = taken + remaining(done)
-            if needed > PACE_MARGIN * budget:
-                raise Unaffordable(taken, fraction, needed, budget)
+            if needed > margin * budget:
+                raise Unaffordable(taken, fraction, needed, budget, margin)
         if then is not None:
             then(fraction)
 
@@ -349,6 +349,7 @@ def run(
     reference: bool = False,
     settings: Settings | None = None,
     paced: bool = False,
+    margin: float = PACE_MARGIN,
 ) -> Trajectory:
     """One run of the study, within its step budget (the reference's when `reference`) and, when
     `timed` and the setup has one, its time limit (raises TimeLimit, LagrangeError); `paced`: a
@@ -360,7 +361,7 @@ def run(
     budget = run_steps(decided, setup.reference_steps if reference else setup.steps)
     progress = _time_limit(limit) if limit is not None else None
     if paced and not reference and decided.backend == "python":
-        progress = _paced(budget, progress)
+        progress = _paced(budget, progress, margin)
     return integrate(model, decided, progress, budget)
 
 
@@ -414,7 +415,7 @@ def capped_steps(candidate: Candidate, allowed: float, last: Point | None, setup
     return max(1, min(setup.steps, math.ceil(steps)))
 
 
-def measure(model: Model, candidate: Candidate, tolerance: float, setup: Setup, reference: Reference, scale: np.ndarray, repeats: int = 3, paced: bool = False) -> Point:
+def measure(model: Model, candidate: Candidate, tolerance: float, setup: Setup, reference: Reference, scale: np.ndarray, repeats: int = 3, paced: bool = False, margin: float = PACE_MARGIN) -> Point:
     """Run one point (warm-up, then timed repeats) and compare it with the reference. The
     symplectic method's step is the one `policy.decide` chooses for `simulate` (its pilot run at
     this tolerance), so a study measures the method as `simulate` runs it. `paced`: see `run`."""
@@ -429,14 +430,14 @@ def measure(model: Model, candidate: Candidate, tolerance: float, setup: Setup, 
             ran = Ran(decided.method, decided.backend)
             reason = f"its fixed step {decided.step:.3g} needs {needed:.3g} steps to t_end, above the step budget ({run_steps(decided, setup.steps)}); not run"
             return replace(empty, resolved=str(ran), ran=ran, settings=decided, step=decided.step, status=PointStatus.OVER_BUDGET, reason=reason, failure=Failure.BUDGET)
-        first = run(model, candidate, tolerance, setup, step=step, settings=decided, paced=paced)
+        first = run(model, candidate, tolerance, setup, step=step, settings=decided, paced=paced, margin=margin)
     except Unaffordable as over:
         ran = Ran(decided.method, decided.backend)
         # no step count to t_end is claimed: a pace from a transient (scipy's Radau through a stiff spring's first 66 steps)
         # overstated the count 185 x (1873 steps); the pace only says the run would not finish within its budget
         reason = (
             f"stopped after {over.steps} steps at {100 * over.fraction:.2g}% of the time span: at that pace (that of the latter half of its steps)"
-            f" it would not finish within {PACE_MARGIN:g} x its step budget ({over.budget})"
+            f" it would not finish within {over.margin:g} x its step budget ({over.budget})"
         )
         return replace(empty, resolved=str(ran), ran=ran, settings=decided, steps=over.steps, status=PointStatus.OVER_BUDGET, reason=reason, failure=Failure.BUDGET, reached=over.fraction)
     except TimeLimit as over:
