@@ -20,13 +20,18 @@ multiplier).
 
 from __future__ import annotations
 
+import json
 import math
 import os
+import re
 import sys
+import tempfile
+import time
 from pathlib import Path
 
 import numpy as np
 import sympy as sp
+import yaml
 from scipy.integrate import solve_ivp
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
@@ -35,9 +40,7 @@ from numeric_audit3 import _syms, qd
 from numeric_audit4 import System
 
 ROOT = Path(__file__).resolve().parent.parent
-numeric_audit4.AUDIT = ROOT / "tests" / "numeric_audit5"
-numeric_audit4.REF_CACHE = Path(os.environ.get("AUDIT5_REF_CACHE", "/tmp/audit5-ref"))
-numeric_audit4.RESULTS = Path(os.environ.get("AUDIT5_RESULTS", "/tmp/audit5-results"))
+AUDIT = ROOT / "tests" / "numeric_audit5"
 t = sp.Symbol("t")
 G = 9.81
 
@@ -242,7 +245,79 @@ def systems() -> dict[str, System]:
     return out
 
 
-numeric_audit4.systems = systems
+WORK = re.compile(r"work: (\d+) steps, (\d+) evaluations")
+RUN_MS = re.compile(r"time: run ([0-9.]+) (ms|s)")
+CANDIDATES = [("DOP853", "compiled"), ("RK45", "compiled"), ("Radau", "compiled"), ("Radau", "python"), ("BDF", "python"), ("LSODA", "python")]
+
+
+def _one(s: System, ref: numeric_audit4.Ref, opts: list[str], tmp: Path) -> dict[str, object]:
+    """A simulate run over the file's t_end: true error, process CPU, its own run time and steps."""
+    out = tmp / "v.npz"
+    done, cpu, wall = numeric_audit4.cli("simulate", str(AUDIT / s.file), *opts, "--samples", str(numeric_audit4.SAMPLES), "-o", str(out))
+    row: dict[str, object] = {"opts": opts, "exit": done.returncode, "cpu": cpu, "wall": wall, "traceback": numeric_audit4.traceback_in(done)}
+    work, run = WORK.search(done.stdout), RUN_MS.search(done.stdout)
+    row["steps"], row["evals"] = (int(work.group(1)), int(work.group(2))) if work else (None, None)
+    row["run_s"] = (float(run.group(1)) / (1000 if run.group(2) == "ms" else 1)) if run else None
+    row["decision"] = " ".join(line.strip() for line in done.stdout.splitlines()[1:3] if "->" in line)
+    if out.exists():
+        d = np.load(out)
+        row["true_max_error"] = numeric_audit4._error(d["y"], ref.y, s.wrap)
+        row["ran"] = f"{d['method']} ({d['backend']})"
+        out.unlink()
+    else:
+        row["true_max_error"] = math.inf
+        row["stderr"] = done.stderr[-300:]
+    return row
+
+
+def versus(name: str, s: System, tmp: Path) -> dict[str, object]:
+    """Issue 15's "auto runs within 2x of the best method": `simulate --method auto` with the
+    defaults, against each method's quickest run (rtol 1e-3 .. 1e-12 in decades, atol 1e-3 rtol,
+    loosest first, stopped at the first that meets) whose true error is within auto's own (and
+    within 1e-6). CPU is the child's user + system (getrusage), run time is simulate's own."""
+    t_file = float(yaml.safe_load((AUDIT / s.file).read_text())["simulate"]["t_end"])
+    ref = numeric_audit4.reference(name, s, t_file, t_file)
+    auto = _one(s, ref, ["--method", "auto"], tmp)
+    print(f"# {name}: auto {auto.get('ran')} error {auto['true_max_error']:.2e} CPU {auto['cpu']:.2f} s steps {auto['steps']}", file=sys.stderr, flush=True)
+    goals = {"auto's error": max(float(auto["true_max_error"]), 1e-12), "1e-6": 1e-6}  # type: ignore[arg-type]
+    best: dict[str, list[dict[str, object]]] = {g: [] for g in goals}
+    tried = []
+    for method, backend in CANDIDATES:
+        for goal, level in goals.items():
+            for k in range(3, 13):
+                row = _one(s, ref, ["--method", method, "--backend", backend, "--rtol", f"1e-{k}", "--atol", f"1e-{k + 3}"], tmp)
+                row["method"] = f"{method} ({backend})"
+                tried.append(row)
+                if row["exit"] != 0 and not math.isfinite(row["true_max_error"]):  # type: ignore[arg-type]
+                    break
+                if row["true_max_error"] <= level:  # type: ignore[operator]
+                    best[goal].append(row)
+                    break
+            print(f"# {name}: {method} ({backend}) for {goal}: {best[goal][-1]['opts'] if best[goal] and best[goal][-1]['method'] == f'{method} ({backend})' else 'none'}", file=sys.stderr, flush=True)
+    return {"system": name, "versus": True, "auto": auto, "best": best, "goals": goals, "tried": tried}
+
+
+def main() -> None:
+    """Audit 4's main, pointed at this audit's files, systems, references and results; or, with
+    --versus NAME,..., auto against each method's quickest run of the same accuracy."""
+    numeric_audit4.AUDIT = AUDIT
+    numeric_audit4.REF_CACHE = Path(os.environ.get("AUDIT5_REF_CACHE", "/tmp/audit5-ref"))
+    numeric_audit4.RESULTS = Path(os.environ.get("AUDIT5_RESULTS", "/tmp/audit5-results"))
+    numeric_audit4.systems = systems
+    if "--versus" in sys.argv:
+        names = sys.argv[sys.argv.index("--versus") + 1].split(",")
+        out = sys.argv[sys.argv.index("--json") + 1] if "--json" in sys.argv else ""
+        print(f"# {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, load average {os.getloadavg()}", flush=True)
+        found, results = systems(), []
+        with tempfile.TemporaryDirectory() as d:
+            for name in names:
+                results.append(versus(name, found[name], Path(d)))
+                if out:
+                    Path(out).write_text(json.dumps(results, indent=1, default=float))
+        print(f"# done {time.strftime('%H:%M UTC', time.gmtime())}, load average {os.getloadavg()}")
+        return
+    numeric_audit4.main()
+
 
 if __name__ == "__main__":
-    numeric_audit4.main()
+    main()
