@@ -245,9 +245,9 @@ def systems() -> dict[str, System]:
     return out
 
 
-WORK = re.compile(r"work: (\d+) steps, (\d+) evaluations")
+WORK = re.compile(r"work: (\d+) steps(?: \([^)]*\))?, (\d+) evaluations")
 RUN_MS = re.compile(r"time: run ([0-9.]+) (ms|s)")
-CANDIDATES = [("DOP853", "compiled"), ("RK45", "compiled"), ("Radau", "compiled"), ("Radau", "python"), ("BDF", "python"), ("LSODA", "python")]
+CANDIDATES = [("DOP853", "compiled"), ("RK45", "compiled"), ("Radau", "python"), ("BDF", "python"), ("LSODA", "python")]
 
 
 def _one(s: System, ref: numeric_audit4.Ref, opts: list[str], tmp: Path) -> dict[str, object]:
