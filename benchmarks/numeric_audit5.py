@@ -297,6 +297,14 @@ def versus(name: str, s: System, tmp: Path) -> dict[str, object]:
     return {"system": name, "versus": True, "auto": auto, "best": best, "goals": goals, "tried": tried}
 
 
+def velocities_initial(path: str, energy: float) -> list[str]:
+    """Audit 4's --initial of `energy` x the file's velocities, reading expressions (`0.8*cos(0.3)`) too."""
+    data = yaml.safe_load(Path(path).read_text())
+    given = data["initial"]
+    moved = [f"{c}_dot={energy * float(sp.sympify(str(given.get(c + '_dot', 0.0))))!r}" for c in data["coordinates"]]
+    return ["--initial", ",".join(moved)]
+
+
 def main() -> None:
     """Audit 4's main, pointed at this audit's files, systems, references and results; or, with
     --versus NAME,..., auto against each method's quickest run of the same accuracy."""
@@ -304,6 +312,7 @@ def main() -> None:
     numeric_audit4.REF_CACHE = Path(os.environ.get("AUDIT5_REF_CACHE", "/tmp/audit5-ref"))
     numeric_audit4.RESULTS = Path(os.environ.get("AUDIT5_RESULTS", "/tmp/audit5-results"))
     numeric_audit4.systems = systems
+    numeric_audit4.velocities_initial = velocities_initial
     if "--versus" in sys.argv:
         names = sys.argv[sys.argv.index("--versus") + 1].split(",")
         out = sys.argv[sys.argv.index("--json") + 1] if "--json" in sys.argv else ""
