@@ -878,7 +878,7 @@ def _measure(model: Model, setup: Setup, t: np.ndarray, y: np.ndarray, rerun: di
             )
         )
     elif scales > SCALES and rate * t_end > FAST_RADIANS:
-        findings.append(Finding("two time scales (highly oscillatory, not dissipative)", f"fastest rate {rate:.3g}/s, {scales:.3g} x the slowest"))
+        findings.append(Finding("two time scales (a fast oscillation, not stiff)", f"fastest rate {rate:.3g}/s, {scales:.3g} x the slowest"))
     if growth * t_end > diagnostics.STIFF:
         findings.append(Finding(GROWING, f"growth rate up to {growth:.3g}/s (a saddle, chaos or constraint drift; not stiffness: decays matched by growth are not counted)"))
     if peak is not None and peak.condition > diagnostics.SINGULAR_CONDITION:
