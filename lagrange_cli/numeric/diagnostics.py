@@ -194,11 +194,12 @@ def choose(found: Spectrum | None, t_end: float, compiled: bool = True) -> tuple
     return "Radau", f"stiff: a mode decays at rate {found.decay:.3g}/s over t_end = {t_end:g} (about {steps:.3g} explicit steps)"
 
 
-def jacobian(rhs: Callable[[float, np.ndarray], np.ndarray | None], t: float, y: np.ndarray) -> np.ndarray | None:
+def jacobian(rhs: Callable[[float, np.ndarray], np.ndarray | None], t: float, y: np.ndarray, f0: np.ndarray | None = None) -> np.ndarray | None:
     """Forward differences of `rhs` (which returns None where it cannot be evaluated); None also
     where a difference is not finite. Each component moves by 1.5e-8 of its size (of 1 when it is
-    0), so that r = 7e6 m and x = 1e-8 m are both differentiated in their own units."""
-    f0 = rhs(t, y)
+    0), so that r = 7e6 m and x = 1e-8 m are both differentiated in their own units. `f0`: rhs(t, y)
+    when the caller has it already."""
+    f0 = rhs(t, y) if f0 is None else f0
     if f0 is None:
         return None
     columns = []
@@ -212,6 +213,15 @@ def jacobian(rhs: Callable[[float, np.ndarray], np.ndarray | None], t: float, y:
         columns.append((f1 - f0) / h)
     result = np.array(columns).T
     return result if np.all(np.isfinite(result)) else None
+
+
+def spectrum_at(rhs: Callable[[float, np.ndarray], np.ndarray | None], t: float, y: np.ndarray) -> Spectrum | None:
+    """The rates of the linearisation of `rhs` at (t, y) (`jacobian`, `spectrum`), its decays told from the
+    solution's own motion there (`own_rate`, from the same evaluation of rhs(t, y)); None where rhs cannot
+    be evaluated or differentiated."""
+    f0 = rhs(t, y)
+    found = jacobian(rhs, t, y, f0) if f0 is not None else None
+    return spectrum(found, own_rate(f0, y)) if found is not None else None
 
 
 def coordinate_sizes(y0: Sequence[float], n: int) -> np.ndarray:

@@ -348,9 +348,7 @@ def initial_spectrum(model: Model, p: Sequence[float], y0: Sequence[float]) -> d
     trajectory. Kept constraints without stabilisation (alpha = 0): alpha is chosen from these rates."""
     functions = compile.build(model, "python")
     rhs = safe_rhs(functions.module, code_parameters(p, 0.0 if model.constraints else None))
-    y = np.array(y0, dtype=float)
-    found = diagnostics.jacobian(rhs, 0.0, y)
-    return diagnostics.spectrum(found, diagnostics.own_rate(rhs(0.0, y), y)) if found is not None else None
+    return diagnostics.spectrum_at(rhs, 0.0, np.array(y0, dtype=float))
 
 
 def safe_rhs(module: object, p: tuple[float, ...]) -> Callable[[float, np.ndarray], np.ndarray | None]:
@@ -424,8 +422,7 @@ def _pilot(model: Model, settings: Settings) -> Pilot | None:
     functions = compile.build(model, "python")
     rhs = safe_rhs(functions.module, code_parameters(settings.values, 0.0 if model.constraints else None))
     y0 = np.array(settings.y0, dtype=float)
-    first = diagnostics.jacobian(rhs, 0.0, y0)
-    start = diagnostics.spectrum(first, diagnostics.own_rate(rhs(0.0, y0), y0)) if first is not None else None
+    start = diagnostics.spectrum_at(rhs, 0.0, y0)
     if start is None:
         return None
 
@@ -475,9 +472,7 @@ def _pilot(model: Model, settings: Settings) -> Pilot | None:
                     switched[0], switched[1] = switched[0] + 1, len(times) - 1
                 method[0] = now
                 if (len(times) - 1) % every == 0 or solver.status != "running":
-                    here = np.array(solver.y, dtype=float)
-                    found = diagnostics.jacobian(rhs, float(solver.t), here)
-                    sampled = diagnostics.spectrum(found, diagnostics.own_rate(rhs(float(solver.t), here), here)) if found is not None else None
+                    sampled = diagnostics.spectrum_at(rhs, float(solver.t), np.array(solver.y, dtype=float))
                     spectra += 1
                     if sampled is not None and sampled.slowest > 0:
                         slowest.append(sampled.slowest)

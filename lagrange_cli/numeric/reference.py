@@ -162,9 +162,7 @@ def stiff_at(model: Model, setup: Setup, t: float, y: np.ndarray) -> bool:
     explicit attempts, 6e6 compiled steps, before the implicit reference)."""
     s = start_of(model, setup)
     rhs = policy.safe_rhs(compile.build(model, "python").module, code_parameters(s.values, 0.0 if model.constraints else None))
-    state = np.array(y, dtype=float)
-    found = diagnostics.jacobian(rhs, t, state)
-    spectrum = diagnostics.spectrum(found, diagnostics.own_rate(rhs(t, state), state)) if found is not None else None
+    spectrum = diagnostics.spectrum_at(rhs, t, np.array(y, dtype=float))
     return spectrum is not None and diagnostics.stiff(spectrum, setup.t_end)
 
 

@@ -632,9 +632,8 @@ def _capped(
     # a Python run is stopped as soon as its pace shows it cannot finish within PACE_MARGIN x its budget (`runs.PACE_AFTER` of it
     # taken first): whether it can only lose to `best` or would run out of its whole budget, it decides nothing more by going on
     # (audit4 F7: the trammel's long horizon, where nothing met the accuracy, ran scipy's four methods to 60000 steps each)
-    paced = True
     margin = OPEN_PACE_MARGIN if open_only and best is None else PACE_MARGIN
-    point = measure(model, candidate, tolerance, replace(setup, max_steps=cap) if cap < setup.steps else setup, reference, scale, repeats=0, paced=paced, margin=margin)
+    point = measure(model, candidate, tolerance, replace(setup, max_steps=cap) if cap < setup.steps else setup, reference, scale, repeats=0, paced=True, margin=margin)
     if cap < setup.steps and point.failure == Failure.BUDGET and best is not None and point.steps:
         beaten = f"{best.method} ({best.setting}), which meets the accuracy"
         if point.nfev:  # stopped by its cap
