@@ -104,9 +104,10 @@ def main() -> None:
     ts, control = np.array(runner.settings.t_eval, dtype=float), runner._control(runner.settings.t0, runner.settings.t_end)
     batches = [list(range(k, k + 250)) for k in range(0, 10_000, 250)]
     cuts = {
-        "a call per batch (1 worker)": batches,
-        "--workers 2 (the last 2 batches in 2 pieces each)": batches[:-2] + [p for b in batches[-2:] for p in library._pieces(b, 2)],
-        "a call per Dask task (2 workers)": [[i for b in group for i in b] for group in library._task_groups(batches, 2)],
+        "a call per batch (1 worker before sweeppar)": batches,
+        "--workers 2 before sweeppar (the last 2 batches in 2 halves each)": batches[:-2] + [b[h : h + 125] for b in batches[-2:] for h in (0, 125)],
+        "a call per group of 1 worker (`_task_groups` with 1)": [[i for b in group for i in b] for group in library._task_groups(batches, 1)],
+        "a call per Dask task or --workers 2 group (`_task_groups` with 2)": [[i for b in group for i in b] for group in library._task_groups(batches, 2)],
         "one call for all runs": [list(range(10_000))],
     }
     for name, pieces in cuts.items():

@@ -13,8 +13,9 @@ Execution: the system's compiled right-hand side (the compile cache, numeric/com
 built once per process and a batch's runs are integrated in one compiled call (numeric/ensemble.py:
 `batch`, or `sections` for a Poincaré section, whose runs go on after each crossing; a Lyapunov
 exponent takes one call per segment), with the GIL released, so that a run costs its integration
-and a few microseconds more. `workers > 1` runs batches on that many threads; `scheduler` sends
-the batches to a `dask.distributed` cluster instead (imported only then), whose workers all build
+and a few microseconds more. Consecutive batches are grouped (large first, `_task_groups`) and a group's runs
+share one compiled call when every measure is read off a run's end. `workers > 1` runs the groups on that many threads; `scheduler` sends
+the groups to a `dask.distributed` cluster instead (imported only then), whose workers all build
 the system at the start of the sweep (once per worker process) and return rows collected in order.
 Methods other than the compiled explicit pairs (symplectic, the scipy methods, or the python
 backend) run each point through `simulate.integrate`, the same as `lagrange simulate`.
@@ -58,7 +59,8 @@ if TYPE_CHECKING:
     import numpy as np
 
 BATCH = 64
-"""Runs per batch: a batch is the unit of work of a thread (a Dask task carries several: `_dask_task`), and of writing and resuming."""
+"""Runs per batch: a batch is the unit of delivery, writing and resuming; a thread's or a Dask task's work is a group
+of consecutive batches (`_task_groups`), its runs in one compiled call where the measures allow (`_group_task`)."""
 LANES = True
 """Whether a batch on the compiled explicit path runs in lockstep lanes where it can (numeric/lanes.py); False:
 run by run in one compiled call (ensemble.batch), as before (benchmarks/sweep_bench.py measures both)."""
@@ -69,14 +71,10 @@ SWEEP_SAMPLES = 201
 """Samples of a run when a measure needs them and `samples` is not given."""
 CONNECT_TIMEOUT = 10  # seconds to reach a Dask scheduler
 TASKS_PER_WORKER = 2
-"""A Dask task carries several batches: each takes 1/(TASKS_PER_WORKER x workers) of the batches left (`_task_groups`),
+"""A Dask task (and a thread's piece of work with --workers, or one worker's) carries several batches: each takes 1/(TASKS_PER_WORKER x workers) of the batches left (`_task_groups`),
 so about 5 tasks a worker, large first: Dask's fixed cost per task (scheduling, transfers; a few ms) is then small
 against the task's runs, which lockstep lanes make cheap (benchmarks/sweep_bench.py), the last tasks are small (the
 workers finish together), a lost worker's tasks stay small to rerun and rows still stream back batch by batch."""
-AHEAD = 8
-"""`--workers N` keeps AHEAD x N batches submitted beyond the one being delivered (in order): a thread held up
-(another process's turn on its core) does not leave the others idle once they have run the few batches after its own
-(they were 2 x N; rows held waiting are the table's anyway)."""
 MAX_BATCHES_PER_TASK = 64
 _CALL = re.compile(r"^\s*(max|min|mean|period)\s*\((.*)\)\s*$", re.S)
 
@@ -905,11 +903,11 @@ def sweep(
         for rows, size in _dask(scheduler, job, runner, grid, batches):
             deliver(rows, size)
     elif workers == 1:
-        for indices in batches:
-            deliver(_rows(runner, grid, indices), len(indices))
+        for rows, size in _local(None, runner, grid, batches, 1):
+            deliver(rows, size)
     else:
         with ThreadPoolExecutor(workers) as pool:
-            for rows, size in _ordered(pool, runner, grid, batches, workers):
+            for rows, size in _local(pool, runner, grid, batches, workers):
                 deliver(rows, size)
     return table
 
@@ -924,38 +922,29 @@ def _source_text(model: Model) -> str:
     raise LagrangeError(f"{model.source}: cannot read the system file to send to the Dask workers; pass its text (text=...)")
 
 
-def _rows(runner: Runner, grid: np.ndarray, indices: list[int]) -> list[list[Any]]:
-    return runner.batch(indices, grid[indices])
+def _local(pool: ThreadPoolExecutor | None, runner: Runner, grid: np.ndarray, batches: list[list[int]], workers: int) -> Iterator[tuple[list[list[Any]], int]]:
+    """The batches as groups of consecutive batches (`_task_groups`, the Dask tasks' grouping: large first, single
+    batches last, so that the threads finish within a batch of each other), each group in one compiled call where its
+    measures allow (`_group_task`: the lanes refilled across its batches, fewer idle lanes at the end of each call), on
+    this thread (`pool` None) or on the pool's threads (every group submitted at once, taken in order by whichever
+    thread is free); rows delivered batch by batch, in order. (The last batches are no longer cut in pieces: counted
+    on benchmarks/sweep_bench.py's sweep, pieces cost more idle lanes than they save at the end: sweep_parallel_cpu.py.)"""
+    groups = _task_groups(batches, workers)
+    if pool is None:
+        for group in groups:
+            yield from zip(_run_group(runner, grid, group), map(len, group), strict=True)
+        return
+    futures = [pool.submit(_run_group, runner, grid, group) for group in groups]
+    for future, group in zip(futures, groups, strict=True):
+        yield from zip(future.result(), map(len, group), strict=True)
 
 
-def _ordered(pool: ThreadPoolExecutor, runner: Runner, grid: np.ndarray, batches: list[list[int]], workers: int) -> Iterator[tuple[list[list[Any]], int]]:
-    """Batches on the threads, AHEAD per thread ahead of the one delivered, results in order. Each of the last
-    `workers` batches is run in `workers` pieces (its rows joined in order): the threads then finish within a piece
-    of each other, where one thread ran a last whole batch while the others idled (a run's row does not depend on
-    the batch it is run with)."""
-    pending: list[tuple[list[Any], int]] = []
-    tail = len(batches) - workers
-    queue = iter([_pieces(indices, workers) if k >= tail else [indices] for k, indices in enumerate(batches)])
+def _run_group(runner: Runner, grid: np.ndarray, group: list[list[int]]) -> list[list[list[Any]]]:
+    """The rows of each batch of `group` (consecutive batches), its runs in one compiled call where they can be (`_group_task`)."""
+    import numpy as np
 
-    def submit(pieces: list[list[int]]) -> None:
-        pending.append(([pool.submit(_rows, runner, grid, piece) for piece in pieces], sum(len(piece) for piece in pieces)))
-
-    for pieces in itertools.islice(queue, AHEAD * workers):
-        submit(pieces)
-    while pending:
-        futures, size = pending.pop(0)
-        rows = [row for future in futures for row in future.result()]
-        following = next(queue, None)
-        if following is not None:
-            submit(following)
-        yield rows, size
-
-
-def _pieces(indices: list[int], count: int) -> list[list[int]]:
-    """`indices` cut into `count` consecutive pieces of nearly equal length (fewer when it is shorter)."""
-    count = max(1, min(count, len(indices)))
-    bounds = [len(indices) * j // count for j in range(count + 1)]
-    return [indices[a:b] for a, b in itertools.pairwise(bounds)]
+    indices = np.fromiter(itertools.chain.from_iterable(group), dtype=np.int64, count=sum(map(len, group)))
+    return [rows for rows, _ in _group_rows(runner, _group_task(runner, indices, grid[indices], [len(b) for b in group]), group)]
 
 
 _CLIENTS: dict[str, Any] = {}
@@ -1034,14 +1023,7 @@ def _dask(address: str, job: Job, runner: Runner, grid: np.ndarray, batches: lis
             indices = np.fromiter(itertools.chain.from_iterable(group), dtype=np.int64, count=sum(map(len, group)))
             futures.append((client.submit(_dask_task, job, indices, grid[indices], [len(b) for b in group], pure=False), group))
         for future, group in futures:
-            result = future.result()
-            if isinstance(result, Ended):  # the whole task's runs: each batch's rows from its share of the arrays
-                bounds = list(itertools.accumulate((len(b) for b in group), initial=0))
-                for a, b in itertools.pairwise(bounds):
-                    yield runner.rows(result.part(a, b)), b - a
-            else:
-                for rows, batch_indices in zip(result, group, strict=True):
-                    yield rows, len(batch_indices)
+            yield from _group_rows(runner, future.result(), group)
         if ready:  # every worker built (one that failed says so through its batches' results)
             _PREPARED.update((address, worker, job.key) for worker in client.gather(ready, errors="skip"))
         finished = True
@@ -1079,17 +1061,31 @@ def _task_groups(batches: list[list[int]], workers: int) -> list[list[list[int]]
 
 
 def _dask_task(job: Job, indices: np.ndarray, chunk: np.ndarray, sizes: list[int]) -> Ended | list[list[list[Any]]]:
-    """How a task's runs ended: the points `chunk` (numbered `indices`), its batches of `sizes` one after the other.
+    """A Dask task: `_group_task` with this worker's runner of `job`."""
+    return _group_task(runner_for(job), indices, chunk, sizes)
+
+
+def _group_task(runner: Runner, indices: np.ndarray, chunk: np.ndarray, sizes: list[int]) -> Ended | list[list[list[Any]]]:
+    """How a group's runs ended: the points `chunk` (numbered `indices`), its batches of `sizes` one after the other.
     When every measure is read off a run's end on the compiled explicit path, all its runs in one compiled call and one
     `Ended` (the lanes are refilled across the batches: fewer idle lanes at the end of each batch's last runs, and one
     object to pickle and send, not five arrays a batch); otherwise the rows of each batch (`Runner.batch`)."""
     import numpy as np
 
-    runner = runner_for(job)
     if runner.arrays:
         return runner._ended(indices.tolist(), chunk)
     bounds = np.cumsum([0, *sizes]).tolist()
     return [runner.batch(indices[a:b].tolist(), chunk[a:b]) for a, b in itertools.pairwise(bounds)]
+
+
+def _group_rows(runner: Runner, result: Ended | list[list[list[Any]]], group: list[list[int]]) -> Iterator[tuple[list[list[Any]], int]]:
+    """Each batch of `group`'s (rows, size) from `_group_task`'s result: an `Ended` cut into each batch's share, or the rows."""
+    if isinstance(result, Ended):
+        bounds = list(itertools.accumulate((len(b) for b in group), initial=0))
+        for a, b in itertools.pairwise(bounds):
+            yield runner.rows(result.part(a, b)), b - a
+    else:
+        yield from zip(result, map(len, group), strict=True)
 
 
 # -- output and resume -----------------------------------------------------------------------------

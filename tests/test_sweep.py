@@ -132,16 +132,47 @@ def test_threads_give_the_results_of_one_worker() -> None:
     assert one.rows == two.rows and [r[0] for r in one.rows] == list(range(12))
 
 
-def test_threads_run_the_last_batches_in_pieces_with_the_same_rows() -> None:
-    """The last `workers` batches of --workers are run in pieces on the threads (in lanes here, 100 runs a batch
-    cut in halves) and joined: the rows of one worker, every batch delivered once, whole, in order."""
-    assert library._pieces(list(range(7)), 2) == [[0, 1, 2], [3, 4, 5, 6]] and library._pieces([5], 3) == [[5]]
+def test_local_sweeps_run_a_group_of_batches_in_one_compiled_call() -> None:
+    """One worker and --workers 2 group consecutive batches as the Dask tasks do (`_task_groups`) and run a group's runs
+    in one compiled call (the lanes refilled across its batches): fewer calls and fewer lane evaluations (idle lanes at
+    the end of each call) than a call per batch, the same rows bit for bit, every batch delivered once, in order."""
     pendulum = model("double_pendulum")
-    axes = [Axis("initial", "theta", -2, 2, 20), Axis("initial", "phi", -2, 2, 15)]
-    one = library.sweep(pendulum, axes, t_end=2, batch=100)
-    sizes: list[int] = []
-    two = library.sweep(pendulum, axes, t_end=2, batch=100, workers=2, on_batch=lambda rows, done, total: sizes.append(len(rows)))
-    assert two.rows == one.rows and sizes == [100, 100, 100] and [r[0] for r in two.rows] == list(range(300))
+    axes = [Axis("initial", "theta", -2, 2, 20), Axis("initial", "phi", -2, 2, 15)]  # 300 points, 12 batches of 25
+    options = {"measures": ["final"], "t_end": 2, "batch": 25}
+    library.sweep(pendulum, axes, **{**options, "batch": 300})
+    runner = next(r for r in library._RUNNERS.values() if r.model is pendulum and r.job.measures == ("final",) and dict(r.job.options) == {"t_end": 2})
+    entry = runner.lanes_entry
+    assert entry is not None
+    grid = points(axes)
+    batches = [list(range(k, k + 25)) for k in range(0, 300, 25)]
+    counts = {"calls": 0, "evaluations": 0}
+
+    def counted(*arguments):  # type: ignore[no-untyped-def]
+        result = entry(*arguments)
+        counts["calls"] += 1  # the GIL is held here: the threads' counts do not race
+        counts["evaluations"] += int(result[5])
+        return result
+
+    runner.lanes_entry = counted
+    try:
+        per_batch = [row for b in batches for row in runner.batch(b, grid[b])]  # a compiled call per batch, as before
+        before = dict(counts)
+        seen: dict[int, list[tuple[int, int]]] = {}
+        found = {}
+        for workers in (1, 2):
+            counts.update(calls=0, evaluations=0)
+            delivered = seen.setdefault(workers, [])
+            table = library.sweep(pendulum, axes, workers=workers, on_batch=lambda rows, done, total, d=delivered: d.append((len(rows), done)), **options)
+            found[workers] = dict(counts)
+            assert repr(table.rows) == repr(per_batch)
+            assert delivered == [(25, 25 * (k + 1)) for k in range(12)]
+    finally:
+        runner.lanes_entry = entry
+    assert before["calls"] == 12
+    assert [len(g) for g in library._task_groups(batches, 1)] == [6, 3, 2, 1]
+    assert found[1]["calls"] == 4 and found[1]["evaluations"] < before["evaluations"]
+    assert [len(g) for g in library._task_groups(batches, 2)] == [3, 3, 2, 1, 1, 1, 1]  # 2 threads: a call a group
+    assert found[2]["calls"] == 7 and found[2]["evaluations"] < before["evaluations"]
 
 
 # -- resume --------------------------------------------------------------------------------------------
