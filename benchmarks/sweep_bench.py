@@ -8,7 +8,8 @@ The system: benchmarks/pendulum.py's 2-link chain (the double pendulum, m = l = 
 absolute angles), started at rest at angles drawn uniformly from [-1.5, 1.5]^2 (seed 0), run to
 t = 10 at rtol 1e-9, atol 1e-12 (so that runs end within about 1e-6 of the true state: see the
 report's true-error line), recording the final state. Contestants:
-1. `lagrange_cli.sweep.sweep` (compiled DOP853, batches of BATCH runs, one compiled call each, the runs in lockstep lanes:
+1. `lagrange_cli.sweep.sweep` (compiled DOP853, batches of BATCH runs grouped as `sweep._task_groups` groups them, one
+   compiled call a group, the runs in lockstep lanes:
    numeric/lanes.py) on 1 thread, 2 threads, and a 2-worker `dask.distributed.LocalCluster` (processes, 1 thread each),
    every run; and on 1 thread without lanes (`sweep.LANES = False`: ensemble.batch, the path before lanes), each round;
 2. the peer: a Python loop over `scipy.integrate.solve_ivp` (DOP853, same tolerances) on the
@@ -184,10 +185,8 @@ def main() -> None:
     control = lane_runner._control(0.0, T_END)
     ts = np.array(lane_runner.settings.t_eval, dtype=float)
     lane_cpu = time.process_time()
-    lane_evaluations = sum(
-        int(lane_runner.lanes_entry(lane_runner.pair, y0s[k : k + BATCH], ps[k : k + BATCH], control, ts, lane_runner.budget, LANES, lane_runner.accel, lane_runner.lanes_accel)[5])
-        for k in range(0, n, BATCH)
-    )
+    cuts = [[i for b in group for i in b] for group in library._task_groups([list(range(k, min(k + BATCH, n))) for k in range(0, n, BATCH)], 1)]  # as 1 worker cuts them
+    lane_evaluations = sum(int(lane_runner.lanes_entry(lane_runner.pair, y0s[c], ps[c], control, ts, lane_runner.budget, LANES, lane_runner.accel, lane_runner.lanes_accel)[5]) for c in cuts)
     lane_cpu = time.process_time() - lane_cpu
 
     import peer as sympy_peer
@@ -246,8 +245,8 @@ def main() -> None:
         f"- Lanes ({LANES} runs in lockstep, numeric/lanes.py) against the same sweep without them: {cpu_before / cpu_one:.2f}x (CPU, median of the rounds: "
         + ", ".join(f"{b[1]:.2f} s" for b in before)
         + f" without, {', '.join(f'{r[2]:.2f} s' for r in local_rounds)} with); the tuned `simulate` loop against the sweep without lanes: {api_all / cpu_before:.1f}x.",
-        f"- Per evaluation: {lane_evaluations / n:.0f} lane evaluations a run (idle lanes at the end of each batch of {BATCH} included), the whole run"
-        f" {lane_cpu / lane_evaluations * 1e9:.1f} ns a lane evaluation (the lane loop called directly, batch by batch, CPU {lane_cpu:.2f} s); without lanes"
+        f"- Per evaluation: {lane_evaluations / n:.0f} lane evaluations a run (idle lanes at the end of each of 1 worker's {len(cuts)} compiled calls included), the whole run"
+        f" {lane_cpu / lane_evaluations * 1e9:.1f} ns a lane evaluation (the lane loop called directly, call by call, CPU {lane_cpu:.2f} s); without lanes"
         f" {cpu_before / lane_evaluations * 1e9:.1f} ns an evaluation at the same count.",
         f"- Lanes against no lanes: statuses {'identical' if same_status else 'DIFFERENT'}; final states (relative, largest component) median {np.median(lanes_against_before):.1e},"
         f" 90% {np.quantile(lanes_against_before, 0.9):.1e}, max {lanes_against_before.max():.1e} (the right-hand side differs by round-off, which the"

@@ -181,7 +181,8 @@ def main() -> None:
     steps = int(steps * 0.9 / (time.thread_time() - began))  # about 0.9 s of one thread, like the sweep
 
     # the sweep's work in its threads: time.thread_time around each group of batches (library._run_group: its compiled call and rows)
-    original_rows = library._run_group
+    hook = "_run_group" if hasattr(library, "_run_group") else "_rows"  # _rows: a batch's call before sweeppar (to measure that tree)
+    original_rows = getattr(library, hook)
 
     def sweep_with(workers: int) -> Any:
         measured = Measured()
@@ -193,11 +194,11 @@ def main() -> None:
             return result
 
         def run() -> None:
-            library._run_group = rows
+            setattr(library, hook, rows)
             try:
                 library.sweep(model, axes, workers=workers, **options)
             finally:
-                library._run_group = original_rows
+                setattr(library, hook, original_rows)
 
         return run, measured
 
