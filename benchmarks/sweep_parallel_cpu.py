@@ -3,6 +3,13 @@
     PYTHONPATH=. .venv/bin/python benchmarks/sweep_parallel_cpu.py [ROUNDS]
     PYTHONPATH=. .venv/bin/python benchmarks/sweep_parallel_cpu.py --counts
 
+    chrt -f 10 env PYTHONPATH=. .venv/bin/python benchmarks/sweep_parallel_cpu.py --neighbour [ROUNDS]
+
+`--neighbour`: one thread's CPU for the same work (the control loop; the sweep with 1 worker), pinned to CPU 0, while CPU 1
+runs, pinned, a neighbour process of ours: `light` (a loop of sched_yield system calls: no floating point) or `simd`
+(the control loop itself). Under a real-time priority (chrt), other jobs get little of either CPU. If the work costs
+more CPU beside a busy neighbour, the two vCPUs share a core's resources (the VM's hardware, not the sweep's code).
+
 `--counts`: how the sweep's runs are cut into compiled calls with 1 and 2 workers, before this branch and now, counted
 (load-independent): calls, lane evaluations (idle lanes included), and the makespan of 2 threads taking the calls in
 order (each call's cost its lane evaluations; the thread free first takes the next): one worker's evaluations over that
@@ -157,8 +164,49 @@ def counts(model: Any, axes: Any, options: dict[str, Any]) -> None:
         print(f"speed-up allowed, {one.split(':')[0]} over {two.split(':')[0]}: {found[one][0] / found[two][1]:.3f} (work {found[two][0] / found[one][0]:.4f}x)")
 
 
+NEIGHBOURS = {
+    "light": "import os\nwhile True:\n    os.sched_yield()\n",
+    "simd": "import sys\nsys.path.insert(0, {here!r})\nfrom sweep_parallel_cpu import spin\nwhile True:\n    spin(200000)\n",
+}
+
+
+def neighbours(model: Any, axes: Any, options: dict[str, Any], rounds: int) -> None:
+    import subprocess
+
+    os.sched_setaffinity(0, {0})  # this (main) thread, which runs the 1-worker sweep and the control
+    steps = 120_000_000  # about 0.8 s of one thread
+    spin(1000)
+    found: dict[tuple[str, str], list[float]] = {}
+    print(f"{time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}; load average {', '.join(f'{x:.2f}' for x in os.getloadavg())}; scheduler policy {os.sched_getscheduler(0)} (1 = FIFO)")
+    for r in range(rounds):
+        for name in ("light", "simd") if r % 2 == 0 else ("simd", "light"):
+            # on CPU 1 from the start (preexec_fn): under FIFO, a spinning child left on this CPU would never give it back
+            process = subprocess.Popen([sys.executable, "-c", NEIGHBOURS[name].format(here=str(HERE))], preexec_fn=lambda: os.sched_setaffinity(0, {1}))
+            time.sleep(4.0)  # started (imports, the control's cached machine code)
+            busy0, _ = stat()
+            began = time.thread_time()
+            spin(steps)
+            control = time.thread_time() - began
+            began = time.thread_time()
+            library.sweep(model, axes, **options)
+            swept = time.thread_time() - began
+            busy1, _ = stat()
+            process.kill()
+            process.wait()
+            found.setdefault((name, "control"), []).append(control)
+            found.setdefault((name, "sweep"), []).append(swept)
+            print(f"  {r + 1} neighbour {name:5s}: control {control:.3f} s, sweep (1 worker) {swept:.3f} s; machine busy {(busy1 - busy0) / TICK:.2f} CPU s", flush=True)
+    for work in ("control", "sweep"):
+        light, simd = found[("light", work)], found[("simd", work)]
+        ratios = [b / a for a, b in zip(light, simd, strict=True)]
+        print(
+            f"  {work}: median {np.median(light):.3f} s beside light, {np.median(simd):.3f} s beside simd; simd/light per round {', '.join(f'{x:.3f}' for x in ratios)} (median {np.median(ratios):.3f})"
+        )
+
+
 def main() -> None:
-    rounds = int(sys.argv[1]) if len(sys.argv) > 1 and sys.argv[1] != "--counts" else 7
+    numbers = [a for a in sys.argv[1:] if a.isdigit()]
+    rounds = int(numbers[0]) if numbers else 7
     text = pendulum.system_yaml(2)
     model = derive.derive(spec.parse(text, "chain_2.yaml"))
     q1, q2 = model.coordinates
@@ -167,6 +215,9 @@ def main() -> None:
     library.sweep(model, axes, **{**options, "sample": 8})
     if "--counts" in sys.argv:
         counts(model, axes, options)
+        return
+    if "--neighbour" in sys.argv:
+        neighbours(model, axes, options, rounds)
         return
     spin(10)
     spin_prange(10, 2)
