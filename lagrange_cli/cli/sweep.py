@@ -44,7 +44,7 @@ def sweep(
     samples: Annotated[int | None, typer.Option(help="Samples per run for max/min/mean/energy_error/period (default 201).", callback=check_samples)] = None,
     workers: Annotated[int, typer.Option("--workers", help="Local threads running the compiled loops in parallel (default 1).", callback=check_workers)] = 1,
     scheduler: Annotated[str | None, typer.Option("--scheduler", help="A dask.distributed scheduler address (tcp://host:8786): batches run on its workers.")] = None,
-    batch: Annotated[int, typer.Option("--batch", help="Runs per batch (the unit of work, writing and resuming).", callback=check_batch)] = 64,
+    batch: Annotated[int, typer.Option("--batch", help="Runs per batch (the unit of writing and resuming; batches run in groups).", callback=check_batch)] = 64,
     output_path: Annotated[Path | None, typer.Option("-o", "--output", help="The table: .csv, or .parquet (pyarrow); - or none for CSV on stdout.")] = None,
     resume: Annotated[bool, typer.Option("--resume", help="Continue an interrupted sweep into -o (from its OUTPUT.partial.csv).")] = False,
     plot: Annotated[Path | None, typer.Option(help="A picture: a line (one axis), a heat map (two), a scatter (a section): .png, .svg or .pdf.")] = None,
