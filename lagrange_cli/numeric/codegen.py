@@ -230,6 +230,26 @@ class Generator:
         inputs = self.unpack([*self.mass, *offsets, *force], "_z", velocities=False)
         return self.numba_function("_hamilton", "t, _z, _p, _out, _x, _a", "(q_dot, p_dot) at z = (q, p) into _out; returns 1 when M is singular.", inputs, statements, ["return int(_status)"])
 
+    def projection_rows(self) -> str:
+        """`_rows(t, _q, _p, _f, _A, _b, _M)` (numba, kept constraints): what the projection onto them
+        needs at the positions q (projection.py, kernels.erk_projected): f(q, t) of each holonomic row (0
+        for a velocity row), the gradient rows A (k x n, row by row), the biases b and the mass matrix M
+        (n x n, row by row)."""
+        n, rows = self.n, self.rows
+        f = [expr if c.holonomic else se.Integer(0) for expr, c in zip(rows.expr, self.model.constraints, strict=True)]
+        a = [entry for row in rows.jacobian for entry in row]
+        exprs = [*f, *a, *rows.bias, *self.mass]
+        lines, results = self.block(exprs)
+        k, m = len(f), len(a)
+        body = [*self.unpack(exprs, "_q", velocities=False), *lines]
+        body += [f"_f[{i}] = {v}" for i, v in enumerate(results[:k])]
+        body += [f"_A[{i}] = {v}" for i, v in enumerate(results[k : k + m])]
+        body += [f"_b[{i}] = {v}" for i, v in enumerate(results[k + m : 2 * k + m])]
+        mass = results[2 * k + m :]
+        for e, (i, j) in enumerate(self.upper):
+            body += [f"_M[{i * n + j}] = {mass[e]}"] + ([f"_M[{j * n + i}] = {mass[e]}"] if i != j else [])
+        return define("_rows", "t, _q, _p, _f, _A, _b, _M", "f, A, b and M of the kept constraints at the positions q (projection).", [*body, "return 0"])
+
     def vector(self, name: str, doc: str, exprs: Sequence[Any]) -> str:
         """A function of (t, y, p) writing `exprs` into _out (numba) or returning them as a list."""
         exprs = list(exprs)
@@ -264,7 +284,7 @@ class Generator:
         stop = self.scalar("_event", "The stop condition, whose sign change ends the run.", stop_expr, uses_accel)
         parts = [self.accel()]
         if self.target == "numba":
-            parts += [self.hamilton()] if not model.constraints else []
+            parts += [self.hamilton()] if not model.constraints else [self.projection_rows(), self.scalar("_energy", "The energy function h = sum p q_dot - L.", forms.energy, False)]
         else:
             parts += [self.jac()] if jacobian else []
             parts += [
