@@ -13,6 +13,8 @@ numba, a long function is cut into parts compiled one by one (`emit.python.split
   Aug dx = d(r - Aug x) = dPhi, Phi = [F + A^T lambda - M q_ddot; -c_s - A q_ddot];
 - `hamilton`: (q_dot, p_dot) at (q, p) for the symplectic integrator: M q_dot = p - p(q, 0, t),
   p_dot = dL/dq - dR/dq_dot + Q;
+- `rows` (numba, kept constraints): f, A, b and M at the positions, and `energy` (numba too, kept
+  constraints), for the projection inside the compiled loop (kernels.erk_projected);
 - `energy`, `momenta`, `residuals`, `event`: the monitored quantities and the stop condition; a
   constraint's residual (its drift) is f(q, t) when holonomic and a(q, t) . q_dot + b(q, t) for a
   velocity constraint, whose `expr` is that expression (and so needs the velocities bound).
@@ -275,8 +277,8 @@ class Generator:
     def module(self, jacobian: bool, event: sp.Expr | None) -> str:
         """The functions a target needs, the constants _N, _K, _SIZE, and the `math` imports.
 
-        numba: `_accel`, `_hamilton` (unconstrained systems) and `_event`, which the compiled
-        loops call; Python: `_accel` (and `_jac`) for scipy, and the monitored quantities."""
+        numba: `_accel`, `_hamilton` (unconstrained systems), `_rows` and `_energy` (kept
+        constraints: the projection) and `_event`, which the compiled loops call; Python: `_accel` (and `_jac`) for scipy, and the monitored quantities."""
         model, forms = self.model, self.forms
         self.tables: list[str] = []
         stop_expr = to_symengine(event) if event is not None else se.RealDouble(1.0)

@@ -9,7 +9,8 @@
 Each returns a `Run`: the samples reached, how it ended, and its counts and timings. Behind one
 interface (scipy's `OdeSolver` as the anchor): a `Solver` is made once from the decided settings
 (`ExplicitRK`, `Gauss`, `Scipy`) and `solver.run(problem, progress)` integrates a `Problem` (or a
-stretch of one: projection runs it stretch by stretch) to a `Run`, with the status enum
+stretch of one: the scipy backend's projection runs it stretch by stretch; the compiled one projects
+inside its loop, `run_erk_projected`) to a `Run`, with the status enum
 (`status.Status`) and named counters (`Stats`).
 """
 

@@ -11,6 +11,9 @@ directory and imports it from there, so numba's cache sits beside it.
   same step-size control, initial step and dense output as scipy.integrate (so both take the
   same steps), samples written at requested times, and an event located by root finding on
   the dense output;
+- `erk_projected`: `erk_run` with the state projected onto kept constraints at given times (the
+  samples) inside the loop: a step lands on each, the state is projected as `projection.Projector`
+  does (`_project`, with the system's `rows` and `energy`), and the run goes on from it;
 - `gauss_run`: fixed-step Gauss-Legendre collocation in (q, p), symplectic and symmetric,
   stage equations solved to round-off by fixed-point iteration, or where that converges slowly
   (a stiff stretch) by simplified Newton iteration (a finite-difference Jacobian, refreshed when
