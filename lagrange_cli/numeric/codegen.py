@@ -13,6 +13,8 @@ numba, a long function is cut into parts compiled one by one (`emit.python.split
   Aug dx = d(r - Aug x) = dPhi, Phi = [F + A^T lambda - M q_ddot; -c_s - A q_ddot];
 - `hamilton`: (q_dot, p_dot) at (q, p) for the symplectic integrator: M q_dot = p - p(q, 0, t),
   p_dot = dL/dq - dR/dq_dot + Q;
+- `rows` (numba, kept constraints): f, A, b and M at the positions, and `energy` (numba too, kept
+  constraints), for the projection inside the compiled loop (kernels.erk_projected);
 - `energy`, `momenta`, `residuals`, `event`: the monitored quantities and the stop condition; a
   constraint's residual (its drift) is f(q, t) when holonomic and a(q, t) . q_dot + b(q, t) for a
   velocity constraint, whose `expr` is that expression (and so needs the velocities bound).
@@ -230,6 +232,26 @@ class Generator:
         inputs = self.unpack([*self.mass, *offsets, *force], "_z", velocities=False)
         return self.numba_function("_hamilton", "t, _z, _p, _out, _x, _a", "(q_dot, p_dot) at z = (q, p) into _out; returns 1 when M is singular.", inputs, statements, ["return int(_status)"])
 
+    def projection_rows(self) -> str:
+        """`_rows(t, _q, _p, _f, _A, _b, _M)` (numba, kept constraints): what the projection onto them
+        needs at the positions q (projection.py, kernels.erk_projected): f(q, t) of each holonomic row (0
+        for a velocity row), the gradient rows A (k x n, row by row), the biases b and the mass matrix M
+        (n x n, row by row)."""
+        n, rows = self.n, self.rows
+        f = [expr if c.holonomic else se.Integer(0) for expr, c in zip(rows.expr, self.model.constraints, strict=True)]
+        a = [entry for row in rows.jacobian for entry in row]
+        exprs = [*f, *a, *rows.bias, *self.mass]
+        lines, results = self.block(exprs)
+        k, m = len(f), len(a)
+        body = [*self.unpack(exprs, "_q", velocities=False), *lines]
+        body += [f"_f[{i}] = {v}" for i, v in enumerate(results[:k])]
+        body += [f"_A[{i}] = {v}" for i, v in enumerate(results[k : k + m])]
+        body += [f"_b[{i}] = {v}" for i, v in enumerate(results[k + m : 2 * k + m])]
+        mass = results[2 * k + m :]
+        for e, (i, j) in enumerate(self.upper):
+            body += [f"_M[{i * n + j}] = {mass[e]}"] + ([f"_M[{j * n + i}] = {mass[e]}"] if i != j else [])
+        return define("_rows", "t, _q, _p, _f, _A, _b, _M", "f, A, b and M of the kept constraints at the positions q (projection).", [*body, "return 0"])
+
     def vector(self, name: str, doc: str, exprs: Sequence[Any]) -> str:
         """A function of (t, y, p) writing `exprs` into _out (numba) or returning them as a list."""
         exprs = list(exprs)
@@ -255,8 +277,8 @@ class Generator:
     def module(self, jacobian: bool, event: sp.Expr | None) -> str:
         """The functions a target needs, the constants _N, _K, _SIZE, and the `math` imports.
 
-        numba: `_accel`, `_hamilton` (unconstrained systems) and `_event`, which the compiled
-        loops call; Python: `_accel` (and `_jac`) for scipy, and the monitored quantities."""
+        numba: `_accel`, `_hamilton` (unconstrained systems), `_rows` and `_energy` (kept
+        constraints: the projection) and `_event`, which the compiled loops call; Python: `_accel` (and `_jac`) for scipy, and the monitored quantities."""
         model, forms = self.model, self.forms
         self.tables: list[str] = []
         stop_expr = to_symengine(event) if event is not None else se.RealDouble(1.0)
@@ -264,7 +286,7 @@ class Generator:
         stop = self.scalar("_event", "The stop condition, whose sign change ends the run.", stop_expr, uses_accel)
         parts = [self.accel()]
         if self.target == "numba":
-            parts += [self.hamilton()] if not model.constraints else []
+            parts += [self.hamilton()] if not model.constraints else [self.projection_rows(), self.scalar("_energy", "The energy function h = sum p q_dot - L.", forms.energy, False)]
         else:
             parts += [self.jac()] if jacobian else []
             parts += [

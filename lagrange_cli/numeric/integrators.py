@@ -9,7 +9,8 @@
 Each returns a `Run`: the samples reached, how it ended, and its counts and timings. Behind one
 interface (scipy's `OdeSolver` as the anchor): a `Solver` is made once from the decided settings
 (`ExplicitRK`, `Gauss`, `Scipy`) and `solver.run(problem, progress)` integrates a `Problem` (or a
-stretch of one: projection runs it stretch by stretch) to a `Run`, with the status enum
+stretch of one: the scipy backend's projection runs it stretch by stretch; the compiled one projects
+inside its loop, `run_erk_projected`) to a `Run`, with the status enum
 (`status.Status`) and named counters (`Stats`).
 """
 
@@ -356,6 +357,48 @@ class ErkLoop:
             self.code = _drive(self._advance, lambda: self.t, lambda: self.steps, self.problem, progress)
         m = int(self.state[status.NEXT_SAMPLE])
         return Run(self.problem.ts[:m], self.ys[:m], Status.of_code(self.code), self.t, self.y, _stats(self.stats), self.compile_seconds, self.seconds)
+
+
+def run_erk_projected(
+    functions: Functions, problem: Problem, method: str, rtol: float, atol: float, max_step: float, bounds: np.ndarray, holonomic: np.ndarray, record: np.ndarray, progress: Progress | None = None
+) -> Run:
+    """`run_erk` with the state projected onto the kept constraints at the times `bounds` inside the
+    compiled loop (kernels.erk_projected): one run, no restart at a projection. `holonomic` marks the
+    holonomic rows (1.0), `record` is the projection record (status.LEVEL, ...: `projection.record`),
+    which the loop fills with what it corrected and counted."""
+    kernels = functions.kernels
+    assert kernels is not None
+    pair = EXPLICIT[method].code
+    start_entry, _, compile_start = _compile(functions, "erk_start", [])
+    entry, (accel, event, rows, energy), compile_run = _compile(
+        functions, "erk_projected", [("_accel", kernels.ACCEL_SIG), ("_event", kernels.EVENT_SIG), ("_rows", kernels.ROWS_SIG), ("_energy", kernels.ENERGY_SIG)]
+    )
+    began = time.perf_counter()
+    y, f = problem.y0.copy(), np.empty_like(problem.y0)
+    stats = _new_stats(math.inf, 0.0)
+    ys = np.full((len(problem.ts), len(y)), np.nan)
+    control = _control(problem, functions.module._SIZE, rtol=rtol, atol=atol, max_step=max_step)
+    h0 = start_entry(pair, problem.t0, y, f, control, problem.p, stats, accel)
+    state = _state(problem.t0, h0, _initial_event(functions, problem))
+
+    def advance(t_stop: float) -> int:
+        control[status.T_STOP] = t_stop
+        return int(entry(pair, y, f, state, control, problem.ts, ys, problem.p, stats, accel, event, rows, energy, bounds, holonomic, record))
+
+    code = status.SINGULAR if h0 < 0 else _drive(advance, lambda: float(state[status.T]), lambda: int(stats[status.NSTEPS]), problem, progress)
+    m = int(state[status.NEXT_SAMPLE])
+    return Run(problem.ts[:m], ys[:m], Status.of_code(code), float(state[status.T]), y, _stats(stats), compile_start + compile_run, time.perf_counter() - began)
+
+
+def project_compiled(functions: Functions, t: float, y: np.ndarray, p: np.ndarray, holonomic: np.ndarray, record: np.ndarray) -> np.ndarray | None:
+    """One state projected as the compiled loop projects it (kernels.project_state): the projected state,
+    what it corrected in record[status.POSITION..ENERGY]; None where the projection cannot be applied."""
+    kernels = functions.kernels
+    assert kernels is not None
+    entry, (rows, energy), _ = _compile(functions, "project_state", [("_rows", kernels.ROWS_SIG), ("_energy", kernels.ENERGY_SIG)])
+    out = np.empty(len(y))
+    failed = entry(float(t), np.array(y, dtype=float), np.array(p, dtype=float), holonomic, record, out, functions.module._SIZE, rows, energy)
+    return None if failed else out
 
 
 def run_gauss(functions: Functions, problem: Problem, z0: np.ndarray, stages: int, step: float, progress: Progress | None = None) -> Run:

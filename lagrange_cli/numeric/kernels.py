@@ -11,6 +11,9 @@ directory and imports it from there, so numba's cache sits beside it.
   same step-size control, initial step and dense output as scipy.integrate (so both take the
   same steps), samples written at requested times, and an event located by root finding on
   the dense output;
+- `erk_projected`: `erk_run` with the state projected onto kept constraints at given times (the
+  samples) inside the loop: a step lands on each, the state is projected as `projection.Projector`
+  does (`_project`, with the system's `rows` and `energy`), and the run goes on from it;
 - `gauss_run`: fixed-step Gauss-Legendre collocation in (q, p), symplectic and symmetric,
   stage equations solved to round-off by fixed-point iteration, or where that converges slowly
   (a stiff stretch) by simplified Newton iteration (a finite-difference Jacobian, refreshed when
@@ -27,17 +30,27 @@ from numba import njit, types
 
 from lagrange_cli.numeric.status import (
     ATOL,
+    CHANGE_LIMIT,
+    CONDITION_LIMIT,
     DONE,
+    ENERGY,
+    ENERGY_LIMIT,
     EVENT,
     EVENT_VALUE,
+    FAILED_AT,
+    FAILURES,
     H_LAMBDA,
     HMAX,
     HMIN,
+    LEVEL,
     MAX_FACTOR,
     MAX_STEP,
     MIN_FACTOR,
     MIN_STEP_SPACINGS,
+    MOVED,
     NEWTON,
+    NEWTON_LIMIT,
+    NEXT_BOUND,
     NEXT_SAMPLE,
     NFEV,
     NJEV,
@@ -47,6 +60,9 @@ from lagrange_cli.numeric.status import (
     NREJECT,
     NSTEPS,
     PAUSE_STEPS,
+    POSITION,
+    PROJECTIONS,
+    ROUND_OFF_LEVEL,
     RTOL,
     RUNNING,
     SAFETY,
@@ -65,6 +81,8 @@ from lagrange_cli.numeric.status import (
     T_BOUND,
     T_STOP,
     USE_EVENT,
+    USE_LEVEL,
+    VELOCITY,
     H,
     T,
 )
@@ -201,7 +219,12 @@ HAMILTON_SIG = _I8(_F8, _ARR, _ARR, _ARR, _ARR, _MAT)
 """hamilton(t, z, p, out, x, a): out = (q_dot, p_dot) at z = (q, p); 1 when singular."""
 EVENT_SIG = _F8(_F8, _ARR, _ARR, _ARR, _MAT)
 """event(t, y, p, x, a): the stop condition."""
+ROWS_SIG = _I8(_F8, _ARR, _ARR, _ARR, _ARR, _ARR, _ARR)
+"""rows(t, q, p, f, A, b, M): the kept constraints' rows at the positions q (codegen's `_rows`), A and M row by row."""
+ENERGY_SIG = EVENT_SIG
+"""energy(t, y, p, x, a): the energy function h."""
 _ACCEL_T, _HAMILTON_T, _EVENT_T = types.FunctionType(ACCEL_SIG), types.FunctionType(HAMILTON_SIG), types.FunctionType(EVENT_SIG)
+_ROWS_T, _ENERGY_T = types.FunctionType(ROWS_SIG), types.FunctionType(ENERGY_SIG)
 SIGNATURES = {
     # (pair, t0, y, f, control, p, stats, accel)
     "erk_start": _F8(_I8, _F8, _ARR, _ARR, _ARR, _ARR, _ARR, _ACCEL_T),
@@ -209,6 +232,10 @@ SIGNATURES = {
     "erk_run": _I8(_I8, _ARR, _ARR, _ARR, _ARR, _ARR, _MAT, _ARR, _ARR, _ACCEL_T, _EVENT_T),
     # (stages, z, state, control, ts, zs, p, stats, sizes, memory, pivots, hamilton, event)
     "gauss_run": _I8(_I8, _ARR, _ARR, _ARR, _ARR, _MAT, _ARR, _ARR, _ARR, _ARR, types.int64[::1], _HAMILTON_T, _EVENT_T),
+    # (pair, y, f, state, control, ts, ys, p, stats, accel, event, rows, energy, bounds, holonomic, record)
+    "erk_projected": _I8(_I8, _ARR, _ARR, _ARR, _ARR, _ARR, _MAT, _ARR, _ARR, _ACCEL_T, _EVENT_T, _ROWS_T, _ENERGY_T, _ARR, _ARR, _ARR),
+    # (t, y, p, holonomic, record, out, size, rows, energy)
+    "project_state": _I8(_F8, _ARR, _ARR, _ARR, _ARR, _ARR, _I8, _ROWS_T, _ENERGY_T),
 }
 """The entry points. The arrays are records with named indices (status.py): `state` (T, H or the
 steps done, EVENT_VALUE, NEXT_SAMPLE), `control` (RTOL, ATOL, MAX_STEP, T_BOUND, T_STOP, USE_EVENT,
@@ -607,6 +634,321 @@ def erk_run(pair, y, f, state, control, ts, ys, p, stats, accel, event):
         if stiff and t < t_bound:
             return RUNNING  # paused: the caller asked to hear of stiffness (stats[STIFF] >= STIFF_STEPS)
     return DONE if t >= t_bound else RUNNING
+
+
+# -- explicit Runge-Kutta with projection onto kept constraints ----------------------------------
+
+
+@njit(error_model="numpy")
+def _all_finite(v):
+    for i in range(v.shape[0]):
+        if not np.isfinite(v[i]):
+            return False
+    return True
+
+
+@njit(error_model="numpy")
+def _rows_at(rows, t, q, p, f, A, b, M):
+    """f, A, b, M of the kept constraints at (t, q) (the system's `_rows`); False where a value is not finite."""
+    rows(t, q, p, f, A, b, M)
+    return _all_finite(f) and _all_finite(A) and _all_finite(b) and _all_finite(M)
+
+
+@njit(error_model="numpy")
+def _inverse_rows(m, rows, w):
+    """w = M^-1 R^T (n x count) for the rows R (count x n), column by column; 1 when M is singular."""
+    count, n = rows.shape
+    work, column = np.empty((n, n)), np.empty(n)
+    for i in range(count):
+        for r in range(n):
+            for c in range(n):
+                work[r, c] = m[r, c]
+            column[r] = rows[i, r]
+        if lu_solve(work, column):
+            return 1
+        for r in range(n):
+            w[r, i] = column[r]
+    return 0
+
+
+@njit(error_model="numpy")
+def _normal(rows, w):
+    """R M^-1 R^T from R and w = M^-1 R^T."""
+    count, n = rows.shape
+    normal = np.empty((count, count))
+    for i in range(count):
+        for j in range(count):
+            total = 0.0
+            for c in range(n):
+                total += rows[i, c] * w[c, j]
+            normal[i, j] = total
+    return normal
+
+
+@njit(error_model="numpy")
+def _weighted(m, rows, r, out):
+    """out = M^-1 R^T (R M^-1 R^T)^-1 r: the M-weighted least-norm solution of R dx = r (projection._weighted); 1 when singular."""
+    count, n = rows.shape
+    w = np.empty((n, count))
+    if _inverse_rows(m, rows, w):
+        return 1
+    normal = _normal(rows, w)
+    z = np.empty(count)
+    for i in range(count):
+        z[i] = r[i]
+    if lu_solve(normal, z):
+        return 1
+    for c in range(n):
+        total = 0.0
+        for i in range(count):
+            total += w[c, i] * z[i]
+        out[c] = total
+    return 0
+
+
+@njit(error_model="numpy")
+def _project(rows, energy, t, y, p, holonomic, record, out, found, x, a):
+    """`projection.Projector.project` compiled: out = y = [q; q_dot] projected onto the kept constraints at t
+    (Gauss-Newton on the holonomic rows' positions, at most record[NEWTON_LIMIT] steps, stopping at
+    round-off; then the velocities onto every row; then, with record[USE_LEVEL], the velocities onto the
+    energy level record[LEVEL] with the rows, skipped at a turning point or for a correction that is not
+    small), found = (position, velocity, moved, energy) as `projection.Correction`; 1 where it cannot be
+    applied (M or A M^-1 A^T singular, values not finite: out is then not to be used), else 0."""
+    n = y.shape[0] // 2
+    k = holonomic.shape[0]
+    round_off = record[ROUND_OFF_LEVEL]
+    q, qd, dx = np.empty(n), np.empty(n), np.empty(n)
+    for i in range(n):
+        q[i], qd[i] = y[i], y[n + i]
+    f, flat, b, flat_m = np.empty(k), np.empty(k * n), np.empty(k), np.empty(n * n)
+    A, M = flat.reshape((k, n)), flat_m.reshape((n, n))
+    held = 0
+    for r in range(k):
+        if holonomic[r] != 0.0:
+            held += 1
+    first_position = 0.0
+    if held > 0:
+        fh, Ah = np.empty(held), np.empty((held, n))
+        for step in range(int(record[NEWTON_LIMIT])):
+            if not _rows_at(rows, t, q, p, f, flat, b, flat_m):
+                return 1
+            c, largest_f, largest_a, largest_q = 0, 0.0, 0.0, 0.0
+            for r in range(k):
+                if holonomic[r] != 0.0:
+                    fh[c] = f[r]
+                    largest_f = max(largest_f, abs(f[r]))
+                    for j in range(n):
+                        Ah[c, j] = A[r, j]
+                        largest_a = max(largest_a, abs(A[r, j]))
+                    c += 1
+            for j in range(n):
+                largest_q = max(largest_q, abs(q[j]))
+            if step == 0:
+                first_position = largest_f
+            if largest_f <= round_off * (1.0 + largest_a * largest_q):
+                break
+            if _weighted(M, Ah, fh, dx):
+                return 1
+            for j in range(n):
+                q[j] -= dx[j]
+    if not _rows_at(rows, t, q, p, f, flat, b, flat_m):
+        return 1
+    residual = np.empty(k)
+    largest_residual = 0.0
+    for r in range(k):
+        total = b[r]
+        for j in range(n):
+            total += A[r, j] * qd[j]
+        residual[r] = total
+        largest_residual = max(largest_residual, abs(total))
+    if _weighted(M, A, residual, dx):
+        return 1
+    for j in range(n):
+        qd[j] -= dx[j]
+    energy_error = 0.0
+    if record[USE_LEVEL] != 0.0:
+        level = record[LEVEL]
+        trial, state, gradient = qd.copy(), np.empty(2 * n), np.empty(n)
+        stacked, w, rhs = np.empty((k + 1, n)), np.empty((n, k + 1)), np.empty(k + 1)
+        first, skipped = -1.0, False
+        for _ in range(int(record[ENERGY_LIMIT])):
+            for j in range(n):
+                state[j], state[n + j] = q[j], trial[j]
+            error = energy(t, state, p, x, a) - level
+            if first < 0.0:
+                first = abs(error)
+            moment = 0.0
+            for i in range(n):
+                total = 0.0
+                for j in range(n):
+                    total += M[i, j] * trial[j]
+                gradient[i] = total  # dh/dq_dot = M q_dot
+                moment += trial[i] * total
+            if abs(error) <= round_off * (abs(level) + abs(moment)):
+                break
+            for r in range(k):
+                for j in range(n):
+                    stacked[r, j] = A[r, j]
+            for j in range(n):
+                stacked[k, j] = gradient[j]
+            if _inverse_rows(M, stacked, w):
+                return 1
+            normal = _normal(stacked, w)
+            if not _all_finite(normal.ravel()) or np.linalg.cond(normal) > record[CONDITION_LIMIT]:  # a turning point
+                skipped = True
+                break
+            for r in range(k):
+                total = b[r]
+                for j in range(n):
+                    total += A[r, j] * trial[j]
+                rhs[r] = total
+            rhs[k] = error
+            if lu_solve(normal, rhs):
+                skipped = True
+                break
+            for j in range(n):
+                total = 0.0
+                for i in range(k + 1):
+                    total += w[j, i] * rhs[i]
+                trial[j] -= total
+        if not skipped:
+            change, largest = 0.0, 0.0
+            for j in range(n):
+                largest = max(largest, abs(qd[j]))
+            scale = largest + 1e-300
+            for j in range(n):
+                change = max(change, abs(trial[j] - qd[j]))
+            if _all_finite(trial) and change <= record[CHANGE_LIMIT] * scale:
+                for j in range(n):
+                    qd[j] = trial[j]
+                energy_error = first if first >= 0.0 else 0.0
+    moved = 0.0
+    for j in range(n):
+        out[j], out[n + j] = q[j], qd[j]
+    if not _all_finite(out):
+        return 1
+    for i in range(2 * n):
+        moved = max(moved, abs(out[i] - y[i]))
+    found[0], found[1], found[2], found[3] = first_position, largest_residual, moved, energy_error
+    return 0
+
+
+def project_state(t, y, p, holonomic, record, out, size, rows, energy):
+    """One state projected as erk_projected projects (`_project`): out, and record[POSITION..ENERGY]
+    what it corrected; 1 where the projection cannot be applied."""
+    x, a, found = np.empty(size), np.empty((size, size)), np.zeros(4)
+    if _project(rows, energy, t, y, p, holonomic, record, out, found, x, a):
+        return 1
+    record[POSITION], record[VELOCITY], record[MOVED], record[ENERGY] = found[0], found[1], found[2], found[3]
+    return 0
+
+
+def erk_projected(pair, y, f, state, control, ts, ys, p, stats, accel, event, rows, energy, bounds, holonomic, record):
+    """`erk_run` with the state projected onto the kept constraints at the times `bounds` (increasing,
+    the last one t_end): a step is shortened to land exactly on the next of them, the state there is
+    projected (`_project`; where that cannot be applied it is kept as it was, and counted), a sample at
+    that time takes the projected state, f is evaluated anew (the last stage no longer holds) and the run
+    goes on with the step size it had before it was shortened. The largest corrections and the counts go
+    into `record` (status.POSITION, ...); record[NEXT_BOUND] is the next projection time's index. Pauses as
+    erk_run does (at control[T_STOP], after PAUSE_STEPS steps); returns a status code."""
+    n = y.shape[0]
+    rtol, atol, max_step, t_end, t_stop, use_event = control[RTOL], control[ATOL], control[MAX_STEP], control[T_BOUND], control[T_STOP], control[USE_EVENT] != 0.0
+    size = int(control[SIZE])
+    x, a = np.empty(size), np.empty((size, size))
+    stages = _STAGES[pair]
+    K = np.empty((_ROWS[pair], n))
+    coef = np.empty((_DENSE[pair], n))
+    y_new, work, projected, found = np.empty(n), np.empty(n), np.empty(n), np.zeros(4)
+    exponent = -1.0 / (_ERROR_ORDER[pair] + 1.0)
+    t, h_abs = state[T], state[H]
+    taken = 0
+    while t < t_stop and t < t_end and taken < PAUSE_STEPS:
+        taken += 1
+        bound = bounds[int(record[NEXT_BOUND])]
+        min_step = MIN_STEP_SPACINGS * abs(np.nextafter(t, np.inf) - t)
+        h_abs = min(max(h_abs, min_step), max_step)
+        rejected, bad, landed = False, False, False
+        while True:
+            if h_abs < min_step:
+                state[T], state[H] = t, h_abs
+                return NONFINITE if bad else STEP_COLLAPSE
+            landed = t + h_abs >= bound
+            t_new = bound if landed else t + h_abs
+            h = t_new - t
+            for i in range(n):
+                K[0, i] = f[i]
+            if _erk_step(accel, pair, t, y, h, K, y_new, p, x, a, stats):
+                state[T], state[H] = t, h
+                return SINGULAR
+            error = _erk_error(pair, K, h, y, y_new, rtol, atol)
+            bad = not (np.isfinite(error) and _finite(y_new))
+            if error < 1.0 and not bad:
+                factor = MAX_FACTOR if error == 0.0 else min(MAX_FACTOR, SAFETY * error**exponent)
+                if rejected or landed:  # a step shortened onto a projection time says little about the next: keep the size before it
+                    factor = min(1.0, factor)
+                break
+            h_abs *= MIN_FACTOR if bad else max(MIN_FACTOR, SAFETY * error**exponent)
+            rejected = True
+            stats[NREJECT] += 1
+        stats[NSTEPS] += 1
+        if not landed:
+            stats[HMIN] = min(stats[HMIN], h)
+        stats[HMAX] = max(stats[HMAX], h)
+        j = int(state[NEXT_SAMPLE])
+        need = j < ts.shape[0] and ts[j] <= t_new
+        t_end_here = t_new
+        status = RUNNING
+        if use_event:
+            g_new = event(t_new, y_new, p, x, a)
+            if (state[EVENT_VALUE] < 0.0) != (g_new < 0.0) and state[EVENT_VALUE] != 0.0:
+                need = True
+                status = EVENT
+            else:
+                state[EVENT_VALUE] = g_new
+        if need:
+            if _erk_dense(accel, pair, t, y, y_new, K[stages], h, K, coef, p, x, a, stats):
+                state[T], state[H] = t, h
+                return SINGULAR
+            if status == EVENT:
+                t_end_here = _erk_root(event, pair, t, h, y, coef, p, x, a, work, state[EVENT_VALUE])
+            while j < ts.shape[0] and ts[j] <= t_end_here:
+                _erk_eval(pair, t, h, y, coef, ts[j], ys[j])
+                j += 1
+            state[NEXT_SAMPLE] = j
+            if status == EVENT:
+                _erk_eval(pair, t, h, y, coef, t_end_here, y_new)
+        for i in range(n):
+            f[i] = K[stages, i]
+            y[i] = y_new[i]
+        t = t_end_here
+        h_abs *= factor
+        state[T], state[H] = t, h_abs
+        if status == EVENT:
+            return EVENT
+        if landed:
+            record[PROJECTIONS] += 1.0
+            if _project(rows, energy, t, y, p, holonomic, record, projected, found, x, a):
+                record[FAILURES] += 1.0
+                if not np.isfinite(record[FAILED_AT]):
+                    record[FAILED_AT] = t
+            else:
+                for i in range(n):
+                    y[i] = projected[i]
+                record[POSITION] = max(record[POSITION], found[0])
+                record[VELOCITY] = max(record[VELOCITY], found[1])
+                record[MOVED] = max(record[MOVED], found[2])
+                record[ENERGY] = max(record[ENERGY], found[3])
+                if j > 0 and ts[j - 1] == t:
+                    for i in range(n):
+                        ys[j - 1, i] = y[i]
+            record[NEXT_BOUND] += 1.0
+            if t < t_end:
+                if _rhs(accel, t, y, p, f, x, a):
+                    return SINGULAR
+                stats[NFEV] += 1
+                if use_event:
+                    state[EVENT_VALUE] = event(t, y, p, x, a)
+    return DONE if t >= t_end else RUNNING
 
 
 # -- Gauss-Legendre in (q, p) -----------------------------------------------------------------

@@ -27,7 +27,7 @@ import numpy as np
 from lagrange_cli.errors import LagrangeError
 from lagrange_cli.inputs import substitute
 from lagrange_cli.model import Model
-from lagrange_cli.numeric import codegen, compile, integrators, policy
+from lagrange_cli.numeric import codegen, compile, integrators, policy, projection, status
 from lagrange_cli.numeric.integrators import Problem, Progress, Run, Stats
 from lagrange_cli.numeric.policy import resolve
 from lagrange_cli.numeric.projection import Correction, Projector
@@ -158,8 +158,8 @@ def simulate(
     """Integrate `model` from its initial state; see the module docstring for the conventions.
     `max_steps` is the step budget (default `integrators.MAX_STEPS` of the backend): a run that
     has not reached t_end after it stops, failed, with the trajectory so far. `projection` (default:
-    on for a model with kept constraints) projects the state onto them after each stretch between
-    two samples (`projection.py`). `stages` fixes the symplectic method's Gauss-Legendre stages (1, 2 or 3;
+    on for a model with kept constraints) projects the state onto them at the samples (`projection.py`;
+    compiled: inside the integration loop). `stages` fixes the symplectic method's Gauss-Legendre stages (1, 2 or 3;
     default: the pilot picks 2 or 3 with the step, or 2 with a given step). A model's inputs are taken at
     their defaults (`inputs.substitute`)."""
     model = substitute(model)
@@ -263,7 +263,10 @@ def _integrated(model: Model, settings: Settings, progress: Progress | None, max
 
     notes: tuple[str, ...] = ()
     started = policy.take_attempt(model, settings, problem) if isinstance(solver, integrators.ExplicitRK) and solver.method == "DOP853" else None
-    if settings.projection and model.constraints:
+    if settings.projection and model.constraints and isinstance(solver, integrators.ExplicitRK):
+        run, notes = _projected_compiled(model, solver, problem, progress)
+        run = _verified_event(python, problem, run)
+    elif settings.projection and model.constraints:
         run, notes = _projected(model, settings, python, problem, runner, progress)
     elif started is not None:  # `auto` started this very run (policy.explicit_attempt): it goes on from where it paused
         run = _verified_event(python, problem, started.finish(progress))
@@ -275,8 +278,54 @@ def _integrated(model: Model, settings: Settings, progress: Progress | None, max
 
 
 MAX_STRETCHES = 1000
-"""Stretches of a projected run at most: with more samples than this, the state is projected at
-every k-th sample only (each stretch restarts the integrator, ~0.3 ms)."""
+"""Projections of a run at most: with more samples than this, the state is projected at every k-th
+sample only (with the scipy backend each stretch between two projections restarts the integrator)."""
+
+
+def _bounds(problem: Problem) -> list[float]:
+    """The times the state is projected at: the samples inside the span (every k-th with more than
+    MAX_STRETCHES of them), and t_end."""
+    inner = sorted({float(t) for t in problem.ts if problem.t0 < t < problem.t_end})
+    every = max(1, math.ceil((len(inner) + 1) / MAX_STRETCHES))
+    return [*inner[every - 1 :: every], problem.t_end] if every > 1 else [*inner, problem.t_end]
+
+
+def _projected_compiled(model: Model, solver: integrators.ExplicitRK, problem: Problem, progress: Progress | None) -> tuple[Run, tuple[str, ...]]:
+    """The compiled run with the state projected at the `_bounds` times inside its loop
+    (integrators.run_erk_projected: one compiled run, the same projection as `projection.Projector`),
+    and a note saying what was corrected."""
+    numba, holonomic = solver.functions, projection.holonomic_rows(model)
+    level = None
+    if model.energy_conserved:  # the level of the constrained state nearest the start (the start itself when it satisfies the constraints)
+        start = integrators.project_compiled(numba, problem.t0, problem.y0, problem.p, holonomic, projection.record())
+        if start is not None:
+            size = numba.module._SIZE
+            value = float(numba.module._energy(problem.t0, start, problem.p, np.empty(size), np.empty((size, size))))
+            level = value if math.isfinite(value) else None
+    found = projection.record(level)
+    bounds = np.array(_bounds(problem), dtype=float)
+    run = integrators.run_erk_projected(numba, problem, solver.method, solver.rtol, solver.atol, solver.max_step, bounds, holonomic, found, progress)
+    failures = int(found[status.FAILURES])
+    failed = (
+        f"; it could not be applied at {failures} of them, first at t = {_g(float(found[status.FAILED_AT]))} (the mass matrix or A M^-1 A^T singular there, or values not finite), and the run went on without it there"
+        if failures
+        else ""
+    )
+    where = f"at each of {int(found[status.PROJECTIONS])} sample times, inside the compiled loop (a step is shortened to land on each; the run goes on from the projected state)"
+    return run, (_projection_note(level is not None, where, projection.correction(found), failed),)
+
+
+def _projection_note(energy: bool, where: str, largest: Correction, failed: str) -> str:
+    """The note of a projected run: where it projected and the largest residuals it corrected."""
+    return (
+        f"projection onto the kept constraints{' and the energy level' if energy else ''} {where}"
+        f" (M-weighted Gauss-Newton on the positions, then the velocities): largest residual corrected {largest.position:.2g} in the positions, {largest.velocity:.2g} in the velocities"
+        + (f", {largest.energy:.2g} in the energy" if energy else "")
+        + " (the drift between two projections; the monitored residuals"
+        + (" and energy" if energy else "")
+        + " are measured after projection)"
+        + failed
+    )
 
 
 def _projected(
@@ -299,9 +348,7 @@ def _projected(
             level = None
     projector = Projector(model, settings.values, energy, level)
     ts = problem.ts
-    inner = sorted({float(t) for t in ts if problem.t0 < t < problem.t_end})
-    every = max(1, math.ceil((len(inner) + 1) / MAX_STRETCHES))
-    bounds = [*inner[every - 1 :: every], problem.t_end] if every > 1 else [*inner, problem.t_end]
+    bounds = _bounds(problem)
     t_start, y = problem.t0, problem.y0.copy()
     pieces_t, pieces_y, runs = [ts[:0]], [np.empty((0, len(y)))], []
     if len(ts) and ts[0] <= problem.t0:  # the first sample is the start itself
@@ -351,16 +398,7 @@ def _projected(
     compile_seconds = sum(r.compile_seconds for r in runs)
     elapsed = time.perf_counter() - began - compile_seconds  # the projections count as part of the run
     run = Run(np.concatenate(pieces_t), np.vstack(pieces_y), outcome, t_start if over_budget else last.t_last, y_last, stats, compile_seconds, elapsed, last.problem)
-    note = (
-        f"projection onto the kept constraints{' and the energy level' if level is not None else ''} after each of {projections} stretches of the run (at the samples)"
-        f" (M-weighted Gauss-Newton on the positions, then the velocities): largest residual corrected {largest.position:.2g} in the positions, {largest.velocity:.2g} in the velocities"
-        + (f", {largest.energy:.2g} in the energy" if level is not None else "")
-        + " (the drift of one stretch; the monitored residuals"
-        + (" and energy" if level is not None else "")
-        + " are measured after projection)"
-        + failed
-    )
-    return run, (note,)
+    return run, (_projection_note(level is not None, f"after each of {projections} stretches of the run (at the samples)", largest, failed),)
 
 
 def _budget(max_steps: object) -> int:

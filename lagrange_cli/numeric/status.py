@@ -54,6 +54,19 @@ stiffness test and pause (RUNNING) once it finds the problem stiff (0: no test, 
 steps an explicit pair takes before it pauses (0: PAUSE_STEPS, the default)."""
 CONTROL_SIZE = 12
 
+# -- the projection record `record` of a projected explicit run (kernels.erk_projected; float64)
+LEVEL, USE_LEVEL, NEWTON_LIMIT, ROUND_OFF_LEVEL, ENERGY_LIMIT, CONDITION_LIMIT, CHANGE_LIMIT = range(7)
+"""Inputs: the energy level h0 and 1.0 to project onto it too (a conserved energy); projection.py's
+constants NEWTON_STEPS, ROUND_OFF, ENERGY_STEPS, ENERGY_CONDITION and ENERGY_CHANGE (passed in, so
+that the compiled projection and `projection.Projector` cannot differ in them)."""
+NEXT_BOUND, POSITION, VELOCITY, MOVED, ENERGY, PROJECTIONS, FAILURES, FAILED_AT = range(7, 15)
+"""The loop's own state: the index of the next projection time. What it reports: the largest
+residuals corrected (max |f(q, t)| of the holonomic rows before the position step, max |a . q_dot + b|
+before the velocity step, the largest change of any component, |h - h0| before the energy step), the
+projections made, those that could not be applied (A M^-1 A^T singular, or values not finite: the
+state is kept as it was), and the time of the first of those (NaN: none)."""
+PROJECTION_SIZE = 15
+
 # -- DOP853's stiffness test (Hairer and Wanner, dop853.f): on an accepted step, h |lambda| is
 # estimated from the last stage and the new solution, both at t + h: h |f(y_new) - f(Y_12)| / |y_new - Y_12|
 STIFF_H_LAMBDA = 6.1
