@@ -14,7 +14,7 @@ import pytest
 from lagrange_cli.numeric import compile, tableaux
 
 from .conftest import ROOT
-from .helpers import model_from
+from .helpers import model_from, model_of
 from .limits import DEADLOCK
 
 
@@ -52,6 +52,34 @@ def test_python_solver_and_jacobian(tmp_path: Path, monkeypatch: pytest.MonkeyPa
 
         numeric = np.column_stack([(f(y + h) - f(y - h)) / 2e-6 for h in np.eye(len(y)) * 1e-6])
         assert np.allclose(module._jac(0.7, y.tolist(), p), numeric, rtol=1e-6, atol=1e-6), name
+
+
+WALL = """
+title: a ball on a spring against a one-sided wall (a penalty |u|)
+coordinates: [x, y]
+parameters: {k: 100.0, R: 1.3, c: 0.4}
+kinetic: (x_dot**2 + y_dot**2)/2
+potential: k/2*((sqrt(x**2 + (R - y)**2) - R + Abs(sqrt(x**2 + (R - y)**2) - R))/2)**2 + y
+dissipation: c*Abs(x - y)*x_dot**2/2
+initial: {x: 1.0, y: 0.1}
+"""
+
+
+def test_the_jacobian_of_a_force_with_abs_is_its_derivative(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A potential or dissipation with |u| of an expression: the Jacobian differentiates sign(u) (0 where u != 0), which
+    symengine writes as a Subs; it builds and equals a central finite difference of the rhs (audit 6 F4: exit 2, "cannot
+    convert Subs to symengine", for every implicit method)."""
+    monkeypatch.setenv("LAGRANGE_CACHE_DIR", str(tmp_path))
+    model = model_of(WALL, "wall.yaml")
+    module = compile.build(model, "python", jacobian=True).module
+    p = [q.value for q in model.parameters]
+    for y in (np.array([1.0, 0.1, 0.3, -0.2]), np.array([0.2, 0.4, -0.5, 0.7])):  # the wall pressed (u > 0), and not (u < 0)
+
+        def f(y: np.ndarray) -> np.ndarray:
+            return np.array([*y[2:], *module._accel(0.7, y.tolist(), p)[:2]])
+
+        numeric = np.column_stack([(f(y + h) - f(y - h)) / 2e-6 for h in np.eye(4) * 1e-6])
+        assert np.allclose(module._jac(0.7, y.tolist(), p), numeric, rtol=1e-6, atol=1e-6), y
 
 
 def test_python_solver_refuses_a_singular_matrix(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:

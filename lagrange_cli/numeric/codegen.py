@@ -87,7 +87,8 @@ def stabilised_bias(model: Model) -> list[Any]:
 
 def real_diff(expr: Any, variable: Any) -> Any:
     """d expr / d variable for real quantities (by symengine): d|u| = sign(u) du, d sign(u) = 0
-    (as derive.py takes them), never an unprintable Derivative(Abs(u), x)."""
+    (as derive.py takes them), never an unprintable Derivative(Abs(u), x) or Subs (the Jacobian of a
+    force with |u|: the derivative of sign(u))."""
     result = expr.diff(variable)
     if not result.atoms(se.Derivative):
         return result
@@ -95,6 +96,9 @@ def real_diff(expr: Any, variable: Any) -> Any:
         lambda e: isinstance(e, sp.Derivative) and isinstance(e.expr, (sp.Abs, sp.sign)),
         lambda e: sp.sign(e.expr.args[0]) * sp.diff(e.expr.args[0], *e.variables) if isinstance(e.expr, sp.Abs) else sp.Integer(0),
     )
+    # symengine writes d f(u)/dx as Subs(Derivative(f(_xi), _xi), _xi, u) * du/dx (a second derivative of |u|: d sign(u)):
+    # the Subs left once its derivative is taken, Subs(0, _xi, u) or Subs(sign(_xi), _xi, u), evaluated
+    converted = converted.replace(lambda e: isinstance(e, sp.Subs), lambda e: e.doit())
     return to_symengine(converted)
 
 
