@@ -88,6 +88,7 @@ from lagrange_cli.numeric.runs import (
     Candidate,
     Point,
     PointStatus,
+    Ran,
     Setup,
     backend_for,
     capped_steps,
@@ -405,13 +406,27 @@ others cannot tie with it; 3 before: the k = 1e10 pendulum's long horizon timed 
 3.5 s run again against RK45's 1.5 s, a sixth of the regime)."""
 
 
+IMPLICIT_FIRST_STEPS = 1_000_000
+"""Where compiled DOP853 needs more than this many steps just to stay stable over the window (`stability_steps`),
+scipy's implicit methods are tried before the compiled explicit ones: such a run costs seconds whatever its
+rtol, and an implicit run that meets the accuracy first caps them (LOSING), so that they are not run to learn
+that they lose (the stiff elastic pendulum in r at high energy: compiled RK45 and DOP853 ran 6e6 and 3.1e6
+steps, 8 s, after which Radau at rtol 1e-6, 555 steps, was recommended)."""
+
+
 def _order(model: Model, setup: Setup, candidates: Sequence[Candidate]) -> list[Candidate]:
     """auto first, then the method auto picks at the start (Radau when stiff), then compiled
     candidates before scipy's: so that a cheap method meeting the accuracy is found first and caps
-    what the others may spend (a stiff system's explicit runs are then capped, not run to their budget)."""
+    what the others may spend (a stiff system's explicit runs are then capped, not run to their budget);
+    scipy's implicit methods before the compiled explicit ones where those are stability-limited to more
+    than IMPLICIT_FIRST_STEPS steps."""
     picked = policy.decide(model, replace(start_of(model, setup), method="auto", backend="auto")).method
     stiff = picked in IMPLICIT  # then scipy's implicit methods before its explicit ones, which a stiff system keeps at their stability limit
-    return sorted(candidates, key=lambda c: (c != AUTO, c.method != picked, backend_for(c) != "compiled", stiff and c.method not in IMPLICIT))
+    limited = stiff and stability_steps(model, setup, "DOP853") > IMPLICIT_FIRST_STEPS
+    return sorted(
+        candidates,
+        key=lambda c: (c != AUTO, c.method != picked, limited and c.method not in IMPLICIT, backend_for(c) != "compiled", stiff and c.method not in IMPLICIT),
+    )
 
 
 REFERENCE_ROOM = 0.1
@@ -441,6 +456,7 @@ def _regime(model: Model, regime: Regime, target: float, candidates: Sequence[Ca
     rungs = tuple(t for t in ladder(target) if t >= floor * (1 - 1e-9)) or (ladder(target)[0],)  # a run as tight as an implicit reference would measure the reference against itself
     vouches = own < target  # else no run can be shown to meet the accuracy: the verdict is open whatever they do
     open_only = own > REFERENCE_ROOM * target  # then, unless a run meets the accuracy, the verdict is open (never "not met")
+    proof: dict[str, float] = {}  # scipy's RK45 shown equal to its compiled twin (`_twin`)
     for candidate in _order(model, setup, candidates):
         if not vouches and candidate != AUTO and backend_for(candidate) != "compiled":
             why = "unconfirmed" if not math.isfinite(own) else f"{own:.1e}"
@@ -457,7 +473,10 @@ def _regime(model: Model, regime: Regime, target: float, candidates: Sequence[Ca
                 reason = f"not run tighter: its runs already took {spent / max(work(best), 1e-300):.2g} x the work of {best.method} ({best.setting}), which meets the accuracy"
                 last = runs[(candidate, previous_tolerance)] = replace(last, reason=reason)
                 break
-            previous, last = last, _capped(model, candidate, tolerance, setup, reference, scale, best, last, spent, made, open_only)
+            if candidate == NAIVE:
+                previous, last = last, _twin(model, tolerance, setup, reference, scale, best, last, spent, made, open_only, proof)
+            else:
+                previous, last = last, _capped(model, candidate, tolerance, setup, reference, scale, best, last, spent, made, open_only)
             runs[(candidate, tolerance)] = last
             spent += work(last)
             previous_tolerance = tolerance
@@ -494,7 +513,7 @@ def _regime(model: Model, regime: Regime, target: float, candidates: Sequence[Ca
     if say:
         say("timing the runs in turns")
     ordered, naive_default = _retimed(model, ordered, naive_default, setup, target, own)
-    meeting = [p for p in ordered if p.ok and p.error + own <= target]
+    meeting = [p for p in ordered if p.ok and p.error + own <= target and not p.predicted]  # a predicted time decides nothing
     recommended = min(meeting, key=lambda p: p.seconds) if meeting else None
     tied = ties(meeting, recommended, target - own) if recommended is not None else ()
     naive = next((p for p in ordered if p.candidate == NAIVE), None)
@@ -647,6 +666,85 @@ def _capped(
     return point
 
 
+TWIN = Candidate("RK45", "compiled")
+"""scipy's RK45 (`NAIVE`)'s compiled twin: the same Dormand-Prince pair, step control and dense output."""
+TWIN_ERROR = 1e-6
+"""The relative difference of the errors below which scipy's RK45 and its twin count as the same run (with equal
+steps and evaluations): round-off of two implementations of one algorithm (1e-11 apart on the double pendulum)."""
+
+
+def _twin(
+    model: Model,
+    tolerance: float,
+    setup: Setup,
+    reference: Reference,
+    scale: np.ndarray,
+    best: Point | None,
+    last: Point | None,
+    spent: float,
+    made: dict[Settings, Point],
+    open_only: bool,
+    proof: dict[str, float],
+) -> Point:
+    """A rung of scipy's RK45 (`NAIVE`) ladder. Its first finished run is made, and its compiled twin (TWIN, at
+    the same rtol) with it: where the two take the same steps and evaluations to the same error (TWIN_ERROR), the
+    regime's `proof` holds scipy's time per step, and every later rung is not run: its steps, evaluations and
+    errors are the twin's at that rtol (a run of the regime, or made here, compiled: 100-500 x cheaper), its time
+    that per-step time x the steps, and the point is `predicted` (never the recommendation nor timed again). The
+    swinging Atwood machine's long horizon: scipy's ladder to rtol 2.5e-12, 20 s, took compiled RK45's steps
+    exactly at every rung. Where the two differ (a projected run, or round-off), or the twin's steps exceed what
+    scipy's run may take, the run is made."""
+    cap = _cap(NAIVE, best, last, setup, spent)
+    per_step = proof.get("per_step")
+    if per_step is not None:
+        twin = _twin_run(model, tolerance, setup, reference, scale, made, cap)
+        if twin is not None and twin.steps <= cap:
+            decided = settings_for(model, NAIVE, tolerance, setup)
+            reason = (
+                f"not run: the steps, evaluations and errors are those of compiled RK45 at this rtol (the same algorithm; equal on a real run at rtol"
+                f" {tol_text(proof['rtol'])}: {proof['steps']:.0f} steps alike, errors equal to {TWIN_ERROR:g}), the time predicted from scipy's time per step there"
+            )
+            return replace(
+                twin,
+                method=NAIVE.label,
+                candidate=NAIVE,
+                ran=Ran(decided.method, decided.backend),
+                resolved=str(Ran(decided.method, decided.backend)),
+                settings=decided,
+                seconds=per_step * twin.steps,
+                runs=0,
+                compile_seconds=0.0,
+                predicted=True,
+                reason=reason,
+            )
+    point = _capped(model, NAIVE, tolerance, setup, reference, scale, best, last, spent, made, open_only)
+    if not proof and point.ok and point.steps:
+        twin = _twin_run(model, tolerance, setup, reference, scale, made, cap)
+        alike = twin is not None and twin.ok and twin.steps == point.steps and twin.nfev == point.nfev
+        if alike and twin is not None and abs(twin.error - point.error) <= TWIN_ERROR * max(point.error, 1e-300):
+            proof.update(per_step=point.seconds / point.steps, rtol=tolerance, steps=float(point.steps))
+        else:
+            proof["differs"] = 1.0  # not the same run: every rung is made
+    return point
+
+
+def _twin_run(model: Model, tolerance: float, setup: Setup, reference: Reference, scale: np.ndarray, made: dict[Settings, Point], cap: int) -> Point | None:
+    """TWIN's run at `tolerance`: the regime's (`made`), else made now within `cap` scipy steps' worth of compiled steps."""
+    try:
+        decided = settings_for(model, TWIN, tolerance, setup)
+    except LagrangeError:
+        return None
+    if decided.backend != "compiled":
+        return None
+    earlier = made.get(_made_key(decided))
+    if earlier is not None and earlier.status in (PointStatus.FINISHED, PointStatus.FAILED):
+        return earlier
+    point = measure(model, TWIN, tolerance, replace(setup, max_steps=min(cap, setup.steps)), reference, scale, repeats=0)
+    if point.settings is not None:
+        made.setdefault(_made_key(point.settings), point)
+    return point if point.status == PointStatus.FINISHED else None
+
+
 OPEN_PACE_MARGIN = 1.0
 """Where the reference's own error leaves a regime open unless some run meets the accuracy (above
 REFERENCE_ROOM x it: never "not met"), and none has yet, a Python run is stopped once its pace (judged
@@ -716,11 +814,11 @@ def _cap(candidate: Candidate, best: Point | None, last: Point | None, setup: Se
 def _retimed(model: Model, points: list[Point], naive_default: Point | None, setup: Setup, target: float, own: float) -> tuple[list[Point], Point | None]:
     """The runs that may decide the recommendation or a tie (within RETIME_WITHIN of the fastest
     meeting run), and scipy's default run, timed again in turns (`runs.interleave`)."""
-    meeting = [p.seconds for p in points if p.ok and p.error + own <= target]
+    meeting = [p.seconds for p in points if p.ok and p.error + own <= target and not p.predicted]
     if not meeting:
         return list(points), naive_default  # no recommendation for the times to decide: the first ones stand
     limit = RETIME_WITHIN * min(meeting)
-    chosen = [k for k, p in enumerate(points) if p.seconds <= limit and p.status == PointStatus.FINISHED]  # only finished runs are timed again
+    chosen = [k for k, p in enumerate(points) if p.seconds <= limit and p.status == PointStatus.FINISHED and not p.predicted]  # only finished runs are timed again
     extra = [naive_default] if naive_default is not None and naive_default.seconds <= limit and naive_default.status == PointStatus.FINISHED else []
     if len(chosen) + len(extra) < 2:
         return list(points), naive_default  # nothing to compare the one run with: its first time stands
