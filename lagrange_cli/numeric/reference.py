@@ -300,7 +300,7 @@ def explicit_attempt(model: Model, candidate: Candidate, rtol: float, setup: Set
     with PACE_ROOM x what it needs when `ceiling` allows more than the budget. Counted in steps, never timed."""
     budget = setup.reference_steps
     share = max(1, math.ceil(PACE_PROBE * budget))
-    stable = _stable_steps(model, setup, candidate.method) / COMPILED_STEPS  # in the budget's scipy steps
+    stable = stable_steps(model, setup, candidate.method) / COMPILED_STEPS  # in the budget's scipy steps
     if share < PACE_ROOM * stable <= budget:
         share = math.ceil(PACE_ROOM * stable)  # a probe its stability limit alone would stop: PACE_ROOM x that, within the budget
     probe = run(model, candidate, rtol, replace(setup, reference_max_steps=share), reference=True)
@@ -317,11 +317,24 @@ def explicit_attempt(model: Model, candidate: Candidate, rtol: float, setup: Set
     return Attempt(run(model, candidate, rtol, replace(setup, reference_max_steps=steps), reference=True))
 
 
+IMPLICIT_FIRST_STEPS = 1_000_000
+"""Where compiled DOP853 needs more than this many steps just to stay stable over the window (`stable_steps`),
+`stress` and `accuracy` try scipy's implicit methods before the compiled explicit ones: such a run costs seconds
+whatever its rtol, and an implicit run that comes first caps them (their LOSING rules), so that they are not run
+in full to learn that they lose (the stiff elastic pendulum in r at high energy: compiled RK45 and DOP853 ran
+6e6 and 3.1e6 steps, 8 s, after which Radau at rtol 1e-6, 555 steps, was recommended)."""
+
+
+def implicit_first(model: Model, setup: Setup) -> bool:
+    """Whether scipy's implicit methods go before the compiled explicit ones (IMPLICIT_FIRST_STEPS)."""
+    return stable_steps(model, setup, "DOP853") > IMPLICIT_FIRST_STEPS
+
+
 STABLE_PROBE = {"RK45": diagnostics.STABILITY, "DOP853": policy.DOP853_STABILITY}
 """|h lambda| on the negative real axis up to which each explicit method stays stable (as `stress.STABILITY_INTERVAL`)."""
 
 
-def _stable_steps(model: Model, setup: Setup, method: str) -> float:
+def stable_steps(model: Model, setup: Setup, method: str) -> float:
     """The compiled steps an explicit `method` needs just to stay stable over `setup`'s window: the fastest
     decay along `auto`'s pilot run (memoized) x t_end / its stability interval; 0 where the pilot finds the
     system not stiff. `explicit_attempt` sizes its probe by it: a probe of PACE_PROBE of the budget that

@@ -77,6 +77,7 @@ from lagrange_cli.numeric.reference import (
     Reference,
     ReferenceFailed,
     dense,
+    implicit_first,
     implicit_tolerances,
     prepare,
 )
@@ -406,23 +407,15 @@ others cannot tie with it; 3 before: the k = 1e10 pendulum's long horizon timed 
 3.5 s run again against RK45's 1.5 s, a sixth of the regime)."""
 
 
-IMPLICIT_FIRST_STEPS = 1_000_000
-"""Where compiled DOP853 needs more than this many steps just to stay stable over the window (`stability_steps`),
-scipy's implicit methods are tried before the compiled explicit ones: such a run costs seconds whatever its
-rtol, and an implicit run that meets the accuracy first caps them (LOSING), so that they are not run to learn
-that they lose (the stiff elastic pendulum in r at high energy: compiled RK45 and DOP853 ran 6e6 and 3.1e6
-steps, 8 s, after which Radau at rtol 1e-6, 555 steps, was recommended)."""
-
-
 def _order(model: Model, setup: Setup, candidates: Sequence[Candidate]) -> list[Candidate]:
     """auto first, then the method auto picks at the start (Radau when stiff), then compiled
     candidates before scipy's: so that a cheap method meeting the accuracy is found first and caps
     what the others may spend (a stiff system's explicit runs are then capped, not run to their budget);
     scipy's implicit methods before the compiled explicit ones where those are stability-limited to more
-    than IMPLICIT_FIRST_STEPS steps."""
+    than `reference.IMPLICIT_FIRST_STEPS` steps (`implicit_first`)."""
     picked = policy.decide(model, replace(start_of(model, setup), method="auto", backend="auto")).method
     stiff = picked in IMPLICIT  # then scipy's implicit methods before its explicit ones, which a stiff system keeps at their stability limit
-    limited = stiff and stability_steps(model, setup, "DOP853") > IMPLICIT_FIRST_STEPS
+    limited = implicit_first(model, setup)  # the pilot (not only the start) finds it stiff: auto may still pick compiled DOP853
     return sorted(
         candidates,
         key=lambda c: (c != AUTO, c.method != picked, limited and c.method not in IMPLICIT, backend_for(c) != "compiled", stiff and c.method not in IMPLICIT),
