@@ -325,9 +325,21 @@ in full to learn that they lose (the stiff elastic pendulum in r at high energy:
 6e6 and 3.1e6 steps, 8 s, after which Radau at rtol 1e-6, 555 steps, was recommended)."""
 
 
+IMPLICIT_FIRST_RATIO = 1000.0
+"""... and more than this many times the steps the pilot puts an implicit method at over the window
+(`policy.Pilot.implicit_steps`): a compiled step costs about 1-2 us, a scipy implicit one 0.3-1 ms, so only
+then is the implicit run the cheap one. Van der Pol (mu = 1000) over t = 2000: DOP853's stability limit
+about 1e6 steps (573k taken), LSODA's some 2e4: there compiled runs still come first and cap scipy's."""
+
+
 def implicit_first(model: Model, setup: Setup) -> bool:
-    """Whether scipy's implicit methods go before the compiled explicit ones (IMPLICIT_FIRST_STEPS)."""
-    return stable_steps(model, setup, "DOP853") > IMPLICIT_FIRST_STEPS
+    """Whether scipy's implicit methods go before the compiled explicit ones (IMPLICIT_FIRST_STEPS, IMPLICIT_FIRST_RATIO)."""
+    stable = stable_steps(model, setup, "DOP853")
+    if stable <= IMPLICIT_FIRST_STEPS:
+        return False
+    s = replace(start_of(model, setup), method="auto", backend="auto", rtol=PILOT_RTOL, atol=PILOT_RTOL * ATOL_RATIO)
+    measured = policy.pilot(model, s)
+    return measured is not None and stable > IMPLICIT_FIRST_RATIO * max(measured.implicit_steps(setup.t_end), 1.0)
 
 
 STABLE_PROBE = {"RK45": diagnostics.STABILITY, "DOP853": policy.DOP853_STABILITY}
