@@ -128,3 +128,32 @@ def test_accuracy_skips_a_capped_compiled_run_its_stability_limit_puts_past_its_
     point = accuracy._capped(model, Candidate("DOP853", "compiled"), 1e-6, setup, unused, unused, None, 2000.0)
     assert point.status == runs.PointStatus.CAPPED and "stability-limited" in point.reason, point.reason
     assert [m for m in made if m[1] == "compiled"] == []
+
+
+def _finished(method: str, tolerance: float, steps: int, nfev: int, error: float) -> runs.Point:
+    point = runs.unrun(Candidate(method), tolerance)
+    ran = runs.Ran(method, "python")
+    return replace(point, ran=ran, resolved=str(ran), status=runs.PointStatus.FINISHED, reason="", steps=steps, nfev=nfev, max_error=error, final_error=error, rms_error=error)
+
+
+def test_a_scipy_ladder_whose_error_falls_too_slowly_stops_where_meeting_would_cost_more_than_it_may_spend() -> None:
+    """BDF's error falling 1.2 x a rung, its work 1.4 x: 1e-6 is some 30 rungs on. After a compiled run meets
+    the accuracy, the ladder stops where those runs would take more than its cap; before anything meets, where
+    the last of them would exceed its step budget. A fast-falling error (10 x a rung) or a next rung that meets
+    is left to the ladder."""
+    setup = Setup(2000.0, (0.0, 2000.0), max_steps=stress.MAX_STEPS)
+    bdf = Candidate("BDF")
+    first = _finished("BDF", 1e-5, 13004, 30000, 2.0e-4)
+    second = _finished("BDF", 1e-6, 18447, 42000, 1.7e-4)
+    compiled = replace(_finished("DOP853", 1e-8, 573458, 6901601, 5e-7), ran=runs.Ran("DOP853", "compiled"))
+    spent = runs.work(first) + runs.work(second)
+    why = stress._out_of_reach(bdf, first, second, 9e-7, compiled, spent, setup)
+    assert "more rtols" in why and "above what it may spend" in why, why
+    alone = stress._out_of_reach(bdf, first, second, 9e-7, None, spent, setup)
+    assert "above its step budget" in alone, alone
+    quick = _finished("BDF", 1e-6, 18447, 42000, 2.0e-5)  # 10 x a rung: two rungs on, within its step budget
+    assert stress._out_of_reach(bdf, first, quick, 9e-7, None, spent, setup) == ""
+    near = _finished("BDF", 1e-6, 18447, 42000, 1.5e-6)  # the next rung may meet: the ladder's own rules decide
+    assert stress._out_of_reach(bdf, _finished("BDF", 1e-5, 13004, 30000, 1.5e-5), near, 9e-7, compiled, spent, setup) == ""
+    # compiled runs are left to their own rules
+    assert stress._out_of_reach(Candidate("DOP853", "compiled"), first, second, 9e-7, compiled, spent, setup) == ""
