@@ -157,3 +157,20 @@ def test_a_scipy_ladder_whose_error_falls_too_slowly_stops_where_meeting_would_c
     assert stress._out_of_reach(bdf, _finished("BDF", 1e-5, 13004, 30000, 1.5e-5), near, 9e-7, compiled, spent, setup) == ""
     # compiled runs are left to their own rules
     assert stress._out_of_reach(Candidate("DOP853", "compiled"), first, second, 9e-7, compiled, spent, setup) == ""
+
+
+def test_a_high_energy_regime_from_rest_is_not_set_by_a_creeping_mode() -> None:
+    """audit 6's F1: a file at rest whose slowest mode creeps (Van der Pol, mu = 1000: 4.2e-4/s, against its
+    oscillation's 1.5/s) got "high energy" velocities of about 1e-3 x each size, the defaults again. The
+    velocities now come from the slowest oscillation, and the regime's name says so; a system whose slowest
+    mode swings keeps it (the double pendulum)."""
+    model = model_from(ROOT / "tests" / "numeric_audit5" / "van_der_pol_mu1000_coupled.yaml")
+    high = next(r for r in stress.regimes(model, ()) if r.name.startswith("high energy"))
+    assert "slowest oscillation's rate" in high.name, high.name
+    start = runs.start_of(model, runs.starting(model, Setup(1.0, (0.0, 1.0))))
+    found = stress.policy.initial_spectrum(model, start.values, start.y0)
+    assert found is not None and found.slowest < stress.CREEPING * found.oscillation
+    sizes = stress.diagnostics.coordinate_sizes(start.y0, model.n)
+    assert np.allclose(list(high.initial.values()), 3 * found.oscillation * sizes)
+    plain = next(r for r in stress.regimes(model_from(ROOT / "systems" / "double_pendulum.yaml"), ()) if r.name.startswith("high energy"))
+    assert "slowest mode's rate" in plain.name, plain.name

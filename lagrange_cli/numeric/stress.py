@@ -269,8 +269,9 @@ def regimes(model: Model, scales: Sequence[tuple[str, Sequence[float]]], long_fa
     longer = min(MAX_SAMPLES, max(SAMPLES, round((SAMPLES - 1) * long_factor) + 1))
     result = [Regime("defaults", base.t_end, {}, {}), Regime(f"long horizon (t_end x {long_factor:g})", base.t_end * long_factor, {}, {}, longer)]
     at_rest = not any(base.y0[model.n :])  # then "x 3" would be 0: the velocities come from the slowest mode (`_high_energy`), and the name says so
-    how = f"velocities x {energy_factor:g}" if not at_rest else f"at rest in the file: velocities {energy_factor:g} x the slowest mode's rate x each coordinate's size"
-    result.append(Regime(f"high energy ({how})", base.t_end, {}, _high_energy(model, base.values, base.y0, energy_factor)))
+    energetic, mode = _high_energy(model, base.values, base.y0, energy_factor)
+    how = f"velocities x {energy_factor:g}" if not at_rest else f"at rest in the file: velocities {energy_factor:g} x the {mode}'s rate x each coordinate's size"
+    result.append(Regime(f"high energy ({how})", base.t_end, {}, energetic))
     singular = _near_singular(model, base.values, base.y0)
     if singular is not None:
         result.append(Regime(singular[0], base.t_end, {}, singular[1]))
@@ -281,12 +282,25 @@ def _names(model: Model) -> list[str]:
     return [*model.coordinates, *(f"{c}_dot" for c in model.coordinates)]
 
 
-def _high_energy(model: Model, p: Sequence[float], y0: Sequence[float], factor: float) -> dict[str, float]:
+CREEPING = 0.01
+"""A high-energy regime started from rest sets its velocities from the slowest mode's rate, or, where that is
+below this times the slowest oscillatory mode's (`diagnostics.Spectrum.oscillation`), from the latter: audit 6's
+F1, a cart on a Coulomb (tanh) friction rail whose friction mode creeps at 4.5e-4/s got velocities of 1.4e-3
+m/s and rad/s, the defaults again, for a pendulum that swings at 2.2 rad/s (Van der Pol, mu = 1000: 4.2e-4/s
+against its oscillation's 1.5/s)."""
+
+
+def _high_energy(model: Model, p: Sequence[float], y0: Sequence[float], factor: float) -> tuple[dict[str, float], str]:
+    """The high-energy regime's initial velocities, and which mode's rate set them where the file starts at rest
+    ("slowest mode", or "slowest oscillation": CREEPING)."""
     n = model.n
     v = np.array(y0[n:], dtype=float)
+    mode = "slowest mode"
     if not np.any(v):
         found = policy.initial_spectrum(model, p, y0)
         rate = found.slowest if found is not None and found.slowest > 0 else 1.0
+        if found is not None and found.oscillation > 0 and rate < CREEPING * found.oscillation:
+            rate, mode = found.oscillation, "slowest oscillation"  # a creeping mode (a friction's, a relaxation's) would leave it at rest
         v = rate * diagnostics.coordinate_sizes(y0, n)  # r = 7e6 m moves by metres per second, not by 1e-6 of itself
     v = factor * v
     if model.constraints:
@@ -299,7 +313,7 @@ def _high_energy(model: Model, p: Sequence[float], y0: Sequence[float], factor: 
             v = v - a.T @ np.linalg.solve(a @ a.T, a @ v)
         except (ArithmeticError, ValueError, TypeError, np.linalg.LinAlgError):
             pass  # the constraint rows cannot be evaluated (or are dependent) at the start: velocities as they are; the run reports it
-    return dict(zip(_names(model)[n:], v.tolist(), strict=True))
+    return dict(zip(_names(model)[n:], v.tolist(), strict=True)), mode
 
 
 def _near_singular(model: Model, p: Sequence[float], y0: Sequence[float]) -> tuple[str, dict[str, float]] | None:
