@@ -464,6 +464,7 @@ def _regime(model: Model, regime: Regime, target: float, candidates: Sequence[Ca
     vouches = own < target  # else no run can be shown to meet the accuracy: the verdict is open whatever they do
     open_only = own > REFERENCE_ROOM * target  # then, unless a run meets the accuracy, the verdict is open (never "not met")
     proof: dict[str, float] = {}  # scipy's RK45 shown equal to its compiled twin (`_twin`)
+    twinned = any(c in candidates for c in (TWIN, Candidate("RK45")))  # the twin a candidate too: scipy's RK45 shows scipy's cost; else it is run as asked
     for candidate in _order(model, setup, candidates):
         if not vouches and candidate != AUTO and backend_for(candidate) != "compiled":
             why = "unconfirmed" if not math.isfinite(own) else f"{own:.1e}"
@@ -480,7 +481,7 @@ def _regime(model: Model, regime: Regime, target: float, candidates: Sequence[Ca
                 reason = f"not run tighter: its runs already took {spent / max(work(best), 1e-300):.2g} x the work of {best.method} ({best.setting}), which meets the accuracy"
                 last = runs[(candidate, previous_tolerance)] = replace(last, reason=reason)
                 break
-            if candidate == NAIVE:
+            if candidate == NAIVE and twinned:
                 previous, last = last, _twin(model, tolerance, setup, reference, scale, best, last, spent, made, open_only, proof)
             else:
                 previous, last = last, _capped(model, candidate, tolerance, setup, reference, scale, best, last, spent, made, open_only)
