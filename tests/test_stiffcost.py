@@ -158,6 +158,8 @@ def test_a_scipy_ladder_whose_error_falls_too_slowly_stops_where_meeting_would_c
     assert "more rtols" in why and "above what it may spend" in why, why
     alone = stress._out_of_reach(bdf, first, second, 9e-7, None, spent, setup)
     assert "above its step budget" in alone, alone
+    # before anything meets, only where the regime can at most stay open: elsewhere these runs may decide the verdict
+    assert stress._out_of_reach(bdf, first, second, 9e-7, None, spent, setup, open_only=False) == ""
     quick = _finished("BDF", 1e-6, 18447, 42000, 2.0e-5)  # 10 x a rung: two rungs on, within its step budget
     assert stress._out_of_reach(bdf, first, quick, 9e-7, None, spent, setup) == ""
     near = _finished("BDF", 1e-6, 18447, 42000, 1.5e-6)  # the next rung may meet: the ladder's own rules decide

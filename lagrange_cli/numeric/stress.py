@@ -504,7 +504,7 @@ def _regime(model: Model, regime: Regime, target: float, candidates: Sequence[Ca
                 )
                 last = runs[(candidate, tolerance)] = replace(last, reason=reason)
                 break  # it would be stopped at its cap: it cannot be the recommendation
-            far = _out_of_reach(candidate, previous, last, target - own, best, spent, setup)
+            far = _out_of_reach(candidate, previous, last, target - own, best, spent, setup, open_only)
             if far:
                 last = runs[(candidate, tolerance)] = replace(last, reason=far)
                 break  # at the pace its error falls, the run that would meet the accuracy costs more than it may spend
@@ -786,13 +786,17 @@ started near r = 0 (compiled evaluations 170 ns, LSODA's 29 us) it stopped LSODA
 1e-8, whose run is 2x faster than compiled RK45's, so the recommendation became the slower method."""
 
 
-def _out_of_reach(candidate: Candidate, previous: Point | None, last: Point | None, need: float, best: Point | None, spent: float, setup: Setup) -> str:
+def _out_of_reach(candidate: Candidate, previous: Point | None, last: Point | None, need: float, best: Point | None, spent: float, setup: Setup, open_only: bool = True) -> str:
     """Why a scipy method's ladder stops where its error falls too slowly to meet the accuracy affordably ("" to go
     on): from its last two finished runs, the error falling g x a rung and the work growing `predicted_growth` x, the
     rung that would bring it within `need` (the accuracy less the reference's own error) is n rungs on; at least two
     rungs on (the next alone is `_regime`'s own rule), it stops where those n runs would take more than what it may
-    still spend once `best` meets the accuracy (`_remaining`), or, before anything meets, where the last of them
-    alone would take more than one run's whole step budget at its work per step. Counted in evaluations. Van der
+    still spend once `best` meets the accuracy (`_remaining`), or, before anything meets and only where the regime
+    can at most stay open (`open_only`: its reference's own error above REFERENCE_ROOM x the accuracy), where the last
+    of them alone would take more than one run's whole step budget at its work per step: a prediction from two
+    rungs can be pessimistic (the swinging Atwood machine's long horizon, chaotic: LSODA's error fell 1.1 x from
+    1e-6 to 1e-7, and 10 x a decade further on), so it never stops the only runs that could decide a verdict.
+    Counted in evaluations. Van der
     Pol (mu = 1000): scipy's BDF at rtol 1e-5, 1e-6 and 1e-7 over t = 2000 was 1.9e-4 ... 1.7e-4 off, each rung
     some 1.4 x the work of the one before (10 s of the regime's 31)."""
     if backend_for(candidate) != "python" or previous is None or last is None or not (previous.ok and last.ok) or not (need > 0) or last.error <= need:
@@ -813,6 +817,8 @@ def _out_of_reach(candidate: Candidate, previous: Point | None, last: Point | No
             f"not run tighter: its error fell {gain:.2g} x from the rtol before, so meeting the accuracy needs about {rungs} more rtols, taking together about"
             f" {total / max(work(best), 1e-300):.2g} x the work of {best.method} ({best.setting}), which meets it: above what it may spend"
         )
+    if not open_only:
+        return ""
     per_step = work(last) / max(last.steps, 1)
     final = work(last) * growth**rungs
     allowed = setup.steps * per_step
