@@ -323,6 +323,7 @@ def _report_stress(report: Report, to_stderr: bool, file: str, model: Model) -> 
             met = o.meets(p, report.accuracy)
             missed = "[yellow]misses[/yellow]" + (f": {inert(p.reason)}" if p.reason else "")  # and why it was not run tighter
             status = ("[green]meets[/green]" if met else missed) if p.ok else f"[red]{inert(p.status)}[/red]: {inert(p.reason)}"
+            status += f" ({inert(p.reason)})" if p.predicted and met else ""  # not run: its compiled twin's steps and errors, its time predicted
             name = _shown(p)
             evals = f"{p.nfev} ({p.njev})" if p.njev else str(p.nfev)
             setting = f"{p.setting} (default)" if p is o.naive_default else p.setting

@@ -52,14 +52,17 @@ from lagrange_cli.model import Model
 from lagrange_cli.numeric.reference import (
     CHAOS_GROWTH,
     HORIZON_THRESHOLD,
+    IMPLICIT,
     Horizon,
     Reference,
     ReferenceFailed,
     computed_reference,
     exact_reference,
     horizon,
+    implicit_first,
     prepare,
     reference_candidates,
+    stable_steps,
 )
 from lagrange_cli.numeric.reports import COLUMNS, csv_text, json_text, plot_label, rows, run_backend, study_figure, write_plot
 from lagrange_cli.numeric.runs import (
@@ -241,6 +244,9 @@ ProgressReport = Callable[[Step], None]
 # -- the study ----------------------------------------------------------------------------------
 
 
+STABILITY_MARGIN = 2.0
+"""A capped compiled explicit run whose stability-limited steps (`reference.stable_steps`) exceed this times its
+capped budget is not run: it would spend the cap to learn what the count says (as `stress.STABILITY_MARGIN`)."""
 LOSING = 10.0
 """A run is stopped at this many times the work (right-hand side evaluations, `runs.work`) of the
 cheapest finished run at the same tolerance: it is off the chart of error against time by a
@@ -261,6 +267,13 @@ def _capped(model: Model, candidate: Candidate, tolerance: float, setup: Setup, 
         return unrun(candidate, tolerance, PointStatus.CAPPED if capped else PointStatus.OVER_BUDGET, reason, Failure.BUDGET)
     cap = capped_steps(candidate, LOSING * cheapest, last, setup)
     capped = cap < setup.steps  # then a losing run: stopped as soon as its pace shows it cannot finish (`runs.PACE_MARGIN`)
+    needed = stable_steps(model, setup, candidate.method) if capped and backend_for(candidate) == "compiled" else 0.0
+    if needed > STABILITY_MARGIN * cap * COMPILED_STEPS:
+        reason = (
+            f"not run: stiff, so its steps are stability-limited: about {needed:.3g} steps to t_end (the fastest decay along a pilot run x t_end / its stability"
+            f" interval), above {STABILITY_MARGIN:g} x its budget of {LOSING:g} x the work of the cheapest run at rtol {tol_text(tolerance)} ({cap * COMPILED_STEPS} steps)"
+        )
+        return unrun(candidate, tolerance, PointStatus.CAPPED, reason, Failure.BUDGET)
     point = measure(model, candidate, tolerance, replace(setup, max_steps=cap) if capped else setup, reference, scale, repeats=0, paced=capped or paced)
     if capped and point.failure == Failure.BUDGET and point.steps and point.nfev:
         point = replace(point, status=PointStatus.CAPPED, reason=f"stopped after {point.steps} steps: {LOSING:g} x the work of the cheapest run at rtol {tol_text(tolerance)}")
@@ -312,7 +325,10 @@ def study(
     scale = component_scale(reference.y)
     found_points: dict[tuple[Candidate, float], Point] = {}
     cheapest: dict[float, float] = {}  # per tolerance, the least work of a finished run
-    for candidate in sorted(chosen, key=lambda c: (backend_for(c) != "compiled", c.method != "LSODA")):  # cheap runs first (compiled, then LSODA): they set the caps
+    limited = implicit_first(model, setup)  # compiled explicit runs stability-limited to seconds each: scipy's implicit ones set the caps
+    for candidate in sorted(
+        chosen, key=lambda c: (limited and c.method not in IMPLICIT, backend_for(c) != "compiled", c.method != "LSODA")
+    ):  # cheap runs first (compiled, then LSODA): they set the caps
         last: Point | None = None
         for tolerance in tolerances:
             what = f"{candidate.label} {tol_text(tolerance)}"

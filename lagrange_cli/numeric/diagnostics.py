@@ -97,6 +97,9 @@ class Spectrum:
     followed: float = 0.0
     """The fastest unmatched decay left out of `decay` because the solution itself changes that fast
     (at most OWN x `own`): its own motion, which an explicit method resolves for accuracy anyway (0: none)."""
+    oscillation: float = 0.0
+    """min |lambda| over the oscillatory eigenvalues (|Im| > |Re|, above 1e-9 of the spectral radius): the slowest
+    mode that swings (0 when none does)."""
 
     @property
     def stiffness_ratio(self) -> float:
@@ -124,7 +127,8 @@ def spectrum(jacobian: np.ndarray, own: float = 0.0) -> Spectrum | None:
     faster = [d for d in decays if d > OWN * own]
     followed = max((d for d in decays if d <= OWN * own), default=0.0)
     nonzero = sizes[sizes > 1e-9 * rate] if rate > 0 else sizes[:0]
-    return Spectrum(max(faster, default=0.0), rate, float(np.min(nonzero)) if len(nonzero) else 0.0, growth, own, followed)
+    turning = [float(abs(e)) for e in eigenvalues if abs(e.imag) > abs(e.real) and abs(e) > 1e-9 * rate]
+    return Spectrum(max(faster, default=0.0), rate, float(np.min(nonzero)) if len(nonzero) else 0.0, growth, own, followed, min(turning, default=0.0))
 
 
 def own_rate(f: np.ndarray | None, y: np.ndarray) -> float:

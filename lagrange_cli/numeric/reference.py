@@ -22,7 +22,22 @@ import numpy as np
 from lagrange_cli.errors import LagrangeError
 from lagrange_cli.model import Model
 from lagrange_cli.numeric import compile, diagnostics, integrators, memo, policy
-from lagrange_cli.numeric.runs import ATOL_RATIO, COMPILED_STEPS, REFERENCE_STEPS, TIGHTEST, Candidate, Setup, component_scale, over_step_budget, run, scaled_errors, start_of, tol_text
+from lagrange_cli.numeric.runs import (
+    ATOL_RATIO,
+    COMPILED_STEPS,
+    PACE_MARGIN,
+    REFERENCE_STEPS,
+    TIGHTEST,
+    Candidate,
+    Setup,
+    Unaffordable,
+    component_scale,
+    over_step_budget,
+    run,
+    scaled_errors,
+    start_of,
+    tol_text,
+)
 from lagrange_cli.numeric.settings import Settings, code_parameters
 from lagrange_cli.numeric.simulate import Trajectory, integrate, state_text
 from lagrange_cli.numeric.status import Status
@@ -284,7 +299,11 @@ def explicit_attempt(model: Model, candidate: Candidate, rtol: float, setup: Set
     PACE_EXTENSION x, and `ceiling`) it is not run (the probe returned, `needed` set); else it runs in full,
     with PACE_ROOM x what it needs when `ceiling` allows more than the budget. Counted in steps, never timed."""
     budget = setup.reference_steps
-    probe = run(model, candidate, rtol, replace(setup, reference_max_steps=max(1, math.ceil(PACE_PROBE * budget))), reference=True)
+    share = max(1, math.ceil(PACE_PROBE * budget))
+    stable = stable_steps(model, setup, candidate.method) / COMPILED_STEPS  # in the budget's scipy steps
+    if share < PACE_ROOM * stable <= budget:
+        share = math.ceil(PACE_ROOM * stable)  # a probe its stability limit alone would stop: PACE_ROOM x that, within the budget
+    probe = run(model, candidate, rtol, replace(setup, reference_max_steps=share), reference=True)
     if not over_step_budget(probe):
         return Attempt(probe)
     span = setup.t_end - probe.settings.t0
@@ -296,6 +315,52 @@ def explicit_attempt(model: Model, candidate: Candidate, rtol: float, setup: Set
         return Attempt(probe, needed)
     steps = max(budget, min(math.floor(limit), math.ceil(PACE_ROOM * needed / scale))) if ceiling else budget
     return Attempt(run(model, candidate, rtol, replace(setup, reference_max_steps=steps), reference=True))
+
+
+IMPLICIT_FIRST_STEPS = 1_000_000
+"""Where compiled DOP853 needs more than this many steps just to stay stable over the window (`stable_steps`),
+`stress` and `accuracy` try scipy's implicit methods before the compiled explicit ones: such a run costs seconds
+whatever its rtol, and an implicit run that comes first caps them (their LOSING rules), so that they are not run
+in full to learn that they lose (the stiff elastic pendulum in r at high energy: compiled RK45 and DOP853 ran
+6e6 and 3.1e6 steps, 8 s, after which Radau at rtol 1e-6, 555 steps, was recommended)."""
+
+
+IMPLICIT_FIRST_RATIO = 1000.0
+"""... and more than this many times the steps the pilot puts an implicit method at over the window
+(`policy.Pilot.implicit_steps`): a compiled step costs about 1-2 us, a scipy implicit one 0.3-1 ms, so only
+then is the implicit run the cheap one. Van der Pol (mu = 1000) over t = 2000: DOP853's stability limit
+about 1e6 steps (573k taken), LSODA's some 2e4: there compiled runs still come first and cap scipy's."""
+
+
+def implicit_first(model: Model, setup: Setup) -> bool:
+    """Whether scipy's implicit methods go before the compiled explicit ones (IMPLICIT_FIRST_STEPS, IMPLICIT_FIRST_RATIO)."""
+    stable = stable_steps(model, setup, "DOP853")
+    if stable <= IMPLICIT_FIRST_STEPS:
+        return False
+    s = replace(start_of(model, setup), method="auto", backend="auto", rtol=PILOT_RTOL, atol=PILOT_RTOL * ATOL_RATIO)
+    measured = policy.pilot(model, s)
+    return measured is not None and stable > IMPLICIT_FIRST_RATIO * max(measured.implicit_steps(setup.t_end), 1.0)
+
+
+STABLE_PROBE = {"RK45": diagnostics.STABILITY, "DOP853": policy.DOP853_STABILITY}
+"""|h lambda| on the negative real axis up to which each explicit method stays stable (as `stress.STABILITY_INTERVAL`)."""
+
+
+def stable_steps(model: Model, setup: Setup, method: str) -> float:
+    """The compiled steps an explicit `method` needs just to stay stable over `setup`'s window: the fastest
+    decay along `auto`'s pilot run (memoized) x t_end / its stability interval; 0 where the pilot finds the
+    system not stiff. `explicit_attempt` sizes its probe by it: a probe of PACE_PROBE of the budget that
+    the stability limit alone stops is thrown away (the stiff elastic pendulum started at r = 0.01: compiled
+    RK45 at rtol 1e-8 needs 6.06e6 steps; its probe of 6e6, 3.7 s, ran out at 99% of the window, then the run
+    was made in full)."""
+    interval = STABLE_PROBE.get(method)
+    if interval is None:
+        return 0.0
+    s = replace(start_of(model, setup), method="auto", backend="auto", rtol=PILOT_RTOL, atol=PILOT_RTOL * ATOL_RATIO)
+    measured = policy.pilot(model, s)
+    if measured is None or not diagnostics.stiff(measured.worst, setup.t_end):
+        return 0.0
+    return measured.worst.decay * setup.t_end / interval
 
 
 def _implicit_budget(model: Model, setup: Setup) -> int:
@@ -323,7 +388,25 @@ it is not round-off-limited there as it is at a reference's 1e-14 (the damped sp
 in r: 3e5 compiled steps, 0.3 s, at rtol 1e-6, error 3e-8)."""
 
 
-def _doomed(model: Model, setup: Setup, rtol: float, candidate: Candidate = RADAU) -> str:
+REFERENCE_PACE_MARGIN = PACE_MARGIN
+"""A Python run on the reference's side - `_doomed`'s probe, a confirmation of the reference - is stopped once
+its pace (`runs._paced`: judged after `runs.PACE_AFTER` of its budget, from the latter half of its steps) needs
+more than this times its step budget: it would run out of the budget, which tells the same (not finished) at
+up to 4 x the cost. The stiff elastic pendulum in r over t = 100: `_doomed`'s probe of Radau at rtol 1e-8 spent
+its 9103 steps, 15 s, to cover the first tenth of the window; LSODA at rtol 1e-10 confirming Radau spent its
+91024 steps, 7 s, without finishing."""
+
+
+def paced_run(model: Model, candidate: Candidate, rtol: float, setup: Setup) -> Trajectory | Unaffordable:
+    """A reference-side run within `setup`'s reference budget, stopped by its pace (REFERENCE_PACE_MARGIN) where
+    it is a Python run: the trajectory, or the Unaffordable that stopped it (steps taken, share done)."""
+    try:
+        return run(model, candidate, rtol, setup, reference=True, paced=True, margin=REFERENCE_PACE_MARGIN)
+    except Unaffordable as over:
+        return over
+
+
+def _doomed(model: Model, setup: Setup, rtol: float, candidate: Candidate = RADAU, paced: bool = True) -> str:
     """Why an implicit reference attempt at `rtol` within `setup`'s reference budget cannot finish,
     judged cheaply ("" when it may): `auto`'s LSODA pilot at that rtol already extrapolates to more
     steps than the budget, or a probe of Radau over the first PROBE_SPAN of the window runs out of
@@ -335,7 +418,15 @@ def _doomed(model: Model, setup: Setup, rtol: float, candidate: Candidate = RADA
         return f"at rtol {tol_text(rtol)} a pilot run extrapolates to {measured.implicit_steps(setup.t_end):.3g} steps, above the budget of {budget}"
     span = PROBE_SPAN * setup.t_end
     probe = replace(setup, t_end=span, times=(0.0, span), reference_max_steps=max(PROBE_STEPS, math.ceil(PROBE_SHARE * budget)))
-    found = run(model, candidate, rtol, probe, reference=True)
+    # paced (REFERENCE_PACE_MARGIN) except for the loosest rtol, whose verdict decides between Radau and the explicit fallback: a pace
+    # judged in a fast transient can doom an rtol that finishes (the elastic pendulum of k = 1e11 at high energy: Radau at 1e-7,
+    # judged after 238 steps at 0.018% of the probe's span, finishes the window in its budget)
+    found = paced_run(model, candidate, rtol, probe) if paced else run(model, candidate, rtol, probe, reference=True)
+    if isinstance(found, Unaffordable):
+        return (
+            f"at rtol {tol_text(rtol)} {candidate.method} took {found.steps} steps to reach {100 * found.fraction:.2g}% of the first {span:.3g}: at that pace it would"
+            f" not cover it within {found.margin:g} x its share of the budget ({found.budget})"
+        )
     if over_step_budget(found):
         return f"at rtol {tol_text(rtol)} {candidate.method} took {found.stats.steps} steps to reach t = {found.t_last:.3g} of the first {span:.3g}"
     return ""
@@ -429,7 +520,7 @@ def _computed_reference(model: Model, setup: Setup, tolerance: float, hint: str,
     for k, rtol in enumerate(rtols):
         loosest = k == len(rtols) - 1
         # the loosest is run in full unless an explicit fallback may stand in for it: its failure is the one reported
-        doomed = _doomed(model, attempt, rtol) if not loosest or (main is None and compile.numba_available()) else ""
+        doomed = _doomed(model, attempt, rtol, paced=not loosest) if not loosest or (main is None and compile.numba_available()) else ""
         if doomed and not loosest:
             skipped.append(doomed)
             continue
@@ -696,7 +787,9 @@ def _confirmed(model: Model, setup: Setup, main: Trajectory, tolerance: float, c
     confirmer: Candidate | None = None
     for candidate, rtol in confirmations:
         paced = candidate.backend == "compiled" and candidate.method in EXPLICIT
-        other = explicit_attempt(model, candidate, rtol, setup, ceiling).trajectory if paced else run(model, candidate, rtol, setup, reference=True)
+        other = explicit_attempt(model, candidate, rtol, setup, ceiling).trajectory if paced else paced_run(model, candidate, rtol, setup)
+        if isinstance(other, Unaffordable):
+            continue  # at its pace it would not finish within its budget: not a confirmation
         if not other.failed and len(other.t) == len(main.t):
             own = float(np.max(scaled_errors(other.y, main.y, scale)))
             at = "at the same tolerance" if rtol == tolerance else f"at rtol {tol_text(rtol)}"

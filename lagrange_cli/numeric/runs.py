@@ -22,7 +22,7 @@ import numpy as np
 
 from lagrange_cli.errors import LagrangeError
 from lagrange_cli.model import Model
-from lagrange_cli.numeric import compile, policy
+from lagrange_cli.numeric import compile, memo, policy
 from lagrange_cli.numeric.settings import METHODS, Settings, validate
 from lagrange_cli.numeric.simulate import InvariantKind, Trajectory, fixed_steps, integrate, run_seconds
 from lagrange_cli.numeric.status import Failure, Status
@@ -211,6 +211,10 @@ class Point:
     """What ran, decided (to time it again without deciding anything again)."""
     reached: float | None = None
     """The share of the time span done when a run was stopped by its step budget or its pace (None otherwise)."""
+    predicted: bool = False
+    """Not run: its steps, evaluations and errors are its compiled twin's (the same algorithm, shown equal on a
+    real run of it), its time predicted from its own time per step there (`stress._twin`). Never the
+    recommendation nor timed again."""
 
     @property
     def ok(self) -> bool:
@@ -360,9 +364,21 @@ def run(
     decided = settings if settings is not None else settings_for(model, candidate, tolerance, setup, step)
     budget = run_steps(decided, setup.reference_steps if reference else setup.steps)
     progress = _time_limit(limit) if limit is not None else None
-    if paced and not reference and decided.backend == "python":
+    if paced and decided.backend == "python":  # a reference-side run too (`reference.paced_run`)
         progress = _paced(budget, progress, margin)
-    return integrate(model, decided, progress, budget)
+    trajectory = integrate(model, decided, progress, budget)
+    if reference and decided.backend == "compiled" and trajectory.outcome == Status.FINISHED:
+        kept_runs(model).setdefault(replace(decided, notes=()), trajectory)
+    return trajectory
+
+
+def kept_runs(model: Model) -> dict[Settings, Trajectory]:
+    """The compiled reference-side runs (a reference, its confirmations and floors) that finished, by their
+    decided settings less the notes, once per model: a measured run with the same settings is the same
+    deterministic run (same steps, same samples), so `measure` takes it instead of running it again (Van der
+    Pol, mu = 1000: compiled RK45 at 1e-9 and 1e-8 and DOP853 at 1e-8 and 1e-7, 0.6 s each, were run by the
+    reference and again by the ladders)."""
+    return memo.once(model, ("kept runs",), dict)
 
 
 def over_step_budget(trajectory: Trajectory) -> bool:
@@ -430,7 +446,11 @@ def measure(model: Model, candidate: Candidate, tolerance: float, setup: Setup, 
             ran = Ran(decided.method, decided.backend)
             reason = f"its fixed step {decided.step:.3g} needs {needed:.3g} steps to t_end, above the step budget ({run_steps(decided, setup.steps)}); not run"
             return replace(empty, resolved=str(ran), ran=ran, settings=decided, step=decided.step, status=PointStatus.OVER_BUDGET, reason=reason, failure=Failure.BUDGET)
-        first = run(model, candidate, tolerance, setup, step=step, settings=decided, paced=paced, margin=margin)
+        kept = kept_runs(model).get(replace(decided, notes=())) if decided.backend == "compiled" else None
+        if kept is not None and kept.stats.steps <= run_steps(decided, setup.steps) and (setup.time_limit is None or kept.timing.run <= setup.time_limit):
+            first = replace(kept, settings=decided)  # the same run, made on the reference's side (`kept_runs`): its steps, samples and run time
+        else:
+            first = run(model, candidate, tolerance, setup, step=step, settings=decided, paced=paced, margin=margin)
     except Unaffordable as over:
         ran = Ran(decided.method, decided.backend)
         # no step count to t_end is claimed: a pace from a transient (scipy's Radau through a stiff spring's first 66 steps)

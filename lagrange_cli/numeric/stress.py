@@ -77,6 +77,7 @@ from lagrange_cli.numeric.reference import (
     Reference,
     ReferenceFailed,
     dense,
+    implicit_first,
     implicit_tolerances,
     prepare,
 )
@@ -88,6 +89,7 @@ from lagrange_cli.numeric.runs import (
     Candidate,
     Point,
     PointStatus,
+    Ran,
     Setup,
     backend_for,
     capped_steps,
@@ -267,8 +269,9 @@ def regimes(model: Model, scales: Sequence[tuple[str, Sequence[float]]], long_fa
     longer = min(MAX_SAMPLES, max(SAMPLES, round((SAMPLES - 1) * long_factor) + 1))
     result = [Regime("defaults", base.t_end, {}, {}), Regime(f"long horizon (t_end x {long_factor:g})", base.t_end * long_factor, {}, {}, longer)]
     at_rest = not any(base.y0[model.n :])  # then "x 3" would be 0: the velocities come from the slowest mode (`_high_energy`), and the name says so
-    how = f"velocities x {energy_factor:g}" if not at_rest else f"at rest in the file: velocities {energy_factor:g} x the slowest mode's rate x each coordinate's size"
-    result.append(Regime(f"high energy ({how})", base.t_end, {}, _high_energy(model, base.values, base.y0, energy_factor)))
+    energetic, mode = _high_energy(model, base.values, base.y0, energy_factor)
+    how = f"velocities x {energy_factor:g}" if not at_rest else f"at rest in the file: velocities {energy_factor:g} x the {mode}'s rate x each coordinate's size"
+    result.append(Regime(f"high energy ({how})", base.t_end, {}, energetic))
     singular = _near_singular(model, base.values, base.y0)
     if singular is not None:
         result.append(Regime(singular[0], base.t_end, {}, singular[1]))
@@ -279,12 +282,25 @@ def _names(model: Model) -> list[str]:
     return [*model.coordinates, *(f"{c}_dot" for c in model.coordinates)]
 
 
-def _high_energy(model: Model, p: Sequence[float], y0: Sequence[float], factor: float) -> dict[str, float]:
+CREEPING = 0.01
+"""A high-energy regime started from rest sets its velocities from the slowest mode's rate, or, where that is
+below this times the slowest oscillatory mode's (`diagnostics.Spectrum.oscillation`), from the latter: audit 6's
+F1, a cart on a Coulomb (tanh) friction rail whose friction mode creeps at 4.5e-4/s got velocities of 1.4e-3
+m/s and rad/s, the defaults again, for a pendulum that swings at 2.2 rad/s (Van der Pol, mu = 1000: 4.2e-4/s
+against its oscillation's 1.5/s)."""
+
+
+def _high_energy(model: Model, p: Sequence[float], y0: Sequence[float], factor: float) -> tuple[dict[str, float], str]:
+    """The high-energy regime's initial velocities, and which mode's rate set them where the file starts at rest
+    ("slowest mode", or "slowest oscillation": CREEPING)."""
     n = model.n
     v = np.array(y0[n:], dtype=float)
+    mode = "slowest mode"
     if not np.any(v):
         found = policy.initial_spectrum(model, p, y0)
         rate = found.slowest if found is not None and found.slowest > 0 else 1.0
+        if found is not None and found.oscillation > 0 and rate < CREEPING * found.oscillation:
+            rate, mode = found.oscillation, "slowest oscillation"  # a creeping mode (a friction's, a relaxation's) would leave it at rest
         v = rate * diagnostics.coordinate_sizes(y0, n)  # r = 7e6 m moves by metres per second, not by 1e-6 of itself
     v = factor * v
     if model.constraints:
@@ -297,7 +313,7 @@ def _high_energy(model: Model, p: Sequence[float], y0: Sequence[float], factor: 
             v = v - a.T @ np.linalg.solve(a @ a.T, a @ v)
         except (ArithmeticError, ValueError, TypeError, np.linalg.LinAlgError):
             pass  # the constraint rows cannot be evaluated (or are dependent) at the start: velocities as they are; the run reports it
-    return dict(zip(_names(model)[n:], v.tolist(), strict=True))
+    return dict(zip(_names(model)[n:], v.tolist(), strict=True)), mode
 
 
 def _near_singular(model: Model, p: Sequence[float], y0: Sequence[float]) -> tuple[str, dict[str, float]] | None:
@@ -408,10 +424,16 @@ others cannot tie with it; 3 before: the k = 1e10 pendulum's long horizon timed 
 def _order(model: Model, setup: Setup, candidates: Sequence[Candidate]) -> list[Candidate]:
     """auto first, then the method auto picks at the start (Radau when stiff), then compiled
     candidates before scipy's: so that a cheap method meeting the accuracy is found first and caps
-    what the others may spend (a stiff system's explicit runs are then capped, not run to their budget)."""
+    what the others may spend (a stiff system's explicit runs are then capped, not run to their budget);
+    scipy's implicit methods before the compiled explicit ones where those are stability-limited to more
+    than `reference.IMPLICIT_FIRST_STEPS` steps (`implicit_first`)."""
     picked = policy.decide(model, replace(start_of(model, setup), method="auto", backend="auto")).method
     stiff = picked in IMPLICIT  # then scipy's implicit methods before its explicit ones, which a stiff system keeps at their stability limit
-    return sorted(candidates, key=lambda c: (c != AUTO, c.method != picked, backend_for(c) != "compiled", stiff and c.method not in IMPLICIT))
+    limited = implicit_first(model, setup)  # the pilot (not only the start) finds it stiff: auto may still pick compiled DOP853
+    return sorted(
+        candidates,
+        key=lambda c: (c != AUTO, c.method != picked, limited and c.method not in IMPLICIT, backend_for(c) != "compiled", stiff and c.method not in IMPLICIT),
+    )
 
 
 REFERENCE_ROOM = 0.1
@@ -441,6 +463,8 @@ def _regime(model: Model, regime: Regime, target: float, candidates: Sequence[Ca
     rungs = tuple(t for t in ladder(target) if t >= floor * (1 - 1e-9)) or (ladder(target)[0],)  # a run as tight as an implicit reference would measure the reference against itself
     vouches = own < target  # else no run can be shown to meet the accuracy: the verdict is open whatever they do
     open_only = own > REFERENCE_ROOM * target  # then, unless a run meets the accuracy, the verdict is open (never "not met")
+    proof: dict[str, float] = {}  # scipy's RK45 shown equal to its compiled twin (`_twin`)
+    twinned = any(c in candidates for c in (TWIN, Candidate("RK45")))  # the twin a candidate too: scipy's RK45 shows scipy's cost; else it is run as asked
     for candidate in _order(model, setup, candidates):
         if not vouches and candidate != AUTO and backend_for(candidate) != "compiled":
             why = "unconfirmed" if not math.isfinite(own) else f"{own:.1e}"
@@ -457,7 +481,10 @@ def _regime(model: Model, regime: Regime, target: float, candidates: Sequence[Ca
                 reason = f"not run tighter: its runs already took {spent / max(work(best), 1e-300):.2g} x the work of {best.method} ({best.setting}), which meets the accuracy"
                 last = runs[(candidate, previous_tolerance)] = replace(last, reason=reason)
                 break
-            previous, last = last, _capped(model, candidate, tolerance, setup, reference, scale, best, last, spent, made, open_only)
+            if candidate == NAIVE and twinned:
+                previous, last = last, _twin(model, tolerance, setup, reference, scale, best, last, spent, made, open_only, proof)
+            else:
+                previous, last = last, _capped(model, candidate, tolerance, setup, reference, scale, best, last, spent, made, open_only)
             runs[(candidate, tolerance)] = last
             spent += work(last)
             previous_tolerance = tolerance
@@ -477,6 +504,10 @@ def _regime(model: Model, regime: Regime, target: float, candidates: Sequence[Ca
                 )
                 last = runs[(candidate, tolerance)] = replace(last, reason=reason)
                 break  # it would be stopped at its cap: it cannot be the recommendation
+            far = _out_of_reach(candidate, previous, last, target - own, best, spent, setup, open_only)
+            if far:
+                last = runs[(candidate, tolerance)] = replace(last, reason=far)
+                break  # at the pace its error falls, the run that would meet the accuracy costs more than it may spend
             stalled = previous is not None and previous.ok and previous.error < SATURATED and last.error > previous.error / STALLED
             stalls = stalls + 1 if stalled else 0
             if stalls == 2:
@@ -494,7 +525,7 @@ def _regime(model: Model, regime: Regime, target: float, candidates: Sequence[Ca
     if say:
         say("timing the runs in turns")
     ordered, naive_default = _retimed(model, ordered, naive_default, setup, target, own)
-    meeting = [p for p in ordered if p.ok and p.error + own <= target]
+    meeting = [p for p in ordered if p.ok and p.error + own <= target and not p.predicted]  # a predicted time decides nothing
     recommended = min(meeting, key=lambda p: p.seconds) if meeting else None
     tied = ties(meeting, recommended, target - own) if recommended is not None else ()
     naive = next((p for p in ordered if p.candidate == NAIVE), None)
@@ -647,6 +678,85 @@ def _capped(
     return point
 
 
+TWIN = Candidate("RK45", "compiled")
+"""scipy's RK45 (`NAIVE`)'s compiled twin: the same Dormand-Prince pair, step control and dense output."""
+TWIN_ERROR = 1e-6
+"""The relative difference of the errors below which scipy's RK45 and its twin count as the same run (with equal
+steps and evaluations): round-off of two implementations of one algorithm (1e-11 apart on the double pendulum)."""
+
+
+def _twin(
+    model: Model,
+    tolerance: float,
+    setup: Setup,
+    reference: Reference,
+    scale: np.ndarray,
+    best: Point | None,
+    last: Point | None,
+    spent: float,
+    made: dict[Settings, Point],
+    open_only: bool,
+    proof: dict[str, float],
+) -> Point:
+    """A rung of scipy's RK45 (`NAIVE`) ladder. Its first finished run is made, and its compiled twin (TWIN, at
+    the same rtol) with it: where the two take the same steps and evaluations to the same error (TWIN_ERROR), the
+    regime's `proof` holds scipy's time per step, and every later rung is not run: its steps, evaluations and
+    errors are the twin's at that rtol (a run of the regime, or made here, compiled: 100-500 x cheaper), its time
+    that per-step time x the steps, and the point is `predicted` (never the recommendation nor timed again). The
+    swinging Atwood machine's long horizon: scipy's ladder to rtol 2.5e-12, 20 s, took compiled RK45's steps
+    exactly at every rung. Where the two differ (a projected run, or round-off), or the twin's steps exceed what
+    scipy's run may take, the run is made."""
+    cap = _cap(NAIVE, best, last, setup, spent)
+    per_step = proof.get("per_step")
+    if per_step is not None:
+        twin = _twin_run(model, tolerance, setup, reference, scale, made, cap)
+        if twin is not None and twin.steps <= cap:
+            decided = settings_for(model, NAIVE, tolerance, setup)
+            reason = (
+                f"not run: the steps, evaluations and errors are those of compiled RK45 at this rtol (the same algorithm; equal on a real run at rtol"
+                f" {tol_text(proof['rtol'])}: {proof['steps']:.0f} steps alike, errors equal to {TWIN_ERROR:g}), the time predicted from scipy's time per step there"
+            )
+            return replace(
+                twin,
+                method=NAIVE.label,
+                candidate=NAIVE,
+                ran=Ran(decided.method, decided.backend),
+                resolved=str(Ran(decided.method, decided.backend)),
+                settings=decided,
+                seconds=per_step * twin.steps,
+                runs=0,
+                compile_seconds=0.0,
+                predicted=True,
+                reason=reason,
+            )
+    point = _capped(model, NAIVE, tolerance, setup, reference, scale, best, last, spent, made, open_only)
+    if not proof and point.ok and point.steps:
+        twin = _twin_run(model, tolerance, setup, reference, scale, made, cap)
+        alike = twin is not None and twin.ok and twin.steps == point.steps and twin.nfev == point.nfev
+        if alike and twin is not None and abs(twin.error - point.error) <= TWIN_ERROR * max(point.error, 1e-300):
+            proof.update(per_step=point.seconds / point.steps, rtol=tolerance, steps=float(point.steps))
+        else:
+            proof["differs"] = 1.0  # not the same run: every rung is made
+    return point
+
+
+def _twin_run(model: Model, tolerance: float, setup: Setup, reference: Reference, scale: np.ndarray, made: dict[Settings, Point], cap: int) -> Point | None:
+    """TWIN's run at `tolerance`: the regime's (`made`), else made now within `cap` scipy steps' worth of compiled steps."""
+    try:
+        decided = settings_for(model, TWIN, tolerance, setup)
+    except LagrangeError:
+        return None
+    if decided.backend != "compiled":
+        return None
+    earlier = made.get(_made_key(decided))
+    if earlier is not None and earlier.status in (PointStatus.FINISHED, PointStatus.FAILED):
+        return earlier
+    point = measure(model, TWIN, tolerance, replace(setup, max_steps=min(cap, setup.steps)), reference, scale, repeats=0)
+    if point.settings is not None:
+        made.setdefault(_made_key(point.settings), point)
+    return point if point.status == PointStatus.FINISHED else None
+
+
 OPEN_PACE_MARGIN = 1.0
 """Where the reference's own error leaves a regime open unless some run meets the accuracy (above
 REFERENCE_ROOM x it: never "not met"), and none has yet, a Python run is stopped once its pace (judged
@@ -674,6 +784,57 @@ k = 1e9: scipy's RK45, Radau, BDF and LSODA spent 38 of the defaults regime's 46
 compiled DOP853's 0.05 s run at 10-30x). Not lower: 0.5 was tried, and on the stiff elastic pendulum
 started near r = 0 (compiled evaluations 170 ns, LSODA's 29 us) it stopped LSODA's ladder before rtol
 1e-8, whose run is 2x faster than compiled RK45's, so the recommendation became the slower method."""
+
+
+FASTEST_FALL = 10.0
+"""`_out_of_reach` counts the rungs a ladder still needs as if its error fell at least this many times a rung (a
+decade of rtol) from its last run on, however slowly it fell so far: a fall measured at loose rtols can speed
+up (the damped cart's long horizon: LSODA 1.3 x from 1e-7 to 1e-8, then 8 x to 1e-9, where it met the accuracy)."""
+
+
+def _out_of_reach(candidate: Candidate, previous: Point | None, last: Point | None, need: float, best: Point | None, spent: float, setup: Setup, open_only: bool = True) -> str:
+    """Why a scipy method's ladder stops where its error falls too slowly to meet the accuracy affordably ("" to go
+    on): from its last two finished runs, the error falling g x a rung and the work growing `predicted_growth` x, the
+    rung that would bring it within `need` (the accuracy less the reference's own error) is n rungs on; at least two
+    rungs on (the next alone is `_regime`'s own rule), it stops where those n runs would take more than what it may
+    still spend once `best` meets the accuracy (`_remaining`), or, before anything meets and only where the regime
+    can at most stay open (`open_only`: its reference's own error above REFERENCE_ROOM x the accuracy), where the last
+    of them alone would take more than one run's whole step budget at its work per step: a prediction from two
+    rungs can be pessimistic (the swinging Atwood machine's long horizon, chaotic: LSODA's error fell 1.1 x from
+    1e-6 to 1e-7, and 10 x a decade further on), so it never stops the only runs that could decide a verdict.
+    Counted in evaluations. Van der
+    Pol (mu = 1000): scipy's BDF at rtol 1e-5, 1e-6 and 1e-7 over t = 2000 was 1.9e-4 ... 1.7e-4 off, each rung
+    some 1.4 x the work of the one before (10 s of the regime's 31)."""
+    if backend_for(candidate) != "python" or previous is None or last is None or not (previous.ok and last.ok) or not (need > 0) or last.error <= need:
+        return ""
+    gain = previous.error / last.error if last.error > 0 else math.inf
+    if not (gain > 1.0) or not math.isfinite(gain):
+        return ""  # not falling: the stalls rule decides
+    gain = max(gain, FASTEST_FALL)  # a slow fall may speed up (pre-asymptotic): the fewest rungs it could need
+    rungs = math.ceil(math.log(last.error / need) / math.log(gain))
+    if rungs < 2:
+        return ""
+    growth = predicted_growth(previous, last)
+    if best is not None:
+        total = work(last) * sum(growth**k for k in range(1, rungs + 1))
+        allowed = _remaining(candidate, best, spent)
+        if total <= allowed:
+            return ""
+        return (
+            f"not run tighter: even with its error falling {gain:.2g} x a rtol from here, meeting the accuracy needs {rungs} more rtols, taking together about"
+            f" {total / max(work(best), 1e-300):.2g} x the work of {best.method} ({best.setting}), which meets it: above what it may spend"
+        )
+    if not open_only:
+        return ""
+    per_step = work(last) / max(last.steps, 1)
+    final = work(last) * growth**rungs
+    allowed = setup.steps * per_step
+    if final <= allowed:
+        return ""
+    return (
+        f"not run tighter: even with its error falling {gain:.2g} x a rtol from here, meeting the accuracy needs {rungs} more rtols, the last of them about"
+        f" {final / max(per_step, 1e-300):.3g} steps at its {growth:.2g} x growth a rtol: above its step budget ({setup.steps})"
+    )
 
 
 def predicted_growth(previous: Point | None, last: Point | None) -> float:
@@ -716,11 +877,11 @@ def _cap(candidate: Candidate, best: Point | None, last: Point | None, setup: Se
 def _retimed(model: Model, points: list[Point], naive_default: Point | None, setup: Setup, target: float, own: float) -> tuple[list[Point], Point | None]:
     """The runs that may decide the recommendation or a tie (within RETIME_WITHIN of the fastest
     meeting run), and scipy's default run, timed again in turns (`runs.interleave`)."""
-    meeting = [p.seconds for p in points if p.ok and p.error + own <= target]
+    meeting = [p.seconds for p in points if p.ok and p.error + own <= target and not p.predicted]
     if not meeting:
         return list(points), naive_default  # no recommendation for the times to decide: the first ones stand
     limit = RETIME_WITHIN * min(meeting)
-    chosen = [k for k, p in enumerate(points) if p.seconds <= limit and p.status == PointStatus.FINISHED]  # only finished runs are timed again
+    chosen = [k for k, p in enumerate(points) if p.seconds <= limit and p.status == PointStatus.FINISHED and not p.predicted]  # only finished runs are timed again
     extra = [naive_default] if naive_default is not None and naive_default.seconds <= limit and naive_default.status == PointStatus.FINISHED else []
     if len(chosen) + len(extra) < 2:
         return list(points), naive_default  # nothing to compare the one run with: its first time stands
