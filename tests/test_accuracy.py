@@ -45,7 +45,13 @@ def test_errors_against_the_exact_solution_shrink_with_the_tolerance() -> None:
     assert levels == sorted(levels, reverse=True) and levels[0] == 0.1
     for level, point in result.fastest:
         assert point.error <= level
-        assert point.seconds == min(p.seconds for p in result.points if p.ok and p.error <= level)
+        # the quickest run reaching the level, or (`accuracy._least_work`) a run of its method with less work within timing noise of it
+        quickest = min((p for p in result.points if p.ok and p.error <= level), key=lambda p: p.seconds)
+        assert point == quickest or (
+            (point.method, point.ran) == (quickest.method, quickest.ran)
+            and point.seconds <= quickest.seconds * (1 + accuracy.TIE_MARGIN) + accuracy.TIMING_NOISE
+            and accuracy.work(point) <= accuracy.work(quickest)
+        )
 
 
 def test_the_summary_claims_no_level_the_reference_cannot_vouch_for() -> None:
