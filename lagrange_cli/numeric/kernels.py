@@ -552,6 +552,37 @@ def erk_start(pair, t0, y, f, control, p, stats, accel):
     return _initial_step(accel, t0, y, f, control[T_BOUND], control[MAX_STEP], _ERROR_ORDER[pair], control[RTOL], control[ATOL], p, x, a, stats)
 
 
+@njit(error_model="numpy")
+def _erk_samples(accel, event, pair, t, h, t_new, y, y_new, K, coef, work, ts, ys, p, x, a, state, stats, use_event):
+    """After an accepted step t -> t_new (y -> y_new, stages K): the samples it passes written into ys
+    (dense output), and the event looked for; (status, the time the step ends): RUNNING and t_new, or
+    EVENT and the located crossing (y_new then the state there), or SINGULAR (state[T], state[H] set)."""
+    j = int(state[NEXT_SAMPLE])
+    need = j < ts.shape[0] and ts[j] <= t_new
+    t_end_here = t_new
+    status = RUNNING
+    if use_event:
+        g_new = event(t_new, y_new, p, x, a)
+        if (state[EVENT_VALUE] < 0.0) != (g_new < 0.0) and state[EVENT_VALUE] != 0.0:
+            need = True
+            status = EVENT
+        else:
+            state[EVENT_VALUE] = g_new
+    if need:
+        if _erk_dense(accel, pair, t, y, y_new, K[_STAGES[pair]], h, K, coef, p, x, a, stats):
+            state[T], state[H] = t, h
+            return SINGULAR, t_end_here
+        if status == EVENT:
+            t_end_here = _erk_root(event, pair, t, h, y, coef, p, x, a, work, state[EVENT_VALUE])
+        while j < ts.shape[0] and ts[j] <= t_end_here:
+            _erk_eval(pair, t, h, y, coef, ts[j], ys[j])
+            j += 1
+        state[NEXT_SAMPLE] = j
+        if status == EVENT:
+            _erk_eval(pair, t, h, y, coef, t_end_here, y_new)
+    return status, t_end_here
+
+
 def erk_run(pair, y, f, state, control, ts, ys, p, stats, accel, event):
     """Advance (t = state[T], y, f = f(t, y), |h| = state[H], the stop condition's value state[EVENT_VALUE])
     with the pair numbered `pair` until t >= control[T_STOP], writing ys[j] = y(ts[j]) for the samples
@@ -600,29 +631,9 @@ def erk_run(pair, y, f, state, control, ts, ys, p, stats, accel, event):
             stats[HMIN] = min(stats[HMIN], h)
         stats[HMAX] = max(stats[HMAX], h)
         stiff = test_stiffness and _stiffness_test(K, h, y, y_new, work, stats)
-        j = int(state[NEXT_SAMPLE])
-        need = j < ts.shape[0] and ts[j] <= t_new
-        t_end_here = t_new
-        status = RUNNING
-        if use_event:
-            g_new = event(t_new, y_new, p, x, a)
-            if (state[EVENT_VALUE] < 0.0) != (g_new < 0.0) and state[EVENT_VALUE] != 0.0:
-                need = True
-                status = EVENT
-            else:
-                state[EVENT_VALUE] = g_new
-        if need:
-            if _erk_dense(accel, pair, t, y, y_new, K[stages], h, K, coef, p, x, a, stats):
-                state[T], state[H] = t, h
-                return SINGULAR
-            if status == EVENT:
-                t_end_here = _erk_root(event, pair, t, h, y, coef, p, x, a, work, state[EVENT_VALUE])
-            while j < ts.shape[0] and ts[j] <= t_end_here:
-                _erk_eval(pair, t, h, y, coef, ts[j], ys[j])
-                j += 1
-            state[NEXT_SAMPLE] = j
-            if status == EVENT:
-                _erk_eval(pair, t, h, y, coef, t_end_here, y_new)
+        status, t_end_here = _erk_samples(accel, event, pair, t, h, t_new, y, y_new, K, coef, work, ts, ys, p, x, a, state, stats, use_event)
+        if status == SINGULAR:
+            return SINGULAR
         for i in range(n):
             f[i] = K[stages, i]
             y[i] = y_new[i]
@@ -894,29 +905,9 @@ def erk_projected(pair, y, f, state, control, ts, ys, p, stats, accel, event, ro
         if not landed:
             stats[HMIN] = min(stats[HMIN], h)
         stats[HMAX] = max(stats[HMAX], h)
-        j = int(state[NEXT_SAMPLE])
-        need = j < ts.shape[0] and ts[j] <= t_new
-        t_end_here = t_new
-        status = RUNNING
-        if use_event:
-            g_new = event(t_new, y_new, p, x, a)
-            if (state[EVENT_VALUE] < 0.0) != (g_new < 0.0) and state[EVENT_VALUE] != 0.0:
-                need = True
-                status = EVENT
-            else:
-                state[EVENT_VALUE] = g_new
-        if need:
-            if _erk_dense(accel, pair, t, y, y_new, K[stages], h, K, coef, p, x, a, stats):
-                state[T], state[H] = t, h
-                return SINGULAR
-            if status == EVENT:
-                t_end_here = _erk_root(event, pair, t, h, y, coef, p, x, a, work, state[EVENT_VALUE])
-            while j < ts.shape[0] and ts[j] <= t_end_here:
-                _erk_eval(pair, t, h, y, coef, ts[j], ys[j])
-                j += 1
-            state[NEXT_SAMPLE] = j
-            if status == EVENT:
-                _erk_eval(pair, t, h, y, coef, t_end_here, y_new)
+        status, t_end_here = _erk_samples(accel, event, pair, t, h, t_new, y, y_new, K, coef, work, ts, ys, p, x, a, state, stats, use_event)
+        if status == SINGULAR:
+            return SINGULAR
         for i in range(n):
             f[i] = K[stages, i]
             y[i] = y_new[i]
@@ -938,6 +929,7 @@ def erk_projected(pair, y, f, state, control, ts, ys, p, stats, accel, event, ro
                 record[VELOCITY] = max(record[VELOCITY], found[1])
                 record[MOVED] = max(record[MOVED], found[2])
                 record[ENERGY] = max(record[ENERGY], found[3])
+                j = int(state[NEXT_SAMPLE])
                 if j > 0 and ts[j - 1] == t:
                     for i in range(n):
                         ys[j - 1, i] = y[i]
