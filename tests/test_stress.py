@@ -12,7 +12,7 @@ from typer.testing import CliRunner
 
 from lagrange_cli.cli import app
 from lagrange_cli.errors import LagrangeError
-from lagrange_cli.numeric import stress
+from lagrange_cli.numeric import reference, stress
 from lagrange_cli.numeric.accuracy import Candidate
 
 from .conftest import ROOT
@@ -359,15 +359,15 @@ def test_explicit_runs_a_stiff_system_keeps_at_its_stability_limit_are_not_run_p
 
     model = model_from(ROOT / "tests" / "numeric_audit_pilot" / "stiff_elastic_pendulum_r.yaml")
     setup = starting(model, Setup(100.0, tuple(np.linspace(0.0, 100.0, 11).tolist()), max_steps=60_000))
-    needed = stress.stability_steps(model, setup, "RK45")
+    needed = reference.stable_steps(model, setup, "RK45")
     assert 1e6 < needed < 1e7, needed
-    assert stress.stability_steps(model, setup, "Radau") == 0.0
-    assert stress.stability_steps(model, setup, "DOP853") == pytest.approx(needed * 3 / 6)
+    assert reference.stable_steps(model, setup, "Radau") == 0.0
+    assert reference.stable_steps(model, setup, "DOP853") == pytest.approx(needed * 3 / 6)
     point = stress._capped(model, stress.NAIVE, 1e-3, setup, None, np.ones(4), None, None)  # type: ignore[arg-type]  # not run: no reference needed
     assert point.status == PointStatus.OVER_BUDGET and point.failure == Failure.BUDGET and point.steps == 0
     assert "stability-limited" in point.reason and "not run" in point.reason
     calm = model_from(ROOT / "tests" / "numeric_audit_pilot" / "double_pendulum_nonstiff.yaml")
-    assert stress.stability_steps(calm, starting(calm, Setup(10.0, (0.0, 10.0))), "RK45") == 0.0
+    assert reference.stable_steps(calm, starting(calm, Setup(10.0, (0.0, 10.0))), "RK45") == 0.0
 
 
 def test_an_explicit_reference_that_runs_out_of_budget_where_the_system_is_stiff_goes_implicit_at_once() -> None:

@@ -343,7 +343,7 @@ def implicit_first(model: Model, setup: Setup) -> bool:
 
 
 STABLE_PROBE = {"RK45": diagnostics.STABILITY, "DOP853": policy.DOP853_STABILITY}
-"""|h lambda| on the negative real axis up to which each explicit method stays stable (as `stress.STABILITY_INTERVAL`)."""
+"""|h lambda| on the negative real axis up to which each explicit method stays stable."""
 
 
 def stable_steps(model: Model, setup: Setup, method: str) -> float:

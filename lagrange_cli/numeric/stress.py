@@ -72,7 +72,7 @@ from lagrange_cli.numeric.reference import (
     HORIZON_THRESHOLD,
     IMPLICIT,
     IMPLICIT_TIGHTEST,
-    PILOT_RTOL,
+    STABLE_PROBE,
     Horizon,
     Reference,
     ReferenceFailed,
@@ -80,9 +80,9 @@ from lagrange_cli.numeric.reference import (
     implicit_first,
     implicit_tolerances,
     prepare,
+    stable_steps,
 )
 from lagrange_cli.numeric.runs import (
-    ATOL_RATIO,
     COMPILED_STEPS,
     PACE_MARGIN,
     TIGHTEST,
@@ -583,26 +583,10 @@ def _closest(points: Sequence[Point], own: float, target: float) -> str:
     return text
 
 
-STABILITY_INTERVAL = {"RK45": diagnostics.STABILITY, "DOP853": policy.DOP853_STABILITY}
-"""|h lambda| on the negative real axis up to which each explicit method stays stable."""
 STABILITY_MARGIN = 2.0
-"""An explicit run whose stability-limited steps (`stability_steps`) exceed this times its step
+"""An explicit run whose stability-limited steps (`reference.stable_steps`) exceed this times its step
 budget is not run: it would spend the whole budget to learn what the count says (scipy's RK45 on
 the damped spring of k = 1e10 in r over the long horizon: 2 x 60000 steps, a third of `stress`'s time)."""
-
-
-def stability_steps(model: Model, setup: Setup, method: str) -> float:
-    """The steps an explicit `method` needs just to stay stable over the window: the fastest unmatched
-    decay along `auto`'s pilot run x t_end / its stability interval; 0 when the pilot finds the
-    system not stiff (`diagnostics.stiff`) or the method is not explicit."""
-    interval = STABILITY_INTERVAL.get(method)
-    if interval is None:
-        return 0.0
-    s = replace(start_of(model, setup), method="auto", backend="auto", rtol=PILOT_RTOL, atol=PILOT_RTOL * ATOL_RATIO)
-    measured = policy.pilot(model, s)
-    if measured is None or not diagnostics.stiff(measured.worst, setup.t_end):
-        return 0.0
-    return measured.worst.decay * setup.t_end / interval
 
 
 def _made_key(settings: Settings) -> Settings:
@@ -652,11 +636,11 @@ def _capped(
     if again is not None:
         return again
     method = candidate.method if candidate.method != "auto" else ""
-    needed = stability_steps(model, setup, method)
+    needed = stable_steps(model, setup, method)
     allowed = cap * (COMPILED_STEPS if backend_for(candidate) == "compiled" else 1)
     if needed > STABILITY_MARGIN * allowed:
         reason = (
-            f"not run: stiff, so its steps are stability-limited: about {needed:.3g} steps to t_end (the fastest decay along a pilot run x t_end / {STABILITY_INTERVAL[method]:g}),"
+            f"not run: stiff, so its steps are stability-limited: about {needed:.3g} steps to t_end (the fastest decay along a pilot run x t_end / {STABLE_PROBE[method]:g}),"
             f" above {STABILITY_MARGIN:g} x its step budget ({allowed})"
         )
         return unrun(candidate, tolerance, PointStatus.OVER_BUDGET, reason, Failure.BUDGET)
