@@ -293,12 +293,19 @@ class ErkLoop:
     `finish` then takes it to its end (the test off) and returns the `Run`, the same run as one
     made straight through (the same steps: pausing changes nothing in the loop)."""
 
-    def __init__(self, functions: Functions, problem: Problem, method: str, rtol: float, atol: float, max_step: float) -> None:
+    def __init__(self, functions: Functions, problem: Problem, method: str, rtol: float, atol: float, max_step: float, projection: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None) -> None:
+        """`projection` (bounds, holonomic, record): the loop projects onto the kept constraints (`run_erk_projected`)."""
         kernels = functions.kernels
         assert kernels is not None
         self.problem, self.pair = problem, EXPLICIT[method].code
         start_entry, _, compile_start = _compile(functions, "erk_start", [])
-        self._entry, (self._accel, self._event), compile_run = _compile(functions, "erk_run", [("_accel", kernels.ACCEL_SIG), ("_event", kernels.EVENT_SIG)])
+        pieces = [("_accel", kernels.ACCEL_SIG), ("_event", kernels.EVENT_SIG)]
+        if projection is None:
+            self._entry, (self._accel, self._event), compile_run = _compile(functions, "erk_run", pieces)
+            self._projection: tuple[Any, ...] = ()
+        else:
+            self._entry, (self._accel, self._event, rows, energy), compile_run = _compile(functions, "erk_projected", [*pieces, ("_rows", kernels.ROWS_SIG), ("_energy", kernels.ENERGY_SIG)])
+            self._projection = (rows, energy, *projection)
         self.compile_seconds = compile_start + compile_run
         began = time.perf_counter()
         self.y, self.f = problem.y0.copy(), np.empty_like(problem.y0)
@@ -337,7 +344,7 @@ class ErkLoop:
     def _advance(self, t_stop: float) -> int:
         began = time.perf_counter()
         self.control[status.T_STOP] = t_stop
-        self.code = int(self._entry(self.pair, self.y, self.f, self.state, self.control, self.problem.ts, self.ys, self.problem.p, self.stats, self._accel, self._event))
+        self.code = int(self._entry(self.pair, self.y, self.f, self.state, self.control, self.problem.ts, self.ys, self.problem.p, self.stats, self._accel, self._event, *self._projection))
         self.seconds += time.perf_counter() - began
         return self.code
 
@@ -366,28 +373,7 @@ def run_erk_projected(
     compiled loop (kernels.erk_projected): one run, no restart at a projection. `holonomic` marks the
     holonomic rows (1.0), `record` is the projection record (status.LEVEL, ...: `projection.record`),
     which the loop fills with what it corrected and counted."""
-    kernels = functions.kernels
-    assert kernels is not None
-    pair = EXPLICIT[method].code
-    start_entry, _, compile_start = _compile(functions, "erk_start", [])
-    entry, (accel, event, rows, energy), compile_run = _compile(
-        functions, "erk_projected", [("_accel", kernels.ACCEL_SIG), ("_event", kernels.EVENT_SIG), ("_rows", kernels.ROWS_SIG), ("_energy", kernels.ENERGY_SIG)]
-    )
-    began = time.perf_counter()
-    y, f = problem.y0.copy(), np.empty_like(problem.y0)
-    stats = _new_stats(math.inf, 0.0)
-    ys = np.full((len(problem.ts), len(y)), np.nan)
-    control = _control(problem, functions.module._SIZE, rtol=rtol, atol=atol, max_step=max_step)
-    h0 = start_entry(pair, problem.t0, y, f, control, problem.p, stats, accel)
-    state = _state(problem.t0, h0, _initial_event(functions, problem))
-
-    def advance(t_stop: float) -> int:
-        control[status.T_STOP] = t_stop
-        return int(entry(pair, y, f, state, control, problem.ts, ys, problem.p, stats, accel, event, rows, energy, bounds, holonomic, record))
-
-    code = status.SINGULAR if h0 < 0 else _drive(advance, lambda: float(state[status.T]), lambda: int(stats[status.NSTEPS]), problem, progress)
-    m = int(state[status.NEXT_SAMPLE])
-    return Run(problem.ts[:m], ys[:m], Status.of_code(code), float(state[status.T]), y, _stats(stats), compile_start + compile_run, time.perf_counter() - began)
+    return ErkLoop(functions, problem, method, rtol, atol, max_step, (bounds, holonomic, record)).finish(progress)
 
 
 def project_compiled(functions: Functions, t: float, y: np.ndarray, p: np.ndarray, holonomic: np.ndarray, record: np.ndarray) -> np.ndarray | None:
