@@ -553,6 +553,38 @@ def erk_start(pair, t0, y, f, control, p, stats, accel):
 
 
 @njit(error_model="numpy")
+def _erk_attempt(accel, pair, t, y, f, h_abs, min_step, limit, hold_landed, K, y_new, p, x, a, stats, state, rtol, atol, exponent):
+    """One accepted step of the pair from (t, y), f = rhs there, trying h_abs and shrinking it on rejection
+    (scipy's control), a step reaching `limit` shortened to land on it: (RUNNING, t_new, h, h_abs, the
+    growth factor for the next step, landed), or a failure code (NONFINITE, STEP_COLLAPSE, SINGULAR) with
+    state[T], state[H] set. The factor is at most 1 after a rejection, and after landing with `hold_landed`."""
+    n = y.shape[0]
+    rejected, bad = False, False
+    while True:
+        if h_abs < min_step:
+            state[T], state[H] = t, h_abs
+            return (NONFINITE if bad else STEP_COLLAPSE), t, 0.0, h_abs, 1.0, False
+        landed = t + h_abs >= limit
+        t_new = limit if landed else t + h_abs
+        h = t_new - t
+        for i in range(n):
+            K[0, i] = f[i]
+        if _erk_step(accel, pair, t, y, h, K, y_new, p, x, a, stats):
+            state[T], state[H] = t, h
+            return SINGULAR, t, h, h_abs, 1.0, False
+        error = _erk_error(pair, K, h, y, y_new, rtol, atol)
+        bad = not (np.isfinite(error) and _finite(y_new))
+        if error < 1.0 and not bad:
+            factor = MAX_FACTOR if error == 0.0 else min(MAX_FACTOR, SAFETY * error**exponent)
+            if rejected or (landed and hold_landed):
+                factor = min(1.0, factor)
+            return RUNNING, t_new, h, h_abs, factor, landed
+        h_abs *= MIN_FACTOR if bad else max(MIN_FACTOR, SAFETY * error**exponent)
+        rejected = True
+        stats[NREJECT] += 1
+
+
+@njit(error_model="numpy")
 def _erk_samples(accel, event, pair, t, h, t_new, y, y_new, K, coef, work, ts, ys, p, x, a, state, stats, use_event):
     """After an accepted step t -> t_new (y -> y_new, stages K): the samples it passes written into ys
     (dense output), and the event looked for; (status, the time the step ends): RUNNING and t_new, or
@@ -604,30 +636,11 @@ def erk_run(pair, y, f, state, control, ts, ys, p, stats, accel, event):
         taken += 1
         min_step = MIN_STEP_SPACINGS * abs(np.nextafter(t, np.inf) - t)
         h_abs = min(max(h_abs, min_step), max_step)
-        rejected, bad = False, False
-        while True:
-            if h_abs < min_step:
-                state[T], state[H] = t, h_abs
-                return NONFINITE if bad else STEP_COLLAPSE
-            t_new = min(t + h_abs, t_bound)
-            h = t_new - t
-            for i in range(n):
-                K[0, i] = f[i]
-            if _erk_step(accel, pair, t, y, h, K, y_new, p, x, a, stats):
-                state[T], state[H] = t, h
-                return SINGULAR
-            error = _erk_error(pair, K, h, y, y_new, rtol, atol)
-            bad = not (np.isfinite(error) and _finite(y_new))
-            if error < 1.0 and not bad:
-                factor = MAX_FACTOR if error == 0.0 else min(MAX_FACTOR, SAFETY * error**exponent)
-                if rejected:
-                    factor = min(1.0, factor)
-                break
-            h_abs *= MIN_FACTOR if bad else max(MIN_FACTOR, SAFETY * error**exponent)
-            rejected = True
-            stats[NREJECT] += 1
+        code, t_new, h, h_abs, factor, landed = _erk_attempt(accel, pair, t, y, f, h_abs, min_step, t_bound, False, K, y_new, p, x, a, stats, state, rtol, atol, exponent)
+        if code != RUNNING:
+            return code
         stats[NSTEPS] += 1
-        if t_new < t_bound:
+        if not landed:
             stats[HMIN] = min(stats[HMIN], h)
         stats[HMAX] = max(stats[HMAX], h)
         stiff = test_stiffness and _stiffness_test(K, h, y, y_new, work, stats)
@@ -878,29 +891,10 @@ def erk_projected(pair, y, f, state, control, ts, ys, p, stats, accel, event, ro
         bound = bounds[int(record[NEXT_BOUND])]
         min_step = MIN_STEP_SPACINGS * abs(np.nextafter(t, np.inf) - t)
         h_abs = min(max(h_abs, min_step), max_step)
-        rejected, bad, landed = False, False, False
-        while True:
-            if h_abs < min_step:
-                state[T], state[H] = t, h_abs
-                return NONFINITE if bad else STEP_COLLAPSE
-            landed = t + h_abs >= bound
-            t_new = bound if landed else t + h_abs
-            h = t_new - t
-            for i in range(n):
-                K[0, i] = f[i]
-            if _erk_step(accel, pair, t, y, h, K, y_new, p, x, a, stats):
-                state[T], state[H] = t, h
-                return SINGULAR
-            error = _erk_error(pair, K, h, y, y_new, rtol, atol)
-            bad = not (np.isfinite(error) and _finite(y_new))
-            if error < 1.0 and not bad:
-                factor = MAX_FACTOR if error == 0.0 else min(MAX_FACTOR, SAFETY * error**exponent)
-                if rejected or landed:  # a step shortened onto a projection time says little about the next: keep the size before it
-                    factor = min(1.0, factor)
-                break
-            h_abs *= MIN_FACTOR if bad else max(MIN_FACTOR, SAFETY * error**exponent)
-            rejected = True
-            stats[NREJECT] += 1
+        # a step shortened onto a projection time says little about the next: keep the size before it (hold_landed)
+        code, t_new, h, h_abs, factor, landed = _erk_attempt(accel, pair, t, y, f, h_abs, min_step, bound, True, K, y_new, p, x, a, stats, state, rtol, atol, exponent)
+        if code != RUNNING:
+            return code
         stats[NSTEPS] += 1
         if not landed:
             stats[HMIN] = min(stats[HMIN], h)
