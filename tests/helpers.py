@@ -4,8 +4,10 @@ from __future__ import annotations
 
 import importlib.util
 import random
+import sys
 from pathlib import Path
 from types import ModuleType
+from typing import Any
 
 import sympy as sp
 
@@ -45,3 +47,34 @@ def load_module(code: str, path: Path) -> ModuleType:
     module = importlib.util.module_from_spec(found)
     found.loader.exec_module(module)
     return module
+
+
+BENCHMARKS = Path(__file__).resolve().parent.parent / "benchmarks"
+
+
+def benchmark_module(name: str) -> ModuleType:
+    """benchmarks/NAME.py imported once as the module `name` (benchmarks/ on sys.path, for the scripts' imports of each other)."""
+    if str(BENCHMARKS) not in sys.path:
+        sys.path.insert(0, str(BENCHMARKS))
+    if name in sys.modules:
+        return sys.modules[name]
+    found = importlib.util.spec_from_file_location(name, BENCHMARKS / f"{name}.py")
+    assert found is not None and found.loader is not None
+    module = importlib.util.module_from_spec(found)
+    sys.modules[name] = module
+    found.loader.exec_module(module)
+    return module
+
+
+def audit_reference(system: Any, rhs: Any, t_end: float, samples: int, method: str) -> Any:
+    """An audit system's independent reference at `samples` times over [0, t_end], in lagrange's coordinates:
+    its exact solution (`method` "exact"), or scipy's `method` at rtol 1e-12 on the audit's own equations `rhs(system)`."""
+    import numpy as np
+    from scipy.integrate import solve_ivp
+
+    ts = np.linspace(0.0, t_end, samples)
+    if method == "exact":
+        return system.exact(ts)
+    done = solve_ivp(rhs(system), (0.0, t_end), system.y0, method=method, rtol=1e-12, atol=1e-14, t_eval=ts)
+    assert done.status == 0, done.message
+    return system.to_lagrange(done.y.T)

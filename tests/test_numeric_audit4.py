@@ -10,31 +10,20 @@ trammel in its one angle, the stiff spring in its extension), integrated here by
 
 from __future__ import annotations
 
-import importlib.util
-import sys
 from pathlib import Path
-from types import ModuleType
 
 import numpy as np
 import pytest
-from scipy.integrate import solve_ivp
 
 from lagrange_cli import api
+
+from .helpers import audit_reference, benchmark_module
 
 HERE = Path(__file__).parent
 AUDIT = HERE / "numeric_audit4"
 
 
-def _audit() -> ModuleType:
-    spec = importlib.util.spec_from_file_location("numeric_audit4", HERE.parent / "benchmarks" / "numeric_audit4.py")
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    sys.modules.setdefault("numeric_audit4", module)
-    spec.loader.exec_module(module)
-    return module
-
-
-A = _audit()
+A = benchmark_module("numeric_audit4")
 SYSTEMS = A.systems()
 
 # (system, t_end, the reference's scipy method): short spans that still hold each file's
@@ -63,13 +52,7 @@ def test_audit_files_load() -> None:
 
 
 def _reference(name: str, t_end: float, samples: int, method: str) -> np.ndarray:
-    s = SYSTEMS[name]
-    ts = np.linspace(0.0, t_end, samples)
-    if method == "exact":
-        return s.exact(ts)  # type: ignore[no-any-return]
-    done = solve_ivp(A._rhs(s), (0.0, t_end), s.y0, method=method, rtol=1e-12, atol=1e-14, t_eval=ts)
-    assert done.status == 0, done.message
-    return s.to_lagrange(done.y.T)  # type: ignore[no-any-return]
+    return audit_reference(SYSTEMS[name], A._rhs, t_end, samples, method)  # type: ignore[no-any-return]
 
 
 @pytest.mark.parametrize(("name", "t_end", "method"), CASES)

@@ -10,35 +10,20 @@ integrated here by scipy at rtol 1e-12. Nothing of lagrange_cli is imported ther
 
 from __future__ import annotations
 
-import importlib.util
-import sys
 from pathlib import Path
-from types import ModuleType
 
 import numpy as np
 import pytest
-from scipy.integrate import solve_ivp
 
 from lagrange_cli import api
 
+from .helpers import audit_reference, benchmark_module
+
 HERE = Path(__file__).parent
-BENCH = HERE.parent / "benchmarks"
 
 
-def _load(name: str) -> ModuleType:
-    if name in sys.modules:
-        return sys.modules[name]
-    spec = importlib.util.spec_from_file_location(name, BENCH / f"{name}.py")
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[name] = module
-    spec.loader.exec_module(module)
-    return module
-
-
-sys.path.insert(0, str(BENCH))
-A5 = _load("numeric_audit5")
-A3 = _load("numeric_audit3")
+A5 = benchmark_module("numeric_audit5")
+A3 = benchmark_module("numeric_audit3")
 SYSTEMS = A5.systems()
 
 # (system, t_end, the reference's scipy method): short spans that keep each file's difficulty: the
@@ -67,13 +52,7 @@ def test_audit_files_load() -> None:
 
 
 def _reference(name: str, t_end: float, samples: int, method: str) -> np.ndarray:
-    s = SYSTEMS[name]
-    ts = np.linspace(0.0, t_end, samples)
-    if method == "exact":
-        return s.exact(ts)  # type: ignore[no-any-return]
-    done = solve_ivp(A3._rhs(s), (0.0, t_end), s.y0, method=method, rtol=1e-12, atol=1e-14, t_eval=ts)
-    assert done.status == 0, done.message
-    return s.to_lagrange(done.y.T)  # type: ignore[no-any-return]
+    return audit_reference(SYSTEMS[name], A3._rhs, t_end, samples, method)  # type: ignore[no-any-return]
 
 
 @pytest.mark.parametrize(("name", "t_end", "method"), CASES)
