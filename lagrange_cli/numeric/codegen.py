@@ -15,6 +15,8 @@ numba, a long function is cut into parts compiled one by one (`emit.python.split
   p_dot = dL/dq - dR/dq_dot + Q;
 - `rows` (numba, kept constraints): f, A, b and M at the positions, and `energy` (numba too, kept
   constraints), for the projection inside the compiled loop (kernels.erk_projected);
+- `switch` (only for a system whose equations have Abs, sign, Piecewise, Max or Min: switching.py):
+  the switching functions g(t, y), whose zero crossings the integrators land on, and `_SWITCHES`;
 - `energy`, `momenta`, `residuals`, `event`: the monitored quantities and the stop condition; a
   constraint's residual (its drift) is f(q, t) when holonomic and a(q, t) . q_dot + b(q, t) for a
   velocity constraint, whose `expr` is that expression (and so needs the velocities bound).
@@ -43,6 +45,7 @@ from lagrange_cli.emit import python as emit_python
 from lagrange_cli.emit.python import PythonPrinter, Rows, code_lines, define, free_names, symbol_names, vectorize
 from lagrange_cli.inputs import substitute
 from lagrange_cli.model import Model
+from lagrange_cli.numeric import switching
 
 ALPHA = se.Symbol("_alpha")
 
@@ -256,6 +259,11 @@ class Generator:
             body += [f"_M[{i * n + j}] = {mass[e]}"] + ([f"_M[{j * n + i}] = {mass[e]}"] if i != j else [])
         return define("_rows", "t, _q, _p, _f, _A, _b, _M", "f, A, b and M of the kept constraints at the positions q (projection).", [*body, "return 0"])
 
+    def surfaces(self) -> list[Any]:
+        """The switching functions of what `_accel` evaluates (switching.collect)."""
+        entries, _ = self.augmented()
+        return switching.collect([*entries, *self.forms.forcing, *stabilised_bias(self.model)], self.constants)
+
     def vector(self, name: str, doc: str, exprs: Sequence[Any]) -> str:
         """A function of (t, y, p) writing `exprs` into _out (numba) or returning them as a list."""
         exprs = list(exprs)
@@ -300,8 +308,11 @@ class Generator:
                 self.vector("_canonical", "The momenta p = dL/dq_dot of every coordinate.", forms.momenta),
             ]
         parts.append(stop)
+        surfaces = self.surfaces()
+        if surfaces:  # only then: a smooth system's code is what it was
+            parts.append(self.vector("_switch", "The switching functions: where one changes sign the right-hand side is not smooth.", surfaces))
         math_names = self.printer.imports()
-        header = [f"_N = {self.n}", f"_K = {self.k}", f"_SIZE = {self.size}"]
+        header = [f"_N = {self.n}", f"_K = {self.k}", f"_SIZE = {self.size}"] + ([f"_SWITCHES = {len(surfaces)}"] if surfaces else [])
         if self.tables:
             header += self.tables
             header.insert(0, "import numpy")

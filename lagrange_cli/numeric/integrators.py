@@ -26,7 +26,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from lagrange_cli.numeric import diagnostics, status
+from lagrange_cli.numeric import diagnostics, status, switching
 from lagrange_cli.numeric.compile import Functions
 from lagrange_cli.numeric.status import Status
 from lagrange_cli.numeric.tableaux import EXPLICIT
@@ -82,6 +82,8 @@ class Run:
     """What the symplectic method's loop measured (None for the other methods)."""
     warnings: tuple[Uncontrolled, ...] = ()
     """Where the run's error was not controlled (see `monitor`)."""
+    switching: tuple[int, int] | None = None
+    """(switching surfaces, crossings landed on) of a run that located them (switching.py); None: not located."""
 
 
 @dataclass(frozen=True)
@@ -297,12 +299,21 @@ class ErkLoop:
         """`projection` (bounds, holonomic, record): the loop projects onto the kept constraints (`run_erk_projected`)."""
         kernels = functions.kernels
         assert kernels is not None
-        self.problem, self.pair = problem, EXPLICIT[method].code
+        self.problem, self.pair, self.functions = problem, EXPLICIT[method].code, functions
         start_entry, _, compile_start = _compile(functions, "erk_start", [])
         pieces = [("_accel", kernels.ACCEL_SIG), ("_event", kernels.EVENT_SIG)]
-        if projection is None:
+        self.switches = int(getattr(functions.module, "_SWITCHES", 0)) if projection is None and switching.LOCATE else 0
+        """Switching functions whose crossings the loop lands on (kernels.erk_switched; 0: erk_run, as before)."""
+        if projection is None and self.switches:
+            self._entry, (self._accel, self._event, switch), compile_run = _compile(functions, "erk_switched", [*pieces, ("_switch", kernels.SWITCH_SIG)])
+            self.record = kernels.switching_record(self.switches)
+            g = np.empty(self.switches)
+            switch(problem.t0, problem.y0, problem.p, g)
+            self.record[kernels.SWITCH_HEAD : kernels.SWITCH_HEAD + self.switches] = g
+            self._projection: tuple[Any, ...] = (switch, self.record)
+        elif projection is None:
             self._entry, (self._accel, self._event), compile_run = _compile(functions, "erk_run", pieces)
-            self._projection: tuple[Any, ...] = ()
+            self._projection = ()
         else:
             self._entry, (self._accel, self._event, rows, energy), compile_run = _compile(functions, "erk_projected", [*pieces, ("_rows", kernels.ROWS_SIG), ("_energy", kernels.ENERGY_SIG)])
             self._projection = (rows, energy, *projection)
@@ -363,7 +374,9 @@ class ErkLoop:
         if self.code == status.RUNNING:
             self.code = _drive(self._advance, lambda: self.t, lambda: self.steps, self.problem, progress)
         m = int(self.state[status.NEXT_SAMPLE])
-        return Run(self.problem.ts[:m], self.ys[:m], Status.of_code(self.code), self.t, self.y, _stats(self.stats), self.compile_seconds, self.seconds)
+        kernels = self.functions.kernels
+        switched = (self.switches, int(self.record[kernels.SWITCH_COUNT])) if self.switches and kernels is not None else None
+        return Run(self.problem.ts[:m], self.ys[:m], Status.of_code(self.code), self.t, self.y, _stats(self.stats), self.compile_seconds, self.seconds, switching=switched)
 
 
 def run_erk_projected(
@@ -610,11 +623,15 @@ def run_scipy(functions: Functions, problem: Problem, method: str, rtol: float, 
     event = _python_event(module, p) if problem.use_event else None
     outcome, t_last, y_last = FINISHED, problem.t0, problem.y0.copy()
     failure: EvaluationError | None = None
+    switches = _Switches(module, p) if hasattr(module, "_switch") and switching.LOCATE else None
     with warnings.catch_warnings(), np.errstate(all="ignore"):
         warnings.simplefilter("ignore")
         try:
             g_old = event(problem.t0, problem.y0) if event else 1.0
-            solver = solver_class(python_rhs(module, p, problems), problem.t0, problem.y0, problem.t_end, **options)
+            rhs = python_rhs(module, p, problems)
+            solver = solver_class(rhs, problem.t0, problem.y0, problem.t_end, **options)
+            if switches is not None:
+                switches.start(problem.t0, problem.y0)
             while solver.status == "running":
                 if steps >= problem.max_steps:
                     outcome = BUDGET
@@ -627,6 +644,10 @@ def run_scipy(functions: Functions, problem: Problem, method: str, rtol: float, 
                 if not np.all(np.isfinite(solver.y)):
                     outcome, t_last, y_last = NONFINITE, t_old, y_old
                     break
+                if switches is not None and switches.crossed(solver, t_old):  # discard the step: land on the crossing
+                    switches.retire(solver)
+                    solver = solver_class(rhs, t_old, y_old, switches.pending, **options)
+                    continue
                 steps += 1
                 sizes.append(solver.t - t_old)
                 t_end_here, outcome = _scipy_samples(solver, t_old, ts, samples, event, g_old)
@@ -637,17 +658,78 @@ def run_scipy(functions: Functions, problem: Problem, method: str, rtol: float, 
                     progress((t_last - problem.t0) / (problem.t_end - problem.t0))
                 if outcome == EVENT:
                     break
+                if switches is not None and switches.landed(solver) and solver.t < problem.t_end:  # restart there: no history, a fresh step
+                    switches.retire(solver)
+                    solver = solver_class(rhs, solver.t, solver.y.copy(), problem.t_end, **options)
         except _Failure as stop:
             outcome, failure = stop.status, stop.problem
         except EvaluationError as problem_found:  # the stop condition
             outcome, failure = NONFINITE, problem_found
     if outcome in (NONFINITE, STEP_COLLAPSE) and failure is None and problems.last is not None and problems.last.t >= t_last:
         failure = problems.last  # the solver gave up where the equations cannot be evaluated
-    nfev, njev, nlu = (int(getattr(solver, k, 0)) for k in ("nfev", "njev", "nlu")) if "solver" in locals() else (0, 0, 0)
+    nfev, njev, nlu = (int(getattr(solver, k, 0)) + (switches.work[k] if switches is not None else 0) for k in ("nfev", "njev", "nlu")) if "solver" in locals() else (0, 0, 0)
     stats = Stats(nfev, njev, nlu, steps, None, min(sizes[:-1]) if len(sizes) > 1 else (sizes[0] if sizes else None), max(sizes) if sizes else None)
     m = len(samples)
     y = np.array(samples) if samples else np.empty((0, len(problem.y0)))
-    return Run(ts[:m], y, outcome, float(t_last), np.asarray(y_last, dtype=float), stats, 0.0, time.perf_counter() - began, failure)
+    switched = (switches.count, switches.crossings) if switches is not None else None
+    return Run(ts[:m], y, outcome, float(t_last), np.asarray(y_last, dtype=float), stats, 0.0, time.perf_counter() - began, failure, switching=switched)
+
+
+class _Switches:
+    """The switching functions g(t, y) of a scipy run (the generated `_switch`, switching.py): a step
+    over which one changes sign is discarded, the solver started again from the step's start to land
+    on the crossing (located by brentq on the step's dense output), and there restarted afresh (a
+    multistep method's history, which spans the kink, dropped; a new initial step)."""
+
+    def __init__(self, module: Any, p: Sequence[float]) -> None:
+        self.function, self.p, self.count = module._switch, list(p), int(module._SWITCHES)
+        self.g = np.zeros(self.count)
+        self.pending, self.far, self.index, self.crossings = math.inf, np.zeros(self.count), -1, 0
+        self.work = {"nfev": 0, "njev": 0, "nlu": 0}
+        """The counters of the solvers replaced so far."""
+
+    def retire(self, solver: Any) -> None:
+        for key in self.work:
+            self.work[key] += int(getattr(solver, key, 0))
+
+    def values(self, t: float, y: np.ndarray) -> np.ndarray:
+        return np.array(evaluate(self.function, t, np.asarray(y).tolist(), self.p, "the switching functions"))
+
+    def start(self, t: float, y: np.ndarray) -> None:
+        self.g = self.values(t, y)
+
+    def crossed(self, solver: Any, t_old: float) -> bool:
+        """Whether the step t_old -> solver.t crosses a surface before its end (then `pending` is the crossing)."""
+        g_new = self.values(solver.t, solver.y)
+        changed = [i for i in range(self.count) if self.g[i] != 0.0 and (self.g[i] < 0.0) != (g_new[i] < 0.0)]
+        if not changed:
+            if solver.t != self.pending:
+                self.g = g_new
+            return False
+        from scipy.optimize import brentq
+
+        dense = solver.dense_output()
+        roots = []
+        for i in changed:
+            root = brentq(lambda s, i=i: self.values(s, dense(s))[i], t_old, solver.t, xtol=4e-16 * max(abs(solver.t), 1.0), rtol=1e-15)
+            roots.append((root, i))
+        t_star, self.index = min(roots)
+        self.far = g_new
+        if t_old < t_star < solver.t:
+            self.pending = t_star
+            return True
+        self.pending = solver.t  # the crossing is at the step's end: landed
+        return False
+
+    def landed(self, solver: Any) -> bool:
+        """Whether the step ended on the located crossing: g set past it, the count increased."""
+        if solver.t != self.pending:
+            return False
+        g_here = self.values(solver.t, solver.y)
+        self.g = np.where(np.arange(self.count) == self.index, self.far, g_here)
+        self.pending, self.index = math.inf, -1
+        self.crossings += 1
+        return True
 
 
 def _scipy_samples(solver: Any, t_old: float, ts: np.ndarray, samples: list[np.ndarray], event: Callable[[float, np.ndarray], float] | None, g_old: float) -> tuple[float, Status]:

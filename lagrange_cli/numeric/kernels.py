@@ -223,13 +223,18 @@ ROWS_SIG = _I8(_F8, _ARR, _ARR, _ARR, _ARR, _ARR, _ARR)
 """rows(t, q, p, f, A, b, M): the kept constraints' rows at the positions q (codegen's `_rows`), A and M row by row."""
 ENERGY_SIG = EVENT_SIG
 """energy(t, y, p, x, a): the energy function h."""
+SWITCH_SIG = _I8(_F8, _ARR, _ARR, _ARR)
+"""switch(t, y, p, out): the switching functions g(t, y) into out (codegen's `_switch`)."""
 _ACCEL_T, _HAMILTON_T, _EVENT_T = types.FunctionType(ACCEL_SIG), types.FunctionType(HAMILTON_SIG), types.FunctionType(EVENT_SIG)
 _ROWS_T, _ENERGY_T = types.FunctionType(ROWS_SIG), types.FunctionType(ENERGY_SIG)
+_SWITCH_T = types.FunctionType(SWITCH_SIG)
 SIGNATURES = {
     # (pair, t0, y, f, control, p, stats, accel)
     "erk_start": _F8(_I8, _F8, _ARR, _ARR, _ARR, _ARR, _ARR, _ACCEL_T),
     # (pair, y, f, state, control, ts, ys, p, stats, accel, event)
     "erk_run": _I8(_I8, _ARR, _ARR, _ARR, _ARR, _ARR, _MAT, _ARR, _ARR, _ACCEL_T, _EVENT_T),
+    # (pair, y, f, state, control, ts, ys, p, stats, accel, event, switch, record)
+    "erk_switched": _I8(_I8, _ARR, _ARR, _ARR, _ARR, _ARR, _MAT, _ARR, _ARR, _ACCEL_T, _EVENT_T, _SWITCH_T, _ARR),
     # (stages, z, state, control, ts, zs, p, stats, sizes, memory, pivots, hamilton, event)
     "gauss_run": _I8(_I8, _ARR, _ARR, _ARR, _ARR, _MAT, _ARR, _ARR, _ARR, _ARR, types.int64[::1], _HAMILTON_T, _EVENT_T),
     # (pair, y, f, state, control, ts, ys, p, stats, accel, event, rows, energy, bounds, holonomic, record)
@@ -657,6 +662,146 @@ def erk_run(pair, y, f, state, control, ts, ys, p, stats, accel, event):
             return EVENT
         if stiff and t < t_bound:
             return RUNNING  # paused: the caller asked to hear of stiffness (stats[STIFF] >= STIFF_STEPS)
+    return DONE if t >= t_bound else RUNNING
+
+
+# -- explicit Runge-Kutta landing on switching surfaces (issue 15) --------------------------------
+
+SWITCH_PENDING, SWITCH_INDEX, SWITCH_COUNT = 0, 1, 2
+"""The first entries of erk_switched's `switching` record: the located crossing ahead (inf: none), the
+surface crossing there, the crossings landed on so far; then g at the last accepted point (m values)
+and g at the end of the step that found the crossing (m values)."""
+SWITCH_HEAD = 3
+
+
+def switching_record(m):
+    """erk_switched's record for m switching functions, nothing located yet (g filled by the caller)."""
+    record = np.zeros(SWITCH_HEAD + 2 * m)
+    record[SWITCH_PENDING] = np.inf
+    record[SWITCH_INDEX] = -1.0
+    return record
+
+
+@njit(error_model="numpy")
+def _switch_root(switch, i, pair, t_old, h, y_old, coef, p, work, g, g_lo, g_hi):
+    """The time in (t_old, t_old + h] where switching function i changes sign: the Illinois method on the
+    dense output (as `_erk_root`), the bracket's far end returned (g_i there on the new side)."""
+    lo, hi = t_old, t_old + h
+    side = 0
+    for _ in range(100):
+        if hi - lo <= 4e-16 * max(abs(hi), 1.0):
+            break
+        mid = (lo * g_hi - hi * g_lo) / (g_hi - g_lo) if g_hi != g_lo else 0.5 * (lo + hi)
+        if not lo < mid < hi:
+            mid = 0.5 * (lo + hi)
+        _erk_eval(pair, t_old, h, y_old, coef, mid, work)
+        switch(mid, work, p, g)
+        g_mid = g[i]
+        if g_mid == 0.0:
+            return mid
+        if (g_mid < 0.0) == (g_lo < 0.0):
+            lo, g_lo = mid, g_mid
+            if side == -1:
+                g_hi *= 0.5
+            side = -1
+        else:
+            hi, g_hi = mid, g_mid
+            if side == 1:
+                g_lo *= 0.5
+            side = 1
+    return hi
+
+
+def erk_switched(pair, y, f, state, control, ts, ys, p, stats, accel, event, switch, record):
+    """`erk_run` landing a step on each zero crossing of the switching functions `switch` (codegen's
+    `_switch`): after an accepted step, g at its end is compared with g at its start (record); where one
+    changed sign, the crossing is located on the step's dense output (`_switch_root`, the earliest of
+    them), the step is discarded and taken again (shortened by the usual control as needed) to land on
+    it; there the integrator restarts: f evaluated afresh (no FSAL reuse across the kink) and scipy's
+    initial step chosen again. A step that lands on a crossing counts as one step; the discarded one as
+    rejected. `record` (switching_record) carries what is located across pauses."""
+    n = y.shape[0]
+    m = (record.shape[0] - SWITCH_HEAD) // 2
+    rtol, atol, max_step, t_bound, t_stop, use_event = control[RTOL], control[ATOL], control[MAX_STEP], control[T_BOUND], control[T_STOP], control[USE_EVENT] != 0.0
+    test_stiffness = control[STIFFNESS] != 0.0 and pair == _DOP
+    pause = int(control[STRETCH]) if control[STRETCH] > 0.0 else PAUSE_STEPS
+    size = int(control[SIZE])
+    x, a = np.empty(size), np.empty((size, size))
+    stages = _STAGES[pair]
+    K = np.empty((_ROWS[pair], n))
+    coef = np.empty((_DENSE[pair], n))
+    y_new, work = np.empty(n), np.empty(n)
+    g_new, g_work = np.empty(m), np.empty(m)
+    exponent = -1.0 / (_ERROR_ORDER[pair] + 1.0)
+    t, h_abs = state[T], state[H]
+    taken = 0
+    while t < t_stop and t < t_bound and taken < pause:
+        taken += 1
+        min_step = MIN_STEP_SPACINGS * abs(np.nextafter(t, np.inf) - t)
+        h_abs = min(max(h_abs, min_step), max_step)
+        pending = record[SWITCH_PENDING]
+        code, t_new, h, h_abs, factor, landed = _erk_attempt(accel, pair, t, y, f, h_abs, min_step, min(t_bound, pending), False, K, y_new, p, x, a, stats, state, rtol, atol, exponent)
+        if code != RUNNING:
+            return code
+        arrived = landed and t_new == pending
+        if not arrived:
+            switch(t_new, y_new, p, g_new)
+            first, t_first = -1, t_new
+            for i in range(m):
+                g_old = record[SWITCH_HEAD + i]
+                if (g_old < 0.0) != (g_new[i] < 0.0) and g_old != 0.0:
+                    if first < 0 and _erk_dense(accel, pair, t, y, y_new, K[stages], h, K, coef, p, x, a, stats):  # the step's interpolant, once
+                        state[T], state[H] = t, h
+                        return SINGULAR
+                    t_i = _switch_root(switch, i, pair, t, h, y, coef, p, work, g_work, g_old, g_new[i])
+                    if first < 0 or t_i < t_first:
+                        first, t_first = i, t_i
+            if first >= 0 and t < t_first < t_new:  # discard the step: take it again to land on the crossing
+                record[SWITCH_PENDING], record[SWITCH_INDEX] = t_first, float(first)
+                for i in range(m):
+                    record[SWITCH_HEAD + m + i] = g_new[i]
+                stats[NREJECT] += 1
+                h_abs = t_first - t
+                continue
+            if first >= 0:  # the crossing is at the step's end: it has landed there
+                arrived = True
+                record[SWITCH_INDEX] = float(first)
+                for i in range(m):
+                    record[SWITCH_HEAD + m + i] = g_new[i]
+        stats[NSTEPS] += 1
+        if not landed:
+            stats[HMIN] = min(stats[HMIN], h)
+        stats[HMAX] = max(stats[HMAX], h)
+        stiff = test_stiffness and _stiffness_test(K, h, y, y_new, work, stats)
+        status, t_end_here = _erk_samples(accel, event, pair, t, h, t_new, y, y_new, K, coef, work, ts, ys, p, x, a, state, stats, use_event)
+        if status == SINGULAR:
+            return SINGULAR
+        for i in range(n):
+            f[i] = K[stages, i]
+            y[i] = y_new[i]
+        t = t_end_here
+        h_abs *= factor
+        if arrived and status != EVENT:
+            # g on the crossing's far side for the surface crossed, at the landing point for the others
+            switch(t, y, p, g_new)
+            crossed = int(record[SWITCH_INDEX])
+            for i in range(m):
+                record[SWITCH_HEAD + i] = record[SWITCH_HEAD + m + i] if i == crossed else g_new[i]
+            record[SWITCH_PENDING], record[SWITCH_INDEX] = np.inf, -1.0
+            record[SWITCH_COUNT] += 1.0
+            if _rhs(accel, t, y, p, f, x, a):  # restart: f afresh, scipy's initial step
+                state[T], state[H] = t, h_abs
+                return SINGULAR
+            stats[NFEV] += 1
+            h_abs = _initial_step(accel, t, y, f, t_bound, max_step, _ERROR_ORDER[pair], rtol, atol, p, x, a, stats)
+        elif not arrived:
+            for i in range(m):
+                record[SWITCH_HEAD + i] = g_new[i]
+        state[T], state[H] = t, h_abs
+        if status == EVENT:
+            return EVENT
+        if stiff and t < t_bound:
+            return RUNNING
     return DONE if t >= t_bound else RUNNING
 
 

@@ -27,7 +27,7 @@ import numpy as np
 from lagrange_cli.errors import LagrangeError
 from lagrange_cli.inputs import substitute
 from lagrange_cli.model import Model
-from lagrange_cli.numeric import codegen, compile, integrators, policy, projection, status
+from lagrange_cli.numeric import codegen, compile, integrators, policy, projection, status, switching
 from lagrange_cli.numeric.integrators import Problem, Progress, Run, Stats
 from lagrange_cli.numeric.policy import resolve
 from lagrange_cli.numeric.projection import Correction, Projector
@@ -460,7 +460,7 @@ def _trajectory(model: Model, settings: Settings, python: compile.Functions, run
         else:
             reason = FAILURES[run.status].format(" (with the constraint rows)" if model.constraints else "")
         message = f"{model.source}: simulation failed at t = {_g(run.t_last)}: {reason}; state: {state_text(model, run.y_last)}"
-    notes = (*settings.notes, *(warning.message for warning in run.warnings))
+    notes = (*settings.notes, *(warning.message for warning in run.warnings), *((switching.note(*run.switching),) if run.switching is not None else ()))
     return Trajectory(model.title, model.coordinates, settings, run.t, run.y, energy, status, message, run.t_last, run.y_last, run.stats, timing, invariants, notes, run.status, run.warnings)
 
 
