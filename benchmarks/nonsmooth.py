@@ -143,6 +143,49 @@ def diagnose(t_end: float = 0.4, samples: int = 401) -> None:
             print(f"  rtol {rtol:g} [before 1st contact / 0.04 s after / all]: " + " | ".join(row), flush=True)
 
 
+def table(repeats: int = 3) -> None:
+    """Errors and CPU (time.process_time, best of `repeats`, before/after interleaved, warm caches) at
+    rtol 1e-6 .. 1e-10 (atol = rtol / 1000): the bouncing mass to t = 3 against its exact solution, the
+    ball to t = 0.4 against audit 6's reference (LSODA rtol 1e-12 on its own Max equations,
+    tests/helpers.audit_reference), crossings not located (switching.LOCATE off) and located."""
+    from lagrange_cli import api
+    from lagrange_cli.numeric import switching
+
+    sys.path.insert(0, str(ROOT))
+    from tests.helpers import audit_reference
+
+    cases = []
+    ts = np.linspace(0.0, 3.0, 301)
+    cases.append(("bouncing mass, t 3", api.load(BOUNCE), 3.0, 301, bouncing_exact(ts)))
+    cases.append(("ball, t 0.4", api.load(BALL), 0.4, 201, audit_reference(A6.systems()["ball_cup"], A3._rhs, 0.4, 201, "LSODA")))
+    for name, system, t_end, samples, ref in cases:
+        print(f"{name}: error (max over samples, audit-3 scaling) / steps / CPU ms, not located -> located")
+        for rtol in (1e-6, 1e-7, 1e-8, 1e-9, 1e-10):
+            cells = []
+            for method, backend in (("DOP853", "compiled"), ("LSODA", "python"), ("auto", None)):
+                extra = {"backend": backend} if backend else {}
+                result: dict[bool, tuple[float, int, float, str]] = {}
+                for _ in range(repeats):
+                    for locate in (False, True):
+                        switching.LOCATE = locate
+                        began = time.process_time()
+                        trajectory = system.simulate(t_end=t_end, method=method, rtol=rtol, atol=rtol * 1e-3, samples=samples, max_steps=200_000, **extra)
+                        cpu = time.process_time() - began
+                        run = trajectory.run
+                        error = A3._error(np.asarray(run.y), ref) if not run.failed else math.inf
+                        chosen = run.settings.method + ("" if run.settings.backend == "python" else "c")
+                        if locate not in result or cpu < result[locate][2]:
+                            result[locate] = (error, run.stats.steps, cpu, chosen)
+                switching.LOCATE = True
+                (e0, s0, c0, m0), (e1, s1, c1, m1) = result[False], result[True]
+                label = method if backend else f"auto({m0}->{m1})"
+                cells.append(f"{label} {e0:.1e}/{s0}/{1e3 * c0:.0f} -> {e1:.1e}/{s1}/{1e3 * c1:.0f}")
+            print(f"  rtol {rtol:g}: " + " | ".join(cells), flush=True)
+
+
 if __name__ == "__main__":
     print(f"# {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, load {os.getloadavg()}")
-    diagnose(float(sys.argv[2]) if len(sys.argv) > 2 else 0.4)
+    if len(sys.argv) > 1 and sys.argv[1] == "table":
+        table()
+    else:
+        diagnose(float(sys.argv[2]) if len(sys.argv) > 2 else 0.4)

@@ -392,6 +392,11 @@ class Runner:
             self.batch_entry = erk_batch()
             self.sections_entry: Any = erk_sections() if self.section is not None else None
             self.lanes_entry, self.lanes_accel = self._lanes(model, settings)
+            if hasattr(numba.module, "_SWITCHES"):  # switching.py: the batched loops are erk_run's
+                self.notes.append(
+                    f"{numba.module._SWITCHES} switching surface(s) (Abs, sign, Piecewise, Max, Min): the batched compiled runs step over their crossings without locating them"
+                    " (`simulate`, or a sweep with --backend python, lands a step on each)"
+                )
         full = model.with_definitions()
         self.vector: dict[str, Callable[..., Any]] = {}
         for m in self.measures:

@@ -460,7 +460,7 @@ def _trajectory(model: Model, settings: Settings, python: compile.Functions, run
         else:
             reason = FAILURES[run.status].format(" (with the constraint rows)" if model.constraints else "")
         message = f"{model.source}: simulation failed at t = {_g(run.t_last)}: {reason}; state: {state_text(model, run.y_last)}"
-    notes = (*settings.notes, *(warning.message for warning in run.warnings), *((switching.note(*run.switching),) if run.switching is not None else ()))
+    notes = (*settings.notes, *(warning.message for warning in run.warnings), *switching.notes(run.switching, getattr(python.module, "_SWITCHES", 0), switching.LOCATE))
     return Trajectory(model.title, model.coordinates, settings, run.t, run.y, energy, status, message, run.t_last, run.y_last, run.stats, timing, invariants, notes, run.status, run.warnings)
 
 

@@ -83,3 +83,15 @@ def note(surfaces: int, crossings: int) -> str:
         f"{surfaces} switching surface{'s' if surfaces != 1 else ''} (Abs, sign, Piecewise, Max, Min) located: {crossings} crossing{'s' if crossings != 1 else ''},"
         " each landed on by a step and the integrator restarted there"
     )
+
+
+def notes(located: tuple[int, int] | None, surfaces: int, locate: bool) -> tuple[str, ...]:
+    """`simulate`'s note on a system with switching surfaces: the crossings located, or that this run
+    (the symplectic method's fixed step, a projected run, a run with LOCATE off) stepped over them."""
+    if located is not None:
+        return (note(*located),)
+    if not surfaces or not locate:
+        return ()
+    return (
+        f"{surfaces} switching surface{'s' if surfaces != 1 else ''} (Abs, sign, Piecewise, Max, Min): this method steps over their crossings without locating them (RK45, DOP853, Radau, BDF and LSODA land a step on each)",
+    )
