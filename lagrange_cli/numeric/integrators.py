@@ -709,6 +709,11 @@ class _Switches:
         from scipy.optimize import brentq
 
         dense = solver.dense_output()
+        g_start = self.values(t_old, dense(t_old))  # after a landing, self.g holds the far side's value
+        changed = [i for i in changed if g_start[i] != 0.0 and (g_start[i] < 0.0) != (g_new[i] < 0.0)]  # else it touched the surface and turned back
+        if not changed:
+            self.g = g_new
+            return False
         roots = []
         for i in changed:
             root = brentq(lambda s, i=i: self.values(s, dense(s))[i], t_old, solver.t, xtol=4e-16 * max(abs(solver.t), 1.0), rtol=1e-15)

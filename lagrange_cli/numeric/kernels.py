@@ -731,7 +731,7 @@ def erk_switched(pair, y, f, state, control, ts, ys, p, stats, accel, event, swi
     K = np.empty((_ROWS[pair], n))
     coef = np.empty((_DENSE[pair], n))
     y_new, work = np.empty(n), np.empty(n)
-    g_new, g_work = np.empty(m), np.empty(m)
+    g_new, g_work, g_start = np.empty(m), np.empty(m), np.empty(m)
     exponent = -1.0 / (_ERROR_ORDER[pair] + 1.0)
     t, h_abs = state[T], state[H]
     taken = 0
@@ -747,13 +747,19 @@ def erk_switched(pair, y, f, state, control, ts, ys, p, stats, accel, event, swi
         if not arrived:
             switch(t_new, y_new, p, g_new)
             first, t_first = -1, t_new
+            started = False
             for i in range(m):
                 g_old = record[SWITCH_HEAD + i]
                 if (g_old < 0.0) != (g_new[i] < 0.0) and g_old != 0.0:
+                    if not started:  # g at the step's start itself (after a landing, g_old is the far side's value)
+                        switch(t, y, p, g_start)
+                        started = True
+                    if g_start[i] == 0.0 or (g_start[i] < 0.0) == (g_new[i] < 0.0):
+                        continue  # the path touched the surface at the landing and turned back: no crossing here
                     if first < 0 and _erk_dense(accel, pair, t, y, y_new, K[stages], h, K, coef, p, x, a, stats):  # the step's interpolant, once
                         state[T], state[H] = t, h
                         return SINGULAR
-                    t_i = _switch_root(switch, i, pair, t, h, y, coef, p, work, g_work, g_old, g_new[i])
+                    t_i = _switch_root(switch, i, pair, t, h, y, coef, p, work, g_work, g_start[i], g_new[i])
                     if first < 0 or t_i < t_first:
                         first, t_first = i, t_i
             if first >= 0 and t < t_first < t_new:  # discard the step: take it again to land on the crossing
