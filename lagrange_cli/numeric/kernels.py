@@ -768,6 +768,7 @@ def erk_switched(pair, y, f, state, control, ts, ys, p, stats, accel, event, swi
                     record[SWITCH_HEAD + m + i] = g_new[i]
                 stats[NREJECT] += 1
                 h_abs = t_first - t
+                state[H] = h_abs  # a pause right here resumes with this step
                 continue
             if first >= 0:  # the crossing is at the step's end: it has landed there
                 arrived = True
