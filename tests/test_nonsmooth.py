@@ -125,3 +125,14 @@ def test_a_sign_switch_is_located_too() -> None:
     assert "located: 1 crossing," in python.notes[-1]
     exact = np.array([-0.1 + 0.7 * np.cos(6.0), -0.7 * np.sin(6.0)])  # x = 0.1 + 0.9 cos t to t = pi (x = -0.8), then -0.1 + 0.7 cos t
     assert np.max(np.abs(run.y[-1] - exact)) < 1e-6 and np.max(np.abs(python.y[-1] - exact)) < 1e-6
+
+
+def test_a_sweep_runs_a_switching_file() -> None:
+    """`sweep` on the bouncing mass: the batched compiled runs (which step over the crossings) and the
+    Python backend's (which locate them) both finish; the located one meets the exact state at t = 1."""
+    bounce = api.load(BOUNCE)
+    exact = NS.bouncing_exact(np.array([1.0]))[0]
+    compiled = bounce.sweep(parameters={"k": (1e6, 1e6, 1)}, t_end=1.0, rtol=1e-8, atol=1e-11)
+    python = bounce.sweep(parameters={"k": (1e6, 1e6, 1)}, t_end=1.0, rtol=1e-8, atol=1e-11, backend="python", method="DOP853")
+    assert list(compiled["status"]) == ["finished"] and list(python["status"]) == ["finished"]
+    assert abs(float(python["x_final"][0]) - exact[0]) < 1e-6 and abs(float(python["x_dot_final"][0]) - exact[1]) < 1e-5
