@@ -8,7 +8,9 @@ References independent of lagrange_cli:
   1e-12, confirmed by Radau at 1e-12 the same way (`branch_reference`);
 - the bouncing mass (tests/nonsmooth/bouncing_mass.yaml): its exact solution (`bouncing_exact`).
 
-Run: PYTHONPATH=$PWD python benchmarks/nonsmooth.py [diagnose|table]
+Run: PYTHONPATH=$PWD python benchmarks/nonsmooth.py [diagnose|table]. `table` gives BENCHMARKS.md's numbers
+(against the audit's reference for the ball); `diagnose` with the branch-by-branch reference did not finish
+in 5 CPU minutes on 2026-11-27 (the lambdified right-hand side through 99 crossings) and has no numbers yet.
 """
 
 from __future__ import annotations
