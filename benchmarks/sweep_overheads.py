@@ -44,7 +44,7 @@ from lagrange_cli import sweep as library  # noqa: E402
 def _task_thread_cpu(job: Any, indices: Any, chunk: Any, sizes: list[int]) -> tuple[Any, float]:
     """sweep._dask_task on a worker, and the CPU time of the thread that ran it."""
     began = time.thread_time()
-    result = library._dask_task(job, indices, chunk, sizes)
+    result = library._dask_task(indices, chunk, sizes, job)
     return result, time.thread_time() - began
 
 

@@ -37,6 +37,7 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import functools
+import gc
 import hashlib
 import itertools
 import json
@@ -904,17 +905,49 @@ def sweep(
         if on_batch is not None:
             on_batch(rows, count, len(grid))
 
-    if scheduler is not None:
-        for rows, size in _dask(scheduler, job, runner, grid, batches):
-            deliver(rows, size)
-    elif workers == 1:
-        for rows, size in _local(None, runner, grid, batches, 1):
-            deliver(rows, size)
-    else:
-        with ThreadPoolExecutor(workers) as pool:
-            for rows, size in _local(pool, runner, grid, batches, workers):
+    with _heap_frozen():
+        if scheduler is not None:
+            for rows, size in _dask(scheduler, job, runner, grid, batches):
                 deliver(rows, size)
+        elif workers == 1:
+            for rows, size in _local(None, runner, grid, batches, 1):
+                deliver(rows, size)
+        else:
+            with ThreadPoolExecutor(workers) as pool:
+                for rows, size in _local(pool, runner, grid, batches, workers):
+                    deliver(rows, size)
     return table
+
+
+_FROZEN = 0
+"""Sweeps of this process running inside `_heap_frozen` (the heap was frozen by the first and is thawed by the last)."""
+_FROZEN_LOCK = threading.Lock()
+
+
+@contextlib.contextmanager
+def _heap_frozen() -> Iterator[None]:
+    """Python's garbage collector leaves the objects made before the sweep alone until it ends (`gc.freeze`, then
+    `gc.unfreeze`). A sweep keeps a row per run, a list each, so every few 10^4 rows it triggers a full collection,
+    which traverses the whole heap: in a process holding sympy, numba and Dask (about 2e5 objects) that is 0.1-0.15 CPU s
+    with the GIL held (benchmarks/sweep_cluster_overhead.py counts them), stalling a Dask scheduler living in this process
+    (a LocalCluster made here: its workers then wait for their next task) and the threads handing back results. Objects
+    made during the sweep are collected as usual; garbage among the older ones waits for the first full collection after
+    it. A heap frozen by someone else (`gc.get_freeze_count()`) is left as it is; concurrent sweeps freeze it once."""
+    global _FROZEN
+    with _FROZEN_LOCK:
+        ours = _FROZEN > 0 or gc.get_freeze_count() == 0
+        if ours:
+            if _FROZEN == 0:
+                gc.freeze()
+            _FROZEN += 1
+    try:
+        yield
+    finally:
+        if ours:
+            with _FROZEN_LOCK:
+                _FROZEN -= 1
+                if _FROZEN == 0:
+                    gc.unfreeze()
 
 
 def _source_text(model: Model) -> str:
@@ -1022,13 +1055,17 @@ def _dask(address: str, job: Job, runner: Runner, grid: np.ndarray, batches: lis
         workers = list(client.scheduler_info()["workers"])
         ready = [client.submit(_dask_prepare, job, workers=[worker], allow_other_workers=True, priority=1, pure=False) for worker in workers if (address, worker, job.key) not in _PREPARED]
         # A task's batches travel as two arrays (its points' indices and values, one after the other) and their sizes: Dask
-        # walks every element of a list argument looking for futures, and pickles each array as frames of its own.
-        futures = []
-        for group in _task_groups(batches, len(workers)):
-            indices = np.fromiter(itertools.chain.from_iterable(group), dtype=np.int64, count=sum(map(len, group)))
-            futures.append((client.submit(_dask_task, job, indices, grid[indices], [len(b) for b in group], pure=False), group))
-        for future, group in futures:
-            yield from _group_rows(runner, future.result(), group)
+        # walks every element of a list argument looking for futures, and pickles each array as frames of its own. All
+        # the tasks go in one graph (`map`: one message to the scheduler, which hands every worker its first task at
+        # once, and the job pickled once), run in the order given.
+        groups = _task_groups(batches, len(workers))
+        indices = [np.fromiter(itertools.chain.from_iterable(group), dtype=np.int64, count=sum(map(len, group))) for group in groups]
+        futures = client.map(_dask_task, indices, [grid[ix] for ix in indices], [[len(b) for b in group] for group in groups], job=job, pure=False)
+        for future, ix, group in zip(futures, indices, groups, strict=True):
+            result = future.result()
+            if isinstance(result, tuple):  # how the runs ended, without the points the task was sent
+                result = Ended(ix, grid[ix], *result)
+            yield from _group_rows(runner, result, group)
         if ready:  # every worker built (one that failed says so through its batches' results)
             _PREPARED.update((address, worker, job.key) for worker in client.gather(ready, errors="skip"))
         finished = True
@@ -1041,7 +1078,7 @@ def _dask(address: str, job: Job, runner: Runner, grid: np.ndarray, batches: lis
     finally:
         if not finished and futures and address in _CLIENTS and _CLIENTS[address] is client:
             with contextlib.suppress(Exception):  # an interrupted sweep's tasks stop (the kept client would hold them)
-                client.cancel([f for f, _ in futures], force=True)
+                client.cancel(futures, force=True)
 
 
 def _dask_prepare(job: Job) -> str:
@@ -1065,9 +1102,13 @@ def _task_groups(batches: list[list[int]], workers: int) -> list[list[list[int]]
     return groups
 
 
-def _dask_task(job: Job, indices: np.ndarray, chunk: np.ndarray, sizes: list[int]) -> Ended | list[list[list[Any]]]:
-    """A Dask task: `_group_task` with this worker's runner of `job`."""
-    return _group_task(runner_for(job), indices, chunk, sizes)
+def _dask_task(indices: np.ndarray, chunk: np.ndarray, sizes: list[int], job: Job) -> tuple[np.ndarray, np.ndarray, np.ndarray] | list[list[list[Any]]]:
+    """A Dask task: `_group_task` with this worker's runner of `job`; an `Ended` goes back as its status codes, last
+    times and last states only (the client has the indices and points it sent: 24 bytes a run fewer with two axes)."""
+    result = _group_task(runner_for(job), indices, chunk, sizes)
+    if isinstance(result, Ended):
+        return result.codes, result.t_last, result.y_last
+    return result
 
 
 def _group_task(runner: Runner, indices: np.ndarray, chunk: np.ndarray, sizes: list[int]) -> Ended | list[list[list[Any]]]:

@@ -124,6 +124,36 @@ def test_failed_runs_are_rows_with_their_reason(tmp_path: Path) -> None:
     assert "1 failed" in err
 
 
+def test_the_heap_is_frozen_during_a_sweep_and_thawed_after() -> None:
+    """During a sweep the objects made before it are out of the garbage collector's full collections (`gc.freeze`; a
+    full collection traverses the whole heap with the GIL held, stalling an in-process Dask scheduler), and they are
+    back after it, also when the sweep fails; a heap someone else froze is left frozen as it was."""
+    import gc
+
+    pendulum = model("simple_pendulum")
+    axes = [Axis("set", "g", 1, 2, 4)]
+    gc.collect()
+    objects = len(gc.get_objects())
+    frozen: list[int] = []
+    assert gc.get_freeze_count() == 0
+    library.sweep(pendulum, axes, t_end=1, batch=1, on_batch=lambda rows, done, total: frozen.append(gc.get_freeze_count()))
+    assert len(frozen) == 4 and min(frozen) >= objects and gc.get_freeze_count() == 0
+
+    def fail(rows: list, done: int, total: int) -> None:  # type: ignore[type-arg]
+        raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        library.sweep(pendulum, axes, t_end=1, batch=1, on_batch=fail)
+    assert gc.get_freeze_count() == 0
+    gc.freeze()
+    try:
+        theirs = gc.get_freeze_count()
+        library.sweep(pendulum, axes, t_end=1, batch=1)
+        assert gc.get_freeze_count() == theirs
+    finally:
+        gc.unfreeze()
+
+
 def test_threads_give_the_results_of_one_worker() -> None:
     pendulum = model("double_pendulum")
     axes = [Axis("initial", "theta", -2, 2, 4), Axis("initial", "phi", -2, 2, 3)]
@@ -327,8 +357,12 @@ def test_rows_from_arrays_are_the_run_by_run_rows() -> None:
 
 def test_a_dask_task_runs_its_batches_in_one_compiled_call() -> None:
     """A task of several batches whose measures are read off the runs' ends runs them in one compiled call (the lanes
-    refilled across its batches) and sends back one Ended; each batch's share of it gives that batch's local rows. With
-    another measure (max), the task sends back each batch's rows, as a thread would make them."""
+    refilled across its batches) and sends back how its runs ended as three arrays (status codes, last times, last
+    states: 8 + 8 + 8 x 4 bytes a run, not the indices and points it was sent); each batch's share of the Ended the
+    client makes of them gives that batch's local rows. With another measure (max), the task sends back each batch's
+    rows, as a thread would make them."""
+    import pickle
+
     pendulum = model("double_pendulum")
     axes = [Axis("initial", "theta", -2, 2, 5), Axis("initial", "phi", -2, 2, 4)]  # 20 points
     grid = points(axes)
@@ -348,11 +382,15 @@ def test_a_dask_task_runs_its_batches_in_one_compiled_call() -> None:
 
         runner.lanes_entry = counted
         try:
-            result = library._dask_task(job, indices, grid[indices], sizes)
+            result = library._dask_task(indices, grid[indices], sizes, job)
         finally:
             runner.lanes_entry = entry
         if measures == ["final"]:
-            assert isinstance(result, library.Ended) and calls[0] == 1
+            assert isinstance(result, tuple) and calls[0] == 1
+            codes, t_last, y_last = result
+            assert codes.shape == t_last.shape == (20,) and y_last.shape == (20, 4)
+            assert sum(a.nbytes for a in result) == 20 * (8 + 8 + 8 * 4) and len(pickle.dumps(result, protocol=5)) < 20 * 48 + 600
+            result = library.Ended(indices, grid[indices], *result)
             bounds = [0, 6, 12, 18, 20]
             batches = [runner.rows(result.part(a, b)) for a, b in itertools.pairwise(bounds)]
         else:
@@ -368,6 +406,38 @@ def test_dask_tasks_of_several_batches_give_the_local_rows(cluster) -> None:  # 
     local = library.sweep(pendulum, axes, measures=["final"], t_end=1, batch=1)
     remote = library.sweep(pendulum, axes, measures=["final"], t_end=1, batch=1, scheduler=cluster.scheduler_address, on_batch=lambda rows, done, total: seen.append(done))
     assert remote.rows == local.rows and seen == list(range(1, 41))  # every batch delivered on its own, in order
+
+
+def test_a_dask_sweep_sends_its_tasks_in_one_graph(cluster) -> None:  # type: ignore[no-untyped-def]
+    """All the tasks of a sweep reach the scheduler in one message (`update_graph`, counted by a scheduler plugin): it
+    hands every worker its first task at once, and the job is pickled once; there are as many tasks as `_task_groups`
+    makes (consecutive batches, large first), and every worker that has built the system is not asked again."""
+    from distributed import Client
+    from distributed.diagnostics.plugin import SchedulerPlugin
+
+    class Graphs(SchedulerPlugin):
+        name = "test-sweep-graphs"
+
+        def __init__(self) -> None:
+            self.calls: list[int] = []
+
+        def update_graph(self, scheduler, *, keys=(), **kwargs) -> None:  # type: ignore[no-untyped-def]
+            self.calls.append(len(keys))
+
+    pendulum = model("double_pendulum")
+    axes = [Axis("initial", "theta", -2, 2, 8), Axis("initial", "phi", -2, 2, 5)]  # 40 points, batches of 2: 20 batches
+    with Client(cluster.scheduler_address, set_as_default=False) as client:
+        client.wait_for_workers(2)
+    library.sweep(pendulum, axes, measures=["final"], t_end=0.5, batch=2, scheduler=cluster.scheduler_address)  # the workers build the system
+    graphs = Graphs()
+    cluster.scheduler.add_plugin(graphs)
+    try:
+        remote = library.sweep(pendulum, axes, measures=["final"], t_end=0.5, batch=2, scheduler=cluster.scheduler_address)
+    finally:
+        cluster.scheduler.remove_plugin(name=graphs.name)
+    groups = library._task_groups([[2 * k, 2 * k + 1] for k in range(20)], 2)
+    assert graphs.calls == [len(groups)] and len(groups) == 9
+    assert remote.rows == library.sweep(pendulum, axes, measures=["final"], t_end=0.5, batch=2).rows
 
 
 def test_a_killed_worker_loses_no_rows(cluster) -> None:  # type: ignore[no-untyped-def]
