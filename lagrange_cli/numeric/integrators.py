@@ -432,24 +432,30 @@ def run_gauss(functions: Functions, problem: Problem, z0: np.ndarray, stages: in
 
 def run_radau(functions: Functions, problem: Problem, rtol: float, atol: float, max_step: float = math.inf, progress: Progress | None = None) -> Run:
     """Radau IIA (3 stages, order 5) compiled (kernels.radau_run: the RADAU5 algorithm, scipy's step
-    control), with the Jacobian by forward differences of the compiled right-hand side."""
+    control), with the system's analytic Jacobian where `functions` has one (`compile.build(..., jacobian=True)`:
+    codegen.jac_numba), else (or where its values are not finite) by forward differences of the compiled
+    right-hand side."""
     kernels = functions.kernels
     assert kernels is not None
     start, _, compile_start = _compile(functions, "radau_start", [])
-    entry, (accel, event), compile_run = _compile(functions, "radau_run", [("_accel", kernels.ACCEL_SIG), ("_event", kernels.EVENT_SIG)])
+    pieces = [("_accel", kernels.ACCEL_SIG), ("_event", kernels.EVENT_SIG)]
+    analytic = hasattr(functions.module, "_jac")
+    entry, (accel, event, *given), compile_run = _compile(functions, "radau_run", [*pieces, ("_jac", kernels.JAC_SIG)] if analytic else pieces)
+    jacobian = given[0] if analytic else kernels.compiled("no_jacobian")
     began = time.perf_counter()
     n = len(problem.y0)
     y, f = problem.y0.copy(), np.empty(n)
     stats = _new_stats(math.inf, 0.0)
     ys = np.full((len(problem.ts), n), np.nan)
     control = _control(problem, functions.module._SIZE, rtol=rtol, atol=atol, max_step=max_step)
+    control[status.ANALYTIC] = float(analytic)
     jac, dense, y_old, memory = np.zeros((n, n)), np.zeros((3, n)), np.zeros(n), np.zeros(status.RADAU_SIZE)
-    h0 = start(problem.t0, y, f, control, problem.p, stats, jac, memory, accel)
+    h0 = start(problem.t0, y, f, control, problem.p, stats, jac, memory, accel, jacobian)
     state = _state(problem.t0, h0, _initial_event(functions, problem))
 
     def advance(t_stop: float) -> int:
         control[status.T_STOP] = t_stop
-        return int(entry(y, f, state, control, problem.ts, ys, problem.p, stats, jac, dense, y_old, memory, accel, event))
+        return int(entry(y, f, state, control, problem.ts, ys, problem.p, stats, jac, dense, y_old, memory, accel, event, jacobian))
 
     code = status.SINGULAR if h0 < 0 else _drive(advance, lambda: float(state[status.T]), lambda: int(stats[status.NSTEPS]), problem, progress)
     m = int(state[status.NEXT_SAMPLE])

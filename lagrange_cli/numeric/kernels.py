@@ -29,6 +29,7 @@ import numpy as np
 from numba import njit, types
 
 from lagrange_cli.numeric.status import (
+    ANALYTIC,
     ATOL,
     CHANGE_LIMIT,
     CONDITION_LIMIT,
@@ -254,6 +255,9 @@ ROWS_SIG = _I8(_F8, _ARR, _ARR, _ARR, _ARR, _ARR, _ARR)
 """rows(t, q, p, f, A, b, M): the kept constraints' rows at the positions q (codegen's `_rows`), A and M row by row."""
 ENERGY_SIG = EVENT_SIG
 """energy(t, y, p, x, a): the energy function h."""
+JAC_SIG = _I8(_F8, _ARR, _ARR, _MAT, _ARR, _MAT)
+"""jac(t, y, p, r, x, a): the augmented matrix into a and dPhi/dy into r (codegen's numba `_jac`); 1 when singular."""
+_JAC_T = types.FunctionType(JAC_SIG)
 _ACCEL_T, _HAMILTON_T, _EVENT_T = types.FunctionType(ACCEL_SIG), types.FunctionType(HAMILTON_SIG), types.FunctionType(EVENT_SIG)
 _ROWS_T, _ENERGY_T = types.FunctionType(ROWS_SIG), types.FunctionType(ENERGY_SIG)
 SIGNATURES = {
@@ -267,10 +271,12 @@ SIGNATURES = {
     "erk_projected": _I8(_I8, _ARR, _ARR, _ARR, _ARR, _ARR, _MAT, _ARR, _ARR, _ACCEL_T, _EVENT_T, _ROWS_T, _ENERGY_T, _ARR, _ARR, _ARR),
     # (t, y, p, holonomic, record, out, size, rows, energy)
     "project_state": _I8(_F8, _ARR, _ARR, _ARR, _ARR, _ARR, _I8, _ROWS_T, _ENERGY_T),
-    # (t0, y, f, control, p, stats, jac, memory, accel)
-    "radau_start": _F8(_F8, _ARR, _ARR, _ARR, _ARR, _ARR, _MAT, _ARR, _ACCEL_T),
-    # (y, f, state, control, ts, ys, p, stats, jac, dense, y_old, memory, accel, event)
-    "radau_run": _I8(_ARR, _ARR, _ARR, _ARR, _ARR, _MAT, _ARR, _ARR, _MAT, _MAT, _ARR, _ARR, _ACCEL_T, _EVENT_T),
+    # (t0, y, f, control, p, stats, jac, memory, accel, jacobian)
+    "radau_start": _F8(_F8, _ARR, _ARR, _ARR, _ARR, _ARR, _MAT, _ARR, _ACCEL_T, _JAC_T),
+    # (y, f, state, control, ts, ys, p, stats, jac, dense, y_old, memory, accel, event, jacobian)
+    "radau_run": _I8(_ARR, _ARR, _ARR, _ARR, _ARR, _MAT, _ARR, _ARR, _MAT, _MAT, _ARR, _ARR, _ACCEL_T, _EVENT_T, _JAC_T),
+    # a stand-in for a system without `_jac` (control[ANALYTIC] = 0: never called)
+    "no_jacobian": JAC_SIG,
 }
 """The entry points. The arrays are records with named indices (status.py): `state` (T, H or the
 steps done, EVENT_VALUE, NEXT_SAMPLE), `control` (RTOL, ATOL, MAX_STEP, T_BOUND, T_STOP, USE_EVENT,
@@ -1456,10 +1462,11 @@ def _lu_factor(a, pivots):
 def _lu_back(a, pivots, b):
     """Solve with `_lu_factor`'s factors: b becomes a^-1 b."""
     n = b.shape[0]
-    for k in range(n):
+    for k in range(n):  # every interchange first: the factors' rows were swapped whole, L's columns included
         r = pivots[k]
         if r != k:
             b[k], b[r] = b[r], b[k]
+    for k in range(n):
         for i in range(k + 1, n):
             b[i] -= a[i, k] * b[k]
     for i in range(n - 1, -1, -1):
@@ -1509,6 +1516,48 @@ def _radau_jacobian(accel, t, y, f, p, x, a, jac, work, fw, stats):
     return 0
 
 
+def no_jacobian(t, y, p, r, x, a):
+    """The Jacobian argument of a system without an analytic one (forward differences are used)."""
+    return 1
+
+
+@njit(error_model="numpy")
+def _radau_analytic(jacobian, t, y, p, x, a, rows, jac, pivots, column, stats):
+    """J from the system's analytic `_jac` (the derivative of the augmented system, codegen.jac_numba):
+    the first n rows of a^-1 r, the rows of dq/dt exact ([0 I]); 1 when the matrix is singular, 2 where a
+    value of it is not finite (0/0 in the derivative of |v| v at rest: the caller takes differences)."""
+    n = y.shape[0]
+    half = n // 2
+    size = x.shape[0]
+    if jacobian(t, y, p, rows, x, a):
+        return 1
+    stats[NFEV] += 1
+    if _lu_factor(a, pivots):
+        return 1
+    for c in range(n):
+        for i in range(size):
+            column[i] = rows[i, c]
+        _lu_back(a, pivots, column)
+        for i in range(half):
+            if not np.isfinite(column[i]):
+                return 2
+            jac[i, c] = 1.0 if c == half + i else 0.0
+            jac[half + i, c] = column[i]
+    stats[NJEV] += 1
+    return 0
+
+
+@njit(error_model="numpy")
+def _radau_jac(accel, jacobian, analytic, t, y, f, p, x, a, jac, work, fw, rows, pivots, column, stats):
+    """J at (t, y) (f = f(t, y)): analytic where the system has one and its values are finite, else by
+    forward differences; 1 when the matrix is singular."""
+    if analytic:
+        found = _radau_analytic(jacobian, t, y, p, x, a, rows, jac, pivots, column, stats)
+        if found != 2:
+            return found
+    return _radau_jacobian(accel, t, y, f, p, x, a, jac, work, fw, stats)
+
+
 @njit(error_model="numpy")
 def _radau_eval(t_old, h, y_old, dense, t, out):
     """The collocation polynomial of the step [t_old, t_old + h] at t (dense[k]: the coefficient of x^(k + 1))."""
@@ -1524,9 +1573,8 @@ def _radau_newton(accel, t, y, h, Z, W, F, dW, scale, tol, contraction, lu_real,
     the contraction factor rate / (1 - rate)). The code is SINGULAR where the matrix of the equations is
     singular at a stage, NONFINITE where a stage's value is not finite (not converged), else RUNNING.
     As in radau5.f, a correction counts as converged once contraction x its norm <= tol, the first
-    one judged by the factor of the steps before (`contraction`): a predictor already at the round-off
-    level of the equations converges in one iteration (waiting for a second correction to measure the
-    rate, as scipy does, compares two round-off noises and can see divergence in them). The iteration
+    one judged by the factor of the steps before (`contraction`): an accurate predictor converges in one
+    iteration (scipy waits for a second correction to measure the rate: 3 more evaluations). The iteration
     stops, not converged, when the corrections stop contracting (rate >= 0.99) or would not reach `tol`
     within NEWTON_MAXITER at their rate."""
     n = y.shape[0]
@@ -1624,7 +1672,7 @@ def _radau_root(event, t_old, h, y_old, dense, hi, p, x, a, work, g_old):
     return hi
 
 
-def radau_start(t0, y, f, control, p, stats, jac, memory, accel):
+def radau_start(t0, y, f, control, p, stats, jac, memory, accel, jacobian):
     """f = f(t0, y), J at (t0, y), a fresh `memory` (status.T_OLD, ...) and scipy's initial step for
     Radau; -1 when the matrix is singular at t0."""
     n = y.shape[0]
@@ -1633,7 +1681,8 @@ def radau_start(t0, y, f, control, p, stats, jac, memory, accel):
     if _rhs(accel, t0, y, p, f, x, a):
         return -1.0
     stats[NFEV] += 1
-    if _radau_jacobian(accel, t0, y, f, p, x, a, jac, np.empty(n), np.empty(n), stats):
+    rows, pivots, column = np.empty((size, n)), np.empty(size, dtype=np.int64), np.empty(size)
+    if _radau_jac(accel, jacobian, control[ANALYTIC] != 0.0, t0, y, f, p, x, a, jac, np.empty(n), np.empty(n), rows, pivots, column, stats):
         return -1.0
     memory[T_OLD], memory[STEP_OLD], memory[H_ABS_OLD], memory[ERROR_OLD] = t0, 0.0, np.nan, np.nan
     memory[CURRENT_JAC], memory[LU_STEP], memory[HAVE_DENSE], memory[CONTRACTION] = 1.0, 0.0, 0.0, 1.0
@@ -1641,7 +1690,7 @@ def radau_start(t0, y, f, control, p, stats, jac, memory, accel):
     return _initial_step(accel, t0, y, f, control[T_BOUND], control[MAX_STEP], RADAU_ERROR_ORDER, rtol, control[ATOL], p, x, a, stats)
 
 
-def radau_run(y, f, state, control, ts, ys, p, stats, jac, dense, y_old, memory, accel, event):
+def radau_run(y, f, state, control, ts, ys, p, stats, jac, dense, y_old, memory, accel, event, jacobian):
     """Advance (t = state[T], y, f = f(t, y), |h| = state[H], the stop condition's value state[EVENT_VALUE],
     J = jac, the last step's collocation polynomial (dense, y_old) and the step control's `memory`, all
     from `radau_start` or the call before) by Radau IIA until t >= control[T_STOP], writing ys[j] = y(ts[j])
@@ -1659,6 +1708,8 @@ def radau_run(y, f, state, control, ts, ys, p, stats, jac, dense, y_old, memory,
     rhs_complex = np.empty(n, dtype=np.complex128)
     y_new, f_new, work, fw, error, scale = np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(n)
     ze = np.empty(n)
+    analytic = control[ANALYTIC] != 0.0
+    rows, pivots, column = np.empty((size, n)), np.empty(size, dtype=np.int64), np.empty(size)
     have_lu = False
     if memory[LU_STEP] != 0.0:  # resumed: the factors of the call before, made again for the same step (the same run as one straight through)
         have_lu = _radau_matrices(jac, memory[LU_STEP], lu_real, pivots_real, lu_complex, pivots_complex, stats) == 0
@@ -1714,7 +1765,7 @@ def radau_run(y, f, state, control, ts, ys, p, stats, jac, dense, y_old, memory,
                     bad = code == NONFINITE
                 if converged or current_jac:
                     break
-                if _radau_jacobian(accel, t, y, f, p, x, a, jac, work, fw, stats):
+                if _radau_jac(accel, jacobian, analytic, t, y, f, p, x, a, jac, work, fw, rows, pivots, column, stats):
                     state[T], state[H] = t, h
                     return SINGULAR
                 current_jac = True
@@ -1774,7 +1825,7 @@ def radau_run(y, f, state, control, ts, ys, p, stats, jac, dense, y_old, memory,
             return SINGULAR
         stats[NFEV] += 1
         if recompute_jac:
-            if _radau_jacobian(accel, t_new, y_new, f_new, p, x, a, jac, work, fw, stats):
+            if _radau_jac(accel, jacobian, analytic, t_new, y_new, f_new, p, x, a, jac, work, fw, rows, pivots, column, stats):
                 state[T], state[H] = t_new, h
                 return SINGULAR
             current_jac = True

@@ -251,7 +251,7 @@ def _integrated(model: Model, settings: Settings, progress: Progress | None, max
     problem = Problem(settings.t0, settings.t_end, np.array(settings.y0, dtype=float), np.array(settings.t_eval, dtype=float), np.array(settings.p, dtype=float), settings.event is not None, budget)
     solver: integrators.Solver
     if settings.backend == "compiled":
-        numba = compile.build(model, "numba", event=settings.event)
+        numba = compile.build(model, "numba", jacobian=settings.method == "Radau", event=settings.event)
         generate, load = generate + numba.generate_seconds, load + numba.import_seconds
         solver = solver_for(settings, python, numba)
     else:

@@ -47,13 +47,14 @@ Newton matrix (kept by the caller) is current."""
 STATE_SIZE = 5
 
 # -- the controls `control` of a loop (float64; read-only to the loops)
-RTOL, ATOL, MAX_STEP, T_BOUND, T_STOP, USE_EVENT, SIZE, STEP, STEPS, T0, STIFFNESS, STRETCH = range(12)
+RTOL, ATOL, MAX_STEP, T_BOUND, T_STOP, USE_EVENT, SIZE, STEP, STEPS, T0, STIFFNESS, STRETCH, ANALYTIC = range(13)
 """Tolerances and the largest step (explicit pairs); the end of the run and where to pause; 1.0
 when a stop condition is watched; the size of the system's workspace (coordinates and
 multipliers); the fixed step, the number of steps and the start (Gauss); 1.0 to run DOP853's
 stiffness test and pause (RUNNING) once it finds the problem stiff (0: no test, the default); the
-steps an explicit pair takes before it pauses (0: PAUSE_STEPS, the default)."""
-CONTROL_SIZE = 12
+steps an explicit pair takes before it pauses (0: PAUSE_STEPS, the default); 1.0 when the compiled Radau
+method is given the system's analytic Jacobian (`_jac`; 0: forward differences)."""
+CONTROL_SIZE = 13
 
 # -- the projection record `record` of a projected explicit run (kernels.erk_projected; float64)
 LEVEL, USE_LEVEL, NEWTON_LIMIT, ROUND_OFF_LEVEL, ENERGY_LIMIT, CONDITION_LIMIT, CHANGE_LIMIT = range(7)
