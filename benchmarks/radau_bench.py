@@ -33,7 +33,34 @@ RTOLS = (1e-6, 1e-8, 1e-10)
 REPEATS = 2
 
 
+COST_SYSTEMS = [
+    ("damped stiff spring pendulum, k = 1e8", ROOT / "systems" / "stiff_spring_pendulum_damped.yaml", {"k": 1e8}),
+    ("elastic pendulum in r, k = 1e8", ROOT / "tests" / "numeric_audit" / "stiff_elastic_pendulum_r.yaml", {"k": 1e8}),
+]
+"""policy.RADAU_COST: a compiled Radau step attempt against a compiled DOP853 attempt (the two cases where auto's choice is close)."""
+
+
+def costs() -> None:
+    print("| system | Radau compiled: attempts, us each | DOP853 compiled: attempts, us each | ratio |")
+    print("|---|---|---|---|")
+    for name, path, parameters in COST_SYSTEMS:
+        model = derive.derive(spec.load(path))
+        settings = policy.validate(model, method="DOP853", backend="compiled", parameters=parameters, samples=101)
+        numba = compile.build(model, "numba", jacobian=True)
+        problem = integrators.Problem(0.0, settings.t_end, np.array(settings.y0), np.array(settings.t_eval), np.array(settings.p), False, 10**7)
+        best, attempts = {"Radau": math.inf, "DOP853": math.inf}, {}
+        for _ in range(REPEATS + 1):
+            for who in best:
+                began = time.process_time()
+                run = integrators.run_radau(numba, problem, settings.rtol, settings.atol) if who == "Radau" else integrators.run_erk(numba, problem, "DOP853", settings.rtol, settings.atol, math.inf)
+                seconds = time.process_time() - began
+                attempts[who] = run.stats.steps + (run.stats.rejected or 0)
+                best[who] = min(best[who], seconds / attempts[who])
+        print(f"| {name} | {attempts['Radau']}, {1e6 * best['Radau']:.2f} | {attempts['DOP853']}, {1e6 * best['DOP853']:.2f} | {best['Radau'] / best['DOP853']:.2f} |", flush=True)
+
+
 def main() -> None:
+    costs()
     print(f"# {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, load {os.getloadavg()}")
     print("| system | rtol | compiled steps | scipy steps | compiled CPU s | scipy CPU s | scipy / compiled | us/step compiled | us/step scipy | error compiled | error scipy |")
     print("|---|---|---|---|---|---|---|---|---|---|---|")
