@@ -69,7 +69,7 @@ def main() -> None:
         initial = {"r": 0.011} if "angle" in name else None
         settings = policy.validate(model, method="DOP853", backend="compiled", t_end=t_end, samples=101, initial=initial)
         problem = integrators.Problem(0.0, settings.t_end, np.array(settings.y0), np.array(settings.t_eval), np.array(settings.p), False, 10**6)
-        numba, python = compile.build(model, "numba"), compile.build(model, "python", jacobian=True)
+        numba, python = compile.build(model, "numba", jacobian=True), compile.build(model, "python", jacobian=True)
         scipy_problem = integrators.Problem(problem.t0, problem.t_end, problem.y0, problem.ts, problem.p, False, integrators.MAX_STEPS["python"])
         long = integrators.Problem(problem.t0, problem.t_end, problem.y0, problem.ts, problem.p, False, 10**7)
         reference = integrators.run_erk(numba, long, "DOP853", 1e-13, settings.atol * 1e-3, math.inf)
