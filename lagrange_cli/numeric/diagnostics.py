@@ -58,6 +58,11 @@ TRANSIENT = 100.0
 COMPILED_COST_RATIO = 2.0
 """The same for the compiled Radau method (kernels.radau_run): a step attempt costs 1.8x a compiled DOP853
 attempt (1.77-1.80 measured in CPU time: benchmarks/radau_bench.py, BENCHMARKS.md "Issue 15: a compiled Radau IIA")."""
+SHORT = 1e4
+"""Stability-limited explicit steps up to which compiled DOP853 stays the choice even where compiled Radau
+would take fewer step costs: such a run takes ~10 ms, less than loading Radau's module with its Jacobian
+(a second compiled module of the system), and `auto`'s own compiled run (policy.ATTEMPT_STEPS) decides
+the same way where it can start."""
 COST_RATIO = 100.0
 """cost of a scipy Radau step over a compiled DOP853 step, in units of the estimated steps:
 measured on the damped stiff spring (`lagrange stress stiff_spring_pendulum_damped --scale
@@ -199,7 +204,7 @@ def choose(found: Spectrum | None, t_end: float, compiled: bool = True) -> tuple
     if not stiff(found, t_end):
         return "DOP853", "not stiff at the initial state"
     steps = explicit_steps(found.decay, t_end)
-    if compiled and explicit_affordable(found, t_end, COMPILED_COST_RATIO):
+    if compiled and (steps <= SHORT or explicit_affordable(found, t_end, COMPILED_COST_RATIO)):
         return "DOP853", f"mildly stiff (decay {found.decay:.3g}/s x t_end {t_end:g}): about {steps:.3g} stability-limited explicit steps, cheaper compiled than compiled Radau"
     return "Radau", f"stiff: a mode decays at rate {found.decay:.3g}/s over t_end = {t_end:g} (about {steps:.3g} explicit steps)"
 
