@@ -147,7 +147,12 @@ def test_spectrum_does_not_count_a_saddle_pair_as_stiffness() -> None:
         ("double_pendulum", {}, {}, ("DOP853", "RK45")),
         ("double_pendulum_chaotic", {}, {}, ("DOP853", "RK45")),
         ("stiff_spring_pendulum_damped", {"k": 1e4}, {}, ("DOP853", "RK45")),
-        ("stiff_spring_pendulum_damped", {"k": 1e8}, {}, ("DOP853", "RK45", "LSODA")),  # a tie (benchmarks/auto_bench.py)
+        (
+            "stiff_spring_pendulum_damped",
+            {"k": 1e8},
+            {},
+            ("DOP853", "RK45", "LSODA", "Radau"),
+        ),  # a tie against LSODA (benchmarks/auto_bench.py); compiled Radau is 13x faster than DOP853 (benchmarks/radau_bench.py)
         ("stiff_spring_pendulum_damped", {"k": 1e10}, {}, ("Radau", "BDF", "LSODA")),
     ],
 )

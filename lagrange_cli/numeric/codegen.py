@@ -209,6 +209,23 @@ class Generator:
         body += [f"_j[:{n}, {n}:] = numpy.eye({n})", f"_j[{n}:, :] = _d[:{n}, :]", "return _j"]
         return define("_jac", "t, _y, _p", "The Jacobian of rhs.", body)
 
+    def jac_numba(self) -> str:
+        """`_jac(t, _y, _p, _dphi, _x, _a)` (numba, for the compiled Radau method): the same derivative as `jac`,
+        left for the kernel to solve (kernels._radau_analytic): x = [q_ddot; lambda] by `_accel`, then the
+        augmented matrix [[M, -A^T], [A, 0]] into `_a` and dPhi/d(q, q_dot) into `_dphi` (size x 2n), so that
+        J's lower rows are the first n rows of _a^-1 _dphi (not `_r`: `vectorize`'s loops use that name); returns `_accel`'s status (1: singular)."""
+        n, size = self.n, self.size
+        entries, places = self.augmented()
+        columns = [real_diff(f, v) for f in self.residual() for v in (*self.forms.q, *self.forms.qd)]
+        exprs = [*entries, *columns]
+        lines, results = self.block(exprs)
+        d = results[len(entries) :]
+        head = ["_status = _accel(t, _y, _p, _x, _a)"] + [f"_acc{i} = _x[{i}]" for i in range(n)] + [f"_lam{r} = _x[{n + r}]" for r in range(self.k)]
+        statements = [*lines, *self.fill("_a", results, places), "_dphi[:, :] = 0.0"]
+        statements += [f"_dphi[{i}, {c}] = {d[i * 2 * n + c]}" for i in range(size) for c in range(2 * n) if d[i * 2 * n + c] != "0"]
+        doc = "The augmented matrix into _a and dPhi/d(q, q_dot) into _dphi (the Jacobian is the first n rows of _a^-1 _dphi); returns 1 when singular."
+        return self.numba_function("_jac", "t, _y, _p, _dphi, _x, _a", doc, [*head, *self.unpack(exprs)], statements, ["return int(_status)"])
+
     def residual(self) -> list[Any]:
         """Phi = [F + A^T lambda - M q_ddot; -c_s - A q_ddot] with q_ddot, lambda as symbols."""
         forms, rows, acc, lam = self.forms, self.rows, self.symbols.acc, self.symbols.lam
@@ -290,7 +307,7 @@ class Generator:
         """The functions a target needs, the constants _N, _K, _SIZE, and the `math` imports.
 
         numba: `_accel`, `_hamilton` (unconstrained systems), `_rows` and `_energy` (kept
-        constraints: the projection) and `_event`, which the compiled loops call; Python: `_accel` (and `_jac`) for scipy, and the monitored quantities."""
+        constraints: the projection), `_jac` (with `jacobian`: the compiled Radau method) and `_event`, which the compiled loops call; Python: `_accel` (and `_jac`) for scipy, and the monitored quantities."""
         model, forms = self.model, self.forms
         self.tables: list[str] = []
         stop_expr = to_symengine(event) if event is not None else se.RealDouble(1.0)
@@ -299,6 +316,7 @@ class Generator:
         parts = [self.accel()]
         if self.target == "numba":
             parts += [self.hamilton()] if not model.constraints else [self.projection_rows(), self.scalar("_energy", "The energy function h = sum p q_dot - L.", forms.energy, False)]
+            parts += [self.jac_numba()] if jacobian else []
         else:
             parts += [self.jac()] if jacobian else []
             parts += [

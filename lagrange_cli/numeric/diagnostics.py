@@ -55,6 +55,14 @@ PER_RADIAN = 10.0
 """steps an implicit method takes per radian of the slowest motion (measured: Radau ~6-7 on the
 damped stiff spring at rtol 1e-5), plus TRANSIENT steps for the fast transient."""
 TRANSIENT = 100.0
+COMPILED_COST_RATIO = 2.0
+"""The same for the compiled Radau method (kernels.radau_run): a step attempt costs 1.8x a compiled DOP853
+attempt (1.77-1.80 measured in CPU time: benchmarks/radau_bench.py, BENCHMARKS.md "Issue 15: a compiled Radau IIA")."""
+SHORT = 1e4
+"""Stability-limited explicit steps up to which compiled DOP853 stays the choice even where compiled Radau
+would take fewer step costs: such a run takes ~10 ms, less than loading Radau's module with its Jacobian
+(a second compiled module of the system), and `auto`'s own compiled run (policy.ATTEMPT_STEPS) decides
+the same way where it can start."""
 COST_RATIO = 100.0
 """cost of a scipy Radau step over a compiled DOP853 step, in units of the estimated steps:
 measured on the damped stiff spring (`lagrange stress stiff_spring_pendulum_damped --scale
@@ -165,11 +173,12 @@ def implicit_steps(slowest: float, t_end: float) -> float:
     return PER_RADIAN * slowest * t_end + TRANSIENT
 
 
-def explicit_affordable(found: Spectrum, t_end: float) -> bool:
+def explicit_affordable(found: Spectrum, t_end: float, ratio: float = COST_RATIO) -> bool:
     """Whether compiled explicit steps (stability-limited) cost less than Radau's: explicit steps
-    <= COST_RATIO x implicit steps, i.e. decay / STABILITY <= COST_RATIO x (PER_RADIAN x slowest
-    + TRANSIENT / t_end) - a bound on the stiffness ratio decay / slowest, about 3000 on long runs."""
-    return explicit_steps(found.decay, t_end) <= COST_RATIO * implicit_steps(found.slowest, t_end)
+    <= ratio x implicit steps, i.e. decay / STABILITY <= ratio x (PER_RADIAN x slowest
+    + TRANSIENT / t_end) - a bound on the stiffness ratio decay / slowest, about 3000 on long runs
+    against scipy's Radau (COST_RATIO), about 60 against the compiled one (COMPILED_COST_RATIO)."""
+    return explicit_steps(found.decay, t_end) <= ratio * implicit_steps(found.slowest, t_end)
 
 
 def choose(found: Spectrum | None, t_end: float, compiled: bool = True) -> tuple[str, str]:
@@ -187,14 +196,16 @@ def choose(found: Spectrum | None, t_end: float, compiled: bool = True) -> tuple
     - Stiff and expensive -> Radau (e.g. the damped stiff spring at k = 1e9 over t_end = 10:
       1.05e5 explicit steps against 100 x ~390 estimated Radau steps), and
       any stiff case when explicit methods cannot run compiled (`compiled=False`: no numba).
+      With `compiled`, Radau runs compiled too, and a step of it costs COMPILED_COST_RATIO compiled
+      explicit steps, not COST_RATIO.
     """
     if found is None:
         return "DOP853", "the linearisation at the initial state could not be evaluated"
     if not stiff(found, t_end):
         return "DOP853", "not stiff at the initial state"
     steps = explicit_steps(found.decay, t_end)
-    if compiled and explicit_affordable(found, t_end):
-        return "DOP853", f"mildly stiff (decay {found.decay:.3g}/s x t_end {t_end:g}): about {steps:.3g} stability-limited explicit steps, cheaper compiled than Radau"
+    if compiled and (steps <= SHORT or explicit_affordable(found, t_end, COMPILED_COST_RATIO)):
+        return "DOP853", f"mildly stiff (decay {found.decay:.3g}/s x t_end {t_end:g}): about {steps:.3g} stability-limited explicit steps, cheaper compiled than compiled Radau"
     return "Radau", f"stiff: a mode decays at rate {found.decay:.3g}/s over t_end = {t_end:g} (about {steps:.3g} explicit steps)"
 
 

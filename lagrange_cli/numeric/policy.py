@@ -35,9 +35,10 @@ the run). Then:
   measures them, rejected steps included:
   round-off in the stiff terms (a spring of k = 1e11 written in its length) or a double
   eigenvalue at the stability limit make DOP853 take 5-6x the estimate, half of them rejected;
-- stiff and dearer explicitly (or no numba) -> LSODA (measured 3-6x faster than Radau and
-  2-4x faster than BDF through scipy on the stiff audit cases; it also switches to Adams by
-  itself where the stiffness dies out).
+- stiff and dearer explicitly -> Radau compiled where numba runs (a step costs RADAU_COST compiled
+  DOP853 attempts, 100-240x less than scipy's Radau: issue 15); without numba (or with --backend python)
+  -> LSODA (measured 3-6x faster than Radau and 2-4x faster than BDF through scipy on the stiff audit
+  cases; it also switches to Adams by itself where the stiffness dies out).
 
 The pilot runs on while LSODA still steps with Adams on a problem the sampled spectra call
 stiff (LSODA switches to BDF by itself once it detects the stiffness; up to PILOT_MAX_STEPS), and
@@ -82,6 +83,12 @@ attempt (12 compiled evaluations). Measured in CPU time of whole `simulate` call
 compiled DOP853 attempt (ratio 26-28) on the damped stiff spring at k = 1e8 and the elastic
 pendulum in r at k = 1e8, the two cases where the choice is close; earlier, loaded runs gave 20-30
 (20 was used until then) and integration time alone 8-20."""
+RADAU_COST = 2.0
+"""Cost of a compiled Radau step attempt (kernels.radau_run, analytic Jacobian) over a compiled DOP853
+attempt, where numba runs both: 1.77-1.80 measured (CPU time, best of 3, interleaved; 1.9-2.0 us against
+1.07-1.09 us) on the damped stiff spring and the elastic pendulum in r at k = 1e8 (BENCHMARKS.md,
+"Issue 15: a compiled Radau IIA"); the implicit steps are LSODA's settled steps from the pilot (order 5
+in BDF like Radau's). Where numba is present a stiff run goes to compiled Radau, not LSODA."""
 PROBE_STEPS = 80
 """Accepted steps of the explicit probe (`explicit_probe`): about 1000 Python right-hand side
 evaluations (~15 ms), run only where the decay's estimate would pick DOP853 on a stiff system;
@@ -209,8 +216,8 @@ def _choose(model: Model, settings: Settings) -> tuple[str, str, float | None, i
         raise LagrangeError(f"--step sets the fixed step of the symplectic method; {method} adapts its step to --rtol/--atol (use --max-step to bound it)")
     if method == "symplectic" and backend == "python":
         raise LagrangeError("the symplectic method runs only compiled (numba); drop --backend python")
-    if backend == "compiled" and method in ("Radau", "BDF", "LSODA"):
-        raise LagrangeError(f"{method} runs through scipy; use --backend python (or auto)")
+    if backend == "compiled" and method in ("BDF", "LSODA"):
+        raise LagrangeError(f"{method} runs through scipy; use --backend python (or auto), or --method Radau, which runs compiled too")
     needs_rates = method == "auto" or backend == "auto" or (method == "symplectic" and step is None) or bool(model.constraints)
     found = initial_spectrum(model, p, y0) if needs_rates else None
     rate = found.rate if found is not None else 0.0
@@ -261,6 +268,8 @@ def _backend(model: Model, method: str, rate: float, t_end: float) -> tuple[str,
         return "python", "numba is not installed"
     if method == "symplectic":
         return "compiled", "the symplectic method runs compiled"
+    if method == "Radau":
+        return "compiled", "Radau runs compiled (an implicit step costs about 100x less than scipy's)"
     if rate * t_end > HEAVY:
         return "compiled", f"a long run (rate {rate:.3g}/s x t_end {t_end:g}): compiling pays off"
     if (compile.cache_dir() / f"lagrange_numba_{compile.fingerprint(model, 'numba', False, None)}.py").exists():
@@ -729,10 +738,11 @@ def choose(model: Model, settings: Settings, found: diagnostics.Spectrum | None,
             seen = f"no stiffness in {tried.steps} steps"
         goes_on = f"; the compiled DOP853 run started first ({seen}) goes on from t = {tried.t:.3g}"
         dropped = f"; the compiled DOP853 run started first ({seen}) is dropped at t = {tried.t:.3g}"
+    implicit_method, cost, costs = _implicit(compiled)
     measured = pilot(model, settings)
     if measured is None:
         method, why = diagnostics.choose(found, t_end, compiled=compiled)
-        return ("LSODA" if method == "Radau" else method), why + (goes_on if method == "DOP853" else dropped)
+        return (implicit_method if method == "Radau" else method), why + (goes_on if method == "DOP853" else dropped)
     worst = measured.worst
     where = f"at t = {measured.t_worst:.3g}" if measured.t_worst > 0 else "at the start"
     span = f"a pilot run of {measured.steps} LSODA steps to t = {measured.t_reached:.3g}, {measured.spectra + 1} Jacobians sampled"
@@ -754,8 +764,8 @@ def choose(model: Model, settings: Settings, found: diagnostics.Spectrum | None,
         # whole run's; the compiled run's measured cost decides (issue 15: on the ball in the cup LSODA, 1e-3 off
         # at rtol 1e-8 with every crossing located, ran out of its budget where compiled DOP853 finished)
         return _measured_choice(model, settings, tried, worst, where, lsoda, implicit)
-    if explicit > IMPLICIT_COST * implicit:
-        return "LSODA", f"stiff: {numbers}; an implicit step costs ~{IMPLICIT_COST:g} compiled explicit steps{dropped}"
+    if explicit > cost * implicit:
+        return implicit_method, f"stiff: {numbers}; {costs}{dropped}"
     if tried is not None and not tried.ended:
         return _measured_choice(model, settings, tried, worst, where, lsoda, implicit)
     probe = explicit_probe(model, settings, measured)
@@ -766,9 +776,18 @@ def choose(model: Model, settings: Settings, found: diagnostics.Spectrum | None,
         else f"a DOP853 probe of {probe.steps} steps from t = {probe.t0:.3g} ({probe.evaluations} evaluations, rejected steps included) extrapolates to {attempts:.3g} step attempts"
     )
     numbers = f"decay {worst.decay:.3g}/s ({where}) x t_end {t_end:g}; {tried_text}, against {lsoda}"
-    if attempts <= IMPLICIT_COST * implicit:
-        return "DOP853", f"mildly stiff: {numbers}; compiled explicit steps are cheaper (an implicit step costs ~{IMPLICIT_COST:g} of them)"
-    return "LSODA", f"stiff: {numbers}; an implicit step costs ~{IMPLICIT_COST:g} compiled explicit steps"
+    if attempts <= cost * implicit:
+        return "DOP853", f"mildly stiff: {numbers}; compiled explicit steps are cheaper ({costs})"
+    return implicit_method, f"stiff: {numbers}; {costs}"
+
+
+def _implicit(compiled: bool) -> tuple[str, float, str]:
+    """The implicit method `auto` picks for a stiff run, what one of its steps costs in compiled DOP853
+    step attempts, and that said in words: compiled Radau where numba runs (RADAU_COST), else LSODA
+    (IMPLICIT_COST: scipy's, with the Python right-hand side)."""
+    if compiled:
+        return "Radau", RADAU_COST, f"a compiled Radau step costs ~{RADAU_COST:g} compiled explicit steps"
+    return "LSODA", IMPLICIT_COST, f"an implicit step costs ~{IMPLICIT_COST:g} compiled explicit steps"
 
 
 def _measured_choice(model: Model, settings: Settings, tried: Attempt, worst: diagnostics.Spectrum, where: str, lsoda: str, implicit: float) -> tuple[str, str]:
@@ -781,13 +800,14 @@ def _measured_choice(model: Model, settings: Settings, tried: Attempt, worst: di
             "DOP853",
             f"mildly stiff (decay {worst.decay:.3g}/s {where}): the compiled DOP853 run, gone on past the stiffness, finished in {found.steps} steps ({found.rejected} rejected), against {lsoda}",
         )
+    implicit_method, cost, costs = _implicit(True)
     if found.ended:
-        return "LSODA", f"mildly stiff (decay {worst.decay:.3g}/s {where}): the compiled DOP853 run failed at t = {found.t:.3g}; {lsoda}"
+        return implicit_method, f"mildly stiff (decay {worst.decay:.3g}/s {where}): the compiled DOP853 run failed at t = {found.t:.3g}; {lsoda}"
     attempts = found.left(t_end)  # what is done is paid for either way: the attempts left against a whole implicit run
     numbers = (
         f"decay {worst.decay:.3g}/s ({where}) x t_end {t_end:g}; the compiled DOP853 run, gone on to t = {found.t:.3g} ({found.steps} steps, {found.rejected} rejected), "
         f"needs about {attempts:.3g} more step attempts at its measured rate, against {lsoda}"
     )
-    if attempts <= IMPLICIT_COST * implicit:
-        return "DOP853", f"mildly stiff: {numbers}; compiled explicit steps are cheaper (an implicit step costs ~{IMPLICIT_COST:g} of them); it goes on from there"
-    return "LSODA", f"stiff: {numbers}; an implicit step costs ~{IMPLICIT_COST:g} compiled explicit steps"
+    if attempts <= cost * implicit:
+        return "DOP853", f"mildly stiff: {numbers}; compiled explicit steps are cheaper ({costs}); it goes on from there"
+    return implicit_method, f"stiff: {numbers}; {costs}"
