@@ -90,21 +90,48 @@ def se_expand_bounded(expr: se.Basic) -> se.Basic:
     return se.expand(expr) if expandable(expr) else expr
 
 
+KINKS = (se.Abs, se.sign, se.Piecewise, se.Max, se.Min)
+"""Functions whose argument's sign switches the expression (a one-sided wall, Coulomb friction)."""
+
+
+def _kinked(term: se.Basic) -> bool:
+    return any(term.atoms(kind) for kind in KINKS)
+
+
+def _split_kinked(expr: se.Basic) -> tuple[se.Basic, se.Basic]:
+    """(the terms of the sum `expr` without a kink, those with one)."""
+    terms = se.Add.make_args(expr)
+    return se.Add(*(t for t in terms if not _kinked(t))), se.Add(*(t for t in terms if _kinked(t)))
+
+
+def smooth_expand(expr: se.Basic) -> se.Basic:
+    """symengine's expand of the terms of `expr` without a kink (Abs, sign, Piecewise, Max, Min); the
+    terms with one are kept as they are. Multiplied out, a one-sided wall k ((e + |e|)/2)^2 becomes
+    k e^2/4 + k e |e|/2 + k |e|^2/4, terms of size k that cancel where the wall is not touched and leave
+    round-off of k x 1e-16 (1e-8 at k = 1e8) in a force that is exactly 0.0 in the product form
+    (e + |e| is 0.0 in floating point for e < 0): an implicit method's Newton iteration, or LSODA's error
+    estimate, then chases that noise (issue 15: the ball in the cup)."""
+    smooth, kinked = _split_kinked(expr)
+    return se.expand(smooth) + kinked
+
+
 def combine_trig(expr: se.Basic) -> se.Basic:
     """Targeted, linear-time trigonometric simplification of an expanded sum:
     c cos a cos b + c sin a sin b -> c cos(a - b), c cos a cos b - c sin a sin b -> c cos(a + b),
     c sin a cos b +- c cos a sin b -> c sin(a +- b), c sin^2 a + c cos^2 a -> c.
     It only ever shortens the sum, so it is safe on expressions of any size; an expression whose
-    expansion would be too large (`expandable`) is returned as it is."""
+    expansion would be too large (`expandable`) is returned as it is, and so are its terms with a kink
+    (`smooth_expand`)."""
     if not expandable(expr):
         return expr
+    expr, kinked = _split_kinked(expr)
     expr = se.expand(expr)
     for _ in range(6):
         combined = _combine_once(expr)
         if combined == expr:
             break
         expr = se_expand_bounded(combined)
-    return expr
+    return expr + kinked
 
 
 def _combine_once(expr: se.Basic) -> se.Basic:

@@ -33,7 +33,7 @@ from typing import Any
 import sympy as sp
 
 from lagrange_cli._symengine import se, to_symengine
-from lagrange_cli.algebra import combine_trig, expand_bounded, expandable
+from lagrange_cli.algebra import combine_trig, expand_bounded, expandable, smooth_expand
 from lagrange_cli.errors import Span, fail
 from lagrange_cli.expr import numeric_value, real_derivative
 from lagrange_cli.kinematics import Rate
@@ -921,8 +921,9 @@ def euler_lagrange(lagrangian: se.Basic, dissipation: se.Basic, forces: Sequence
 
 def _expand(expr: se.Basic) -> se.Basic:
     """Expand so that like terms cancel, unless the expansion would explode (`algebra.expandable`:
-    a power of a sum above 6, or more than `algebra.MAX_TERMS` terms)."""
-    return se.expand(expr) if expandable(expr) else expr
+    a power of a sum above 6, or more than `algebra.MAX_TERMS` terms); terms with a kink stay as they are
+    (`algebra.smooth_expand`)."""
+    return smooth_expand(expr) if expandable(expr) else expr
 
 
 def energy_function(lagrangian: se.Basic, p: Sequence[se.Basic], qd: Sequence[se.Basic]) -> se.Basic:
