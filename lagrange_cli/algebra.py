@@ -99,8 +99,11 @@ def _kinked(term: se.Basic) -> bool:
 
 
 def _split_kinked(expr: se.Basic) -> tuple[se.Basic, se.Basic]:
-    """(the terms of the sum `expr` without a kink, those with one)."""
+    """(the terms of the sum `expr` without a kink, those with one); `expr` itself and 0 when none has one
+    (the sum is not rebuilt: its order, and so the generated code's round-off, stays as it was)."""
     terms = se.Add.make_args(expr)
+    if not any(_kinked(t) for t in terms):
+        return expr, se.Integer(0)
     return se.Add(*(t for t in terms if not _kinked(t))), se.Add(*(t for t in terms if _kinked(t)))
 
 
@@ -112,7 +115,7 @@ def smooth_expand(expr: se.Basic) -> se.Basic:
     (e + |e| is 0.0 in floating point for e < 0): an implicit method's Newton iteration, or LSODA's error
     estimate, then chases that noise (issue 15: the ball in the cup)."""
     smooth, kinked = _split_kinked(expr)
-    return se.expand(smooth) + kinked
+    return se.expand(smooth) + kinked if kinked != 0 else se.expand(smooth)
 
 
 def combine_trig(expr: se.Basic) -> se.Basic:
@@ -131,7 +134,7 @@ def combine_trig(expr: se.Basic) -> se.Basic:
         if combined == expr:
             break
         expr = se_expand_bounded(combined)
-    return expr + kinked
+    return expr + kinked if kinked != 0 else expr
 
 
 def _combine_once(expr: se.Basic) -> se.Basic:
