@@ -76,6 +76,7 @@ from lagrange_cli.numeric.reference import (
     Horizon,
     Reference,
     ReferenceFailed,
+    ahead,
     dense,
     implicit_first,
     implicit_tolerances,
@@ -432,7 +433,7 @@ def _order(model: Model, setup: Setup, candidates: Sequence[Candidate]) -> list[
     limited = implicit_first(model, setup)  # the pilot (not only the start) finds it stiff: auto may still pick compiled DOP853
     return sorted(
         candidates,
-        key=lambda c: (c != AUTO, c.method != picked, limited and c.method not in IMPLICIT, backend_for(c) != "compiled", stiff and c.method not in IMPLICIT),
+        key=lambda c: (c != AUTO, c.method != picked, limited and not ahead(c), backend_for(c) != "compiled", stiff and c.method not in IMPLICIT),
     )
 
 
