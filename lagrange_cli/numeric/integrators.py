@@ -1,6 +1,7 @@
 """The integrators behind `simulate`: compiled loops (kernels.py) and scipy's solvers, one result shape.
 
 - `run_erk`: RK45 or DOP853 compiled with numba, the same steps as scipy's;
+- `run_radau`: Radau IIA (order 5, the RADAU5 algorithm) compiled, for stiff problems;
 - `run_gauss`: the symplectic Gauss-Legendre method in (q, p), compiled, fixed step;
 - `run_scipy`: scipy.integrate's RK45, DOP853, Radau, BDF, LSODA stepped one step at a time
   (so that a failure keeps the trajectory so far, and events and samples use dense output),
@@ -8,7 +9,7 @@
 
 Each returns a `Run`: the samples reached, how it ended, and its counts and timings. Behind one
 interface (scipy's `OdeSolver` as the anchor): a `Solver` is made once from the decided settings
-(`ExplicitRK`, `Gauss`, `Scipy`) and `solver.run(problem, progress)` integrates a `Problem` (or a
+(`ExplicitRK`, `RadauCompiled`, `Gauss`, `Scipy`) and `solver.run(problem, progress)` integrates a `Problem` (or a
 stretch of one: the scipy backend's projection runs it stretch by stretch; the compiled one projects
 inside its loop, `run_erk_projected`) to a `Run`, with the status enum
 (`status.Status`) and named counters (`Stats`).
@@ -429,6 +430,33 @@ def run_gauss(functions: Functions, problem: Problem, z0: np.ndarray, stages: in
     return Run(problem.ts[:m], ys[:m], Status.of_code(code), float(state[status.T]), y_last, stats_record, compile_seconds, time.perf_counter() - began, gauss=gauss)
 
 
+def run_radau(functions: Functions, problem: Problem, rtol: float, atol: float, max_step: float = math.inf, progress: Progress | None = None) -> Run:
+    """Radau IIA (3 stages, order 5) compiled (kernels.radau_run: the RADAU5 algorithm, scipy's step
+    control), with the Jacobian by forward differences of the compiled right-hand side."""
+    kernels = functions.kernels
+    assert kernels is not None
+    start, _, compile_start = _compile(functions, "radau_start", [])
+    entry, (accel, event), compile_run = _compile(functions, "radau_run", [("_accel", kernels.ACCEL_SIG), ("_event", kernels.EVENT_SIG)])
+    began = time.perf_counter()
+    n = len(problem.y0)
+    y, f = problem.y0.copy(), np.empty(n)
+    stats = _new_stats(math.inf, 0.0)
+    ys = np.full((len(problem.ts), n), np.nan)
+    control = _control(problem, functions.module._SIZE, rtol=rtol, atol=atol, max_step=max_step)
+    jac, dense, y_old, memory = np.zeros((n, n)), np.zeros((3, n)), np.zeros(n), np.zeros(status.RADAU_SIZE)
+    h0 = start(problem.t0, y, f, control, problem.p, stats, jac, memory, accel)
+    state = _state(problem.t0, h0, _initial_event(functions, problem))
+
+    def advance(t_stop: float) -> int:
+        control[status.T_STOP] = t_stop
+        return int(entry(y, f, state, control, problem.ts, ys, problem.p, stats, jac, dense, y_old, memory, accel, event))
+
+    code = status.SINGULAR if h0 < 0 else _drive(advance, lambda: float(state[status.T]), lambda: int(stats[status.NSTEPS]), problem, progress)
+    m = int(state[status.NEXT_SAMPLE])
+    record = _stats(stats, nlu=int(stats[status.NLU]))
+    return Run(problem.ts[:m], ys[:m], Status.of_code(code), float(state[status.T]), y, record, compile_start + compile_run, time.perf_counter() - began)
+
+
 PILOT_STEPS = 1000
 """A pilot spans at most this many steps of the first trial step (about 3 oscillations of the
 fastest rate at the step `policy.symplectic_step` proposes), and at most the whole run."""
@@ -711,6 +739,24 @@ class ExplicitRK:
 
     def run(self, problem: Problem, progress: Progress | None = None) -> Run:
         return run_erk(self.functions, problem, self.method, self.rtol, self.atol, self.max_step, progress)
+
+
+@dataclass(frozen=True)
+class RadauCompiled:
+    """Radau IIA compiled (`run_radau`)."""
+
+    functions: Functions
+    rtol: float
+    atol: float
+    max_step: float = math.inf
+    method: str = "Radau"
+
+    @property
+    def name(self) -> str:
+        return "Radau (compiled)"
+
+    def run(self, problem: Problem, progress: Progress | None = None) -> Run:
+        return run_radau(self.functions, problem, self.rtol, self.atol, self.max_step, progress)
 
 
 @dataclass(frozen=True)

@@ -32,17 +32,23 @@ from lagrange_cli.numeric.status import (
     ATOL,
     CHANGE_LIMIT,
     CONDITION_LIMIT,
+    CONTRACTION,
+    CURRENT_JAC,
     DONE,
     ENERGY,
     ENERGY_LIMIT,
+    ERROR_OLD,
     EVENT,
     EVENT_VALUE,
     FAILED_AT,
     FAILURES,
+    H_ABS_OLD,
     H_LAMBDA,
+    HAVE_DENSE,
     HMAX,
     HMIN,
     LEVEL,
+    LU_STEP,
     MAX_FACTOR,
     MAX_STEP,
     MIN_FACTOR,
@@ -54,6 +60,7 @@ from lagrange_cli.numeric.status import (
     NEXT_SAMPLE,
     NFEV,
     NJEV,
+    NLU,
     NO_CONVERGENCE,
     NONFINITE,
     NONSTIFF,
@@ -70,6 +77,7 @@ from lagrange_cli.numeric.status import (
     SIZE,
     STEP,
     STEP_COLLAPSE,
+    STEP_OLD,
     STEPS,
     STIFF,
     STIFF_H_LAMBDA,
@@ -79,6 +87,7 @@ from lagrange_cli.numeric.status import (
     STRETCH,
     T0,
     T_BOUND,
+    T_OLD,
     T_STOP,
     USE_EVENT,
     USE_LEVEL,
@@ -86,7 +95,29 @@ from lagrange_cli.numeric.status import (
     H,
     T,
 )
-from lagrange_cli.numeric.tableaux import DOP853, DOP853_A, DOP853_B, DOP853_C, DOP853_D, DOP853_E3, DOP853_E5, GAUSS, RK45, RK45_A, RK45_B, RK45_C, RK45_E, RK45_P
+from lagrange_cli.numeric.tableaux import (
+    DOP853,
+    DOP853_A,
+    DOP853_B,
+    DOP853_C,
+    DOP853_D,
+    DOP853_E3,
+    DOP853_E5,
+    GAUSS,
+    MU_COMPLEX_IMAG,
+    MU_COMPLEX_REAL,
+    MU_REAL,
+    RADAU_C,
+    RADAU_E,
+    RADAU_T,
+    RADAU_TI,
+    RK45,
+    RK45_A,
+    RK45_B,
+    RK45_C,
+    RK45_E,
+    RK45_P,
+)
 
 __all__ = ["DIAGNOSTICS", "MAX_ITERATIONS", "PAUSE_STEPS", "SIGNATURES", "compiled", "diagnostics_start", "lu_solve", "memory_size"]
 # The Gauss stage equations are solved to round-off (a looser tolerance, such as the 1e-11 used
@@ -236,6 +267,10 @@ SIGNATURES = {
     "erk_projected": _I8(_I8, _ARR, _ARR, _ARR, _ARR, _ARR, _MAT, _ARR, _ARR, _ACCEL_T, _EVENT_T, _ROWS_T, _ENERGY_T, _ARR, _ARR, _ARR),
     # (t, y, p, holonomic, record, out, size, rows, energy)
     "project_state": _I8(_F8, _ARR, _ARR, _ARR, _ARR, _ARR, _I8, _ROWS_T, _ENERGY_T),
+    # (t0, y, f, control, p, stats, jac, memory, accel)
+    "radau_start": _F8(_F8, _ARR, _ARR, _ARR, _ARR, _ARR, _MAT, _ARR, _ACCEL_T),
+    # (y, f, state, control, ts, ys, p, stats, jac, dense, y_old, memory, accel, event)
+    "radau_run": _I8(_ARR, _ARR, _ARR, _ARR, _ARR, _MAT, _ARR, _ARR, _MAT, _MAT, _ARR, _ARR, _ACCEL_T, _EVENT_T),
 }
 """The entry points. The arrays are records with named indices (status.py): `state` (T, H or the
 steps done, EVENT_VALUE, NEXT_SAMPLE), `control` (RTOL, ATOL, MAX_STEP, T_BOUND, T_STOP, USE_EVENT,
@@ -1354,3 +1389,437 @@ def gauss_run(s, z, state, control, ts, zs, p, stats, sizes, memory, pivots, ham
         if event_found:
             return EVENT
     return DONE if done >= steps else RUNNING
+
+
+# -- Radau IIA (3 stages, order 5), the RADAU5 algorithm (Hairer and Wanner, Solving ODEs II, IV.8) ----------
+#
+# Stages Z_i = y(t + c_i h) - y solve Z = h (A x I) F(Z) by simplified Newton iteration, transformed by
+# T (tableaux.RADAU_T) into one real system (MU_REAL / h - J) and one complex one (MU_COMPLEX / h - J),
+# each n x n, factored once and reused while the step changes little; the Jacobian J is refreshed where
+# Newton iteration converges slowly, and the step is halved where it does not converge with a fresh one.
+# The error estimate is the embedded one filtered by (MU_REAL / h - J)^-1 (and evaluated once more where
+# it is large on the first or a rejected step); the step follows the predictive (Gustafsson) controller
+# with a safety factor that shrinks with the Newton iterations taken. The same decisions as scipy's
+# `Radau` (which reads as a reference), so that both take about the same steps; the dense output is the
+# collocation polynomial.
+
+NEWTON_MAXITER = 6
+"""Newton iterations of one step at most (RADAU5's NIT = 7 is the default there; scipy takes 6)."""
+RADAU_ERROR_ORDER = 3
+"""The error estimate's order (scipy's `error_estimator_order` of Radau): the initial step is chosen for it."""
+JAC_RATE = 1e-3
+"""A step whose Newton iteration took more than 2 iterations at a contraction rate above this refreshes J."""
+DIVERGENT = 0.99
+"""Newton corrections shrinking by less than this factor an iteration do not converge (radau5.f)."""
+KEEP_FACTOR = 1.2
+"""A step that would grow by less than this keeps its size (and the Newton matrices' factors)."""
+_RC = np.array(RADAU_C)
+_RE = np.array(RADAU_E)
+_RT = np.array(RADAU_T)
+_RTI = np.array(RADAU_TI)
+_RP = np.linalg.inv(np.array([[c ** (k + 1) for k in range(3)] for c in RADAU_C])).T.copy()
+"""The dense output's coefficients Q = Z^T P: y(t + x h) = y + sum_k Q_k x^(k + 1) passes through y + Z_i at x = c_i."""
+_MU_REAL = MU_REAL
+_MU_COMPLEX = complex(MU_COMPLEX_REAL, MU_COMPLEX_IMAG)
+_EPS = 2.220446049250313e-16
+
+
+@njit(error_model="numpy")
+def _lu_factor(a, pivots):
+    """LU factors of a (real or complex) in place, partial pivoting (pivots[k]: the row swapped with
+    row k); 1 when a pivot is zero or not finite (singular, or NaN entries), else 0."""
+    n = a.shape[0]
+    for k in range(n):
+        pivot = k
+        big = abs(a[k, k])
+        for i in range(k + 1, n):
+            if abs(a[i, k]) > big:
+                big = abs(a[i, k])
+                pivot = i
+        pivots[k] = pivot
+        if not (big > 0.0 and big < np.inf):
+            return 1
+        if pivot != k:
+            for j in range(n):
+                a[k, j], a[pivot, j] = a[pivot, j], a[k, j]
+        inverse = 1.0 / a[k, k]
+        for i in range(k + 1, n):
+            a[i, k] *= inverse
+            factor = a[i, k]
+            if factor != 0.0:
+                for j in range(k + 1, n):
+                    a[i, j] -= factor * a[k, j]
+    return 0
+
+
+@njit(error_model="numpy")
+def _lu_back(a, pivots, b):
+    """Solve with `_lu_factor`'s factors: b becomes a^-1 b."""
+    n = b.shape[0]
+    for k in range(n):
+        r = pivots[k]
+        if r != k:
+            b[k], b[r] = b[r], b[k]
+        for i in range(k + 1, n):
+            b[i] -= a[i, k] * b[k]
+    for i in range(n - 1, -1, -1):
+        total = b[i]
+        for j in range(i + 1, n):
+            total -= a[i, j] * b[j]
+        b[i] = total / a[i, i]
+
+
+@njit(error_model="numpy")
+def _radau_matrices(jac, h, lu_real, pivots_real, lu_complex, pivots_complex, stats):
+    """The Newton matrices' factors: MU_REAL / h - J and MU_COMPLEX / h - J; 1 when one is singular."""
+    n = jac.shape[0]
+    real, cplx = _MU_REAL / h, _MU_COMPLEX / h
+    for i in range(n):
+        for j in range(n):
+            lu_real[i, j] = -jac[i, j]
+            lu_complex[i, j] = -jac[i, j]
+        lu_real[i, i] += real
+        lu_complex[i, i] += cplx
+    stats[NLU] += 2
+    if _lu_factor(lu_real, pivots_real):
+        return 1
+    return _lu_factor(lu_complex, pivots_complex)
+
+
+@njit(error_model="numpy")
+def _radau_jacobian(accel, t, y, f, p, x, a, jac, work, fw, stats):
+    """J = df/dy at (t, y) by forward differences (radau5.f's increments sqrt(eps max(1e-5, |y_j|))),
+    f = f(t, y) given; the rows of dq/dt are exact ([0 I]). 1 when the matrix is singular."""
+    n = y.shape[0]
+    half = n // 2
+    for i in range(n):
+        work[i] = y[i]
+    for j in range(n):
+        step = (_EPS * max(1e-5, abs(y[j]))) ** 0.5
+        work[j] = y[j] + step
+        step = work[j] - y[j]
+        if accel(t, work, p, x, a):
+            return 1
+        for i in range(half):
+            jac[i, j] = 1.0 if j == half + i else 0.0
+            jac[half + i, j] = (x[i] - f[half + i]) / step
+        work[j] = y[j]
+    stats[NFEV] += n
+    stats[NJEV] += 1
+    return 0
+
+
+@njit(error_model="numpy")
+def _radau_eval(t_old, h, y_old, dense, t, out):
+    """The collocation polynomial of the step [t_old, t_old + h] at t (dense[k]: the coefficient of x^(k + 1))."""
+    xi = (t - t_old) / h
+    for i in range(y_old.shape[0]):
+        out[i] = y_old[i] + xi * (dense[0, i] + xi * (dense[1, i] + xi * dense[2, i]))
+
+
+@njit(error_model="numpy")
+def _radau_newton(accel, t, y, h, Z, W, F, dW, scale, tol, contraction, lu_real, pivots_real, lu_complex, pivots_complex, rhs_complex, work, p, x, a, stats):
+    """Simplified Newton iteration on the collocation system from the predictor Z (overwritten by the
+    stages): (code, converged, iterations, the last contraction rate (NaN before a second iteration),
+    the contraction factor rate / (1 - rate)). The code is SINGULAR where the matrix of the equations is
+    singular at a stage, NONFINITE where a stage's value is not finite (not converged), else RUNNING.
+    As in radau5.f, a correction counts as converged once contraction x its norm <= tol, the first
+    one judged by the factor of the steps before (`contraction`): a predictor already at the round-off
+    level of the equations converges in one iteration (waiting for a second correction to measure the
+    rate, as scipy does, compares two round-off noises and can see divergence in them). The iteration
+    stops, not converged, when the corrections stop contracting (rate >= 0.99) or would not reach `tol`
+    within NEWTON_MAXITER at their rate."""
+    n = y.shape[0]
+    half = n // 2
+    real, cplx = _MU_REAL / h, _MU_COMPLEX / h
+    for r in range(3):
+        for i in range(n):
+            W[r, i] = _RTI[r, 0] * Z[0, i] + _RTI[r, 1] * Z[1, i] + _RTI[r, 2] * Z[2, i]
+    norm_old, rate = -1.0, np.nan
+    for k in range(NEWTON_MAXITER):
+        for r in range(3):
+            for i in range(n):
+                work[i] = y[i] + Z[r, i]
+            if accel(t + _RC[r] * h, work, p, x, a):
+                return SINGULAR, False, k + 1, rate, contraction
+            for i in range(half):
+                F[r, i] = work[half + i]
+                F[r, half + i] = x[i]
+        stats[NFEV] += 3
+        for r in range(3):
+            for i in range(n):
+                if not np.isfinite(F[r, i]):
+                    return NONFINITE, False, k + 1, rate, contraction
+        for i in range(n):
+            dW[0, i] = _RTI[0, 0] * F[0, i] + _RTI[0, 1] * F[1, i] + _RTI[0, 2] * F[2, i] - real * W[0, i]
+            re = _RTI[1, 0] * F[0, i] + _RTI[1, 1] * F[1, i] + _RTI[1, 2] * F[2, i]
+            im = _RTI[2, 0] * F[0, i] + _RTI[2, 1] * F[1, i] + _RTI[2, 2] * F[2, i]
+            rhs_complex[i] = complex(re, im) - cplx * complex(W[1, i], W[2, i])
+        _lu_back(lu_real, pivots_real, dW[0])
+        _lu_back(lu_complex, pivots_complex, rhs_complex)
+        total = 0.0
+        for i in range(n):
+            dW[1, i], dW[2, i] = rhs_complex[i].real, rhs_complex[i].imag
+            total += (dW[0, i] / scale[i]) ** 2 + (dW[1, i] / scale[i]) ** 2 + (dW[2, i] / scale[i]) ** 2
+        norm = (total / (3 * n)) ** 0.5
+        if not np.isfinite(norm):
+            return NONFINITE, False, k + 1, rate, contraction
+        if norm_old >= 0.0:
+            rate = norm / norm_old
+            if rate >= DIVERGENT or rate ** (NEWTON_MAXITER - k) / (1.0 - rate) * norm > tol:
+                return RUNNING, False, k + 1, rate, contraction
+            contraction = rate / (1.0 - rate)
+        for r in range(3):
+            for i in range(n):
+                W[r, i] += dW[r, i]
+        for r in range(3):
+            for i in range(n):
+                Z[r, i] = _RT[r, 0] * W[0, i] + _RT[r, 1] * W[1, i] + _RT[r, 2] * W[2, i]
+        if norm == 0.0 or contraction * norm <= tol:
+            return RUNNING, True, k + 1, rate, contraction
+        norm_old = norm
+    return RUNNING, False, NEWTON_MAXITER, rate, contraction
+
+
+@njit(error_model="numpy")
+def _predict_factor(h_abs, h_abs_old, error_norm, error_old):
+    """The predictive (Gustafsson) controller's factor (radau5.f; h_abs_old, error_old NaN: none)."""
+    if np.isnan(h_abs_old) or np.isnan(error_old) or error_norm == 0.0:
+        multiplier = 1.0
+    else:
+        multiplier = h_abs / h_abs_old * (error_old / error_norm) ** 0.25
+    if error_norm == 0.0:
+        return np.inf
+    return min(1.0, multiplier) * error_norm**-0.25
+
+
+@njit(error_model="numpy")
+def _radau_root(event, t_old, h, y_old, dense, hi, p, x, a, work, g_old):
+    """The time in (t_old, hi] where the event changes sign: the Illinois method on the collocation polynomial."""
+    lo = t_old
+    g_lo = g_old
+    _radau_eval(t_old, h, y_old, dense, hi, work)
+    g_hi = event(hi, work, p, x, a)
+    side = 0
+    for _ in range(100):
+        if hi - lo <= 4e-16 * max(abs(hi), 1.0):
+            break
+        mid = (lo * g_hi - hi * g_lo) / (g_hi - g_lo) if g_hi != g_lo else 0.5 * (lo + hi)
+        if not lo < mid < hi:
+            mid = 0.5 * (lo + hi)
+        _radau_eval(t_old, h, y_old, dense, mid, work)
+        g_mid = event(mid, work, p, x, a)
+        if g_mid == 0.0:
+            return mid
+        if (g_mid < 0.0) == (g_lo < 0.0):
+            lo, g_lo = mid, g_mid
+            if side == -1:
+                g_hi *= 0.5
+            side = -1
+        else:
+            hi, g_hi = mid, g_mid
+            if side == 1:
+                g_lo *= 0.5
+            side = 1
+    return hi
+
+
+def radau_start(t0, y, f, control, p, stats, jac, memory, accel):
+    """f = f(t0, y), J at (t0, y), a fresh `memory` (status.T_OLD, ...) and scipy's initial step for
+    Radau; -1 when the matrix is singular at t0."""
+    n = y.shape[0]
+    size = int(control[SIZE])
+    x, a = np.empty(size), np.empty((size, size))
+    if _rhs(accel, t0, y, p, f, x, a):
+        return -1.0
+    stats[NFEV] += 1
+    if _radau_jacobian(accel, t0, y, f, p, x, a, jac, np.empty(n), np.empty(n), stats):
+        return -1.0
+    memory[T_OLD], memory[STEP_OLD], memory[H_ABS_OLD], memory[ERROR_OLD] = t0, 0.0, np.nan, np.nan
+    memory[CURRENT_JAC], memory[LU_STEP], memory[HAVE_DENSE], memory[CONTRACTION] = 1.0, 0.0, 0.0, 1.0
+    rtol = max(control[RTOL], 100 * _EPS)
+    return _initial_step(accel, t0, y, f, control[T_BOUND], control[MAX_STEP], RADAU_ERROR_ORDER, rtol, control[ATOL], p, x, a, stats)
+
+
+def radau_run(y, f, state, control, ts, ys, p, stats, jac, dense, y_old, memory, accel, event):
+    """Advance (t = state[T], y, f = f(t, y), |h| = state[H], the stop condition's value state[EVENT_VALUE],
+    J = jac, the last step's collocation polynomial (dense, y_old) and the step control's `memory`, all
+    from `radau_start` or the call before) by Radau IIA until t >= control[T_STOP], writing ys[j] = y(ts[j])
+    for the samples passed (state[NEXT_SAMPLE]: the next one); returns a status code (RUNNING: paused)."""
+    n = y.shape[0]
+    rtol = max(control[RTOL], 100 * _EPS)  # scipy's floor for Radau
+    atol, max_step, t_bound, t_stop, use_event = control[ATOL], control[MAX_STEP], control[T_BOUND], control[T_STOP], control[USE_EVENT] != 0.0
+    newton_tol = max(10 * _EPS / rtol, min(0.03, rtol**0.5))
+    pause = int(control[STRETCH]) if control[STRETCH] > 0.0 else PAUSE_STEPS
+    size = int(control[SIZE])
+    x, a = np.empty(size), np.empty((size, size))
+    lu_real, lu_complex = np.empty((n, n)), np.empty((n, n), dtype=np.complex128)
+    pivots_real, pivots_complex = np.empty(n, dtype=np.int64), np.empty(n, dtype=np.int64)
+    Z, W, F, dW = np.empty((3, n)), np.empty((3, n)), np.empty((3, n)), np.empty((3, n))
+    rhs_complex = np.empty(n, dtype=np.complex128)
+    y_new, f_new, work, fw, error, scale = np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(n)
+    ze = np.empty(n)
+    have_lu = False
+    if memory[LU_STEP] != 0.0:  # resumed: the factors of the call before, made again for the same step (the same run as one straight through)
+        have_lu = _radau_matrices(jac, memory[LU_STEP], lu_real, pivots_real, lu_complex, pivots_complex, stats) == 0
+        stats[NLU] -= 2
+    current_jac = memory[CURRENT_JAC] != 0.0
+    t, h_abs = state[T], state[H]
+    taken = 0
+    while t < t_stop and t < t_bound and taken < pause:
+        taken += 1
+        min_step = MIN_STEP_SPACINGS * abs(np.nextafter(t, np.inf) - t)
+        h_abs_start = h_abs
+        if h_abs > max_step:
+            h_abs, h_abs_old, error_old = max_step, np.nan, np.nan
+        elif h_abs < min_step:
+            h_abs, h_abs_old, error_old = min_step, np.nan, np.nan
+        else:
+            h_abs_old, error_old = memory[H_ABS_OLD], memory[ERROR_OLD]
+        rejected, bad = False, False
+        first = memory[HAVE_DENSE] == 0.0
+        contraction = max(memory[CONTRACTION], _EPS) ** 0.8  # radau5.f: the last factor, relaxed toward 1
+        converged, iterations, rate, error_norm, safety, t_new, h = False, 0, np.nan, 0.0, 1.0, t, 0.0
+        while True:
+            if h_abs < min_step:
+                state[T], state[H] = t, h_abs
+                return NONFINITE if bad else STEP_COLLAPSE
+            t_new = t + h_abs
+            if t_new > t_bound:
+                t_new = t_bound
+            h = t_new - t
+            h_abs = abs(h)
+            for i in range(n):
+                scale[i] = atol + abs(y[i]) * rtol
+            converged = False
+            while True:
+                if not have_lu:
+                    have_lu = _radau_matrices(jac, h, lu_real, pivots_real, lu_complex, pivots_complex, stats) == 0
+                    memory[LU_STEP] = h if have_lu else 0.0
+                if have_lu:
+                    for r in range(3):  # the predictor: the last step's collocation polynomial extrapolated (zero at the start)
+                        if memory[HAVE_DENSE] != 0.0:
+                            _radau_eval(memory[T_OLD], memory[STEP_OLD], y_old, dense, t + _RC[r] * h, work)
+                            for i in range(n):
+                                Z[r, i] = work[i] - y[i]
+                        else:
+                            for i in range(n):
+                                Z[r, i] = 0.0
+                    code, converged, iterations, rate, contraction = _radau_newton(
+                        accel, t, y, h, Z, W, F, dW, scale, newton_tol, contraction, lu_real, pivots_real, lu_complex, pivots_complex, rhs_complex, work, p, x, a, stats
+                    )
+                    if code == SINGULAR:
+                        state[T], state[H] = t, h
+                        return SINGULAR
+                    bad = code == NONFINITE
+                if converged or current_jac:
+                    break
+                if _radau_jacobian(accel, t, y, f, p, x, a, jac, work, fw, stats):
+                    state[T], state[H] = t, h
+                    return SINGULAR
+                current_jac = True
+                have_lu = False
+            if not converged:
+                h_abs *= 0.5
+                have_lu = False
+                memory[LU_STEP] = 0.0
+                stats[NREJECT] += 1
+                rejected = True
+                continue
+            for i in range(n):
+                y_new[i] = y[i] + Z[2, i]
+                ze[i] = (_RE[0] * Z[0, i] + _RE[1] * Z[1, i] + _RE[2] * Z[2, i]) / h
+                error[i] = f[i] + ze[i]
+                scale[i] = atol + max(abs(y[i]), abs(y_new[i])) * rtol
+            _lu_back(lu_real, pivots_real, error)
+            error_norm = _rms(error, scale)
+            safety = 0.9 * (2 * NEWTON_MAXITER + 1) / (2 * NEWTON_MAXITER + iterations)
+            if error_norm > 1.0 and (rejected or first):  # the estimate once more, from f at y + err (Hairer's second estimate)
+                for i in range(n):
+                    work[i] = y[i] + error[i]
+                if _rhs(accel, t, work, p, fw, x, a):
+                    state[T], state[H] = t, h
+                    return SINGULAR
+                stats[NFEV] += 1
+                for i in range(n):
+                    error[i] = fw[i] + ze[i]
+                _lu_back(lu_real, pivots_real, error)
+                error_norm = _rms(error, scale)
+            if not np.isfinite(error_norm) or not _finite(y_new):
+                bad = True
+                h_abs *= MIN_FACTOR
+                have_lu = False
+                memory[LU_STEP] = 0.0
+                stats[NREJECT] += 1
+                rejected = True
+                continue
+            if error_norm > 1.0:
+                factor = _predict_factor(h_abs, h_abs_old, error_norm, error_old)
+                h_abs *= max(MIN_FACTOR, safety * factor)
+                have_lu = False
+                memory[LU_STEP] = 0.0
+                stats[NREJECT] += 1
+                rejected = True
+                continue
+            break
+        recompute_jac = iterations > 2 and rate > JAC_RATE
+        factor = min(MAX_FACTOR, safety * _predict_factor(h_abs, h_abs_old, error_norm, error_old))
+        if not recompute_jac and factor < KEEP_FACTOR:
+            factor = 1.0
+        else:
+            have_lu = False
+            memory[LU_STEP] = 0.0
+        if _rhs(accel, t_new, y_new, p, f_new, x, a):
+            state[T], state[H] = t, h
+            return SINGULAR
+        stats[NFEV] += 1
+        if recompute_jac:
+            if _radau_jacobian(accel, t_new, y_new, f_new, p, x, a, jac, work, fw, stats):
+                state[T], state[H] = t_new, h
+                return SINGULAR
+            current_jac = True
+        else:
+            current_jac = False
+        memory[CURRENT_JAC] = 1.0 if current_jac else 0.0
+        memory[CONTRACTION] = contraction
+        memory[H_ABS_OLD], memory[ERROR_OLD] = h_abs_start, error_norm
+        for k in range(3):
+            for i in range(n):
+                dense[k, i] = Z[0, i] * _RP[0, k] + Z[1, i] * _RP[1, k] + Z[2, i] * _RP[2, k]
+        for i in range(n):
+            y_old[i] = y[i]
+        memory[T_OLD], memory[STEP_OLD], memory[HAVE_DENSE] = t, h, 1.0
+        stats[NSTEPS] += 1
+        if t_new < t_bound:
+            stats[HMIN] = min(stats[HMIN], h)
+        stats[HMAX] = max(stats[HMAX], h)
+        # samples and the event, on the collocation polynomial
+        t_end_here = t_new
+        found = False
+        if use_event:
+            g_new = event(t_new, y_new, p, x, a)
+            if (state[EVENT_VALUE] < 0.0) != (g_new < 0.0) and state[EVENT_VALUE] != 0.0:
+                found = True
+                t_end_here = _radau_root(event, t, h, y_old, dense, t_new, p, x, a, work, state[EVENT_VALUE])
+            else:
+                state[EVENT_VALUE] = g_new
+        j = int(state[NEXT_SAMPLE])
+        while j < ts.shape[0] and ts[j] <= t_end_here:
+            if ts[j] == t_new:
+                for i in range(n):
+                    ys[j, i] = y_new[i]
+            else:
+                _radau_eval(t, h, y_old, dense, ts[j], ys[j])
+            j += 1
+        state[NEXT_SAMPLE] = j
+        if found:
+            _radau_eval(t, h, y_old, dense, t_end_here, y)
+            state[T], state[H] = t_end_here, h_abs * factor
+            return EVENT
+        for i in range(n):
+            y[i] = y_new[i]
+            f[i] = f_new[i]
+        t = t_new
+        h_abs *= factor
+        state[T], state[H] = t, h_abs
+    return DONE if t >= t_bound else RUNNING

@@ -24,7 +24,7 @@ from lagrange_cli.model import Model
 from lagrange_cli.numeric import memo
 
 METHODS = ("auto", "RK45", "DOP853", "Radau", "BDF", "LSODA", "symplectic")
-COMPILED = ("RK45", "DOP853", "symplectic")
+COMPILED = ("RK45", "DOP853", "symplectic", "Radau")
 BACKENDS = ("auto", "compiled", "python")
 DEFAULTS = {"t_end": 10.0, "rtol": 1e-8, "atol": 1e-10, "samples": 1001}
 MAX_SAMPLES = 1_000_000

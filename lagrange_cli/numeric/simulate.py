@@ -244,7 +244,7 @@ def run_seconds(model: Model, settings: Settings, max_steps: int | None = None) 
 
 def _integrated(model: Model, settings: Settings, progress: Progress | None, max_steps: int | None, before: Timing | None) -> tuple[Run, compile.Functions, Timing, tuple[str, ...]]:
     """The integrator's run of `settings`, the Python functions, the timing and the projection's notes."""
-    python = compile.build(model, "python", jacobian=settings.method in ("Radau", "BDF", "LSODA"), event=settings.event)
+    python = compile.build(model, "python", jacobian=settings.method in ("Radau", "BDF", "LSODA") and settings.backend != "compiled", event=settings.event)
     generate = python.generate_seconds + (before.generate if before else 0.0)
     load = python.import_seconds + (before.load if before else 0.0)
     budget = integrators.MAX_STEPS[settings.backend] if max_steps is None else _budget(max_steps)
@@ -418,6 +418,8 @@ def solver_for(settings: Settings, python: compile.Functions, numba: compile.Fun
         if settings.step is None:
             raise ValueError("the symplectic method needs its step (policy.decide chooses it)")
         return integrators.Gauss(numba, python, settings.stages if settings.stages is not None else STAGES, settings.step)
+    if settings.method == "Radau":
+        return integrators.RadauCompiled(numba, settings.rtol, settings.atol, settings.max_step)
     return integrators.ExplicitRK(numba, settings.method, settings.rtol, settings.atol, settings.max_step)
 
 

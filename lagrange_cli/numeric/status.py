@@ -31,12 +31,13 @@ progress and stop a run over its budget (a near-collision orbit may take minutes
 to reach the first 1% of its time span)."""
 
 # -- the counter array `stats` of a compiled loop (float64, STATS_SIZE entries)
-NFEV, NJEV, NSTEPS, NREJECT, HMIN, HMAX, STIFF, NONSTIFF, H_LAMBDA = 0, 1, 2, 3, 4, 5, 6, 7, 8
+NFEV, NJEV, NSTEPS, NREJECT, HMIN, HMAX, STIFF, NONSTIFF, H_LAMBDA, NLU = 0, 1, 2, 3, 4, 5, 6, 7, 8, 9
 """Right-hand side evaluations, Jacobians (the Gauss method: its Newton matrices), steps taken,
 rejected steps, smallest and largest step; DOP853's stiffness test where it is asked for
 (control[STIFFNESS]): the positive tests since the last run of STIFF_RESET negative ones, the
-negative ones in a row, and the last h |lambda| measured."""
-STATS_SIZE = 9
+negative ones in a row, and the last h |lambda| measured; the LU decompositions (the compiled Radau
+method: its real and complex Newton matrices count one each)."""
+STATS_SIZE = 10
 
 # -- the loop state `state` (float64): where a paused loop resumes
 T, H, EVENT_VALUE, NEXT_SAMPLE, NEWTON = 0, 1, 2, 3, 4
@@ -66,6 +67,16 @@ before the velocity step, the largest change of any component, |h - h0| before t
 projections made, those that could not be applied (A M^-1 A^T singular, or values not finite: the
 state is kept as it was), and the time of the first of those (NaN: none)."""
 PROJECTION_SIZE = 15
+
+# -- what the compiled Radau method (kernels.radau_run) carries from one call to the next (`memory`, float64)
+T_OLD, STEP_OLD, H_ABS_OLD, ERROR_OLD, CURRENT_JAC, LU_STEP, HAVE_DENSE, CONTRACTION = range(8)
+"""The start and the (signed) size of the last accepted step, whose collocation polynomial (the dense
+output) predicts the next step's stages; the step size the step before began from and its error norm
+(NaN: none; the predictive step control's memory); 1.0 while the Jacobian is the one at the current
+state; the step size the Newton matrices were factored for (0.0: none: they are refactored), and 1.0
+once a step has been taken (a dense output exists); the Newton iteration's last contraction factor
+rate / (1 - rate) (radau5.f's FACCON), with which a step's first correction can already be judged."""
+RADAU_SIZE = 8
 
 # -- DOP853's stiffness test (Hairer and Wanner, dop853.f): on an accepted step, h |lambda| is
 # estimated from the last stage and the new solution, both at t + h: h |f(y_new) - f(Y_12)| / |y_new - Y_12|

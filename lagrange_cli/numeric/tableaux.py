@@ -111,3 +111,34 @@ RK45 = Tableau("RK45", 0, 5, 4, 6, 7, 4, 0)
 DOP853 = Tableau("DOP853", 1, 8, 7, DOP853_STAGES, 16, 7, 3)
 EXPLICIT = {pair.name: pair for pair in (RK45, DOP853)}
 """The explicit pairs by method name."""
+
+# -- Radau IIA, 3 stages, order 5 (Hairer and Wanner, Solving ODEs II, IV.8: the RADAU5 algorithm) ----
+# The nodes, the error estimate's weights and the transformation of the stage system: T^-1 A^-1 T =
+# [[MU_REAL, 0, 0], [0, a, -b], [0, b, a]] with MU_COMPLEX = a + i b (A^-1's eigenvalues, b < 0), so that one
+# simplified Newton iteration solves one real and one complex n x n system instead of a 3n x 3n one.
+# The values are the method's (the same as radau5.f's and scipy's; tests/test_radau_compiled.py checks
+# both the identities and scipy's constants).
+SQRT6 = 6.0**0.5
+RADAU_C = ((4 - SQRT6) / 10, (4 + SQRT6) / 10, 1.0)
+RADAU_A = (
+    ((88 - 7 * SQRT6) / 360, (296 - 169 * SQRT6) / 1800, (-2 + 3 * SQRT6) / 225),
+    ((296 + 169 * SQRT6) / 1800, (88 + 7 * SQRT6) / 360, (-2 - 3 * SQRT6) / 225),
+    ((16 - SQRT6) / 36, (16 + SQRT6) / 36, 1 / 9),
+)
+RADAU_E = ((-13 - 7 * SQRT6) / 3, (-13 + 7 * SQRT6) / 3, -1 / 3)
+"""err = (I - h gamma0 J)^-1 (f(y) + sum_i E_i Z_i / h), gamma0 = 1 / MU_REAL: the embedded estimate filtered."""
+MU_REAL = 3 + 3 ** (2 / 3) - 3 ** (1 / 3)
+MU_COMPLEX_REAL = 3 + 0.5 * (3 ** (1 / 3) - 3 ** (2 / 3))
+MU_COMPLEX_IMAG = -0.5 * (3 ** (5 / 6) + 3 ** (7 / 6))
+# fmt: off
+RADAU_T = (
+    (0.09443876248897524, -0.14125529502095421, 0.03002919410514742),
+    (0.25021312296533332, 0.20412935229379994, -0.38294211275726192),
+    (1.0, 1.0, 0.0),
+)
+RADAU_TI = (
+    (4.17871859155190428, 0.32768282076106237, 0.52337644549944951),
+    (-4.17871859155190428, -0.32768282076106237, 0.47662355450055044),
+    (0.50287263494578682, -2.57192694985560522, 0.59603920482822492),
+)
+# fmt: on
