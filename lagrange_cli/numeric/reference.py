@@ -38,6 +38,7 @@ from lagrange_cli.numeric.runs import (
     run,
     scaled_errors,
     start_of,
+    step_factor,
     tol_text,
 )
 from lagrange_cli.numeric.settings import Settings, code_parameters
@@ -424,7 +425,7 @@ def paced_run(model: Model, candidate: Candidate, rtol: float, setup: Setup) -> 
     """A reference-side run within `setup`'s reference budget, stopped by its pace (REFERENCE_PACE_MARGIN) where
     it is a Python run: the trajectory, or the Unaffordable that stopped it (steps taken, share done). Compiled
     Radau (a confirmation), which no pace stops, gets an implicit reference attempt's budget (`_implicit_budget`),
-    not the reference budget of 100 x 10 x --max-steps compiled steps (some 2 us each)."""
+    not the reference budget of 10 x 10 x --max-steps compiled steps (some 2 us each)."""
     if candidate.method == "Radau" and backend_for(candidate) == "compiled":
         setup = replace(setup, reference_max_steps=min(setup.reference_steps, _implicit_budget(model, setup)))
     try:
@@ -441,7 +442,7 @@ def _doomed(model: Model, setup: Setup, rtol: float, candidate: Candidate = RADA
     budget = setup.reference_steps
     s = replace(start_of(model, setup), method="auto", backend="auto", rtol=rtol, atol=rtol * ATOL_RATIO)
     measured = policy.pilot(model, s) if candidate.method in IMPLICIT else None
-    allowed = budget * (COMPILED_STEPS if backend_for(candidate) == "compiled" else 1)  # a compiled run's budget (`runs.run_steps`)
+    allowed = budget * step_factor(candidate.method, backend_for(candidate))  # a compiled run's budget (`runs.run_steps`)
     if measured is not None and not measured.finished and measured.implicit_steps(setup.t_end) > allowed:
         return f"at rtol {tol_text(rtol)} a pilot run extrapolates to {measured.implicit_steps(setup.t_end):.3g} steps, above the budget of {allowed}"
     span = PROBE_SPAN * setup.t_end
@@ -532,8 +533,8 @@ def _computed_reference(model: Model, setup: Setup, tolerance: float, hint: str,
             paced_need = paced.needed if paced is not None else None
         reasons.append("; ".join(tried))
     attempt = replace(setup, reference_max_steps=_implicit_budget(model, setup))
-    radau_backend = backend_for(RADAU)  # compiled where it can (`runs.compiled_radau`), its budget COMPILED_STEPS x the scipy steps
-    radau_steps = attempt.reference_steps * (COMPILED_STEPS if radau_backend == "compiled" else 1)
+    radau_backend = backend_for(RADAU)  # compiled where it can (`runs.compiled_radau`), its budget `runs.step_factor` x the scipy steps
+    radau_steps = attempt.reference_steps * step_factor("Radau", radau_backend)
     if paced_need is not None and paced_need > ACCURACY_LIMITED * radau_steps:
         # the explicit runs' steps were short for accuracy, not stability (not stiff where they stopped): an implicit method of
         # lower order needs at least as many, and Radau in Python has far fewer (audit4 F4: Kepler near r = 0 spent a

@@ -102,6 +102,7 @@ from lagrange_cli.numeric.runs import (
     settings_for,
     start_of,
     starting,
+    step_factor,
     ties,
     tol_text,
     unrun,
@@ -621,7 +622,7 @@ def _same_run(model: Model, candidate: Candidate, tolerance: float, setup: Setup
     earlier = made.get(_made_key(decided))
     if earlier is None or earlier.status not in (PointStatus.FINISHED, PointStatus.FAILED) or earlier.failure in (Failure.BUDGET, Failure.TIME_LIMIT):
         return None
-    if earlier.steps > cap * (COMPILED_STEPS if decided.backend == "compiled" else 1):
+    if earlier.steps > cap * step_factor(decided.method, decided.backend):
         return None
     return replace(earlier, method=candidate.label, candidate=candidate)
 
