@@ -386,11 +386,18 @@ def stable_steps(model: Model, setup: Setup, method: str) -> float:
     return measured.worst.decay * setup.t_end / interval
 
 
+COMPILED_RADAU_STEPS = 1_000_000
+"""The most steps one compiled Radau reference attempt may take (2-5 s; `_implicit_budget`): no pace stops it where
+it is round-off-limited (the stiff elastic pendulum in r: an attempt budget of 9.2e6 steps, 20 s, at rtol 1e-10,
+and a probe of its first tenth that took 920000 steps to cover 0.116 of it)."""
+
+
 def _implicit_budget(model: Model, setup: Setup) -> int:
     s = start_of(model, setup)
     found = policy.initial_spectrum(model, s.values, s.y0)
     expected = diagnostics.implicit_steps(found.slowest if found is not None else 0.0, setup.t_end)
-    return min(setup.reference_steps, max(IMPLICIT_STEPS, math.ceil(IMPLICIT_MARGIN * expected)))
+    budget = min(setup.reference_steps, max(IMPLICIT_STEPS, math.ceil(IMPLICIT_MARGIN * expected)))
+    return min(budget, COMPILED_RADAU_STEPS // COMPILED_STEPS) if backend_for(RADAU) == "compiled" else budget
 
 
 PROBE_SPAN = 0.1
@@ -425,7 +432,7 @@ def paced_run(model: Model, candidate: Candidate, rtol: float, setup: Setup) -> 
     """A reference-side run within `setup`'s reference budget, stopped by its pace (REFERENCE_PACE_MARGIN) where
     it is a Python run: the trajectory, or the Unaffordable that stopped it (steps taken, share done). Compiled
     Radau (a confirmation), which no pace stops, gets an implicit reference attempt's budget (`_implicit_budget`),
-    not the reference budget of 10 x 10 x --max-steps compiled steps (some 2 us each)."""
+    not the reference budget of 100 x 10 x --max-steps compiled steps (some 2 us each)."""
     if candidate.method == "Radau" and backend_for(candidate) == "compiled":
         setup = replace(setup, reference_max_steps=min(setup.reference_steps, _implicit_budget(model, setup)))
     try:
@@ -442,7 +449,7 @@ def _doomed(model: Model, setup: Setup, rtol: float, candidate: Candidate = RADA
     budget = setup.reference_steps
     s = replace(start_of(model, setup), method="auto", backend="auto", rtol=rtol, atol=rtol * ATOL_RATIO)
     measured = policy.pilot(model, s) if candidate.method in IMPLICIT else None
-    allowed = budget * step_factor(candidate.method, backend_for(candidate))  # a compiled run's budget (`runs.run_steps`)
+    allowed = budget * step_factor(candidate.method, backend_for(candidate), reference=True)  # a compiled run's budget (`runs.run_steps`)
     if measured is not None and not measured.finished and measured.implicit_steps(setup.t_end) > allowed:
         return f"at rtol {tol_text(rtol)} a pilot run extrapolates to {measured.implicit_steps(setup.t_end):.3g} steps, above the budget of {allowed}"
     span = PROBE_SPAN * setup.t_end
@@ -534,7 +541,7 @@ def _computed_reference(model: Model, setup: Setup, tolerance: float, hint: str,
         reasons.append("; ".join(tried))
     attempt = replace(setup, reference_max_steps=_implicit_budget(model, setup))
     radau_backend = backend_for(RADAU)  # compiled where it can (`runs.compiled_radau`), its budget `runs.step_factor` x the scipy steps
-    radau_steps = attempt.reference_steps * step_factor("Radau", radau_backend)
+    radau_steps = attempt.reference_steps * step_factor("Radau", radau_backend, reference=True)
     if paced_need is not None and paced_need > ACCURACY_LIMITED * radau_steps:
         # the explicit runs' steps were short for accuracy, not stability (not stiff where they stopped): an implicit method of
         # lower order needs at least as many, and Radau in Python has far fewer (audit4 F4: Kepler near r = 0 spent a

@@ -352,24 +352,24 @@ def settings_for(model: Model, candidate: Candidate, tolerance: float, setup: Se
 
 
 COMPILED_IMPLICIT_STEPS = 10
-"""A compiled Radau run may take this many times the budget, not COMPILED_STEPS: its step costs 2-5 us on a small
-system (3-7 evaluations with its LU factors reused; some 3 x a compiled explicit step, 1/100-1/250 of scipy's
-Radau step), and no pace stops it where it is round-off-limited: `_doomed`'s probe of Radau at rtol 1e-10 on the
-stiff elastic pendulum in r, given 100 x its share, took 920000 steps to cover 0.116 of the first tenth, and the
-attempt's full budget was 9.2e6 steps (20 s). 10 x scipy's budget is still 10 x the steps in 1/25 of the time."""
+"""A measured compiled Radau run may take this many times the budget, not COMPILED_STEPS: its step costs 2-5 us on a
+small system (3-7 evaluations with its LU factors reused; some 3 x a compiled explicit step, 1/100-1/250 of scipy's
+Radau step), and no pace stops it where it is round-off-limited (60000 x 100 steps would be 15-30 s a run); 10 x
+scipy's budget is still 10 x the steps in 1/25 of the time. Reference runs keep COMPILED_STEPS, within
+`reference.COMPILED_RADAU_STEPS` an attempt."""
 
 
-def step_factor(method: str, backend: str) -> int:
+def step_factor(method: str, backend: str, reference: bool = False) -> int:
     """How many steps a run of `method` on `backend` may take per step of a budget (which counts scipy steps):
-    1 for scipy's, COMPILED_IMPLICIT_STEPS for compiled Radau, COMPILED_STEPS for the other compiled methods."""
+    1 for scipy's, COMPILED_STEPS for the compiled methods, COMPILED_IMPLICIT_STEPS for a measured compiled Radau run."""
     if backend != "compiled":
         return 1
-    return COMPILED_IMPLICIT_STEPS if method == "Radau" else COMPILED_STEPS
+    return COMPILED_IMPLICIT_STEPS if method == "Radau" and not reference else COMPILED_STEPS
 
 
-def run_steps(settings: Settings, budget: int) -> int:
-    """The step budget of one run: `budget` scipy steps, `step_factor` x that compiled."""
-    return budget * step_factor(settings.method, settings.backend)
+def run_steps(settings: Settings, budget: int, reference: bool = False) -> int:
+    """The step budget of one run (`reference`: a reference-side run): `budget` scipy steps, `step_factor` x that compiled."""
+    return budget * step_factor(settings.method, settings.backend, reference)
 
 
 def run(
@@ -392,7 +392,7 @@ def run(
     repeat decides nothing again."""
     limit = setup.time_limit if timed and not reference else None
     decided = settings if settings is not None else settings_for(model, candidate, tolerance, setup, step)
-    budget = run_steps(decided, setup.reference_steps if reference else setup.steps)
+    budget = run_steps(decided, setup.reference_steps if reference else setup.steps, reference)
     progress = _time_limit(limit) if limit is not None else None
     if paced and decided.backend == "python":  # a reference-side run too (`reference.paced_run`)
         progress = _paced(budget, progress, margin)
