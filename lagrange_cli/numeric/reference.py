@@ -335,27 +335,26 @@ then is the implicit run the cheap one. Van der Pol (mu = 1000) over t = 2000: D
 about 1e6 steps (573k taken), LSODA's some 2e4: there compiled runs still come first and cap scipy's."""
 
 
-COMPILED_IMPLICIT_FIRST_STEPS = 10_000
+COMPILED_IMPLICIT_FIRST_STEPS = 100_000
 """Where Radau runs compiled (`runs.compiled_radau`), it goes before the compiled explicit methods once their
-stability limit alone costs more than this many steps ...
-"""
-COMPILED_IMPLICIT_FIRST_RATIO = 10.0
-"""... and more than this many times the steps the pilot puts an implicit method at: a compiled Radau step costs
-about 2.3 us on a 2-DOF system (7.3 evaluations with its Jacobian and LU factors reused), compiled DOP853's about
-1 us, so above this ratio the implicit run is the cheaper one by a margin (IMPLICIT_FIRST_RATIO is scipy's)."""
+stability limit alone costs more than this many steps (0.1-0.2 s), whatever the pilot puts an implicit method at:
+a compiled Radau run costs at most its budget (`runs.COMPILED_IMPLICIT_STEPS`, 1-3 s), and a pilot started in a fast
+transient overstates an implicit method's steps (the stiff elastic pendulum in r started at r = 0.01: compiled RK45
+ran to its 6e6 steps and DOP853 3.1e6, 7.5 s, before compiled Radau met the accuracy in 524 steps)."""
 
 
 def implicit_first(model: Model, setup: Setup) -> bool:
     """Whether the implicit methods go before the compiled explicit ones: compiled Radau where it runs compiled
-    (COMPILED_IMPLICIT_FIRST_STEPS, COMPILED_IMPLICIT_FIRST_RATIO), else scipy's (IMPLICIT_FIRST_STEPS, IMPLICIT_FIRST_RATIO)."""
+    (COMPILED_IMPLICIT_FIRST_STEPS), else scipy's (IMPLICIT_FIRST_STEPS, IMPLICIT_FIRST_RATIO)."""
     compiled = compiled_radau()
     stable = stable_steps(model, setup, "DOP853")
     if stable <= (COMPILED_IMPLICIT_FIRST_STEPS if compiled else IMPLICIT_FIRST_STEPS):
         return False
+    if compiled:
+        return True
     s = replace(start_of(model, setup), method="auto", backend="auto", rtol=PILOT_RTOL, atol=PILOT_RTOL * ATOL_RATIO)
     measured = policy.pilot(model, s)
-    ratio = COMPILED_IMPLICIT_FIRST_RATIO if compiled else IMPLICIT_FIRST_RATIO
-    return measured is not None and stable > ratio * max(measured.implicit_steps(setup.t_end), 1.0)
+    return measured is not None and stable > IMPLICIT_FIRST_RATIO * max(measured.implicit_steps(setup.t_end), 1.0)
 
 
 def ahead(candidate: Candidate) -> bool:
@@ -386,6 +385,10 @@ def stable_steps(model: Model, setup: Setup, method: str) -> float:
     return measured.worst.decay * setup.t_end / interval
 
 
+CONFIRMATION_STEPS = 1_500_000
+"""The most compiled steps a compiled explicit confirmation of an implicit reference may take (1-3 s): beyond it
+compiled Radau's own convergence (`_converged`) confirms it, then scipy's LSODA and BDF (the stiff elastic pendulum
+in r over t = 100: DOP853 needs 3.3e7 stability-limited steps, 40 s, to confirm compiled Radau at 1e-8)."""
 COMPILED_RADAU_STEPS = 1_000_000
 """The most steps one compiled Radau reference attempt may take (2-5 s; `_implicit_budget`): no pace stops it where
 it is round-off-limited (the stiff elastic pendulum in r: an attempt budget of 9.2e6 steps, 20 s, at rtol 1e-10,
@@ -448,7 +451,9 @@ def _doomed(model: Model, setup: Setup, rtol: float, candidate: Candidate = RADA
     PROBE_SHARE of the budget."""
     budget = setup.reference_steps
     s = replace(start_of(model, setup), method="auto", backend="auto", rtol=rtol, atol=rtol * ATOL_RATIO)
-    measured = policy.pilot(model, s) if candidate.method in IMPLICIT else None
+    # not for compiled Radau, whose probe costs 0.1-0.3 s: a pilot started in a fast transient overstates the steps (the stiff
+    # elastic pendulum in r at high energy: every rtol doomed, so the explicit fallback, 23 s, where compiled Radau finishes)
+    measured = policy.pilot(model, s) if candidate.method in IMPLICIT and backend_for(candidate) != "compiled" else None
     allowed = budget * step_factor(candidate.method, backend_for(candidate), reference=True)  # a compiled run's budget (`runs.run_steps`)
     if measured is not None and not measured.finished and measured.implicit_steps(setup.t_end) > allowed:
         return f"at rtol {tol_text(rtol)} a pilot run extrapolates to {measured.implicit_steps(setup.t_end):.3g} steps, above the budget of {allowed}"
@@ -578,9 +583,10 @@ def _computed_reference(model: Model, setup: Setup, tolerance: float, hint: str,
             confirmers = ("RK45", "DOP853") if not reasons else ("DOP853",)
             explicit = [(Candidate(m, "compiled"), max(rtols[-1] * EXPLICIT_CONFIRMATION, TIGHTEST)) for m in confirmers] if compile.numba_available() else []
             scipy = [(Candidate("LSODA"), r) for r in (rtol / 100, rtol / 10, rtol) if r >= TIGHTEST] + [(Candidate("BDF"), rtol)]
-            # the compiled explicit confirmations get the explicit fallback's budget (their stability limit sized), not the implicit
-            # attempt's: the angle-damped spring pendulum started at r = 0.011 needs 9.5e5 DOP853 steps (1.3 s) at rtol 1e-7
-            wide = replace(attempt, reference_max_steps=max(attempt.reference_steps, _explicit_budget(model, setup)))
+            # the compiled explicit confirmations get the explicit fallback's budget (their stability limit sized) up to
+            # CONFIRMATION_STEPS, not the implicit attempt's: the angle-damped spring pendulum started at r = 0.011 needs 9.5e5
+            # DOP853 steps (1.3 s) at rtol 1e-7
+            wide = replace(attempt, reference_max_steps=max(attempt.reference_steps, min(_explicit_budget(model, setup), CONFIRMATION_STEPS // COMPILED_STEPS)))
             first = _confirmed(model, wide, radau, rtol, explicit, time.perf_counter() - began) if explicit else None
             if first is not None:
                 first = _vouched(model, wide, radau, rtol, first, rtols[-1], time.perf_counter() - began)
@@ -595,7 +601,15 @@ def _computed_reference(model: Model, setup: Setup, tolerance: float, hint: str,
             # not "round-off-limited": a probe stopped in a fast transient is no proof of round-off (audit4 F3: Radau at 1e-10
             # "took 301 steps to reach t = 0.216 of the first 1" on a damped cart whose 608-step run finishes)
             tighter = f"; tighter rtols were not tried in full: a probe of each could not cover the first part of the window within its share of the budget ({'; '.join(skipped)})" if skipped else ""
-            return replace(found, description=f"{found.description} (implicit: {why}{tighter})")
+            found = replace(found, description=f"{found.description} (implicit: {why}{tighter})")
+            if radau.settings.backend == "compiled" and main is None and not (found.own_error <= rtols[-1]):
+                # compiled Radau finished only where its own error leaves the accuracy open (above the loosest rtol, 0.1 x the
+                # accuracy in `stress`): the explicit fallback, where its own error is smaller (the stiff elastic pendulum in r at
+                # high energy: compiled Radau at 1e-7 confirmed by LSODA to 1e-7, the fallback to 1.7e-9)
+                fallback = _explicit_fallback(model, setup, rtols, f"compiled Radau's reference ({found.description}) has own error {found.own_error:.1e}", time.perf_counter() - began)
+                if fallback is not None and fallback.own_error < found.own_error:
+                    return fallback
+            return found
         if radau.outcome != Status.BUDGET:
             break  # a failure, not round-off: a looser tolerance will not pass it
     assert radau is not None
