@@ -602,10 +602,11 @@ def _computed_reference(model: Model, setup: Setup, tolerance: float, hint: str,
             # "took 301 steps to reach t = 0.216 of the first 1" on a damped cart whose 608-step run finishes)
             tighter = f"; tighter rtols were not tried in full: a probe of each could not cover the first part of the window within its share of the budget ({'; '.join(skipped)})" if skipped else ""
             found = replace(found, description=f"{found.description} (implicit: {why}{tighter})")
-            if radau.settings.backend == "compiled" and main is None and not (found.own_error <= rtols[-1]):
-                # compiled Radau finished only where its own error leaves the accuracy open (above the loosest rtol, 0.1 x the
-                # accuracy in `stress`): the explicit fallback, where its own error is smaller (the stiff elastic pendulum in r at
-                # high energy: compiled Radau at 1e-7 confirmed by LSODA to 1e-7, the fallback to 1.7e-9)
+            python = found.confirmer is not None and backend_for(found.confirmer) == "python"
+            if implicit and radau.settings.backend == "compiled" and main is None and python and math.isfinite(found.own_error) and found.own_error > rtols[-1]:
+                # in `stress`, compiled Radau confirmed only by scipy's runs (no compiled confirmation finished) to an own error
+                # above the loosest rtol (0.1 x the accuracy): the explicit fallback, where its own error is smaller (the stiff
+                # elastic pendulum in r at high energy: compiled Radau at 1e-7 confirmed by LSODA to 1e-7, the fallback to 1.7e-9)
                 fallback = _explicit_fallback(model, setup, rtols, f"compiled Radau's reference ({found.description}) has own error {found.own_error:.1e}", time.perf_counter() - began)
                 if fallback is not None and fallback.own_error < found.own_error:
                     return fallback
