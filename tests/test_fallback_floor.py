@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from lagrange_cli.numeric import compile, reference, stress
+from lagrange_cli.numeric import compile, reference, runs, stress
 from lagrange_cli.numeric.accuracy import Candidate
 from lagrange_cli.numeric.runs import Setup, component_scale, run, scaled_errors
 
@@ -22,16 +22,24 @@ pytestmark = [pytest.mark.usefixtures("private_cache"), pytest.mark.skipif(not c
 VDP = ROOT / "tests" / "numeric_audit5" / "van_der_pol_mu1000_coupled.yaml"
 
 
-def test_the_explicit_fallback_bounds_its_own_error_across_a_jump() -> None:
+@pytest.mark.parametrize("compiled", [False, True])
+def test_the_explicit_fallback_bounds_its_own_error_across_a_jump(compiled: bool, monkeypatch: pytest.MonkeyPatch) -> None:
     """Over the file's t = 2000 (the slow branch from x = 2, jumps near t = 800 and 1600: stress's defaults
-    regime) the reference is the explicit fallback (Radau in Python cannot finish within its budget), and its own error bounds its true
-    error against compiled DOP853 at 1e-12."""
+    regime) the reference is the explicit fallback where Radau runs in Python (it cannot finish within its budget),
+    compiled Radau where that runs (helper radstress), and either's own error bounds its true error against compiled
+    DOP853 at 1e-12."""
+    if compiled and not runs.compiled_radau():
+        pytest.skip("the compiled Radau method needs numba")
+    if not compiled:
+        monkeypatch.setattr(runs, "compiled_radau", lambda: False)
+        monkeypatch.setattr(reference, "compiled_radau", lambda: False)
     model = model_from(VDP).with_definitions()
     target = 1e-6
     setup = Setup(2000.0, tuple(np.linspace(0.0, 2000.0, 2001).tolist()), max_steps=stress.MAX_STEPS)
     found = reference.computed_reference(model, setup, stress.reference_tolerance(target), implicit=stress.implicit_reference_tolerances(target))
-    assert found.settings is not None and (found.settings.method, found.settings.backend) == ("RK45", "compiled"), found.description
-    assert "explicit, stability-limited" in found.description
+    expected = ("Radau", "compiled") if compiled else ("RK45", "compiled")
+    assert found.settings is not None and (found.settings.method, found.settings.backend) == expected, found.description
+    assert compiled or "explicit, stability-limited" in found.description
     tight = run(model, Candidate("DOP853", "compiled"), 1e-12, setup, reference=True)
     assert not tight.failed
     truth = float(np.max(scaled_errors(found.y, tight.y, component_scale(tight.y))))

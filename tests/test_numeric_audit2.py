@@ -142,11 +142,11 @@ def test_a_losing_run_is_stopped_by_its_pace() -> None:
 
     model = _model(PILOT / "stiff_elastic_pendulum_r.yaml")
     setup = Setup(10.0, tuple(np.linspace(0.0, 10.0, 11).tolist()), max_steps=400)
-    paced = measure(model, Candidate("Radau"), 1e-8, setup, None, np.ones(4), repeats=0, paced=True)  # type: ignore[arg-type]
+    paced = measure(model, Candidate("Radau", "python"), 1e-8, setup, None, np.ones(4), repeats=0, paced=True)  # type: ignore[arg-type]
     assert paced.status == PointStatus.OVER_BUDGET and paced.failure == Failure.BUDGET
     assert paced.steps == round(PACE_AFTER * 400)
     assert "at that pace" in paced.reason
-    full = measure(model, Candidate("Radau"), 1e-8, setup, None, np.ones(4), repeats=0)  # type: ignore[arg-type]
+    full = measure(model, Candidate("Radau", "python"), 1e-8, setup, None, np.ones(4), repeats=0)  # type: ignore[arg-type]
     assert full.status == PointStatus.OVER_BUDGET and full.steps > 3 * paced.steps
 
 

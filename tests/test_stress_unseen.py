@@ -56,7 +56,7 @@ def test_a_pace_is_never_judged_from_a_runs_first_steps() -> None:
     assert runs.remaining([0.0, 0.0]) == math.inf
     model = model_from(ELASTIC)
     setup = Setup(10.0, tuple(np.linspace(0.0, 10.0, 11).tolist()), max_steps=6)
-    point = runs.measure(model, Candidate("Radau"), 1e-5, setup, None, np.ones(4), repeats=0, paced=True)  # type: ignore[arg-type]
+    point = runs.measure(model, Candidate("Radau", "python"), 1e-5, setup, None, np.ones(4), repeats=0, paced=True)  # type: ignore[arg-type]
     assert point.status == PointStatus.OVER_BUDGET and point.steps == 6 and "at that pace" not in point.reason
     # where it stopped is a field (`Point.reached`, the share of the span), which `stress._capped`'s reason uses
     assert point.reached is not None and 0.0 < point.reached < 1.0 and f"at {100 * point.reached:.0f}% of the time span" in point.reason

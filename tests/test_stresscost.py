@@ -53,8 +53,8 @@ def test_a_scipy_methods_first_capped_run_gets_the_steps_its_work_cap_buys() -> 
     """Radau's first rung after a compiled run met the accuracy: PYTHON_AFTER_COMPILED x that work at about
     18 evaluations a step (6 before: it spent 3 x its cap, 19 a step on the penalty pendulum)."""
     best = runs.replace(runs.unrun(Candidate("DOP853", "compiled"), 1e-6), status=runs.PointStatus.FINISHED, ran=runs.Ran("DOP853", "compiled"), nfev=1_200_000, steps=100_000)
-    assert stress._losing(Candidate("Radau"), best) == stress.PYTHON_AFTER_COMPILED
-    cap = stress._cap(Candidate("Radau"), best, None, Setup(1.0, (0.0, 1.0)))
+    assert stress._losing(Candidate("Radau", "python"), best) == stress.PYTHON_AFTER_COMPILED
+    cap = stress._cap(Candidate("Radau", "python"), best, None, Setup(1.0, (0.0, 1.0)))
     assert cap == int(np.ceil(stress.PYTHON_AFTER_COMPILED * 12_000 / runs.EVALUATIONS_PER_STEP["Radau"]))
     assert runs.EVALUATIONS_PER_STEP["Radau"] >= 15
 

@@ -56,11 +56,11 @@ def test_a_python_run_that_cannot_finish_is_stopped_by_its_pace_before_anything_
     budget = 400
     setup = runs.starting(model, Setup(1000.0, (0.0, 1000.0), max_steps=budget))
     unused: Any = None  # the run never finishes, so it is never compared with a reference
-    point = stress._capped(model, Candidate("Radau"), 1e-8, setup, unused, unused, None, None)
+    point = stress._capped(model, Candidate("Radau", "python"), 1e-8, setup, unused, unused, None, None)
     assert point.status == runs.PointStatus.OVER_BUDGET and "at that pace" in point.reason, point.reason
     assert point.steps <= max(runs.PACE_STEPS, runs.PACE_AFTER * budget) + 1, point.steps
     # a user's method in `accuracy` still gets its whole budget: the same run, not paced, spends it
-    whole = runs.measure(model, Candidate("Radau"), 1e-8, setup, unused, unused, repeats=0)
+    whole = runs.measure(model, Candidate("Radau", "python"), 1e-8, setup, unused, unused, repeats=0)
     assert whole.status == runs.PointStatus.OVER_BUDGET and whole.steps >= budget
 
 
@@ -70,13 +70,13 @@ def test_where_the_verdict_can_only_stay_open_a_python_run_stops_once_its_pace_e
     is stopped after PACE_AFTER of it; elsewhere such a run (needing about 2 x its budget) runs to its end."""
     model = model_from(ROOT / "systems" / "double_pendulum.yaml").with_definitions()
     setup = runs.starting(model, Setup(40.0, (0.0, 40.0), max_steps=stress.MAX_STEPS))
-    needed = runs.run(model, Candidate("Radau"), 1e-6, setup).stats.steps
+    needed = runs.run(model, Candidate("Radau", "python"), 1e-6, setup).stats.steps
     assert needed > 200, needed
     budget = needed // 2
     small = runs.replace(setup, max_steps=budget)
     unused: Any = None  # neither run finishes, so neither is compared with a reference
-    wide = stress._capped(model, Candidate("Radau"), 1e-6, small, unused, unused, None, None)
+    wide = stress._capped(model, Candidate("Radau", "python"), 1e-6, small, unused, unused, None, None)
     assert wide.status == runs.PointStatus.OVER_BUDGET and wide.steps >= budget, (wide.steps, budget, wide.reason)
-    tight = stress._capped(model, Candidate("Radau"), 1e-6, small, unused, unused, None, None, open_only=True)
+    tight = stress._capped(model, Candidate("Radau", "python"), 1e-6, small, unused, unused, None, None, open_only=True)
     assert tight.status == runs.PointStatus.OVER_BUDGET and tight.steps < budget, (tight.steps, budget)
     assert f"within {stress.OPEN_PACE_MARGIN:g} x its step budget ({budget})" in tight.reason, tight.reason

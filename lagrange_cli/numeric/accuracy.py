@@ -52,10 +52,10 @@ from lagrange_cli.model import Model
 from lagrange_cli.numeric.reference import (
     CHAOS_GROWTH,
     HORIZON_THRESHOLD,
-    IMPLICIT,
     Horizon,
     Reference,
     ReferenceFailed,
+    ahead,
     computed_reference,
     exact_reference,
     horizon,
@@ -326,9 +326,7 @@ def study(
     found_points: dict[tuple[Candidate, float], Point] = {}
     cheapest: dict[float, float] = {}  # per tolerance, the least work of a finished run
     limited = implicit_first(model, setup)  # compiled explicit runs stability-limited to seconds each: scipy's implicit ones set the caps
-    for candidate in sorted(
-        chosen, key=lambda c: (limited and c.method not in IMPLICIT, backend_for(c) != "compiled", c.method != "LSODA")
-    ):  # cheap runs first (compiled, then LSODA): they set the caps
+    for candidate in sorted(chosen, key=lambda c: (limited and not ahead(c), backend_for(c) != "compiled", c.method != "LSODA")):  # cheap runs first (compiled, then LSODA): they set the caps
         last: Point | None = None
         for tolerance in tolerances:
             what = f"{candidate.label} {tol_text(tolerance)}"

@@ -31,11 +31,14 @@ from lagrange_cli.numeric.runs import (
     Candidate,
     Setup,
     Unaffordable,
+    backend_for,
+    compiled_radau,
     component_scale,
     over_step_budget,
     run,
     scaled_errors,
     start_of,
+    step_factor,
     tol_text,
 )
 from lagrange_cli.numeric.settings import Settings, code_parameters
@@ -332,14 +335,33 @@ then is the implicit run the cheap one. Van der Pol (mu = 1000) over t = 2000: D
 about 1e6 steps (573k taken), LSODA's some 2e4: there compiled runs still come first and cap scipy's."""
 
 
+COMPILED_IMPLICIT_FIRST_STEPS = 100_000
+"""Where Radau runs compiled (`runs.compiled_radau`), it goes before the compiled explicit methods once their
+stability limit alone costs more than this many steps (0.1-0.2 s), whatever the pilot puts an implicit method at:
+a compiled Radau run costs at most its budget (`runs.COMPILED_IMPLICIT_STEPS`, 1-3 s), and a pilot started in a fast
+transient overstates an implicit method's steps (the stiff elastic pendulum in r started at r = 0.01: compiled RK45
+ran to its 6e6 steps and DOP853 3.1e6, 7.5 s, before compiled Radau met the accuracy in 524 steps)."""
+
+
 def implicit_first(model: Model, setup: Setup) -> bool:
-    """Whether scipy's implicit methods go before the compiled explicit ones (IMPLICIT_FIRST_STEPS, IMPLICIT_FIRST_RATIO)."""
+    """Whether the implicit methods go before the compiled explicit ones: compiled Radau where it runs compiled
+    (COMPILED_IMPLICIT_FIRST_STEPS), else scipy's (IMPLICIT_FIRST_STEPS, IMPLICIT_FIRST_RATIO)."""
+    compiled = compiled_radau()
     stable = stable_steps(model, setup, "DOP853")
-    if stable <= IMPLICIT_FIRST_STEPS:
+    if stable <= (COMPILED_IMPLICIT_FIRST_STEPS if compiled else IMPLICIT_FIRST_STEPS):
         return False
+    if compiled:
+        return True
     s = replace(start_of(model, setup), method="auto", backend="auto", rtol=PILOT_RTOL, atol=PILOT_RTOL * ATOL_RATIO)
     measured = policy.pilot(model, s)
     return measured is not None and stable > IMPLICIT_FIRST_RATIO * max(measured.implicit_steps(setup.t_end), 1.0)
+
+
+def ahead(candidate: Candidate) -> bool:
+    """Whether `candidate` goes before the compiled explicit methods where `implicit_first` says so: compiled
+    Radau where it runs compiled (`runs.compiled_radau`: scipy's implicit methods then come after the compiled
+    ones, which cap them), else scipy's implicit methods."""
+    return candidate.method in IMPLICIT and (backend_for(candidate) == "compiled" or not compiled_radau())
 
 
 STABLE_PROBE = {"RK45": diagnostics.STABILITY, "DOP853": policy.DOP853_STABILITY}
@@ -363,11 +385,22 @@ def stable_steps(model: Model, setup: Setup, method: str) -> float:
     return measured.worst.decay * setup.t_end / interval
 
 
+CONFIRMATION_STEPS = 1_500_000
+"""The most compiled steps a compiled explicit confirmation of an implicit reference may take (1-3 s): beyond it
+compiled Radau's own convergence (`_converged`) confirms it, then scipy's LSODA and BDF (the stiff elastic pendulum
+in r over t = 100: DOP853 needs 3.3e7 stability-limited steps, 40 s, to confirm compiled Radau at 1e-8)."""
+COMPILED_RADAU_STEPS = 1_000_000
+"""The most steps one compiled Radau reference attempt may take (2-5 s; `_implicit_budget`): no pace stops it where
+it is round-off-limited (the stiff elastic pendulum in r: an attempt budget of 9.2e6 steps, 20 s, at rtol 1e-10,
+and a probe of its first tenth that took 920000 steps to cover 0.116 of it)."""
+
+
 def _implicit_budget(model: Model, setup: Setup) -> int:
     s = start_of(model, setup)
     found = policy.initial_spectrum(model, s.values, s.y0)
     expected = diagnostics.implicit_steps(found.slowest if found is not None else 0.0, setup.t_end)
-    return min(setup.reference_steps, max(IMPLICIT_STEPS, math.ceil(IMPLICIT_MARGIN * expected)))
+    budget = min(setup.reference_steps, max(IMPLICIT_STEPS, math.ceil(IMPLICIT_MARGIN * expected)))
+    return min(budget, COMPILED_RADAU_STEPS // COMPILED_STEPS) if backend_for(RADAU) == "compiled" else budget
 
 
 PROBE_SPAN = 0.1
@@ -380,6 +413,7 @@ of k = 1e10 written in its length: 12000 steps, 10 s, to reach t = 2e-4 at rtol 
 to t_end at 1e-7)."""
 PROBE_STEPS = 300
 RADAU = Candidate("Radau")
+COMPILED_RADAU = Candidate("Radau", "compiled")
 EXPLICIT_CONFIRMATION = 1.0
 """An implicit reference is confirmed first by compiled DOP853 at this times the loosest implicit rtol
 (0.1 x the accuracy asked): on a stiff system an explicit method's stability limit
@@ -399,7 +433,11 @@ its 9103 steps, 15 s, to cover the first tenth of the window; LSODA at rtol 1e-1
 
 def paced_run(model: Model, candidate: Candidate, rtol: float, setup: Setup) -> Trajectory | Unaffordable:
     """A reference-side run within `setup`'s reference budget, stopped by its pace (REFERENCE_PACE_MARGIN) where
-    it is a Python run: the trajectory, or the Unaffordable that stopped it (steps taken, share done)."""
+    it is a Python run: the trajectory, or the Unaffordable that stopped it (steps taken, share done). Compiled
+    Radau (a confirmation), which no pace stops, gets an implicit reference attempt's budget (`_implicit_budget`),
+    not the reference budget of 100 x 10 x --max-steps compiled steps (some 2 us each)."""
+    if candidate.method == "Radau" and backend_for(candidate) == "compiled":
+        setup = replace(setup, reference_max_steps=min(setup.reference_steps, _implicit_budget(model, setup)))
     try:
         return run(model, candidate, rtol, setup, reference=True, paced=True, margin=REFERENCE_PACE_MARGIN)
     except Unaffordable as over:
@@ -413,9 +451,12 @@ def _doomed(model: Model, setup: Setup, rtol: float, candidate: Candidate = RADA
     PROBE_SHARE of the budget."""
     budget = setup.reference_steps
     s = replace(start_of(model, setup), method="auto", backend="auto", rtol=rtol, atol=rtol * ATOL_RATIO)
-    measured = policy.pilot(model, s) if candidate.method in IMPLICIT else None
-    if measured is not None and not measured.finished and measured.implicit_steps(setup.t_end) > budget:
-        return f"at rtol {tol_text(rtol)} a pilot run extrapolates to {measured.implicit_steps(setup.t_end):.3g} steps, above the budget of {budget}"
+    # not for compiled Radau, whose probe costs 0.1-0.3 s: a pilot started in a fast transient overstates the steps (the stiff
+    # elastic pendulum in r at high energy: every rtol doomed, so the explicit fallback, 23 s, where compiled Radau finishes)
+    measured = policy.pilot(model, s) if candidate.method in IMPLICIT and backend_for(candidate) != "compiled" else None
+    allowed = budget * step_factor(candidate.method, backend_for(candidate), reference=True)  # a compiled run's budget (`runs.run_steps`)
+    if measured is not None and not measured.finished and measured.implicit_steps(setup.t_end) > allowed:
+        return f"at rtol {tol_text(rtol)} a pilot run extrapolates to {measured.implicit_steps(setup.t_end):.3g} steps, above the budget of {allowed}"
     span = PROBE_SPAN * setup.t_end
     probe = replace(setup, t_end=span, times=(0.0, span), reference_max_steps=max(PROBE_STEPS, math.ceil(PROBE_SHARE * budget)))
     # paced (REFERENCE_PACE_MARGIN) except for the loosest rtol, whose verdict decides between Radau and the explicit fallback: a pace
@@ -504,13 +545,15 @@ def _computed_reference(model: Model, setup: Setup, tolerance: float, hint: str,
             paced_need = paced.needed if paced is not None else None
         reasons.append("; ".join(tried))
     attempt = replace(setup, reference_max_steps=_implicit_budget(model, setup))
-    if paced_need is not None and paced_need > ACCURACY_LIMITED * attempt.reference_steps:
+    radau_backend = backend_for(RADAU)  # compiled where it can (`runs.compiled_radau`), its budget `runs.step_factor` x the scipy steps
+    radau_steps = attempt.reference_steps * step_factor("Radau", radau_backend, reference=True)
+    if paced_need is not None and paced_need > ACCURACY_LIMITED * radau_steps:
         # the explicit runs' steps were short for accuracy, not stability (not stiff where they stopped): an implicit method of
         # lower order needs at least as many, and Radau in Python has far fewer (audit4 F4: Kepler near r = 0 spent a
         # 60000-step Radau run on a reference the explicit probes had already shown out of reach)
         reasons.append(
-            f"Radau (python) not tried: the explicit runs were not stiff where they stopped, so their steps were limited by accuracy, and their pace"
-            f" needs about {paced_need:.3g} steps, more than {ACCURACY_LIMITED:g} x an implicit reference's budget of {attempt.reference_steps}"
+            f"Radau ({radau_backend}) not tried: the explicit runs were not stiff where they stopped, so their steps were limited by accuracy, and their pace"
+            f" needs about {paced_need:.3g} steps, more than {ACCURACY_LIMITED:g} x an implicit reference's budget of {radau_steps}"
         )
         raise _no_reference(model, reasons, hint, main)
     why = reasons[0] if reasons else "stiff at the start, where an explicit reference would be stability-limited"
@@ -528,7 +571,7 @@ def _computed_reference(model: Model, setup: Setup, tolerance: float, hint: str,
             fallback_tried = True
             also = f" (also: {'; '.join(skipped)})" if skipped else ""
             fallback = _explicit_fallback(
-                model, setup, rtols, f"the reference run (Radau (python)) cannot finish within its budget of {attempt.reference_steps} steps: {doomed}{also}", time.perf_counter() - began
+                model, setup, rtols, f"the reference run (Radau ({radau_backend})) cannot finish within its budget of {radau_steps} steps: {doomed}{also}", time.perf_counter() - began
             )
             if fallback is not None:
                 return fallback
@@ -539,13 +582,35 @@ def _computed_reference(model: Model, setup: Setup, tolerance: float, hint: str,
             # at rtol 1e-7, 3.7e6 steps and 2.5 s against DOP853's 7.9e6 and 9.4 s, the same disagreement with Radau)
             confirmers = ("RK45", "DOP853") if not reasons else ("DOP853",)
             explicit = [(Candidate(m, "compiled"), max(rtols[-1] * EXPLICIT_CONFIRMATION, TIGHTEST)) for m in confirmers] if compile.numba_available() else []
-            confirmations = explicit + [(Candidate("LSODA"), r) for r in (rtol / 100, rtol / 10, rtol) if r >= TIGHTEST] + [(Candidate("BDF"), rtol)]
-            found = _confirmed(model, attempt, radau, rtol, confirmations, time.perf_counter() - began)
-            found = _vouched(model, attempt, radau, rtol, found, rtols[-1], time.perf_counter() - began)
+            scipy = [(Candidate("LSODA"), r) for r in (rtol / 100, rtol / 10, rtol) if r >= TIGHTEST] + [(Candidate("BDF"), rtol)]
+            # the compiled explicit confirmations get the explicit fallback's budget (their stability limit sized) up to
+            # CONFIRMATION_STEPS, not the implicit attempt's: the angle-damped spring pendulum started at r = 0.011 needs 9.5e5
+            # DOP853 steps (1.3 s) at rtol 1e-7
+            wide = replace(attempt, reference_max_steps=max(attempt.reference_steps, min(_explicit_budget(model, setup), CONFIRMATION_STEPS // COMPILED_STEPS)))
+            first = _confirmed(model, wide, radau, rtol, explicit, time.perf_counter() - began) if explicit else None
+            if first is not None:
+                first = _vouched(model, wide, radau, rtol, first, rtols[-1], time.perf_counter() - began)
+            if first is not None and not math.isfinite(first.own_error) and radau.settings.backend == "compiled":
+                # no compiled explicit run could confirm it: Radau's own runs 10 x and 100 x looser, where its error converges with
+                # the tolerance (`_converged`: the disagreement at 10 x then bounds the primary's error), before scipy's runs in Python
+                first = _converged(model, attempt, radau, rtol, first, COMPILED_RADAU, rtols[-1], time.perf_counter() - began)
+            found = first if first is not None and math.isfinite(first.own_error) else _confirmed(model, attempt, radau, rtol, scipy, time.perf_counter() - began)
+            if first is not None and not math.isfinite(found.own_error):
+                names = ", ".join(c.method for c, _ in explicit)
+                found = replace(found, description=found.description.replace("unconfirmed: ", f"unconfirmed: {names}, ", 1))
             # not "round-off-limited": a probe stopped in a fast transient is no proof of round-off (audit4 F3: Radau at 1e-10
             # "took 301 steps to reach t = 0.216 of the first 1" on a damped cart whose 608-step run finishes)
             tighter = f"; tighter rtols were not tried in full: a probe of each could not cover the first part of the window within its share of the budget ({'; '.join(skipped)})" if skipped else ""
-            return replace(found, description=f"{found.description} (implicit: {why}{tighter})")
+            found = replace(found, description=f"{found.description} (implicit: {why}{tighter})")
+            python = found.confirmer is not None and backend_for(found.confirmer) == "python"
+            if implicit and radau.settings.backend == "compiled" and main is None and python and math.isfinite(found.own_error) and found.own_error > rtols[-1]:
+                # in `stress`, compiled Radau confirmed only by scipy's runs (no compiled confirmation finished) to an own error
+                # above the loosest rtol (0.1 x the accuracy): the explicit fallback, where its own error is smaller (the stiff
+                # elastic pendulum in r at high energy: compiled Radau at 1e-7 confirmed by LSODA to 1e-7, the fallback to 1.7e-9)
+                fallback = _explicit_fallback(model, setup, rtols, f"compiled Radau's reference ({found.description}) has own error {found.own_error:.1e}", time.perf_counter() - began)
+                if fallback is not None and fallback.own_error < found.own_error:
+                    return fallback
+            return found
         if radau.outcome != Status.BUDGET:
             break  # a failure, not round-off: a looser tolerance will not pass it
     assert radau is not None
@@ -569,7 +634,7 @@ def _no_reference(model: Model, reasons: list[str], hint: str, main: Trajectory 
 
 
 ACCURACY_LIMITED = 10.0
-"""Radau in Python is not tried as a reference where the explicit attempts ran out of budget, were not
+"""Radau (compiled, else in Python) is not tried as a reference where the explicit attempts ran out of budget, were not
 stiff where they stopped, and their pace needs more than this many times Radau's step budget in compiled
 steps: their steps were limited by accuracy, which a lower-order implicit method does not lengthen."""
 
@@ -600,6 +665,16 @@ def confirmation_ladder(loosest: float, primary: float) -> tuple[float, ...]:
     return tuple(rungs)
 
 
+def _explicit_budget(model: Model, setup: Setup) -> int:
+    """The reference step budget (scipy steps; compiled runs COMPILED_STEPS x as many) of a stability-limited compiled
+    explicit reference run: EXPLICIT_MARGIN x the stability-limited steps `auto`'s pilot estimates, at least
+    EXPLICIT_FLOOR compiled steps, at most `setup`'s reference budget."""
+    s = replace(start_of(model, setup), method="auto", backend="auto", rtol=PILOT_RTOL, atol=PILOT_RTOL * ATOL_RATIO)
+    measured = policy.pilot(model, s)
+    stable = measured.explicit_steps(setup.t_end) if measured is not None else 0.0
+    return min(setup.reference_steps, max(EXPLICIT_FLOOR, math.ceil(EXPLICIT_MARGIN * stable)) // COMPILED_STEPS + 1)
+
+
 def _explicit_fallback(model: Model, setup: Setup, rtols: tuple[float, ...], why: str, seconds: float) -> Reference | None:
     """Where Radau is round-off-limited at every rtol (a stiff spring written in its length: its
     Newton iterations and error estimate drown in the rounding of k (r - l)), compiled RK45 at the
@@ -611,11 +686,7 @@ def _explicit_fallback(model: Model, setup: Setup, rtols: tuple[float, ...], why
     23 s, against RK45's 3.6e6 steps, 2.5 s); the confirmation at the loosest rtol is conservative
     (its own error, 9e-9 there, bounds the disagreement). None when it cannot finish either (the
     caller reports the failure)."""
-    s = replace(start_of(model, setup), method="auto", backend="auto", rtol=PILOT_RTOL, atol=PILOT_RTOL * ATOL_RATIO)
-    measured = policy.pilot(model, s)
-    stable = measured.explicit_steps(setup.t_end) if measured is not None else 0.0
-    budget = min(setup.reference_steps, max(EXPLICIT_FLOOR, math.ceil(EXPLICIT_MARGIN * stable)) // COMPILED_STEPS + 1)
-    attempt = replace(setup, reference_max_steps=budget)
+    attempt = replace(setup, reference_max_steps=_explicit_budget(model, setup))
     primary = Candidate("RK45", "compiled")
     useful = tuple(r for r in rtols if r >= rtols[-1] * FALLBACK_SPREAD * (1 - 1e-9)) or rtols[-1:]
     for k, rtol in enumerate(useful):

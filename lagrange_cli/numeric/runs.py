@@ -23,7 +23,7 @@ import numpy as np
 from lagrange_cli.errors import LagrangeError
 from lagrange_cli.model import Model
 from lagrange_cli.numeric import compile, memo, policy
-from lagrange_cli.numeric.settings import METHODS, Settings, validate
+from lagrange_cli.numeric.settings import COMPILED, METHODS, Settings, validate
 from lagrange_cli.numeric.simulate import InvariantKind, Trajectory, fixed_steps, integrate, run_seconds
 from lagrange_cli.numeric.status import Failure, Status
 
@@ -84,20 +84,34 @@ def default_candidates(model: Model) -> tuple[Candidate, ...]:
     where it cannot run (kept constraints, no numba) and where the system dissipates (a Rayleigh
     function): there its energy is not conserved, so a symplectic method has nothing to keep and
     is an implicit Runge-Kutta method without error control; its pilot's compilation alone was a
-    third of `stress` on a damped stiff system. `--method symplectic` still measures it."""
+    third of `stress` on a damped stiff system. `--method symplectic` still measures it.
+
+    Radau is the compiled one (`backend_for`) except with kept constraints: there its run is projected
+    stretch by stretch between the samples (`simulate._projected`), each stretch restarting the method,
+    20-280 us a step on the trammel against 2 us unconstrained, so it is no cheaper than scipy's and
+    is measured as scipy's (`Radau:python`), whose pace stops a run that cannot finish."""
     skip = bool(model.constraints) or not compile.numba_available() or model.dissipative
     methods = [m for m in STUDY_METHODS if not (m == "symplectic" and skip)]
-    return tuple(Candidate(m) for m in methods)
+    return tuple(Candidate(m, "python" if m == "Radau" and model.constraints else "auto") for m in methods)
+
+
+def compiled_radau() -> bool:
+    """Whether Radau runs compiled here (numba is installed and the compiled Radau IIA method exists):
+    then a study's Radau is the compiled one, its step some 250 x cheaper than scipy's (2.3 us against
+    0.6 ms on a 2-DOF system), and scipy's Radau runs only where asked for (`Radau:python`)."""
+    return "Radau" in COMPILED and compile.numba_available()
 
 
 def backend_for(candidate: Candidate) -> str:
-    """The backend a candidate runs on: RK45/DOP853 compiled when numba is available."""
+    """The backend a candidate runs on: RK45/DOP853 (and Radau, `compiled_radau`) compiled when numba is available."""
     if candidate.backend != "auto":
         return candidate.backend
     if candidate.method == "symplectic":  # compiled only (without numba: a hint naming the extra)
         return "compiled"
     if candidate.method in ("RK45", "DOP853"):
         return "compiled" if compile.numba_available() else "python"
+    if candidate.method == "Radau":
+        return "compiled" if compiled_radau() else "python"
     return "auto" if candidate.method == "auto" else "python"
 
 
@@ -337,9 +351,25 @@ def settings_for(model: Model, candidate: Candidate, tolerance: float, setup: Se
     return policy.decide(model, asked)
 
 
-def run_steps(settings: Settings, budget: int) -> int:
-    """The step budget of one run: `budget` scipy steps, COMPILED_STEPS x that compiled."""
-    return budget * COMPILED_STEPS if settings.backend == "compiled" else budget
+COMPILED_IMPLICIT_STEPS = 10
+"""A measured compiled Radau run may take this many times the budget, not COMPILED_STEPS: its step costs 2-5 us on a
+small system (3-7 evaluations with its LU factors reused; some 3 x a compiled explicit step, 1/100-1/250 of scipy's
+Radau step), and no pace stops it where it is round-off-limited (60000 x 100 steps would be 15-30 s a run); 10 x
+scipy's budget is still 10 x the steps in 1/25 of the time. Reference runs keep COMPILED_STEPS, within
+`reference.COMPILED_RADAU_STEPS` an attempt."""
+
+
+def step_factor(method: str, backend: str, reference: bool = False) -> int:
+    """How many steps a run of `method` on `backend` may take per step of a budget (which counts scipy steps):
+    1 for scipy's, COMPILED_STEPS for the compiled methods, COMPILED_IMPLICIT_STEPS for a measured compiled Radau run."""
+    if backend != "compiled":
+        return 1
+    return COMPILED_IMPLICIT_STEPS if method == "Radau" and not reference else COMPILED_STEPS
+
+
+def run_steps(settings: Settings, budget: int, reference: bool = False) -> int:
+    """The step budget of one run (`reference`: a reference-side run): `budget` scipy steps, `step_factor` x that compiled."""
+    return budget * step_factor(settings.method, settings.backend, reference)
 
 
 def run(
@@ -362,7 +392,7 @@ def run(
     repeat decides nothing again."""
     limit = setup.time_limit if timed and not reference else None
     decided = settings if settings is not None else settings_for(model, candidate, tolerance, setup, step)
-    budget = run_steps(decided, setup.reference_steps if reference else setup.steps)
+    budget = run_steps(decided, setup.reference_steps if reference else setup.steps, reference)
     progress = _time_limit(limit) if limit is not None else None
     if paced and decided.backend == "python":  # a reference-side run too (`reference.paced_run`)
         progress = _paced(budget, progress, margin)
@@ -414,6 +444,12 @@ iterations over three stages and finite-difference Jacobians: 43513 in 2279 step
 penalty pendulum of k = 1e9; 6 before, so that its first capped run spent 3 x its cap), BDF about 3.7."""
 
 
+COMPILED_EVALUATIONS_PER_STEP = {"Radau": 8}
+"""... and of a compiled method where it differs from scipy's: the compiled Radau IIA reuses its Jacobian
+and LU factors across steps (RADAU5's rules), about 7.3 evaluations a step (the stiff elastic pendulum in r
+at rtol 1e-8: 6237 in 851 steps, 13 Jacobians), where scipy's takes about 19."""
+
+
 def work(point: Point) -> float:
     """A run's work in scipy right-hand side evaluations (a compiled evaluation costs about 1/COMPILED_STEPS as much)."""
     compiled = point.ran is not None and point.ran.backend == "compiled"
@@ -426,7 +462,8 @@ def capped_steps(candidate: Candidate, allowed: float, last: Point | None, setup
     evaluations per step."""
     if not math.isfinite(allowed):
         return setup.steps
-    per_step = last.nfev / last.steps if last is not None and last.steps else EVALUATIONS_PER_STEP.get(candidate.method, 6)
+    first = COMPILED_EVALUATIONS_PER_STEP.get(candidate.method) if backend_for(candidate) == "compiled" else None
+    per_step = last.nfev / last.steps if last is not None and last.steps else first or EVALUATIONS_PER_STEP.get(candidate.method, 6)
     steps = allowed / max(per_step, 1.0)  # compiled runs get COMPILED_STEPS x this, at 1/COMPILED_STEPS the cost each
     return max(1, min(setup.steps, math.ceil(steps)))
 
@@ -482,7 +519,8 @@ def measure(model: Model, candidate: Candidate, tolerance: float, setup: Setup, 
         step=s.step if s.method == "symplectic" else None,
     )
     if over_step_budget(first):
-        times = f" x {COMPILED_STEPS} for a compiled run" if first.settings.backend == "compiled" else ""
+        factor = step_factor(first.settings.method, first.settings.backend)
+        times = f" x {factor} for a compiled run" if factor > 1 else ""
         done = (first.t_last - first.settings.t0) / (setup.t_end - first.settings.t0) if setup.t_end > first.settings.t0 else 0.0
         reason = f"stopped after {first.stats.steps} steps (the step budget, --max-steps {setup.steps}{times}) at {100 * done:.0f}% of the time span"
         return replace(base, status=PointStatus.OVER_BUDGET, reason=reason, failure=Failure.BUDGET, reached=done)
