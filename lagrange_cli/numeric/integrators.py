@@ -447,14 +447,27 @@ def run_radau(functions: Functions, problem: Problem, rtol: float, atol: float, 
     """Radau IIA (3 stages, order 5) compiled (kernels.radau_run: the RADAU5 algorithm, scipy's step
     control), with the system's analytic Jacobian where `functions` has one (`compile.build(..., jacobian=True)`:
     codegen.jac_numba), else (or where its values are not finite) by forward differences of the compiled
-    right-hand side."""
+    right-hand side. A system with switching functions (`_SWITCHES`, switching.py) runs
+    kernels.radau_switched, which lands a step on each of their crossings (switching.LOCATE on)."""
     kernels = functions.kernels
     assert kernels is not None
     start, _, compile_start = _compile(functions, "radau_start", [])
     pieces = [("_accel", kernels.ACCEL_SIG), ("_event", kernels.EVENT_SIG)]
     analytic = hasattr(functions.module, "_jac")
-    entry, (accel, event, *given), compile_run = _compile(functions, "radau_run", [*pieces, ("_jac", kernels.JAC_SIG)] if analytic else pieces)
+    if analytic:
+        pieces.append(("_jac", kernels.JAC_SIG))
+    switches = int(getattr(functions.module, "_SWITCHES", 0)) if switching.LOCATE else 0
+    if switches:
+        pieces.append(("_switch", kernels.SWITCH_SIG))
+    entry, (accel, event, *given), compile_run = _compile(functions, "radau_switched" if switches else "radau_run", pieces)
     jacobian = given[0] if analytic else kernels.compiled("no_jacobian")
+    extra: tuple[Any, ...] = ()
+    if switches:
+        switch, record = given[-1], kernels.switching_record(switches)
+        g = np.empty(switches)
+        switch(problem.t0, problem.y0, problem.p, g)
+        record[kernels.SWITCH_HEAD : kernels.SWITCH_HEAD + switches] = g
+        extra = (switch, record)
     began = time.perf_counter()
     n = len(problem.y0)
     y, f = problem.y0.copy(), np.empty(n)
@@ -468,12 +481,14 @@ def run_radau(functions: Functions, problem: Problem, rtol: float, atol: float, 
 
     def advance(t_stop: float) -> int:
         control[status.T_STOP] = t_stop
-        return int(entry(y, f, state, control, problem.ts, ys, problem.p, stats, jac, dense, y_old, memory, accel, event, jacobian))
+        return int(entry(y, f, state, control, problem.ts, ys, problem.p, stats, jac, dense, y_old, memory, accel, event, jacobian, *extra))
 
     code = status.SINGULAR if h0 < 0 else _drive(advance, lambda: float(state[status.T]), lambda: int(stats[status.NSTEPS]), problem, progress)
     m = int(state[status.NEXT_SAMPLE])
-    record = _stats(stats, nlu=int(stats[status.NLU]))
-    return Run(problem.ts[:m], ys[:m], Status.of_code(code), float(state[status.T]), y, record, compile_start + compile_run, time.perf_counter() - began)
+    switched = (switches, int(extra[1][kernels.SWITCH_COUNT])) if switches else None
+    return Run(
+        problem.ts[:m], ys[:m], Status.of_code(code), float(state[status.T]), y, _stats(stats, nlu=int(stats[status.NLU])), compile_start + compile_run, time.perf_counter() - began, switching=switched
+    )
 
 
 PILOT_STEPS = 1000

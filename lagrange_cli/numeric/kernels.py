@@ -27,6 +27,7 @@ from typing import Any
 
 import numpy as np
 from numba import njit, types
+from numba.extending import overload
 
 from lagrange_cli.numeric.status import (
     ANALYTIC,
@@ -280,6 +281,8 @@ SIGNATURES = {
     "radau_start": _F8(_F8, _ARR, _ARR, _ARR, _ARR, _ARR, _MAT, _ARR, _ACCEL_T, _JAC_T),
     # (y, f, state, control, ts, ys, p, stats, jac, dense, y_old, memory, accel, event, jacobian)
     "radau_run": _I8(_ARR, _ARR, _ARR, _ARR, _ARR, _MAT, _ARR, _ARR, _MAT, _MAT, _ARR, _ARR, _ACCEL_T, _EVENT_T, _JAC_T),
+    # (y, f, state, control, ts, ys, p, stats, jac, dense, y_old, memory, accel, event, jacobian, switch, record)
+    "radau_switched": _I8(_ARR, _ARR, _ARR, _ARR, _ARR, _MAT, _ARR, _ARR, _MAT, _MAT, _ARR, _ARR, _ACCEL_T, _EVENT_T, _JAC_T, _SWITCH_T, _ARR),
     # a stand-in for a system without `_jac` (control[ANALYTIC] = 0: never called)
     "no_jacobian": JAC_SIG,
 }
@@ -1842,12 +1845,75 @@ def radau_start(t0, y, f, control, p, stats, jac, memory, accel, jacobian):
     return _initial_step(accel, t0, y, f, control[T_BOUND], control[MAX_STEP], RADAU_ERROR_ORDER, rtol, control[ATOL], p, x, a, stats)
 
 
+def _call_switch(switch, t, y, p, out):
+    """switch(t, y, p, out) in _radau_loop: radau_run passes its stop condition in its place (never called,
+    m = 0), which this compiles to nothing (a jitted stand-in would be a dynamic global: no caching)."""
+    return switch(t, y, p, out)
+
+
+@overload(_call_switch)
+def _call_switch_typed(switch, t, y, p, out):
+    if switch == _SWITCH_T:
+        return lambda switch, t, y, p, out: switch(t, y, p, out)
+    return lambda switch, t, y, p, out: 0
+
+
 def radau_run(y, f, state, control, ts, ys, p, stats, jac, dense, y_old, memory, accel, event, jacobian):
     """Advance (t = state[T], y, f = f(t, y), |h| = state[H], the stop condition's value state[EVENT_VALUE],
     J = jac, the last step's collocation polynomial (dense, y_old) and the step control's `memory`, all
     from `radau_start` or the call before) by Radau IIA until t >= control[T_STOP], writing ys[j] = y(ts[j])
     for the samples passed (state[NEXT_SAMPLE]: the next one); returns a status code (RUNNING: paused)."""
+    none = np.empty(SWITCH_HEAD)  # switching_record(0)
+    none[SWITCH_PENDING] = np.inf
+    return _radau_loop(y, f, state, control, ts, ys, p, stats, jac, dense, y_old, memory, accel, event, jacobian, event, none)
+
+
+def radau_switched(y, f, state, control, ts, ys, p, stats, jac, dense, y_old, memory, accel, event, jacobian, switch, record):
+    """`radau_run` landing a step on each zero crossing of the switching functions `switch` (codegen's
+    `_switch`), as `erk_switched`: after an accepted step, g at its end is compared with g at its start
+    (record, switching_record); where one changed sign, the crossing is located on the step's collocation
+    polynomial (the Illinois method, the earliest of them), the step is discarded (counted as rejected) and
+    taken again to land on it; there the method restarts as at t0: a fresh Jacobian and LU, scipy's
+    initial step, no predictor from the step before and the predictive controller's memory cleared."""
+    return _radau_loop(y, f, state, control, ts, ys, p, stats, jac, dense, y_old, memory, accel, event, jacobian, switch, record)
+
+
+@njit(error_model="numpy")
+def _radau_switch_root(switch, i, t_old, h, y_old, dense, p, work, g, g_lo, g_hi):
+    """The time in (t_old, t_old + h] where switching function i changes sign: the Illinois method on the
+    collocation polynomial (as `_switch_root`), the bracket's far end returned (g_i there on the new side)."""
+    lo, hi = t_old, t_old + h
+    side = 0
+    for _ in range(100):
+        if hi - lo <= 4e-16 * max(abs(hi), 1.0):
+            break
+        mid = (lo * g_hi - hi * g_lo) / (g_hi - g_lo) if g_hi != g_lo else 0.5 * (lo + hi)
+        if not lo < mid < hi:
+            mid = 0.5 * (lo + hi)
+        _radau_eval(t_old, h, y_old, dense, mid, work)
+        _call_switch(switch, mid, work, p, g)
+        g_mid = g[i]
+        if g_mid == 0.0:
+            return mid
+        if (g_mid < 0.0) == (g_lo < 0.0):
+            lo, g_lo = mid, g_mid
+            if side == -1:
+                g_hi *= 0.5
+            side = -1
+        else:
+            hi, g_hi = mid, g_mid
+            if side == 1:
+                g_lo *= 0.5
+            side = 1
+    return hi
+
+
+@njit(error_model="numpy")
+def _radau_loop(y, f, state, control, ts, ys, p, stats, jac, dense, y_old, memory, accel, event, jacobian, switch, record):
+    """radau_run and radau_switched (m = 0 switching functions in `record`: radau_run's steps exactly)."""
     n = y.shape[0]
+    m = (record.shape[0] - SWITCH_HEAD) // 2
+    g_end, g_work, g_start, trial = np.empty(m), np.empty(m), np.empty(m), np.empty((3, n))
     rtol = max(control[RTOL], 100 * _EPS)  # scipy's floor for Radau
     atol, max_step, t_bound, t_stop, use_event = control[ATOL], control[MAX_STEP], control[T_BOUND], control[T_STOP], control[USE_EVENT] != 0.0
     newton_tol = max(10 * _EPS / rtol, min(0.03, rtol**0.5))
@@ -1872,6 +1938,8 @@ def radau_run(y, f, state, control, ts, ys, p, stats, jac, dense, y_old, memory,
     while t < t_stop and t < t_bound and taken < pause:
         taken += 1
         min_step = MIN_STEP_SPACINGS * abs(np.nextafter(t, np.inf) - t)
+        pending = record[SWITCH_PENDING]
+        limit = min(t_bound, pending)
         h_abs_start = h_abs
         if h_abs > max_step:
             h_abs, h_abs_old, error_old = max_step, np.nan, np.nan
@@ -1888,8 +1956,8 @@ def radau_run(y, f, state, control, ts, ys, p, stats, jac, dense, y_old, memory,
                 state[T], state[H] = t, h_abs
                 return NONFINITE if bad else STEP_COLLAPSE
             t_new = t + h_abs
-            if t_new > t_bound:
-                t_new = t_bound
+            if t_new > limit or (pending < t_bound and limit - t_new <= 4 * _EPS * abs(limit)):
+                t_new = limit  # the end, or the crossing located (retaken: land on it, round-off apart)
             h = t_new - t
             h_abs = abs(h)
             for i in range(n):
@@ -1965,7 +2033,44 @@ def radau_run(y, f, state, control, ts, ys, p, stats, jac, dense, y_old, memory,
                 rejected = True
                 continue
             break
-        recompute_jac = iterations > 2 and rate > JAC_RATE
+        arrived = False
+        if m > 0:  # the switching functions: a crossing inside the step discards it (retaken to land there)
+            arrived = t_new == pending
+            if not arrived:
+                _call_switch(switch, t_new, y_new, p, g_end)
+                first, t_first = -1, t_new
+                started = False
+                for i in range(m):
+                    g_old = record[SWITCH_HEAD + i]
+                    if (g_old < 0.0) != (g_end[i] < 0.0) and g_old != 0.0:
+                        if not started:  # g at the step's start itself (after a landing, g_old is the far side's value)
+                            _call_switch(switch, t, y, p, g_start)
+                            started = True
+                        if g_start[i] == 0.0 or (g_start[i] < 0.0) == (g_end[i] < 0.0):
+                            continue  # the path touched the surface at the landing and turned back: no crossing here
+                        if first < 0:  # the step's collocation polynomial, once
+                            for k in range(3):
+                                for j in range(n):
+                                    trial[k, j] = Z[0, j] * _RP[0, k] + Z[1, j] * _RP[1, k] + Z[2, j] * _RP[2, k]
+                        t_i = _radau_switch_root(switch, i, t, h, y, trial, p, work, g_work, g_start[i], g_end[i])
+                        if first < 0 or t_i < t_first:
+                            first, t_first = i, t_i
+                if first >= 0 and t < t_first < t_new:  # discard the step: take it again to land on the crossing
+                    record[SWITCH_PENDING], record[SWITCH_INDEX] = t_first, float(first)
+                    for i in range(m):
+                        record[SWITCH_HEAD + m + i] = g_end[i]
+                    stats[NREJECT] += 1
+                    h_abs = t_first - t
+                    have_lu = False  # the factors were for the step discarded
+                    memory[LU_STEP] = 0.0
+                    state[H] = h_abs  # a pause right here resumes with this step
+                    continue
+                if first >= 0:  # the crossing is at the step's end: it has landed there
+                    arrived = True
+                    record[SWITCH_INDEX] = float(first)
+                    for i in range(m):
+                        record[SWITCH_HEAD + m + i] = g_end[i]
+        recompute_jac = iterations > 2 and rate > JAC_RATE and not arrived  # (a landing computes J afresh)
         factor = min(MAX_FACTOR, safety * _predict_factor(h_abs, h_abs_old, error_norm, error_old))
         if not recompute_jac and factor < KEEP_FACTOR:
             factor = 1.0
@@ -1993,7 +2098,7 @@ def radau_run(y, f, state, control, ts, ys, p, stats, jac, dense, y_old, memory,
             y_old[i] = y[i]
         memory[T_OLD], memory[STEP_OLD], memory[HAVE_DENSE] = t, h, 1.0
         stats[NSTEPS] += 1
-        if t_new < t_bound:
+        if t_new < limit:
             stats[HMIN] = min(stats[HMIN], h)
         stats[HMAX] = max(stats[HMAX], h)
         # samples and the event, on the collocation polynomial
@@ -2024,5 +2129,24 @@ def radau_run(y, f, state, control, ts, ys, p, stats, jac, dense, y_old, memory,
             f[i] = f_new[i]
         t = t_new
         h_abs *= factor
+        if arrived:
+            # g on the crossing's far side for the surface crossed, at the landing point for the others
+            _call_switch(switch, t, y, p, g_end)
+            crossed = int(record[SWITCH_INDEX])
+            for i in range(m):
+                record[SWITCH_HEAD + i] = record[SWITCH_HEAD + m + i] if i == crossed else g_end[i]
+            record[SWITCH_PENDING], record[SWITCH_INDEX] = np.inf, -1.0
+            record[SWITCH_COUNT] += 1.0
+            # restart as radau_start (f = f(t, y) is fresh): J and the factors afresh, no predictor, no controller memory, scipy's initial step
+            if _radau_jac(accel, jacobian, analytic, t, y, f, p, x, a, jac, work, fw, rows, pivots, column, stats):
+                state[T], state[H] = t, h_abs
+                return SINGULAR
+            current_jac, have_lu = True, False
+            memory[CURRENT_JAC], memory[LU_STEP], memory[HAVE_DENSE], memory[CONTRACTION] = 1.0, 0.0, 0.0, 1.0
+            memory[H_ABS_OLD], memory[ERROR_OLD] = np.nan, np.nan
+            h_abs = _initial_step(accel, t, y, f, t_bound, max_step, RADAU_ERROR_ORDER, rtol, atol, p, x, a, stats)
+        elif m > 0:
+            for i in range(m):
+                record[SWITCH_HEAD + i] = g_end[i]
         state[T], state[H] = t, h_abs
     return DONE if t >= t_bound else RUNNING
