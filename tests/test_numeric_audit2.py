@@ -150,7 +150,17 @@ def test_a_losing_run_is_stopped_by_its_pace() -> None:
     assert full.status == PointStatus.OVER_BUDGET and full.steps > 3 * paced.steps
 
 
-def test_a_doomed_implicit_reference_goes_to_the_explicit_fallback_at_once() -> None:
+def _scipy_radau(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The implicit reference in scipy's Radau, as on a system with kept constraints (where a study's Radau is scipy's)
+    or without the compiled method: the explicit fallback these tests are about is reached only then (compiled Radau
+    finishes where scipy's cannot: tests/test_radstress.py)."""
+    from lagrange_cli.numeric import runs
+
+    monkeypatch.setattr(runs, "compiled_radau", lambda: False)
+    monkeypatch.setattr(reference, "compiled_radau", lambda: False)
+
+
+def test_a_doomed_implicit_reference_goes_to_the_explicit_fallback_at_once(monkeypatch: pytest.MonkeyPatch) -> None:
     """The k = 1e10 pendulum started at r = 0.01: Radau cannot finish at any rtol (round-off); the
     loosest attempt is judged doomed by its probe like the tighter ones, not run to its whole budget
     (55614 steps, most of `stress`'s time), and the reference is compiled RK45 (cheaper than DOP853
@@ -159,6 +169,7 @@ def test_a_doomed_implicit_reference_goes_to_the_explicit_fallback_at_once() -> 
 
     if not compile.numba_available():
         pytest.skip("the explicit fallback needs numba")
+    _scipy_radau(monkeypatch)
     model = _model(PILOT / "stiff_elastic_pendulum_r.yaml")
     setup = Setup(1.0, tuple(np.linspace(0.0, 1.0, 21).tolist()), initial={"r": 0.01}, max_steps=60_000)
     found = reference.computed_reference(model, setup, 1e-14, implicit=reference.implicit_tolerances(1e-9, 1e-7))
@@ -168,7 +179,7 @@ def test_a_doomed_implicit_reference_goes_to_the_explicit_fallback_at_once() -> 
     assert found.own_error < 1e-7
 
 
-def test_the_explicit_fallback_is_confirmed_again_tighter_while_that_lowers_its_own_error() -> None:
+def test_the_explicit_fallback_is_confirmed_again_tighter_while_that_lowers_its_own_error(monkeypatch: pytest.MonkeyPatch) -> None:
     """The damped chain of k = 1e7 (tests/numeric_audit3): Radau cannot finish within its budget, the
     reference is compiled RK45 at 1e-9, whose true error (against the matrix exponential, audit 3)
     is 7.2e-9; compiled DOP853 confirming it at 1e-7 and 1e-8 is itself 5.1e-7 off at its
@@ -181,6 +192,7 @@ def test_the_explicit_fallback_is_confirmed_again_tighter_while_that_lowers_its_
         pytest.skip("the explicit fallback needs numba")
     assert reference.confirmation_ladder(1e-7, 1e-9) == (1e-8, 1e-9)
     assert reference.confirmation_ladder(1e-7, 1e-7) == ()
+    _scipy_radau(monkeypatch)
     model = _model(HERE / "numeric_audit3" / "spring_chain_4_damped.yaml")
     setup = Setup(20.0, tuple(np.linspace(0.0, 20.0, 2001).tolist()), max_steps=60_000)
     found = reference.computed_reference(model, setup, stress.reference_tolerance(1e-6), implicit=stress.implicit_reference_tolerances(1e-6))
