@@ -533,6 +533,22 @@ def _erk_eval(pair, t_old, h, y_old, coef, t, out):
         out[i] = value + y_old[i]
 
 
+@njit(error_model="numpy", inline="always")
+def _illinois_guess(lo, hi, g_lo, g_hi):
+    """The Illinois method's next point in (lo, hi): the secant's zero, or the midpoint where that is not inside."""
+    mid = (lo * g_hi - hi * g_lo) / (g_hi - g_lo) if g_hi != g_lo else 0.5 * (lo + hi)
+    return mid if lo < mid < hi else 0.5 * (lo + hi)
+
+
+@njit(error_model="numpy", inline="always")
+def _illinois_update(lo, hi, g_lo, g_hi, side, mid, g_mid):
+    """The bracket (lo, hi, g_lo, g_hi, side) after the value g_mid at mid: the end on mid's side moves there, and
+    the other end's value is halved when the same side moved twice in a row (the Illinois method)."""
+    if (g_mid < 0.0) == (g_lo < 0.0):
+        return mid, hi, g_mid, (0.5 * g_hi if side == -1 else g_hi), -1
+    return lo, mid, (0.5 * g_lo if side == 1 else g_lo), g_mid, 1
+
+
 @njit(error_model="numpy")
 def _erk_root(event, pair, t_old, h, y_old, coef, p, x, a, work, g_old):
     """The time in (t_old, t_old + h] where the event changes sign: the Illinois method on the dense output."""
@@ -544,23 +560,12 @@ def _erk_root(event, pair, t_old, h, y_old, coef, p, x, a, work, g_old):
     for _ in range(100):
         if hi - lo <= 4e-16 * max(abs(hi), 1.0):
             break
-        mid = (lo * g_hi - hi * g_lo) / (g_hi - g_lo) if g_hi != g_lo else 0.5 * (lo + hi)
-        if not lo < mid < hi:
-            mid = 0.5 * (lo + hi)
+        mid = _illinois_guess(lo, hi, g_lo, g_hi)
         _erk_eval(pair, t_old, h, y_old, coef, mid, work)
         g_mid = event(mid, work, p, x, a)
         if g_mid == 0.0:
             return mid
-        if (g_mid < 0.0) == (g_lo < 0.0):
-            lo, g_lo = mid, g_mid
-            if side == -1:
-                g_hi *= 0.5
-            side = -1
-        else:
-            hi, g_hi = mid, g_mid
-            if side == 1:
-                g_lo *= 0.5
-            side = 1
+        lo, hi, g_lo, g_hi, side = _illinois_update(lo, hi, g_lo, g_hi, side, mid, g_mid)
     return hi
 
 
@@ -735,24 +740,13 @@ def _switch_root(switch, i, pair, t_old, h, y_old, coef, p, work, g, g_lo, g_hi)
     for _ in range(100):
         if hi - lo <= 4e-16 * max(abs(hi), 1.0):
             break
-        mid = (lo * g_hi - hi * g_lo) / (g_hi - g_lo) if g_hi != g_lo else 0.5 * (lo + hi)
-        if not lo < mid < hi:
-            mid = 0.5 * (lo + hi)
+        mid = _illinois_guess(lo, hi, g_lo, g_hi)
         _erk_eval(pair, t_old, h, y_old, coef, mid, work)
         switch(mid, work, p, g)
         g_mid = g[i]
         if g_mid == 0.0:
             return mid
-        if (g_mid < 0.0) == (g_lo < 0.0):
-            lo, g_lo = mid, g_mid
-            if side == -1:
-                g_hi *= 0.5
-            side = -1
-        else:
-            hi, g_hi = mid, g_mid
-            if side == 1:
-                g_lo *= 0.5
-            side = 1
+        lo, hi, g_lo, g_hi, side = _illinois_update(lo, hi, g_lo, g_hi, side, mid, g_mid)
     return hi
 
 
@@ -1807,23 +1801,12 @@ def _radau_root(event, t_old, h, y_old, dense, hi, p, x, a, work, g_old):
     for _ in range(100):
         if hi - lo <= 4e-16 * max(abs(hi), 1.0):
             break
-        mid = (lo * g_hi - hi * g_lo) / (g_hi - g_lo) if g_hi != g_lo else 0.5 * (lo + hi)
-        if not lo < mid < hi:
-            mid = 0.5 * (lo + hi)
+        mid = _illinois_guess(lo, hi, g_lo, g_hi)
         _radau_eval(t_old, h, y_old, dense, mid, work)
         g_mid = event(mid, work, p, x, a)
         if g_mid == 0.0:
             return mid
-        if (g_mid < 0.0) == (g_lo < 0.0):
-            lo, g_lo = mid, g_mid
-            if side == -1:
-                g_hi *= 0.5
-            side = -1
-        else:
-            hi, g_hi = mid, g_mid
-            if side == 1:
-                g_lo *= 0.5
-            side = 1
+        lo, hi, g_lo, g_hi, side = _illinois_update(lo, hi, g_lo, g_hi, side, mid, g_mid)
     return hi
 
 
@@ -1887,24 +1870,13 @@ def _radau_switch_root(switch, i, t_old, h, y_old, dense, p, work, g, g_lo, g_hi
     for _ in range(100):
         if hi - lo <= 4e-16 * max(abs(hi), 1.0):
             break
-        mid = (lo * g_hi - hi * g_lo) / (g_hi - g_lo) if g_hi != g_lo else 0.5 * (lo + hi)
-        if not lo < mid < hi:
-            mid = 0.5 * (lo + hi)
+        mid = _illinois_guess(lo, hi, g_lo, g_hi)
         _radau_eval(t_old, h, y_old, dense, mid, work)
         _call_switch(switch, mid, work, p, g)
         g_mid = g[i]
         if g_mid == 0.0:
             return mid
-        if (g_mid < 0.0) == (g_lo < 0.0):
-            lo, g_lo = mid, g_mid
-            if side == -1:
-                g_hi *= 0.5
-            side = -1
-        else:
-            hi, g_hi = mid, g_mid
-            if side == 1:
-                g_lo *= 0.5
-            side = 1
+        lo, hi, g_lo, g_hi, side = _illinois_update(lo, hi, g_lo, g_hi, side, mid, g_mid)
     return hi
 
 
