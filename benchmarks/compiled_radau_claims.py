@@ -10,7 +10,8 @@ Error measure: the audits' (`numeric_audit3._error`): the maximum over 2001 even
 max_i |y_i - ref_i| / max(1, max|ref_i|). A claim is TRUE when the true error meets the accuracy
 target and the reported error is within 2 x of the true one or above it (conservative).
 
-    PYTHONPATH=$PWD python benchmarks/compiled_radau_claims.py FILE.yaml STRESS.json OUT.json [REGIME-PREFIX ...]
+    PYTHONPATH=$PWD python benchmarks/compiled_radau_claims.py FILE.yaml STRESS-OR-ACCURACY.json OUT.json [REGIME-PREFIX ...]
+    python benchmarks/compiled_radau_claims.py table OUT.json ...   # the rows as a markdown table
 """
 
 from __future__ import annotations
@@ -84,7 +85,18 @@ def reference(rhs: object, y0: list[float], t_end: float, to_lagrange: Callable[
     return Ref(t_end, y, own, "scipy Radau 1e-12, LSODA 1e-12 agrees to", time.process_time() - began)
 
 
+def table(paths: list[str]) -> None:
+    """`table ROWS.json ...`: the rows as BENCHMARKS.md's table."""
+    print("| file | regime | claim | setting | target | reported | true (ref own) | verdict |\n|---|---|---|---|---|---|---|---|")
+    for p in paths:
+        for r in json.loads(Path(p).read_text()):
+            print(f"| {r['file']} | {r['regime']} ({r['kind']}) | {r['claim']} | {r['setting']} | {r['target']:g} | {r['reported']:.3g} | {r['true']:.3g} ({r['ref_own']:.1g}) | {r['verdict']} |")
+
+
 def main() -> None:
+    if sys.argv[1] == "table":
+        table(sys.argv[2:])
+        return
     from lagrange_cli import api
     from lagrange_cli.numeric import stress
 
