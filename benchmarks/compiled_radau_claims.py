@@ -117,6 +117,8 @@ def main() -> None:
         for regime in report["regimes"]:
             if only and not any(regime["regime"].startswith(p) for p in only):
                 continue
+            if not regime.get("recommended") and not regime.get("levels"):
+                continue  # undecided: no claim to check
             plan = planned[regime["regime"]]
             start = {**{n: float(data["initial"].get(n, 0.0)) for n in names}, **plan.initial}
             y0 = from_lagrange([start[n] for n in names])
