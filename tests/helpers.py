@@ -15,6 +15,23 @@ from lagrange_cli import derive, spec
 from lagrange_cli.model import Model
 
 
+def damped_stiff_spring(k: float, c: float) -> str:
+    """A linear system file (so exactly solvable): x on a spring k damped by c (decay rates about k / c and c), coupled
+    by a unit spring to y, which swings at 1 rad/s; t_end 5."""
+    return f"""
+title: damped stiff spring (linear)
+coordinates: [x, y]
+parameters: {{k: {k!r}, c: {c!r}, kc: 1.0}}
+particles:
+  a: {{mass: 1, position: [x]}}
+  b: {{mass: 1, position: [y]}}
+potential: k*x**2/2 + kc*(x - y)**2/2 + y**2/2
+dissipation: c*x_dot**2/2
+initial: {{x: 1.0, y: 0.5}}
+simulate: {{t_end: 5}}
+"""
+
+
 def model_of(text: str, name: str = "test.yaml") -> Model:
     return derive.derive(spec.parse(text, name))
 

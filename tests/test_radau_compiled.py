@@ -19,23 +19,12 @@ from lagrange_cli.numeric.simulate import simulate
 from lagrange_cli.numeric.status import Status
 
 from .conftest import ROOT
-from .helpers import model_from, model_of
+from .helpers import damped_stiff_spring, model_from, model_of
 
 runner = CliRunner()
 # the shared cache (no private_cache): radau_run compiles once per machine (20-40 s), not once per test run
 
-SPRING = """
-title: damped stiff spring (linear)
-coordinates: [x, y]
-parameters: {k: 1.0e8, c: 2.0e4, kc: 1.0}
-particles:
-  a: {mass: 1, position: [x]}
-  b: {mass: 1, position: [y]}
-potential: k*x**2/2 + kc*(x - y)**2/2 + y**2/2
-dissipation: c*x_dot**2/2
-initial: {x: 1.0, y: 0.5}
-simulate: {t_end: 5}
-"""
+SPRING = damped_stiff_spring(k=1.0e8, c=2.0e4)
 """x decays at about k / c = 5e3/s and c = 2e4/s (stiffness ratio 1e4 against y's swing at 1 rad/s): linear, so exactly solvable."""
 
 

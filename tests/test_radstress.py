@@ -17,24 +17,13 @@ from lagrange_cli.numeric.runs import Candidate, Setup
 from lagrange_cli.numeric.simulate import Trajectory
 
 from .conftest import ROOT
-from .helpers import model_from, model_of
+from .helpers import damped_stiff_spring, model_from, model_of
 
 pytestmark = [pytest.mark.usefixtures("private_cache"), pytest.mark.skipif(not runs.compiled_radau(), reason="the compiled Radau method needs numba")]
 
 ANGLE_DAMPER = ROOT / "tests" / "numeric_audit6" / "spring_pendulum_angle_damper.yaml"
 
-SPRING = """
-title: damped stiff spring (linear)
-coordinates: [x, y]
-parameters: {k: 1.0e12, c: 2.0e6, kc: 1.0}
-particles:
-  a: {mass: 1, position: [x]}
-  b: {mass: 1, position: [y]}
-potential: k*x**2/2 + kc*(x - y)**2/2 + y**2/2
-dissipation: c*x_dot**2/2
-initial: {x: 1.0, y: 0.5}
-simulate: {t_end: 5}
-"""
+SPRING = damped_stiff_spring(k=1.0e12, c=2.0e6)
 """x decays at c = 2e6/s (x t_end = 1e7: compiled RK45 needs about 3.4e6 stability-limited steps), y swings at 1 rad/s."""
 
 

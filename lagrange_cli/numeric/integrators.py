@@ -303,7 +303,7 @@ class ErkLoop:
         self.problem, self.pair, self.functions = problem, EXPLICIT[method].code, functions
         start_entry, _, compile_start = _compile(functions, "erk_start", [])
         pieces = [("_accel", kernels.ACCEL_SIG), ("_event", kernels.EVENT_SIG)]
-        self.switches = int(getattr(functions.module, "_SWITCHES", 0)) if projection is None and switching.LOCATE else 0
+        self.switches = switching.located(functions.module) if projection is None else 0
         """Switching functions whose crossings the loop lands on (kernels.erk_switched; 0: erk_run, as before)."""
         if projection is None and self.switches:
             self._entry, (self._accel, self._event, switch), compile_run = _compile(functions, "erk_switched", [*pieces, ("_switch", kernels.SWITCH_SIG)])
@@ -456,7 +456,7 @@ def run_radau(functions: Functions, problem: Problem, rtol: float, atol: float, 
     analytic = hasattr(functions.module, "_jac")
     if analytic:
         pieces.append(("_jac", kernels.JAC_SIG))
-    switches = int(getattr(functions.module, "_SWITCHES", 0)) if switching.LOCATE else 0
+    switches = switching.located(functions.module)
     if switches:
         pieces.append(("_switch", kernels.SWITCH_SIG))
     entry, (accel, event, *given), compile_run = _compile(functions, "radau_switched" if switches else "radau_run", pieces)

@@ -759,7 +759,7 @@ def choose(model: Model, settings: Settings, found: diagnostics.Spectrum | None,
     numbers = f"decay {worst.decay:.3g}/s ({where}) x t_end {t_end:g}: about {explicit:.3g} stability-limited DOP853 steps, against {lsoda}"
     if not compiled:
         return "LSODA", f"stiff: {numbers}; explicit methods cannot run compiled here"
-    if tried is not None and not tried.ended and switching.LOCATE and hasattr(compile.build(model, "python").module, "_SWITCHES"):
+    if tried is not None and not tried.ended and switching.located(compile.build(model, "python").module):
         # switching surfaces (a contact, a one-sided wall): the pilot's decay is a contact's, a transient, not the
         # whole run's; the compiled run's measured cost decides (issue 15: on the ball in the cup LSODA, 1e-3 off
         # at rtol 1e-8 with every crossing located, ran out of its budget where compiled DOP853 finished)

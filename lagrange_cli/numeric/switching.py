@@ -77,6 +77,12 @@ def collect(exprs: list[Any], constants: frozenset[str] = frozenset()) -> list[A
     return result
 
 
+def located(module: Any) -> int:
+    """The switching functions a generated module's integrators land on: its `_SWITCHES` (0 without any, or with
+    LOCATE off)."""
+    return int(getattr(module, "_SWITCHES", 0)) if LOCATE else 0
+
+
 def note(surfaces: int, crossings: int) -> str:
     """What `simulate` says of a run that located its switching surfaces' crossings."""
     return (
