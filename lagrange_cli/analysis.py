@@ -240,7 +240,7 @@ def linearize(model: Model, point: Mapping[sp.Symbol, sp.Expr], values: Mapping[
     residual = [simplified(f + sum((a0[k, i] * multipliers[m] for k, m in enumerate(model.multipliers)), sp.Integer(0))) for i, f in enumerate(forcing)]
     if any(r != 0 for r in residual) and not _numerically_zero(residual, values):
         _refuse_undefined(general, "linearize", residual)
-        raise NotAnEquilibrium(f"{model.source}: {_point_text(point)} is not an equilibrium: the generalized forces there are {[str(r) for r in residual]}")
+        raise NotAnEquilibrium(f"{model.source}: {_point_text(point)} is not an equilibrium: the generalized forces there are {_forces_text(residual, model, values)}")
     total = [f + sum((c.jacobian[i] * multipliers[c.multiplier] for c in model.constraints), sp.Integer(0)) for i, f in enumerate(model.forcing)]
     stiffness = sp.Matrix([[simplified(-at(sp.diff(f, q), full)) for q in model.q] for f in total])
     damping = sp.Matrix([[simplified(-at(sp.diff(f, v), full)) for v in model.qd] for f in model.forcing])
@@ -748,6 +748,24 @@ def _numerically_zero(values: Sequence[sp.Expr], parameters: Mapping[str, float]
         return all(abs(complex(sp.N(v.xreplace(numbers)))) < 1e-9 for v in values)
     except (TypeError, ValueError):
         return False
+
+
+def _forces_text(residual: Sequence[sp.Expr], model: Model, values: Mapping[str, float]) -> str:
+    """The generalized forces at a point that is not an equilibrium, in words: simplified with the
+    parameters positive (as the format declares them unless `sign: real`), and as numbers at the
+    parameters' values when every one has a value."""
+    positive = {p.symbol: sp.Dummy(p.name, positive=True) for p in model.parameters if not p.real}
+    back = {d: s for s, d in positive.items()}
+    shown = [simplified(sp.sympify(r).xreplace(positive)).xreplace(back) for r in residual]
+    text = str([str(r) for r in shown])
+    numbers = {sp.Symbol(k): v for k, v in values.items()}
+    try:
+        evaluated = [complex(sp.N(r.xreplace(numbers))) for r in shown]
+    except (TypeError, ValueError):
+        return text
+    if any(e.imag != 0 or not math.isfinite(e.real) for e in evaluated):
+        return text
+    return f"{text}, that is {[float(f'{e.real:.6g}') + 0.0 for e in evaluated]} at the parameters' values"
 
 
 def _point_text(point: Mapping[sp.Symbol, sp.Expr]) -> str:

@@ -150,6 +150,21 @@ def test_default_point_not_an_equilibrium_says_how_to_find_one(tmp_path) -> None
     assert "lagrange equilibria" in result.output and "--about" in result.output
 
 
+def test_forces_off_equilibrium_are_simplified_with_positive_parameters_and_given_as_numbers(tmp_path) -> None:
+    # the wall's penalty max(0, d - R) written (e + Abs(e))/2: at the bottom of the cup d = R, and
+    # the forces there were printed as a Piecewise in R - sqrt(R**2); parameters are positive
+    path = tmp_path / "cup.yaml"
+    path.write_text(
+        "coordinates: [x, y]\nparameters: {m: 2.0, R: 1.5, k: 1000.0, g: 9.81}\ngravity: [0, -g]\n"
+        "particles:\n  ball: {mass: m, position: [x, y]}\n"
+        "potential: k/2*((sqrt(x**2 + (y - R)**2) - R + Abs(sqrt(x**2 + (y - R)**2) - R))/2)**2\n"
+    )
+    result = runner.invoke(app, ["linearize", str(path)])
+    assert result.exit_code == 2, result.output
+    assert "the generalized forces there are ['0', '-g*m'], that is [0.0, -19.62] at the parameters' values" in result.output
+    assert "Piecewise" not in result.output and "sqrt(R**2)" not in result.output
+
+
 def test_api_linearize_about_parameters(tmp_path) -> None:
     from lagrange_cli.api import load
 
