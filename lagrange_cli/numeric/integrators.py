@@ -179,11 +179,12 @@ iterations, plus rejected steps) before the run counts as over its budget."""
 
 class EvaluationError(Exception):
     """A generated function could not be evaluated at (t, y) to finite real numbers: `cause`
-    says why (a math domain error, a division by zero, an overflow, a complex or NaN value)."""
+    says why (a math domain error, a division by zero, an overflow, a complex or NaN value);
+    `singular` is true where the generated `_solve` found the (augmented) mass matrix singular."""
 
-    def __init__(self, what: str, t: float, y: Sequence[float], cause: str) -> None:
+    def __init__(self, what: str, t: float, y: Sequence[float], cause: str, singular: bool = False) -> None:
         super().__init__(f"{what} cannot be evaluated: {cause}")
-        self.what, self.t, self.y, self.cause = what, float(t), np.array(y, dtype=float), cause
+        self.what, self.t, self.y, self.cause, self.singular = what, float(t), np.array(y, dtype=float), cause, singular
 
 
 def evaluate(function: Callable[..., Any], t: float, y: Sequence[float], p: Sequence[float], what: str) -> list[float]:
@@ -193,18 +194,24 @@ def evaluate(function: Callable[..., Any], t: float, y: Sequence[float], p: Sequ
         result = function(t, list(y), list(p))
         values = [float(v) for v in (result if isinstance(result, list | tuple | np.ndarray) else [result])]
     except (ArithmeticError, ValueError, TypeError) as error:  # domain errors, 1/0, overflow, complex -> float
-        raise EvaluationError(what, t, y, cause(error)) from None
+        raise EvaluationError(what, t, y, cause(error), _singular(error)) from None
     bad = [v for v in values if not math.isfinite(v)]
     if bad:
         raise EvaluationError(what, t, y, f"the value is {bad[0]} (a division by zero, an overflow, or a function such as sqrt or log outside its domain)")
     return values
 
 
+def _singular(error: BaseException) -> bool:
+    """Whether a generated function's exception is its `_solve` meeting a singular matrix (the
+    generated module raises ZeroDivisionError("singular matrix"), emit/python.py)."""
+    return isinstance(error, ZeroDivisionError) and str(error) == "singular matrix"
+
+
 def cause(error: BaseException) -> str:
     """What an exception raised by generated code means, in words."""
     text = str(error)
     if isinstance(error, ZeroDivisionError):
-        return "a division by zero" + (" (a singular matrix)" if "singular" in text else "")
+        return "a division by zero" + (" (a singular matrix)" if _singular(error) else "")
     if isinstance(error, OverflowError):
         return "an overflow (a value too large for floating point)"
     if isinstance(error, TypeError) and "complex" in text:
@@ -618,7 +625,7 @@ def python_rhs(module: Any, p: Sequence[float], problems: _Problems | None = Non
         try:
             x = evaluate(accel, t, values, params, "the equations of motion")
         except EvaluationError as problem:
-            if problem.cause.endswith("(a singular matrix)"):
+            if problem.singular:
                 raise _Failure(SINGULAR) from None
             if problems is not None:
                 problems.last = problem
