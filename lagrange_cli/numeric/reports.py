@@ -202,7 +202,8 @@ def study_figure(result: Study) -> Figure:
         label, backend = plot_label(good[0]), run_backend(good[0])
         if label in labels:
             label = f"{label} [{plot_text(method)}]"
-        colour = colours.setdefault(label.split(" ")[0], cycle[len(colours) % len(cycle)])
+        requested = good[0].candidate.method if good[0].candidate is not None else good[0].method  # one colour a method, its backends told apart by style
+        colour = colours.setdefault(requested, cycle[len(colours) % len(cycle)])
         style, marker, fill = BACKEND_STYLES.get(backend, (":", "^", "full"))
         errors_ = [p.error for p in good]
         options = {"color": colour, "linestyle": style, "marker": marker, "fillstyle": fill, "label": label}
