@@ -43,6 +43,46 @@ def test_switching_functions_are_collected_once_up_to_sign() -> None:
         assert sum(1 for g in found if se.expand(g - expected) == 0 or se.expand(g + expected) == 0) == 1
 
 
+def test_a_surface_written_with_opposite_signs_is_one_surface() -> None:
+    # audit 7's gated damper: the wall's Abs(d - l sin(theta) + w) and the gate's sign(l sin(theta) - d - w);
+    # symengine keeps -(d - l sin(theta) + w) as a product, which never equalled the other's expanded form
+    theta, w, d, length = se.symbols("theta w d l")
+    gap = length * se.sin(theta) - d - w
+    found = switching.collect([se.Abs(d - length * se.sin(theta) + w) * theta, se.sign(gap) * w], frozenset({"d", "l"}))
+    assert len(found) == 1
+
+
+GATED = """
+coordinates: [theta, w]
+parameters: {m: 1.0, l: 1.0, mw: 0.5, kw: 200.0, d: 0.3, kc: 1.0e6, cc: 300.0, g: 9.81}
+gravity: [0, -g]
+particles:
+  bob: {mass: m, position: [l*sin(theta), -l*cos(theta)]}
+  plate: {mass: mw, position: [d + w, 0]}
+potential: kw*w**2/2 + kc/2*((l*sin(theta) - d - w + Abs(l*sin(theta) - d - w))/2)**2
+dissipation: cc/2*(1 + sign(l*sin(theta) - d - w))/2*(l*cos(theta)*theta_dot - w_dot)**2
+initial: {theta: -1.2, w: 0.0}
+simulate: {t_end: 1}
+"""
+
+
+def test_a_step_collapse_on_a_surface_where_the_force_jumps_is_said_so() -> None:
+    """A pendulum strikes a sprung plate whose contact damper sign(gap) switches on: the force jumps by
+    cc x the closing speed at the first touch (t = 0.638). At rtol 1e-12 every step across the surface
+    is rejected and the steps shrink onto it (the crossing is found only on accepted steps): the run
+    stops there, and says it is a jump on a switching surface, not a singularity. At rtol 1e-8 the
+    crossings are landed on and the run finishes."""
+    from lagrange_cli.numeric.simulate import SURFACE_COLLAPSE, simulate
+
+    model = model_of(GATED)
+    loose = simulate(model, method="DOP853", backend="compiled", rtol=1e-8, atol=1e-10, samples=3)
+    assert loose.status == "finished" and "1 switching surface (" in loose.notes[-1]
+    tight = simulate(model, method="DOP853", backend="compiled", rtol=1e-12, atol=1e-14, samples=3)
+    assert tight.failed and tight.outcome == integrators.STEP_COLLAPSE, tight.message
+    assert SURFACE_COLLAPSE in tight.message and "a singularity" not in tight.message
+    assert abs(np.sin(tight.y_last[0]) - 0.3 - tight.y_last[1]) < 1e-9  # on the surface: l sin(theta) = d + w
+
+
 def test_only_a_system_with_kinks_gets_a_switch_function() -> None:
     smooth = model_from(ROOT / "systems" / "double_pendulum.yaml")
     for target in ("numba", "python"):

@@ -21,6 +21,7 @@ import math
 import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -40,6 +41,14 @@ FAILURES = {
     integrators.STEP_COLLAPSE: "the step size collapsed below the spacing of floating-point numbers (a singularity, or a problem too stiff for this method: try --method Radau)",
     integrators.NO_CONVERGENCE: "the implicit stage equations did not converge (the step is too large for this motion: give a smaller --step)",
 }
+SURFACE_COLLAPSE = (
+    "the step size collapsed on a switching surface (an argument of Abs, sign or Heaviside, a Piecewise condition or a Max/Min"
+    " difference is 0 there) where the forces jump: every step across it was rejected at this tolerance (a discontinuous force,"
+    " such as a damper switched on by sign(...)); loosen --rtol, or write the switch smoothly (tanh(e/eps) for sign(e))"
+)
+"""Why a run stopped, where its step size collapsed on a switching surface (`_on_surface`): not a singularity."""
+SURFACE_TOLERANCE = 1e-9
+"""A run's last state is on a switching surface where |g| <= SURFACE_TOLERANCE x (1 + max |y|)."""
 BUDGET_HINT = "shorten t_end (--t-end), loosen the tolerances (--rtol/--atol), give a larger --step, or raise the budget (--max-steps)"
 
 
@@ -459,11 +468,25 @@ def _trajectory(model: Model, settings: Settings, python: compile.Functions, run
         status = "failed"
         if run.problem is not None:
             reason = f"{run.problem.what} cannot be evaluated at t = {_g(run.problem.t)} ({state_text(model, run.problem.y)}): {run.problem.cause}"
+        elif run.status == integrators.STEP_COLLAPSE and _on_surface(python.module, run, p):
+            reason = SURFACE_COLLAPSE
         else:
             reason = FAILURES[run.status].format(" (with the constraint rows)" if model.constraints else "")
         message = f"{model.source}: simulation failed at t = {_g(run.t_last)}: {reason}; state: {state_text(model, run.y_last)}"
     notes = (*settings.notes, *(warning.message for warning in run.warnings), *switching.notes(run.switching, getattr(python.module, "_SWITCHES", 0), switching.LOCATE))
     return Trajectory(model.title, model.coordinates, settings, run.t, run.y, energy, status, message, run.t_last, run.y_last, run.stats, timing, invariants, notes, run.status, run.warnings)
+
+
+def _on_surface(module: Any, run: Run, p: Sequence[float]) -> bool:
+    """Whether a run's last state lies on one of the system's switching surfaces (codegen's `_switch`)."""
+    if not switching.located(module):
+        return False
+    try:
+        g = integrators.evaluate(module._switch, run.t_last, run.y_last.tolist(), list(p), "the switching functions")
+    except integrators.EvaluationError:
+        return False
+    scale = 1.0 + float(np.max(np.abs(run.y_last))) if run.y_last.size else 1.0
+    return any(abs(value) <= SURFACE_TOLERANCE * scale for value in g)
 
 
 class _MonitorFailure(Exception):

@@ -70,7 +70,7 @@ def collect(exprs: list[Any], constants: frozenset[str] = frozenset()) -> list[A
     for g in found:
         key = se.expand(g)
         names = {str(s) for s in key.free_symbols}
-        if not names or names <= constants or key in keys or -key in keys:
+        if not names or names <= constants or key in keys or se.expand(-key) in keys:  # -key itself is Mul(-1, Add), never equal to an expanded key
             continue
         keys.add(key)
         result.append(g)
