@@ -10,7 +10,8 @@ directory and imports it from there, so numba's cache sits beside it.
 - `erk_run`: adaptive explicit Runge-Kutta, Dormand-Prince 5(4) (`RK45`) or DOP853, with the
   same step-size control, initial step and dense output as scipy.integrate (so both take the
   same steps), samples written at requested times, and an event located by root finding on
-  the dense output;
+  the dense output; it, `erk_switched` (a step landed on each crossing of the switching functions)
+  and `erk_projected` are cases of one loop, `_erk_loop`;
 - `erk_projected`: `erk_run` with the state projected onto kept constraints at given times (the
   samples) inside the loop: a step lands on each, the state is projected as `projection.Projector`
   does (`_project`, with the system's `rows` and `energy`), and the run goes on from it;
@@ -697,7 +698,7 @@ def _switch_root(switch, i, pair, t_old, h, y_old, coef, p, work, g, g_lo, g_hi)
             break
         mid = _illinois_guess(lo, hi, g_lo, g_hi)
         _erk_eval(pair, t_old, h, y_old, coef, mid, work)
-        _call_switch(switch, mid, work, p, g)
+        switch(mid, work, p, g)
         g_mid = g[i]
         if g_mid == 0.0:
             return mid
@@ -709,11 +710,8 @@ def erk_run(pair, y, f, state, control, ts, ys, p, stats, accel, event):
     """Advance (t = state[T], y, f = f(t, y), |h| = state[H], the stop condition's value state[EVENT_VALUE])
     with the pair numbered `pair` until t >= control[T_STOP], writing ys[j] = y(ts[j]) for the samples
     passed (state[NEXT_SAMPLE] = the next one); returns a status code. `_erk_loop` with no switching
-    functions and no projection times."""
-    none = np.empty(SWITCH_HEAD)  # switching_record(0)
-    none[SWITCH_PENDING] = np.inf
-    nothing = np.empty(0)
-    return _erk_loop(pair, y, f, state, control, ts, ys, p, stats, accel, event, event, none, event, event, nothing, nothing, nothing)
+    functions and no projection."""
+    return _erk_loop(pair, y, f, state, control, ts, ys, p, stats, accel, event, None, None, None, None, None, None, None)
 
 
 def erk_switched(pair, y, f, state, control, ts, ys, p, stats, accel, event, switch, record):
@@ -724,21 +722,7 @@ def erk_switched(pair, y, f, state, control, ts, ys, p, stats, accel, event, swi
     it; there the integrator restarts: f evaluated afresh (no FSAL reuse across the kink) and scipy's
     initial step chosen again. A step that lands on a crossing counts as one step; the discarded one as
     rejected. `record` (switching_record) carries what is located across pauses."""
-    nothing = np.empty(0)
-    return _erk_loop(pair, y, f, state, control, ts, ys, p, stats, accel, event, switch, record, event, event, nothing, nothing, nothing)
-
-
-def _call_project(rows, energy, t, y, p, holonomic, record, out, found, x, a):
-    """_project in _erk_loop: erk_run and erk_switched pass their stop condition in place of `rows` and
-    `energy` (never called: no projection times), which this compiles to nothing (as `_call_switch`)."""
-    return _project(rows, energy, t, y, p, holonomic, record, out, found, x, a)
-
-
-@overload(_call_project)
-def _call_project_typed(rows, energy, t, y, p, holonomic, record, out, found, x, a):
-    if rows == _ROWS_T:
-        return lambda rows, energy, t, y, p, holonomic, record, out, found, x, a: _project(rows, energy, t, y, p, holonomic, record, out, found, x, a)
-    return lambda rows, energy, t, y, p, holonomic, record, out, found, x, a: 1
+    return _erk_loop(pair, y, f, state, control, ts, ys, p, stats, accel, event, switch, record, None, None, None, None, None)
 
 
 @njit(error_model="numpy")
@@ -748,12 +732,16 @@ def _erk_loop(pair, y, f, state, control, ts, ys, p, stats, accel, event, switch
     time); with switching functions (m > 0 in `switching`) a crossing inside it discards it, to be taken
     again onto the crossing; then the counters, the stiffness test, the samples and the event
     (`_erk_samples`); then a landing on a crossing restarts the integrator, and a landing on a projection
-    time (`bounds` not empty) projects the state. m = 0 and no bounds: erk_run's steps exactly. Pauses
-    (RUNNING) at control[T_STOP], after control[STRETCH] (or PAUSE_STEPS) steps, and with
-    control[STIFFNESS] once the stiffness test has found the problem stiff."""
+    time projects the state. `switch` (and its record `switching`) or `rows` (and `energy`, `bounds`,
+    `holonomic`, the projection record `record`) None: that case is left out when numba compiles the loop
+    (its branches `if switch is not None`, `if rows is not None` pruned), so erk_run compiles no more than
+    its own steps and takes them exactly as before. Pauses (RUNNING) at control[T_STOP], after
+    control[STRETCH] (or PAUSE_STEPS) steps, and with control[STIFFNESS] once the stiffness test has found
+    the problem stiff."""
     n = y.shape[0]
-    m = (switching.shape[0] - SWITCH_HEAD) // 2
-    projecting = bounds.shape[0] > 0
+    m = 0
+    if switch is not None:
+        m = (switching.shape[0] - SWITCH_HEAD) // 2
     rtol, atol, max_step, t_bound, t_stop, use_event = control[RTOL], control[ATOL], control[MAX_STEP], control[T_BOUND], control[T_STOP], control[USE_EVENT] != 0.0
     test_stiffness = control[STIFFNESS] != 0.0 and pair == _DOP
     pause = int(control[STRETCH]) if control[STRETCH] > 0.0 else PAUSE_STEPS
@@ -772,24 +760,27 @@ def _erk_loop(pair, y, f, state, control, ts, ys, p, stats, accel, event, switch
         taken += 1
         min_step = MIN_STEP_SPACINGS * abs(np.nextafter(t, np.inf) - t)
         h_abs = min(max(h_abs, min_step), max_step)
-        pending = switching[SWITCH_PENDING]
-        bound = bounds[int(record[NEXT_BOUND])] if projecting else np.inf
-        # a step shortened onto a projection time says little about the next: keep the size before it (hold_landed)
-        code, t_new, h, h_abs, factor, landed = _erk_attempt(accel, pair, t, y, f, h_abs, min_step, min(t_bound, pending, bound), projecting, K, y_new, p, x, a, stats, state, rtol, atol, exponent)
+        pending, bound, hold_landed = np.inf, np.inf, False
+        if switch is not None:
+            pending = switching[SWITCH_PENDING]
+        if rows is not None:
+            # a step shortened onto a projection time says little about the next: keep the size before it
+            bound, hold_landed = bounds[int(record[NEXT_BOUND])], True
+        code, t_new, h, h_abs, factor, landed = _erk_attempt(accel, pair, t, y, f, h_abs, min_step, min(t_bound, pending, bound), hold_landed, K, y_new, p, x, a, stats, state, rtol, atol, exponent)
         if code != RUNNING:
             return code
         arrived = False
-        if m > 0:  # the switching functions: a crossing inside the step discards it (retaken to land there)
+        if switch is not None:  # the switching functions: a crossing inside the step discards it (retaken to land there)
             arrived = landed and t_new == pending
             if not arrived:
-                _call_switch(switch, t_new, y_new, p, g_new)
+                switch(t_new, y_new, p, g_new)
                 first, t_first = -1, t_new
                 started = False
                 for i in range(m):
                     g_old = switching[SWITCH_HEAD + i]
                     if (g_old < 0.0) != (g_new[i] < 0.0) and g_old != 0.0:
                         if not started:  # g at the step's start itself (after a landing, g_old is the far side's value)
-                            _call_switch(switch, t, y, p, g_start)
+                            switch(t, y, p, g_start)
                             started = True
                         if g_start[i] == 0.0 or (g_start[i] < 0.0) == (g_new[i] < 0.0):
                             continue  # the path touched the surface at the landing and turned back: no crossing here
@@ -825,49 +816,51 @@ def _erk_loop(pair, y, f, state, control, ts, ys, p, stats, accel, event, switch
             y[i] = y_new[i]
         t = t_end_here
         h_abs *= factor
-        if arrived and status != EVENT:
-            # g on the crossing's far side for the surface crossed, at the landing point for the others
-            _call_switch(switch, t, y, p, g_new)
-            crossed = int(switching[SWITCH_INDEX])
-            for i in range(m):
-                switching[SWITCH_HEAD + i] = switching[SWITCH_HEAD + m + i] if i == crossed else g_new[i]
-            switching[SWITCH_PENDING], switching[SWITCH_INDEX] = np.inf, -1.0
-            switching[SWITCH_COUNT] += 1.0
-            if _rhs(accel, t, y, p, f, x, a):  # restart: f afresh, scipy's initial step
-                state[T], state[H] = t, h_abs
-                return SINGULAR
-            stats[NFEV] += 1
-            h_abs = _initial_step(accel, t, y, f, t_bound, max_step, _ERROR_ORDER[pair], rtol, atol, p, x, a, stats)
-        elif not arrived:
-            for i in range(m):
-                switching[SWITCH_HEAD + i] = g_new[i]
+        if switch is not None:
+            if arrived and status != EVENT:
+                # g on the crossing's far side for the surface crossed, at the landing point for the others
+                switch(t, y, p, g_new)
+                crossed = int(switching[SWITCH_INDEX])
+                for i in range(m):
+                    switching[SWITCH_HEAD + i] = switching[SWITCH_HEAD + m + i] if i == crossed else g_new[i]
+                switching[SWITCH_PENDING], switching[SWITCH_INDEX] = np.inf, -1.0
+                switching[SWITCH_COUNT] += 1.0
+                if _rhs(accel, t, y, p, f, x, a):  # restart: f afresh, scipy's initial step
+                    state[T], state[H] = t, h_abs
+                    return SINGULAR
+                stats[NFEV] += 1
+                h_abs = _initial_step(accel, t, y, f, t_bound, max_step, _ERROR_ORDER[pair], rtol, atol, p, x, a, stats)
+            elif not arrived:
+                for i in range(m):
+                    switching[SWITCH_HEAD + i] = g_new[i]
         state[T], state[H] = t, h_abs
         if status == EVENT:
             return EVENT
-        if projecting and landed and t_new == bound:  # a projection time: the state projected there, f afresh
-            record[PROJECTIONS] += 1.0
-            if _call_project(rows, energy, t, y, p, holonomic, record, projected, found, x, a):
-                record[FAILURES] += 1.0
-                if not np.isfinite(record[FAILED_AT]):
-                    record[FAILED_AT] = t
-            else:
-                for i in range(n):
-                    y[i] = projected[i]
-                record[POSITION] = max(record[POSITION], found[0])
-                record[VELOCITY] = max(record[VELOCITY], found[1])
-                record[MOVED] = max(record[MOVED], found[2])
-                record[ENERGY] = max(record[ENERGY], found[3])
-                j = int(state[NEXT_SAMPLE])
-                if j > 0 and ts[j - 1] == t:
+        if rows is not None:  # noqa: SIM102  (a branch on the argument alone: numba prunes it where rows is None)
+            if landed and t_new == bound:  # a projection time: the state projected there, f afresh
+                record[PROJECTIONS] += 1.0
+                if _project(rows, energy, t, y, p, holonomic, record, projected, found, x, a):
+                    record[FAILURES] += 1.0
+                    if not np.isfinite(record[FAILED_AT]):
+                        record[FAILED_AT] = t
+                else:
                     for i in range(n):
-                        ys[j - 1, i] = y[i]
-            record[NEXT_BOUND] += 1.0
-            if t < t_bound:
-                if _rhs(accel, t, y, p, f, x, a):
-                    return SINGULAR
-                stats[NFEV] += 1
-                if use_event:
-                    state[EVENT_VALUE] = event(t, y, p, x, a)
+                        y[i] = projected[i]
+                    record[POSITION] = max(record[POSITION], found[0])
+                    record[VELOCITY] = max(record[VELOCITY], found[1])
+                    record[MOVED] = max(record[MOVED], found[2])
+                    record[ENERGY] = max(record[ENERGY], found[3])
+                    j = int(state[NEXT_SAMPLE])
+                    if j > 0 and ts[j - 1] == t:
+                        for i in range(n):
+                            ys[j - 1, i] = y[i]
+                record[NEXT_BOUND] += 1.0
+                if t < t_bound:
+                    if _rhs(accel, t, y, p, f, x, a):
+                        return SINGULAR
+                    stats[NFEV] += 1
+                    if use_event:
+                        state[EVENT_VALUE] = event(t, y, p, x, a)
         if stiff and t < t_bound:
             return RUNNING  # paused: the caller asked to hear of stiffness (stats[STIFF] >= STIFF_STEPS)
     return DONE if t >= t_bound else RUNNING
@@ -1088,9 +1081,7 @@ def erk_projected(pair, y, f, state, control, ts, ys, p, stats, accel, event, ro
     goes on with the step size it had before it was shortened. The largest corrections and the counts go
     into `record` (status.POSITION, ...); record[NEXT_BOUND] is the next projection time's index. Pauses as
     erk_run does; returns a status code. `_erk_loop` with no switching functions."""
-    none = np.empty(SWITCH_HEAD)  # switching_record(0)
-    none[SWITCH_PENDING] = np.inf
-    return _erk_loop(pair, y, f, state, control, ts, ys, p, stats, accel, event, event, none, rows, energy, bounds, holonomic, record)
+    return _erk_loop(pair, y, f, state, control, ts, ys, p, stats, accel, event, None, None, rows, energy, bounds, holonomic, record)
 
 
 # -- Gauss-Legendre in (q, p) -----------------------------------------------------------------
