@@ -311,20 +311,22 @@ class ErkLoop:
         start_entry, _, compile_start = _compile(functions, "erk_start", [])
         pieces = [("_accel", kernels.ACCEL_SIG), ("_event", kernels.EVENT_SIG)]
         self.switches = switching.located(functions.module) if projection is None else 0
-        """Switching functions whose crossings the loop lands on (kernels.erk_switched; 0: erk_run, as before)."""
+        """Switching functions whose crossings the loop lands on (kernels.erk_switched; 0: erk_run). The three entry
+        points (erk_run, erk_switched, erk_projected) are one loop, kernels._erk_loop: the same steps where they overlap."""
         if projection is None and self.switches:
             self._entry, (self._accel, self._event, switch), compile_run = _compile(functions, "erk_switched", [*pieces, ("_switch", kernels.SWITCH_SIG)])
             self.record = kernels.switching_record(self.switches)
             g = np.empty(self.switches)
             switch(problem.t0, problem.y0, problem.p, g)
             self.record[kernels.SWITCH_HEAD : kernels.SWITCH_HEAD + self.switches] = g
-            self._projection: tuple[Any, ...] = (switch, self.record)
+            self._cases: tuple[Any, ...] = (switch, self.record)
+            """The entry's arguments after `accel` and `event`: which case of the one explicit loop (kernels._erk_loop) it runs."""
         elif projection is None:
             self._entry, (self._accel, self._event), compile_run = _compile(functions, "erk_run", pieces)
-            self._projection = ()
+            self._cases = ()
         else:
             self._entry, (self._accel, self._event, rows, energy), compile_run = _compile(functions, "erk_projected", [*pieces, ("_rows", kernels.ROWS_SIG), ("_energy", kernels.ENERGY_SIG)])
-            self._projection = (rows, energy, *projection)
+            self._cases = (rows, energy, *projection)
         self.compile_seconds = compile_start + compile_run
         began = time.perf_counter()
         self.y, self.f = problem.y0.copy(), np.empty_like(problem.y0)
@@ -363,7 +365,7 @@ class ErkLoop:
     def _advance(self, t_stop: float) -> int:
         began = time.perf_counter()
         self.control[status.T_STOP] = t_stop
-        self.code = int(self._entry(self.pair, self.y, self.f, self.state, self.control, self.problem.ts, self.ys, self.problem.p, self.stats, self._accel, self._event, *self._projection))
+        self.code = int(self._entry(self.pair, self.y, self.f, self.state, self.control, self.problem.ts, self.ys, self.problem.p, self.stats, self._accel, self._event, *self._cases))
         self.seconds += time.perf_counter() - began
         return self.code
 

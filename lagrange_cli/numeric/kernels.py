@@ -10,7 +10,8 @@ directory and imports it from there, so numba's cache sits beside it.
 - `erk_run`: adaptive explicit Runge-Kutta, Dormand-Prince 5(4) (`RK45`) or DOP853, with the
   same step-size control, initial step and dense output as scipy.integrate (so both take the
   same steps), samples written at requested times, and an event located by root finding on
-  the dense output;
+  the dense output; it, `erk_switched` (a step landed on each crossing of the switching functions)
+  and `erk_projected` are cases of one loop, `_erk_loop`;
 - `erk_projected`: `erk_run` with the state projected onto kept constraints at given times (the
   samples) inside the loop: a step lands on each, the state is projected as `projection.Projector`
   does (`_project`, with the system's `rows` and `energy`), and the run goes on from it;
@@ -669,52 +670,7 @@ def _erk_samples(accel, event, pair, t, h, t_new, y, y_new, K, coef, work, ts, y
     return status, t_end_here
 
 
-def erk_run(pair, y, f, state, control, ts, ys, p, stats, accel, event):
-    """Advance (t = state[T], y, f = f(t, y), |h| = state[H], the stop condition's value state[EVENT_VALUE])
-    with the pair numbered `pair` until t >= control[T_STOP], writing ys[j] = y(ts[j]) for the samples
-    passed (state[NEXT_SAMPLE] = the next one); returns a status code."""
-    n = y.shape[0]
-    rtol, atol, max_step, t_bound, t_stop, use_event = control[RTOL], control[ATOL], control[MAX_STEP], control[T_BOUND], control[T_STOP], control[USE_EVENT] != 0.0
-    test_stiffness = control[STIFFNESS] != 0.0 and pair == _DOP
-    pause = int(control[STRETCH]) if control[STRETCH] > 0.0 else PAUSE_STEPS
-    size = int(control[SIZE])
-    x, a = np.empty(size), np.empty((size, size))
-    stages = _STAGES[pair]
-    K = np.empty((_ROWS[pair], n))
-    coef = np.empty((_DENSE[pair], n))
-    y_new, work = np.empty(n), np.empty(n)
-    exponent = -1.0 / (_ERROR_ORDER[pair] + 1.0)
-    t, h_abs = state[T], state[H]
-    taken = 0
-    while t < t_stop and t < t_bound and taken < pause:
-        taken += 1
-        min_step = MIN_STEP_SPACINGS * abs(np.nextafter(t, np.inf) - t)
-        h_abs = min(max(h_abs, min_step), max_step)
-        code, t_new, h, h_abs, factor, landed = _erk_attempt(accel, pair, t, y, f, h_abs, min_step, t_bound, False, K, y_new, p, x, a, stats, state, rtol, atol, exponent)
-        if code != RUNNING:
-            return code
-        stats[NSTEPS] += 1
-        if not landed:
-            stats[HMIN] = min(stats[HMIN], h)
-        stats[HMAX] = max(stats[HMAX], h)
-        stiff = test_stiffness and _stiffness_test(K, h, y, y_new, work, stats)
-        status, t_end_here = _erk_samples(accel, event, pair, t, h, t_new, y, y_new, K, coef, work, ts, ys, p, x, a, state, stats, use_event)
-        if status == SINGULAR:
-            return SINGULAR
-        for i in range(n):
-            f[i] = K[stages, i]
-            y[i] = y_new[i]
-        t = t_end_here
-        h_abs *= factor
-        state[T], state[H] = t, h_abs
-        if status == EVENT:
-            return EVENT
-        if stiff and t < t_bound:
-            return RUNNING  # paused: the caller asked to hear of stiffness (stats[STIFF] >= STIFF_STEPS)
-    return DONE if t >= t_bound else RUNNING
-
-
-# -- explicit Runge-Kutta landing on switching surfaces (issue 15) --------------------------------
+# -- the explicit loop: plain, switched and projected runs (issue 15) ------------------------------
 
 SWITCH_PENDING, SWITCH_INDEX, SWITCH_COUNT = 0, 1, 2
 """The first entries of erk_switched's `switching` record: the located crossing ahead (inf: none), the
@@ -750,6 +706,14 @@ def _switch_root(switch, i, pair, t_old, h, y_old, coef, p, work, g, g_lo, g_hi)
     return hi
 
 
+def erk_run(pair, y, f, state, control, ts, ys, p, stats, accel, event):
+    """Advance (t = state[T], y, f = f(t, y), |h| = state[H], the stop condition's value state[EVENT_VALUE])
+    with the pair numbered `pair` until t >= control[T_STOP], writing ys[j] = y(ts[j]) for the samples
+    passed (state[NEXT_SAMPLE] = the next one); returns a status code. `_erk_loop` with no switching
+    functions and no projection."""
+    return _erk_loop(pair, y, f, state, control, ts, ys, p, stats, accel, event, None, None, None, None, None, None, None)
+
+
 def erk_switched(pair, y, f, state, control, ts, ys, p, stats, accel, event, switch, record):
     """`erk_run` landing a step on each zero crossing of the switching functions `switch` (codegen's
     `_switch`): after an accepted step, g at its end is compared with g at its start (record); where one
@@ -758,8 +722,27 @@ def erk_switched(pair, y, f, state, control, ts, ys, p, stats, accel, event, swi
     it; there the integrator restarts: f evaluated afresh (no FSAL reuse across the kink) and scipy's
     initial step chosen again. A step that lands on a crossing counts as one step; the discarded one as
     rejected. `record` (switching_record) carries what is located across pauses."""
+    return _erk_loop(pair, y, f, state, control, ts, ys, p, stats, accel, event, switch, record, None, None, None, None, None)
+
+
+@njit(error_model="numpy", inline="always")
+def _erk_loop(pair, y, f, state, control, ts, ys, p, stats, accel, event, switch, switching, rows, energy, bounds, holonomic, record):
+    """The explicit loop of erk_run, erk_switched and erk_projected. Each pass: one accepted step
+    (`_erk_attempt`) ending at most at the limit (the end, the crossing located ahead, the next projection
+    time); with switching functions (m > 0 in `switching`) a crossing inside it discards it, to be taken
+    again onto the crossing; then the counters, the stiffness test, the samples and the event
+    (`_erk_samples`); then a landing on a crossing restarts the integrator, and a landing on a projection
+    time projects the state. `switch` (and its record `switching`) or `rows` (and `energy`, `bounds`,
+    `holonomic`, the projection record `record`) None: that case is left out when numba compiles the loop
+    (its branches `if switch is not None`, `if rows is not None` pruned), so erk_run compiles no more than
+    its own steps and takes them exactly as before; inlined into each entry point (one function to compile,
+    as each of the three loops was: 0.3 s less first-time compile than a loop called from the entry). Pauses
+    (RUNNING) at control[T_STOP], after control[STRETCH] (or PAUSE_STEPS) steps, and with control[STIFFNESS]
+    once the stiffness test has found the problem stiff."""
     n = y.shape[0]
-    m = (record.shape[0] - SWITCH_HEAD) // 2
+    m = 0
+    if switch is not None:
+        m = (switching.shape[0] - SWITCH_HEAD) // 2
     rtol, atol, max_step, t_bound, t_stop, use_event = control[RTOL], control[ATOL], control[MAX_STEP], control[T_BOUND], control[T_STOP], control[USE_EVENT] != 0.0
     test_stiffness = control[STIFFNESS] != 0.0 and pair == _DOP
     pause = int(control[STRETCH]) if control[STRETCH] > 0.0 else PAUSE_STEPS
@@ -769,7 +752,10 @@ def erk_switched(pair, y, f, state, control, ts, ys, p, stats, accel, event, swi
     K = np.empty((_ROWS[pair], n))
     coef = np.empty((_DENSE[pair], n))
     y_new, work = np.empty(n), np.empty(n)
-    g_new, g_work, g_start = np.empty(m), np.empty(m), np.empty(m)
+    if switch is not None:
+        g_new, g_work, g_start = np.empty(m), np.empty(m), np.empty(m)
+    if rows is not None:
+        projected, found = np.empty(n), np.zeros(4)
     exponent = -1.0 / (_ERROR_ORDER[pair] + 1.0)
     t, h_abs = state[T], state[H]
     taken = 0
@@ -777,42 +763,51 @@ def erk_switched(pair, y, f, state, control, ts, ys, p, stats, accel, event, swi
         taken += 1
         min_step = MIN_STEP_SPACINGS * abs(np.nextafter(t, np.inf) - t)
         h_abs = min(max(h_abs, min_step), max_step)
-        pending = record[SWITCH_PENDING]
-        code, t_new, h, h_abs, factor, landed = _erk_attempt(accel, pair, t, y, f, h_abs, min_step, min(t_bound, pending), False, K, y_new, p, x, a, stats, state, rtol, atol, exponent)
+        limit, pending, bound, hold_landed = t_bound, np.inf, np.inf, False
+        if switch is not None:
+            pending = switching[SWITCH_PENDING]
+            limit = min(t_bound, pending)
+        if rows is not None:
+            # a step shortened onto a projection time says little about the next: keep the size before it
+            bound, hold_landed = bounds[int(record[NEXT_BOUND])], True
+            limit = min(limit, bound)
+        code, t_new, h, h_abs, factor, landed = _erk_attempt(accel, pair, t, y, f, h_abs, min_step, limit, hold_landed, K, y_new, p, x, a, stats, state, rtol, atol, exponent)
         if code != RUNNING:
             return code
-        arrived = landed and t_new == pending
-        if not arrived:
-            switch(t_new, y_new, p, g_new)
-            first, t_first = -1, t_new
-            started = False
-            for i in range(m):
-                g_old = record[SWITCH_HEAD + i]
-                if (g_old < 0.0) != (g_new[i] < 0.0) and g_old != 0.0:
-                    if not started:  # g at the step's start itself (after a landing, g_old is the far side's value)
-                        switch(t, y, p, g_start)
-                        started = True
-                    if g_start[i] == 0.0 or (g_start[i] < 0.0) == (g_new[i] < 0.0):
-                        continue  # the path touched the surface at the landing and turned back: no crossing here
-                    if first < 0 and _erk_dense(accel, pair, t, y, y_new, K[stages], h, K, coef, p, x, a, stats):  # the step's interpolant, once
-                        state[T], state[H] = t, h
-                        return SINGULAR
-                    t_i = _switch_root(switch, i, pair, t, h, y, coef, p, work, g_work, g_start[i], g_new[i])
-                    if first < 0 or t_i < t_first:
-                        first, t_first = i, t_i
-            if first >= 0 and t < t_first < t_new:  # discard the step: take it again to land on the crossing
-                record[SWITCH_PENDING], record[SWITCH_INDEX] = t_first, float(first)
+        arrived = False
+        if switch is not None:  # the switching functions: a crossing inside the step discards it (retaken to land there)
+            arrived = landed and t_new == pending
+            if not arrived:
+                switch(t_new, y_new, p, g_new)
+                first, t_first = -1, t_new
+                started = False
                 for i in range(m):
-                    record[SWITCH_HEAD + m + i] = g_new[i]
-                stats[NREJECT] += 1
-                h_abs = t_first - t
-                state[H] = h_abs  # a pause right here resumes with this step
-                continue
-            if first >= 0:  # the crossing is at the step's end: it has landed there
-                arrived = True
-                record[SWITCH_INDEX] = float(first)
-                for i in range(m):
-                    record[SWITCH_HEAD + m + i] = g_new[i]
+                    g_old = switching[SWITCH_HEAD + i]
+                    if (g_old < 0.0) != (g_new[i] < 0.0) and g_old != 0.0:
+                        if not started:  # g at the step's start itself (after a landing, g_old is the far side's value)
+                            switch(t, y, p, g_start)
+                            started = True
+                        if g_start[i] == 0.0 or (g_start[i] < 0.0) == (g_new[i] < 0.0):
+                            continue  # the path touched the surface at the landing and turned back: no crossing here
+                        if first < 0 and _erk_dense(accel, pair, t, y, y_new, K[stages], h, K, coef, p, x, a, stats):  # the step's interpolant, once
+                            state[T], state[H] = t, h
+                            return SINGULAR
+                        t_i = _switch_root(switch, i, pair, t, h, y, coef, p, work, g_work, g_start[i], g_new[i])
+                        if first < 0 or t_i < t_first:
+                            first, t_first = i, t_i
+                if first >= 0 and t < t_first < t_new:  # discard the step: take it again to land on the crossing
+                    switching[SWITCH_PENDING], switching[SWITCH_INDEX] = t_first, float(first)
+                    for i in range(m):
+                        switching[SWITCH_HEAD + m + i] = g_new[i]
+                    stats[NREJECT] += 1
+                    h_abs = t_first - t
+                    state[H] = h_abs  # a pause right here resumes with this step
+                    continue
+                if first >= 0:  # the crossing is at the step's end: it has landed there
+                    arrived = True
+                    switching[SWITCH_INDEX] = float(first)
+                    for i in range(m):
+                        switching[SWITCH_HEAD + m + i] = g_new[i]
         stats[NSTEPS] += 1
         if not landed:
             stats[HMIN] = min(stats[HMIN], h)
@@ -826,27 +821,53 @@ def erk_switched(pair, y, f, state, control, ts, ys, p, stats, accel, event, swi
             y[i] = y_new[i]
         t = t_end_here
         h_abs *= factor
-        if arrived and status != EVENT:
-            # g on the crossing's far side for the surface crossed, at the landing point for the others
-            switch(t, y, p, g_new)
-            crossed = int(record[SWITCH_INDEX])
-            for i in range(m):
-                record[SWITCH_HEAD + i] = record[SWITCH_HEAD + m + i] if i == crossed else g_new[i]
-            record[SWITCH_PENDING], record[SWITCH_INDEX] = np.inf, -1.0
-            record[SWITCH_COUNT] += 1.0
-            if _rhs(accel, t, y, p, f, x, a):  # restart: f afresh, scipy's initial step
-                state[T], state[H] = t, h_abs
-                return SINGULAR
-            stats[NFEV] += 1
-            h_abs = _initial_step(accel, t, y, f, t_bound, max_step, _ERROR_ORDER[pair], rtol, atol, p, x, a, stats)
-        elif not arrived:
-            for i in range(m):
-                record[SWITCH_HEAD + i] = g_new[i]
+        if switch is not None:
+            if arrived and status != EVENT:
+                # g on the crossing's far side for the surface crossed, at the landing point for the others
+                switch(t, y, p, g_new)
+                crossed = int(switching[SWITCH_INDEX])
+                for i in range(m):
+                    switching[SWITCH_HEAD + i] = switching[SWITCH_HEAD + m + i] if i == crossed else g_new[i]
+                switching[SWITCH_PENDING], switching[SWITCH_INDEX] = np.inf, -1.0
+                switching[SWITCH_COUNT] += 1.0
+                if _rhs(accel, t, y, p, f, x, a):  # restart: f afresh, scipy's initial step
+                    state[T], state[H] = t, h_abs
+                    return SINGULAR
+                stats[NFEV] += 1
+                h_abs = _initial_step(accel, t, y, f, t_bound, max_step, _ERROR_ORDER[pair], rtol, atol, p, x, a, stats)
+            elif not arrived:
+                for i in range(m):
+                    switching[SWITCH_HEAD + i] = g_new[i]
         state[T], state[H] = t, h_abs
         if status == EVENT:
             return EVENT
+        if rows is not None:  # noqa: SIM102  (a branch on the argument alone: numba prunes it where rows is None)
+            if landed and t_new == bound:  # a projection time: the state projected there, f afresh
+                record[PROJECTIONS] += 1.0
+                if _project(rows, energy, t, y, p, holonomic, record, projected, found, x, a):
+                    record[FAILURES] += 1.0
+                    if not np.isfinite(record[FAILED_AT]):
+                        record[FAILED_AT] = t
+                else:
+                    for i in range(n):
+                        y[i] = projected[i]
+                    record[POSITION] = max(record[POSITION], found[0])
+                    record[VELOCITY] = max(record[VELOCITY], found[1])
+                    record[MOVED] = max(record[MOVED], found[2])
+                    record[ENERGY] = max(record[ENERGY], found[3])
+                    j = int(state[NEXT_SAMPLE])
+                    if j > 0 and ts[j - 1] == t:
+                        for i in range(n):
+                            ys[j - 1, i] = y[i]
+                record[NEXT_BOUND] += 1.0
+                if t < t_bound:
+                    if _rhs(accel, t, y, p, f, x, a):
+                        return SINGULAR
+                    stats[NFEV] += 1
+                    if use_event:
+                        state[EVENT_VALUE] = event(t, y, p, x, a)
         if stiff and t < t_bound:
-            return RUNNING
+            return RUNNING  # paused: the caller asked to hear of stiffness (stats[STIFF] >= STIFF_STEPS)
     return DONE if t >= t_bound else RUNNING
 
 
@@ -1064,67 +1085,8 @@ def erk_projected(pair, y, f, state, control, ts, ys, p, stats, accel, event, ro
     that time takes the projected state, f is evaluated anew (the last stage no longer holds) and the run
     goes on with the step size it had before it was shortened. The largest corrections and the counts go
     into `record` (status.POSITION, ...); record[NEXT_BOUND] is the next projection time's index. Pauses as
-    erk_run does (at control[T_STOP], after PAUSE_STEPS steps); returns a status code."""
-    n = y.shape[0]
-    rtol, atol, max_step, t_end, t_stop, use_event = control[RTOL], control[ATOL], control[MAX_STEP], control[T_BOUND], control[T_STOP], control[USE_EVENT] != 0.0
-    size = int(control[SIZE])
-    x, a = np.empty(size), np.empty((size, size))
-    stages = _STAGES[pair]
-    K = np.empty((_ROWS[pair], n))
-    coef = np.empty((_DENSE[pair], n))
-    y_new, work, projected, found = np.empty(n), np.empty(n), np.empty(n), np.zeros(4)
-    exponent = -1.0 / (_ERROR_ORDER[pair] + 1.0)
-    t, h_abs = state[T], state[H]
-    taken = 0
-    while t < t_stop and t < t_end and taken < PAUSE_STEPS:
-        taken += 1
-        bound = bounds[int(record[NEXT_BOUND])]
-        min_step = MIN_STEP_SPACINGS * abs(np.nextafter(t, np.inf) - t)
-        h_abs = min(max(h_abs, min_step), max_step)
-        # a step shortened onto a projection time says little about the next: keep the size before it (hold_landed)
-        code, t_new, h, h_abs, factor, landed = _erk_attempt(accel, pair, t, y, f, h_abs, min_step, bound, True, K, y_new, p, x, a, stats, state, rtol, atol, exponent)
-        if code != RUNNING:
-            return code
-        stats[NSTEPS] += 1
-        if not landed:
-            stats[HMIN] = min(stats[HMIN], h)
-        stats[HMAX] = max(stats[HMAX], h)
-        status, t_end_here = _erk_samples(accel, event, pair, t, h, t_new, y, y_new, K, coef, work, ts, ys, p, x, a, state, stats, use_event)
-        if status == SINGULAR:
-            return SINGULAR
-        for i in range(n):
-            f[i] = K[stages, i]
-            y[i] = y_new[i]
-        t = t_end_here
-        h_abs *= factor
-        state[T], state[H] = t, h_abs
-        if status == EVENT:
-            return EVENT
-        if landed:
-            record[PROJECTIONS] += 1.0
-            if _project(rows, energy, t, y, p, holonomic, record, projected, found, x, a):
-                record[FAILURES] += 1.0
-                if not np.isfinite(record[FAILED_AT]):
-                    record[FAILED_AT] = t
-            else:
-                for i in range(n):
-                    y[i] = projected[i]
-                record[POSITION] = max(record[POSITION], found[0])
-                record[VELOCITY] = max(record[VELOCITY], found[1])
-                record[MOVED] = max(record[MOVED], found[2])
-                record[ENERGY] = max(record[ENERGY], found[3])
-                j = int(state[NEXT_SAMPLE])
-                if j > 0 and ts[j - 1] == t:
-                    for i in range(n):
-                        ys[j - 1, i] = y[i]
-            record[NEXT_BOUND] += 1.0
-            if t < t_end:
-                if _rhs(accel, t, y, p, f, x, a):
-                    return SINGULAR
-                stats[NFEV] += 1
-                if use_event:
-                    state[EVENT_VALUE] = event(t, y, p, x, a)
-    return DONE if t >= t_end else RUNNING
+    erk_run does; returns a status code. `_erk_loop` with no switching functions."""
+    return _erk_loop(pair, y, f, state, control, ts, ys, p, stats, accel, event, None, None, rows, energy, bounds, holonomic, record)
 
 
 # -- Gauss-Legendre in (q, p) -----------------------------------------------------------------
