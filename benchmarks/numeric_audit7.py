@@ -18,6 +18,7 @@ first-order matrix, checked against DOP853 1e-13 of the derived equations over [
     cp -r WARM /tmp/audit7-cache-X   # a cache warmed by another system (kernels compiled, system new)
     PYTHONPATH=. LAGRANGE_CACHE_DIR=/tmp/audit7-cache-X .venv/bin/python benchmarks/numeric_audit7.py [--only NAME] [--json out.json]
     PYTHONPATH=. LAGRANGE_CACHE_DIR=/tmp/audit7-cache-X .venv/bin/python benchmarks/numeric_audit7.py --versus NAME --json versus.json
+    PYTHONPATH=. LAGRANGE_CACHE_DIR=/tmp/audit7-cache-X .venv/bin/python benchmarks/numeric_audit7.py --extra extra.json [--only dp_upright,wheel]
     .venv/bin/python benchmarks/numeric_audit7.py --table out1.json,out2.json
 """
 
