@@ -13,7 +13,8 @@ directory and imports it from there, so numba's cache sits beside it.
   the dense output;
 - `erk_projected`: `erk_run` with the state projected onto kept constraints at given times (the
   samples) inside the loop: a step lands on each, the state is projected as `projection.Projector`
-  does (`_project`, with the system's `rows` and `energy`), and the run goes on from it;
+  does (`_project`, with the system's `rows` and `energy`), and the run goes on from it
+  (`radau_projected`: the same for Radau IIA, which restarts at each projection);
 - `gauss_run`: fixed-step Gauss-Legendre collocation in (q, p), symplectic and symmetric,
   stage equations solved to round-off by fixed-point iteration, or where that converges slowly
   (a stiff stretch) by simplified Newton iteration (a finite-difference Jacobian, refreshed when
