@@ -41,12 +41,15 @@ def _residuals(y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 def test_a_projected_compiled_radau_run_is_one_run_projected_at_each_sample(pendulum, monkeypatch: pytest.MonkeyPatch) -> None:  # type: ignore[no-untyped-def]
     """simulate with compiled Radau: one start, one call of radau_projected (fewer steps than PAUSE_STEPS), no
-    radau_run, one projection per sample time after the start (the note says how many), the rod at round-off."""
+    radau_run, one projection per sample time after the start (the note says how many), the rod at round-off; the
+    Jacobian by differences, from the module the explicit pairs use."""
     calls: dict[str, int] = {}
+    given: dict[str, list[str]] = {}
     real = integrators._compile
 
     def counted(functions, kernel, pieces):  # type: ignore[no-untyped-def]
         entry, compiled, seconds = real(functions, kernel, pieces)
+        given[kernel] = [name for name, _ in pieces]
 
         def wrapped(*args):  # type: ignore[no-untyped-def]
             calls[kernel] = calls.get(kernel, 0) + 1
@@ -60,6 +63,7 @@ def test_a_projected_compiled_radau_run_is_one_run_projected_at_each_sample(pend
     assert run.status == "finished", run.message
     assert run.stats.steps < status.PAUSE_STEPS
     assert calls.get("radau_start") == 1 and calls.get("radau_projected") == 1 and "radau_run" not in calls and "radau_switched" not in calls, calls
+    assert "_jac" not in given["radau_projected"]  # the Jacobian by differences: no second compiled module beside the explicit pairs' (simulate._integrated)
     note = next(n for n in run.notes if n.startswith("projection onto the kept constraints and the energy level"))
     assert int(re.search(r"at each of (\d+) sample times, inside the compiled loop", note).group(1)) == samples - 1, note  # type: ignore[union-attr]
     assert "Radau restarts there" in note, note

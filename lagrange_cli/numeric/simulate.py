@@ -243,7 +243,13 @@ def run_seconds(model: Model, settings: Settings, max_steps: int | None = None) 
 
 
 def _integrated(model: Model, settings: Settings, progress: Progress | None, max_steps: int | None, before: Timing | None) -> tuple[Run, compile.Functions, Timing, tuple[str, ...]]:
-    """The integrator's run of `settings`, the Python functions, the timing and the projection's notes."""
+    """The integrator's run of `settings`, the Python functions, the timing and the projection's notes.
+
+    Compiled Radau projected onto kept constraints takes its Jacobian by forward differences: it restarts at
+    each projection (a Jacobian per sample), where differences cost the same run time as the analytic `_jac`
+    (trammel, rolling disk, multiplier pendulum at rtol 1e-5 and 1e-7: the same steps and errors, run times
+    within 15 %), while the analytic Jacobian's module is a second compiled module of the system (1.3-4 s CPU
+    to compile) beside the one the explicit pairs use (BENCHMARKS.md, issue 15, helper radproj)."""
     python = compile.build(model, "python", jacobian=settings.method in ("Radau", "BDF", "LSODA") and settings.backend != "compiled", event=settings.event)
     generate = python.generate_seconds + (before.generate if before else 0.0)
     load = python.import_seconds + (before.load if before else 0.0)
@@ -251,7 +257,7 @@ def _integrated(model: Model, settings: Settings, progress: Progress | None, max
     problem = Problem(settings.t0, settings.t_end, np.array(settings.y0, dtype=float), np.array(settings.t_eval, dtype=float), np.array(settings.p, dtype=float), settings.event is not None, budget)
     solver: integrators.Solver
     if settings.backend == "compiled":
-        numba = compile.build(model, "numba", jacobian=settings.method == "Radau", event=settings.event)
+        numba = compile.build(model, "numba", jacobian=settings.method == "Radau" and not (settings.projection and model.constraints), event=settings.event)
         generate, load = generate + numba.generate_seconds, load + numba.import_seconds
         solver = solver_for(settings, python, numba)
     else:
