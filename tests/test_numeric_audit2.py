@@ -151,9 +151,8 @@ def test_a_losing_run_is_stopped_by_its_pace() -> None:
 
 
 def _scipy_radau(monkeypatch: pytest.MonkeyPatch) -> None:
-    """The implicit reference in scipy's Radau, as on a system with kept constraints (where a study's Radau is scipy's)
-    or without the compiled method: the explicit fallback these tests are about is reached only then (compiled Radau
-    finishes where scipy's cannot: tests/test_radstress.py)."""
+    """The implicit reference in scipy's Radau, as without the compiled method (no numba): the explicit fallback these
+    tests are about is reached only then (compiled Radau finishes where scipy's cannot: tests/test_radstress.py)."""
     from lagrange_cli.numeric import runs
 
     monkeypatch.setattr(runs, "compiled_radau", lambda: False)

@@ -11,7 +11,7 @@ Each returns a `Run`: the samples reached, how it ended, and its counts and timi
 interface (scipy's `OdeSolver` as the anchor): a `Solver` is made once from the decided settings
 (`ExplicitRK`, `RadauCompiled`, `Gauss`, `Scipy`) and `solver.run(problem, progress)` integrates a `Problem` (or a
 stretch of one: the scipy backend's projection runs it stretch by stretch; the compiled one projects
-inside its loop, `run_erk_projected`) to a `Run`, with the status enum
+inside its loop, `run_erk_projected` and `run_radau_projected`) to a `Run`, with the status enum
 (`status.Status`) and named counters (`Stats`).
 """
 
@@ -399,6 +399,15 @@ def run_erk_projected(
     return ErkLoop(functions, problem, method, rtol, atol, max_step, (bounds, holonomic, record)).finish(progress)
 
 
+def run_radau_projected(
+    functions: Functions, problem: Problem, rtol: float, atol: float, max_step: float, bounds: np.ndarray, holonomic: np.ndarray, record: np.ndarray, progress: Progress | None = None
+) -> Run:
+    """`run_radau` with the state projected onto the kept constraints at the times `bounds` inside the
+    compiled loop (kernels.radau_projected), as `run_erk_projected`: one run, the method restarting (J, LU,
+    controller) at each projection inside it; `record` as there."""
+    return run_radau(functions, problem, rtol, atol, max_step, progress, (bounds, holonomic, record))
+
+
 def project_compiled(functions: Functions, t: float, y: np.ndarray, p: np.ndarray, holonomic: np.ndarray, record: np.ndarray) -> np.ndarray | None:
     """One state projected as the compiled loop projects it (kernels.project_state): the projected state,
     what it corrected in record[status.POSITION..ENERGY]; None where the projection cannot be applied."""
@@ -452,12 +461,16 @@ def run_gauss(functions: Functions, problem: Problem, z0: np.ndarray, stages: in
     return Run(problem.ts[:m], ys[:m], Status.of_code(code), float(state[status.T]), y_last, stats_record, compile_seconds, time.perf_counter() - began, gauss=gauss)
 
 
-def run_radau(functions: Functions, problem: Problem, rtol: float, atol: float, max_step: float = math.inf, progress: Progress | None = None) -> Run:
+def run_radau(
+    functions: Functions, problem: Problem, rtol: float, atol: float, max_step: float = math.inf, progress: Progress | None = None, projection: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+) -> Run:
     """Radau IIA (3 stages, order 5) compiled (kernels.radau_run: the RADAU5 algorithm, scipy's step
     control), with the system's analytic Jacobian where `functions` has one (`compile.build(..., jacobian=True)`:
     codegen.jac_numba), else (or where its values are not finite) by forward differences of the compiled
     right-hand side. A system with switching functions (`_SWITCHES`, switching.py) runs
-    kernels.radau_switched, which lands a step on each of their crossings (switching.LOCATE on)."""
+    kernels.radau_switched, which lands a step on each of their crossings (switching.LOCATE on).
+    `projection` (bounds, holonomic, record): kernels.radau_projected, which projects onto the kept
+    constraints inside its loop (`run_radau_projected`; no switching functions located, as run_erk_projected)."""
     kernels = functions.kernels
     assert kernels is not None
     start, _, compile_start = _compile(functions, "radau_start", [])
@@ -465,13 +478,18 @@ def run_radau(functions: Functions, problem: Problem, rtol: float, atol: float, 
     analytic = hasattr(functions.module, "_jac")
     if analytic:
         pieces.append(("_jac", kernels.JAC_SIG))
-    switches = switching.located(functions.module)
+    switches = switching.located(functions.module) if projection is None else 0
     if switches:
         pieces.append(("_switch", kernels.SWITCH_SIG))
-    entry, (accel, event, *given), compile_run = _compile(functions, "radau_switched" if switches else "radau_run", pieces)
+    if projection is not None:
+        pieces += [("_rows", kernels.ROWS_SIG), ("_energy", kernels.ENERGY_SIG)]
+    kernel = "radau_projected" if projection is not None else "radau_switched" if switches else "radau_run"
+    entry, (accel, event, *given), compile_run = _compile(functions, kernel, pieces)
     jacobian = given[0] if analytic else kernels.compiled("no_jacobian")
     extra: tuple[Any, ...] = ()
-    if switches:
+    if projection is not None:
+        extra = (given[-2], given[-1], *projection)
+    elif switches:
         switch, record = given[-1], kernels.switching_record(switches)
         g = np.empty(switches)
         switch(problem.t0, problem.y0, problem.p, g)

@@ -14,7 +14,8 @@ directory and imports it from there, so numba's cache sits beside it.
   and `erk_projected` are cases of one loop, `_erk_loop`;
 - `erk_projected`: `erk_run` with the state projected onto kept constraints at given times (the
   samples) inside the loop: a step lands on each, the state is projected as `projection.Projector`
-  does (`_project`, with the system's `rows` and `energy`), and the run goes on from it;
+  does (`_project`, with the system's `rows` and `energy`), and the run goes on from it
+  (`radau_projected`: the same for Radau IIA, which restarts at each projection);
 - `gauss_run`: fixed-step Gauss-Legendre collocation in (q, p), symplectic and symmetric,
   stage equations solved to round-off by fixed-point iteration, or where that converges slowly
   (a stiff stretch) by simplified Newton iteration (a finite-difference Jacobian, refreshed when
@@ -71,6 +72,7 @@ from lagrange_cli.numeric.status import (
     NSTEPS,
     PAUSE_STEPS,
     POSITION,
+    PROJECTION_SIZE,
     PROJECTIONS,
     ROUND_OFF_LEVEL,
     RTOL,
@@ -284,6 +286,8 @@ SIGNATURES = {
     "radau_run": _I8(_ARR, _ARR, _ARR, _ARR, _ARR, _MAT, _ARR, _ARR, _MAT, _MAT, _ARR, _ARR, _ACCEL_T, _EVENT_T, _JAC_T),
     # (y, f, state, control, ts, ys, p, stats, jac, dense, y_old, memory, accel, event, jacobian, switch, record)
     "radau_switched": _I8(_ARR, _ARR, _ARR, _ARR, _ARR, _MAT, _ARR, _ARR, _MAT, _MAT, _ARR, _ARR, _ACCEL_T, _EVENT_T, _JAC_T, _SWITCH_T, _ARR),
+    # (y, f, state, control, ts, ys, p, stats, jac, dense, y_old, memory, accel, event, jacobian, rows, energy, bounds, holonomic, record)
+    "radau_projected": _I8(_ARR, _ARR, _ARR, _ARR, _ARR, _MAT, _ARR, _ARR, _MAT, _MAT, _ARR, _ARR, _ACCEL_T, _EVENT_T, _JAC_T, _ROWS_T, _ENERGY_T, _ARR, _ARR, _ARR),
     # a stand-in for a system without `_jac` (control[ANALYTIC] = 0: never called)
     "no_jacobian": JAC_SIG,
 }
@@ -1810,7 +1814,8 @@ def radau_run(y, f, state, control, ts, ys, p, stats, jac, dense, y_old, memory,
     for the samples passed (state[NEXT_SAMPLE]: the next one); returns a status code (RUNNING: paused)."""
     none = np.empty(SWITCH_HEAD)  # switching_record(0)
     none[SWITCH_PENDING] = np.inf
-    return _radau_loop(y, f, state, control, ts, ys, p, stats, jac, dense, y_old, memory, accel, event, jacobian, event, none)
+    bounds, unused = _no_projection()
+    return _radau_loop(y, f, state, control, ts, ys, p, stats, jac, dense, y_old, memory, accel, event, jacobian, event, none, event, event, bounds, unused, unused)
 
 
 def radau_switched(y, f, state, control, ts, ys, p, stats, jac, dense, y_old, memory, accel, event, jacobian, switch, record):
@@ -1820,7 +1825,45 @@ def radau_switched(y, f, state, control, ts, ys, p, stats, jac, dense, y_old, me
     polynomial (the Illinois method, the earliest of them), the step is discarded (counted as rejected) and
     taken again to land on it; there the method restarts as at t0: a fresh Jacobian and LU, scipy's
     initial step, no predictor from the step before and the predictive controller's memory cleared."""
-    return _radau_loop(y, f, state, control, ts, ys, p, stats, jac, dense, y_old, memory, accel, event, jacobian, switch, record)
+    bounds, unused = _no_projection()
+    return _radau_loop(y, f, state, control, ts, ys, p, stats, jac, dense, y_old, memory, accel, event, jacobian, switch, record, event, event, bounds, unused, unused)
+
+
+def radau_projected(y, f, state, control, ts, ys, p, stats, jac, dense, y_old, memory, accel, event, jacobian, rows, energy, bounds, holonomic, record):
+    """`radau_run` with the state projected onto the kept constraints at the times `bounds` (increasing, the
+    last one t_end), as `erk_projected`: a step reaching the next of them is shortened to land exactly on it,
+    the state there is projected (`_project`, the same routine, constants and skip rules; where it cannot be
+    applied the state is kept as it was, and counted), a sample at that time takes the projected state, and
+    the method restarts there as radau_switched does at a crossing (f evaluated anew, a fresh Jacobian and
+    LU, no predictor from the step before, the predictive controller's memory cleared), going on with the
+    step size it had before it was shortened (its growth capped at 1). The largest corrections and the
+    counts go into `record` (status.POSITION, ...); record[NEXT_BOUND] is the next projection time's index.
+    No switching functions are located (as erk_projected). Pauses as radau_run does; returns a status code."""
+    none = np.empty(SWITCH_HEAD)  # switching_record(0)
+    none[SWITCH_PENDING] = np.inf
+    return _radau_loop(y, f, state, control, ts, ys, p, stats, jac, dense, y_old, memory, accel, event, jacobian, event, none, rows, energy, bounds, holonomic, record)
+
+
+@njit(error_model="numpy")
+def _no_projection():
+    """The projection arguments of radau_run and radau_switched: no projection time (the bound +inf),
+    the holonomic marks and record unused."""
+    bounds = np.empty(1)
+    bounds[0] = np.inf
+    return bounds, np.zeros(PROJECTION_SIZE)
+
+
+def _call_project(rows, energy, t, y, p, holonomic, record, out, found, x, a):
+    """`_project` in _radau_loop: radau_run and radau_switched pass their stop condition in place of `rows`
+    (never called: no projection time), which this compiles to nothing, as `_call_switch`."""
+    return _project(rows, energy, t, y, p, holonomic, record, out, found, x, a)
+
+
+@overload(_call_project)
+def _call_project_typed(rows, energy, t, y, p, holonomic, record, out, found, x, a):
+    if rows == _ROWS_T:
+        return lambda rows, energy, t, y, p, holonomic, record, out, found, x, a: _project(rows, energy, t, y, p, holonomic, record, out, found, x, a)
+    return lambda rows, energy, t, y, p, holonomic, record, out, found, x, a: 1
 
 
 @njit(error_model="numpy")
@@ -1843,8 +1886,9 @@ def _radau_switch_root(switch, i, t_old, h, y_old, dense, p, work, g, g_lo, g_hi
 
 
 @njit(error_model="numpy")
-def _radau_loop(y, f, state, control, ts, ys, p, stats, jac, dense, y_old, memory, accel, event, jacobian, switch, record):
-    """radau_run and radau_switched (m = 0 switching functions in `record`: radau_run's steps exactly)."""
+def _radau_loop(y, f, state, control, ts, ys, p, stats, jac, dense, y_old, memory, accel, event, jacobian, switch, record, rows, energy, bounds, holonomic, projected_record):
+    """radau_run, radau_switched and radau_projected (m = 0 switching functions in `record` and no projection
+    time in `bounds` (+inf): radau_run's steps exactly)."""
     n = y.shape[0]
     m = (record.shape[0] - SWITCH_HEAD) // 2
     g_end, g_work, g_start, trial = np.empty(m), np.empty(m), np.empty(m), np.empty((3, n))
@@ -1860,8 +1904,9 @@ def _radau_loop(y, f, state, control, ts, ys, p, stats, jac, dense, y_old, memor
     rhs_complex = np.empty(n, dtype=np.complex128)
     y_new, f_new, work, fw, error, scale = np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(n)
     ze = np.empty(n)
+    projected, found_projection = np.empty(n), np.zeros(4)
     analytic = control[ANALYTIC] != 0.0
-    rows, pivots, column = np.empty((size, n)), np.empty(size, dtype=np.int64), np.empty(size)
+    rows_work, pivots, column = np.empty((size, n)), np.empty(size, dtype=np.int64), np.empty(size)
     have_lu = False
     if memory[LU_STEP] != 0.0:  # resumed: the factors of the call before, made again for the same step (the same run as one straight through)
         have_lu = _radau_matrices(jac, memory[LU_STEP], lu_real, pivots_real, lu_complex, pivots_complex, stats) == 0
@@ -1873,7 +1918,9 @@ def _radau_loop(y, f, state, control, ts, ys, p, stats, jac, dense, y_old, memor
         taken += 1
         min_step = MIN_STEP_SPACINGS * abs(np.nextafter(t, np.inf) - t)
         pending = record[SWITCH_PENDING]
-        limit = min(t_bound, pending)
+        next_bound = int(projected_record[NEXT_BOUND])
+        bound = bounds[next_bound] if next_bound < bounds.shape[0] else np.inf  # the next projection time (+inf: none)
+        limit = min(t_bound, pending, bound)
         h_abs_start = h_abs
         if h_abs > max_step:
             h_abs, h_abs_old, error_old = max_step, np.nan, np.nan
@@ -1884,14 +1931,15 @@ def _radau_loop(y, f, state, control, ts, ys, p, stats, jac, dense, y_old, memor
         rejected, bad = False, False
         first = memory[HAVE_DENSE] == 0.0
         contraction = max(memory[CONTRACTION], _EPS) ** 0.8  # radau5.f: the last factor, relaxed toward 1
-        converged, iterations, rate, error_norm, safety, t_new, h = False, 0, np.nan, 0.0, 1.0, t, 0.0
+        converged, iterations, rate, error_norm, safety, t_new, h, h_wanted = False, 0, np.nan, 0.0, 1.0, t, 0.0, h_abs
         while True:
             if h_abs < min_step:
                 state[T], state[H] = t, h_abs
                 return NONFINITE if bad else STEP_COLLAPSE
             t_new = t + h_abs
-            if t_new > limit or (pending < t_bound and limit - t_new <= 4 * _EPS * abs(limit)):
-                t_new = limit  # the end, or the crossing located (retaken: land on it, round-off apart)
+            h_wanted = h_abs
+            if t_new > limit or (limit < t_bound and limit - t_new <= 4 * _EPS * abs(limit)):
+                t_new = limit  # the end, a projection time, or the crossing located (retaken: land on it, round-off apart)
             h = t_new - t
             h_abs = abs(h)
             for i in range(n):
@@ -1919,7 +1967,7 @@ def _radau_loop(y, f, state, control, ts, ys, p, stats, jac, dense, y_old, memor
                     bad = code == NONFINITE
                 if converged or current_jac:
                     break
-                if _radau_jac(accel, jacobian, analytic, t, y, f, p, x, a, jac, work, fw, rows, pivots, column, stats):
+                if _radau_jac(accel, jacobian, analytic, t, y, f, p, x, a, jac, work, fw, rows_work, pivots, column, stats):
                     state[T], state[H] = t, h
                     return SINGULAR
                 current_jac = True
@@ -2004,7 +2052,8 @@ def _radau_loop(y, f, state, control, ts, ys, p, stats, jac, dense, y_old, memor
                     record[SWITCH_INDEX] = float(first)
                     for i in range(m):
                         record[SWITCH_HEAD + m + i] = g_end[i]
-        recompute_jac = iterations > 2 and rate > JAC_RATE and not arrived  # (a landing computes J afresh)
+        landed = t_new == bound  # on a projection time: the state is projected there and the method restarts (before t_bound)
+        recompute_jac = iterations > 2 and rate > JAC_RATE and not arrived and not (landed and t_new < t_bound)  # (a landing computes J afresh)
         factor = min(MAX_FACTOR, safety * _predict_factor(h_abs, h_abs_old, error_norm, error_old))
         if not recompute_jac and factor < KEEP_FACTOR:
             factor = 1.0
@@ -2016,7 +2065,7 @@ def _radau_loop(y, f, state, control, ts, ys, p, stats, jac, dense, y_old, memor
             return SINGULAR
         stats[NFEV] += 1
         if recompute_jac:
-            if _radau_jac(accel, jacobian, analytic, t_new, y_new, f_new, p, x, a, jac, work, fw, rows, pivots, column, stats):
+            if _radau_jac(accel, jacobian, analytic, t_new, y_new, f_new, p, x, a, jac, work, fw, rows_work, pivots, column, stats):
                 state[T], state[H] = t_new, h
                 return SINGULAR
             current_jac = True
@@ -2072,7 +2121,7 @@ def _radau_loop(y, f, state, control, ts, ys, p, stats, jac, dense, y_old, memor
             record[SWITCH_PENDING], record[SWITCH_INDEX] = np.inf, -1.0
             record[SWITCH_COUNT] += 1.0
             # restart as radau_start (f = f(t, y) is fresh): J and the factors afresh, no predictor, no controller memory, scipy's initial step
-            if _radau_jac(accel, jacobian, analytic, t, y, f, p, x, a, jac, work, fw, rows, pivots, column, stats):
+            if _radau_jac(accel, jacobian, analytic, t, y, f, p, x, a, jac, work, fw, rows_work, pivots, column, stats):
                 state[T], state[H] = t, h_abs
                 return SINGULAR
             current_jac, have_lu = True, False
@@ -2082,5 +2131,37 @@ def _radau_loop(y, f, state, control, ts, ys, p, stats, jac, dense, y_old, memor
         elif m > 0:
             for i in range(m):
                 record[SWITCH_HEAD + i] = g_end[i]
+        if landed:
+            h_abs = h_wanted * min(1.0, factor)  # the step size before it was shortened onto the projection time
+            projected_record[PROJECTIONS] += 1.0
+            if _call_project(rows, energy, t, y, p, holonomic, projected_record, projected, found_projection, x, a):
+                projected_record[FAILURES] += 1.0
+                if not np.isfinite(projected_record[FAILED_AT]):
+                    projected_record[FAILED_AT] = t
+            else:
+                for i in range(n):
+                    y[i] = projected[i]
+                projected_record[POSITION] = max(projected_record[POSITION], found_projection[0])
+                projected_record[VELOCITY] = max(projected_record[VELOCITY], found_projection[1])
+                projected_record[MOVED] = max(projected_record[MOVED], found_projection[2])
+                projected_record[ENERGY] = max(projected_record[ENERGY], found_projection[3])
+                j = int(state[NEXT_SAMPLE])
+                if j > 0 and ts[j - 1] == t:
+                    for i in range(n):
+                        ys[j - 1, i] = y[i]
+            projected_record[NEXT_BOUND] += 1.0
+            if t < t_bound:  # restart as at a crossing (f at the projected state; J and the factors afresh, no predictor, no controller memory)
+                if _rhs(accel, t, y, p, f, x, a):
+                    state[T], state[H] = t, h_abs
+                    return SINGULAR
+                stats[NFEV] += 1
+                if use_event:
+                    state[EVENT_VALUE] = event(t, y, p, x, a)
+                if _radau_jac(accel, jacobian, analytic, t, y, f, p, x, a, jac, work, fw, rows_work, pivots, column, stats):
+                    state[T], state[H] = t, h_abs
+                    return SINGULAR
+                current_jac, have_lu = True, False
+                memory[CURRENT_JAC], memory[LU_STEP], memory[HAVE_DENSE], memory[CONTRACTION] = 1.0, 0.0, 0.0, 1.0
+                memory[H_ABS_OLD], memory[ERROR_OLD] = np.nan, np.nan
         state[T], state[H] = t, h_abs
     return DONE if t >= t_bound else RUNNING

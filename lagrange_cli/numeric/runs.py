@@ -86,13 +86,11 @@ def default_candidates(model: Model) -> tuple[Candidate, ...]:
     is an implicit Runge-Kutta method without error control; its pilot's compilation alone was a
     third of `stress` on a damped stiff system. `--method symplectic` still measures it.
 
-    Radau is the compiled one (`backend_for`) except with kept constraints: there its run is projected
-    stretch by stretch between the samples (`simulate._projected`), each stretch restarting the method,
-    20-280 us a step on the trammel against 2 us unconstrained, so it is no cheaper than scipy's and
-    is measured as scipy's (`Radau:python`), whose pace stops a run that cannot finish."""
+    Radau is the compiled one (`backend_for`), with kept constraints too: it projects onto them inside
+    its loop (kernels.radau_projected, one compiled run), as the compiled explicit pairs do."""
     skip = bool(model.constraints) or not compile.numba_available() or model.dissipative
     methods = [m for m in STUDY_METHODS if not (m == "symplectic" and skip)]
-    return tuple(Candidate(m, "python" if m == "Radau" and model.constraints else "auto") for m in methods)
+    return tuple(Candidate(m) for m in methods)
 
 
 def compiled_radau() -> bool:

@@ -252,7 +252,13 @@ def run_seconds(model: Model, settings: Settings, max_steps: int | None = None) 
 
 
 def _integrated(model: Model, settings: Settings, progress: Progress | None, max_steps: int | None, before: Timing | None) -> tuple[Run, compile.Functions, Timing, tuple[str, ...]]:
-    """The integrator's run of `settings`, the Python functions, the timing and the projection's notes."""
+    """The integrator's run of `settings`, the Python functions, the timing and the projection's notes.
+
+    Compiled Radau projected onto kept constraints takes its Jacobian by forward differences: it restarts at
+    each projection (a Jacobian per sample), where differences cost the same run time as the analytic `_jac`
+    (trammel, rolling disk, multiplier pendulum at rtol 1e-5 and 1e-7: the same steps and errors, run times
+    within 15 %), while the analytic Jacobian's module is a second compiled module of the system (1.3-4 s CPU
+    to compile) beside the one the explicit pairs use (BENCHMARKS.md, issue 15, helper radproj)."""
     python = compile.build(model, "python", jacobian=settings.method in ("Radau", "BDF", "LSODA") and settings.backend != "compiled", event=settings.event)
     generate = python.generate_seconds + (before.generate if before else 0.0)
     load = python.import_seconds + (before.load if before else 0.0)
@@ -260,7 +266,7 @@ def _integrated(model: Model, settings: Settings, progress: Progress | None, max
     problem = Problem(settings.t0, settings.t_end, np.array(settings.y0, dtype=float), np.array(settings.t_eval, dtype=float), np.array(settings.p, dtype=float), settings.event is not None, budget)
     solver: integrators.Solver
     if settings.backend == "compiled":
-        numba = compile.build(model, "numba", jacobian=settings.method == "Radau", event=settings.event)
+        numba = compile.build(model, "numba", jacobian=settings.method == "Radau" and not (settings.projection and model.constraints), event=settings.event)
         generate, load = generate + numba.generate_seconds, load + numba.import_seconds
         solver = solver_for(settings, python, numba)
     else:
@@ -272,7 +278,7 @@ def _integrated(model: Model, settings: Settings, progress: Progress | None, max
 
     notes: tuple[str, ...] = ()
     started = policy.take_attempt(model, settings, problem) if isinstance(solver, integrators.ExplicitRK) and solver.method == "DOP853" else None
-    if settings.projection and model.constraints and isinstance(solver, integrators.ExplicitRK):
+    if settings.projection and model.constraints and isinstance(solver, (integrators.ExplicitRK, integrators.RadauCompiled)):
         run, notes = _projected_compiled(model, solver, problem, progress)
         run = _verified_event(python, problem, run)
     elif settings.projection and model.constraints:
@@ -299,10 +305,10 @@ def _bounds(problem: Problem) -> list[float]:
     return [*inner[every - 1 :: every], problem.t_end] if every > 1 else [*inner, problem.t_end]
 
 
-def _projected_compiled(model: Model, solver: integrators.ExplicitRK, problem: Problem, progress: Progress | None) -> tuple[Run, tuple[str, ...]]:
+def _projected_compiled(model: Model, solver: integrators.ExplicitRK | integrators.RadauCompiled, problem: Problem, progress: Progress | None) -> tuple[Run, tuple[str, ...]]:
     """The compiled run with the state projected at the `_bounds` times inside its loop
-    (integrators.run_erk_projected: one compiled run, the same projection as `projection.Projector`),
-    and a note saying what was corrected."""
+    (integrators.run_erk_projected, or run_radau_projected for Radau: one compiled run, the same projection
+    as `projection.Projector`), and a note saying what was corrected."""
     numba, holonomic = solver.functions, projection.holonomic_rows(model)
     level = None
     if model.energy_conserved:  # the level of the constrained state nearest the start (the start itself when it satisfies the constraints)
@@ -313,14 +319,18 @@ def _projected_compiled(model: Model, solver: integrators.ExplicitRK, problem: P
             level = value if math.isfinite(value) else None
     found = projection.record(level)
     bounds = np.array(_bounds(problem), dtype=float)
-    run = integrators.run_erk_projected(numba, problem, solver.method, solver.rtol, solver.atol, solver.max_step, bounds, holonomic, found, progress)
+    if isinstance(solver, integrators.RadauCompiled):
+        run = integrators.run_radau_projected(numba, problem, solver.rtol, solver.atol, solver.max_step, bounds, holonomic, found, progress)
+    else:
+        run = integrators.run_erk_projected(numba, problem, solver.method, solver.rtol, solver.atol, solver.max_step, bounds, holonomic, found, progress)
     failures = int(found[status.FAILURES])
     failed = (
         f"; it could not be applied at {failures} of them, first at t = {_g(float(found[status.FAILED_AT]))} (the mass matrix or A M^-1 A^T singular there, or values not finite), and the run went on without it there"
         if failures
         else ""
     )
-    where = f"at each of {int(found[status.PROJECTIONS])} sample times, inside the compiled loop (a step is shortened to land on each; the run goes on from the projected state)"
+    restart = "; Radau restarts there: f, its Jacobian and LU afresh, no controller memory" if isinstance(solver, integrators.RadauCompiled) else ""
+    where = f"at each of {int(found[status.PROJECTIONS])} sample times, inside the compiled loop (a step is shortened to land on each; the run goes on from the projected state{restart})"
     return run, (_projection_note(level is not None, where, projection.correction(found), failed),)
 
 
