@@ -786,6 +786,12 @@ Kepler's equation (round-off and the orbit's phase sensitivity at the tightest):
 at 10 x and 100 x looser, 1.4e-6 and 1.3e-4 (94 x), would understate the primary's error."""
 
 
+def _looser(rtol: float, factor: float) -> float:
+    """`rtol` x `factor` to 12 digits: 1e-11 x 10 is the 1e-10 of the rtol ladders (not 9.999999999999999e-11), so that
+    a run made already at it (`runs.kept_runs`: the tighter reference's primary before, a measured rung) is not made again."""
+    return float(f"{rtol * factor:.12g}")
+
+
 def _converged(model: Model, setup: Setup, main: Trajectory, tolerance: float, found: Reference, method: Candidate, enough: float, seconds: float) -> Reference:
     """`found` where its own error is within `enough` (0.1 x the accuracy asked) or its second method
     confirmed at the primary's own rtol (the spherical pendulum in gimbal angles at high energy: RK45 at
@@ -802,10 +808,10 @@ def _converged(model: Model, setup: Setup, main: Trajectory, tolerance: float, f
         return found
     if found.own_error <= enough or found.confirmed_rtol <= tolerance * (1 + 1e-9):
         return _floored(model, setup, main, tolerance, found, method, seconds)  # a second opinion at equal terms stands, floored
-    near = _confirmed(model, setup, main, tolerance, [(method, tolerance * CONVERGENCE_STEP)], seconds)
+    near = _confirmed(model, setup, main, tolerance, [(method, _looser(tolerance, CONVERGENCE_STEP))], seconds)
     if not (math.isfinite(near.own_error) and (near.own_error < found.own_error or not math.isfinite(found.own_error))):
         return found
-    far = _confirmed(model, setup, main, tolerance, [(method, tolerance * CONVERGENCE_STEP**2)], seconds)
+    far = _confirmed(model, setup, main, tolerance, [(method, _looser(tolerance, CONVERGENCE_STEP**2))], seconds)
     low, high = CONVERGENCE_RATIO
     if not (math.isfinite(far.own_error) and low * near.own_error <= far.own_error <= high * near.own_error):
         return found  # not converging with the tolerance as the method's order says (round-off, a shared defect, not yet asymptotic): no bound
@@ -858,7 +864,7 @@ def _floored(model: Model, setup: Setup, main: Trajectory, tolerance: float, fou
     about the same steps and agrees closely, and the floor costs nothing but that run."""
     if not always and not (found.confirmed_rtol < CONVERGENCE_STEP * tolerance * (1 - 1e-9)):
         return found  # confirmed (or not) at CONVERGENCE_STEP x looser or more: its disagreement is already the looser run's
-    near = _confirmed(model, setup, main, tolerance, [(method, tolerance * CONVERGENCE_STEP)], seconds)
+    near = _confirmed(model, setup, main, tolerance, [(method, _looser(tolerance, CONVERGENCE_STEP))], seconds)
     if not (math.isfinite(near.own_error) and near.own_error > found.own_error):
         return found
     how = (
