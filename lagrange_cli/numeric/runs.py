@@ -618,12 +618,16 @@ def _timer(model: Model, point: Point, setup: Setup) -> Timer:
 
 def ties(points: Sequence[Point], best: Point, level: float = math.inf, margin: float = TIE_MARGIN) -> tuple[Point, ...]:
     """The fastest run of each other candidate that also reaches `level` in at most (1 + margin) x
-    the time of `best`: ties with it, not losses."""
+    the time of `best`: ties with it, not losses. Not the same run under another name (`auto` resolved to the method and
+    settings of `best`: the same decided settings), which is no second method (audit 7: the recommended run printed
+    again as its own tie, with the same `try:` line twice)."""
     found: dict[Candidate | str, Point] = {}
     mine = best.candidate if best.candidate is not None else best.method
     for p in points:
         who = p.candidate if p.candidate is not None else p.method
         close = p.ok and p.error <= level and p.seconds <= best.seconds * (1.0 + margin)
+        if p.settings is not None and best.settings is not None and replace(p.settings, notes=()) == replace(best.settings, notes=()):
+            continue
         if who != mine and close and (who not in found or p.seconds < found[who].seconds):
             found[who] = p
     return tuple(sorted(found.values(), key=lambda p: p.seconds))
