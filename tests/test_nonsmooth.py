@@ -73,14 +73,32 @@ def test_a_step_collapse_on_a_surface_where_the_force_jumps_is_said_so() -> None
     stops there, and says it is a jump on a switching surface, not a singularity. At rtol 1e-8 the
     crossings are landed on and the run finishes."""
     from lagrange_cli.numeric.simulate import SURFACE_COLLAPSE, simulate
+    from lagrange_cli.numeric.status import Status
 
     model = model_of(GATED)
     loose = simulate(model, method="DOP853", backend="compiled", rtol=1e-8, atol=1e-10, samples=3)
     assert loose.status == "finished" and "1 switching surface (" in loose.notes[-1]
     tight = simulate(model, method="DOP853", backend="compiled", rtol=1e-12, atol=1e-14, samples=3)
-    assert tight.failed and tight.outcome == integrators.STEP_COLLAPSE, tight.message
+    assert tight.failed and tight.outcome == Status.SURFACE_JUMP, tight.message
     assert SURFACE_COLLAPSE in tight.message and "a singularity" not in tight.message
     assert abs(np.sin(tight.y_last[0]) - 0.3 - tight.y_last[1]) < 1e-9  # on the surface: l sin(theta) = d + w
+
+
+def test_a_reference_steps_back_to_a_tolerance_that_passes_a_jump() -> None:
+    """Audit 7 F5: stress called the first touch of the gated damper a blow-up (both reference methods
+    stopped there). A run whose steps collapse onto a switching surface ends SURFACE_JUMP, which is not a
+    blow-up, and the reference tries looser rtols, as for a run out of budget: DOP853 at 2.5e-10 passes."""
+    from lagrange_cli.numeric import reference, stress
+    from lagrange_cli.numeric.runs import Setup
+    from lagrange_cli.numeric.status import Status
+
+    model = model_of(GATED).with_definitions()
+    setup = Setup(1.0, tuple(np.linspace(0.0, 1.0, 101).tolist()), max_steps=stress.MAX_STEPS)
+    found = reference.computed_reference(model, setup, stress.reference_tolerance(1e-6), implicit=stress.implicit_reference_tolerances(1e-6))
+    assert found.settings is not None and found.settings.rtol > 2.5e-14, found.description
+    assert "switching surface" in found.description and "blow" not in found.description
+    assert reference.BLOWUP.count(Status.SURFACE_JUMP) == 0
+    assert found.t[-1] == 1.0 and np.isfinite(found.own_error)
 
 
 def test_only_a_system_with_kinks_gets_a_switch_function() -> None:

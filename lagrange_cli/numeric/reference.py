@@ -537,6 +537,8 @@ def _computed_reference(model: Model, setup: Setup, tolerance: float, hint: str,
                 return replace(found, description=f"{found.description} (looser than rtol {tol_text(tolerance)}: {'; '.join(tried)})") if tried else found
             tried.append(_stopped(model, primary, rtol, capped, main, paced.needed if paced is not None else None))
             paced_need = None
+            if main.outcome == Status.SURFACE_JUMP:
+                continue  # its steps collapsed onto a jump in the forces (a gated damper): a looser tolerance may step across it
             if main.outcome != Status.BUDGET:
                 break  # a blow-up or a singular matrix: a looser tolerance will not pass it
             if stiff_at(model, setup, main.t_last, main.y_last):
@@ -615,8 +617,8 @@ def _computed_reference(model: Model, setup: Setup, tolerance: float, hint: str,
                 if fallback is not None and fallback.own_error < found.own_error:
                     return fallback
             return found
-        if radau.outcome != Status.BUDGET:
-            break  # a failure, not round-off: a looser tolerance will not pass it
+        if radau.outcome not in (Status.BUDGET, Status.SURFACE_JUMP):
+            break  # a failure, not round-off or a jump in the forces: a looser tolerance will not pass it
     assert radau is not None
     reasons.append(_stopped(model, Candidate("Radau"), rtol, attempt, radau) + (f" (also at rtol {', '.join(tol_text(r) for r in rtols[:-1])})" if len(rtols) > 1 and rtol == rtols[-1] else ""))
     if main is None and radau.outcome == Status.BUDGET and compile.numba_available() and not fallback_tried:

@@ -480,6 +480,7 @@ def _trajectory(model: Model, settings: Settings, python: compile.Functions, run
             reason = f"{run.problem.what} cannot be evaluated at t = {_g(run.problem.t)} ({state_text(model, run.problem.y)}): {run.problem.cause}"
         elif run.status == integrators.STEP_COLLAPSE and _on_surface(python.module, run, p):
             reason = SURFACE_COLLAPSE
+            run = dataclasses.replace(run, status=Status.SURFACE_JUMP)
         else:
             reason = FAILURES[run.status].format(" (with the constraint rows)" if model.constraints else "")
         message = f"{model.source}: simulation failed at t = {_g(run.t_last)}: {reason}; state: {state_text(model, run.y_last)}"

@@ -107,6 +107,9 @@ class Status(enum.StrEnum):
     SINGULAR = "singular"
     NONFINITE = "nonfinite"
     STEP_COLLAPSE = "step"
+    SURFACE_JUMP = "jump"
+    """The step size collapsed on a switching surface where the forces jump (`simulate._on_surface`):
+    not a blow-up; a looser tolerance may pass it."""
     NO_CONVERGENCE = "convergence"
     BUDGET = "budget"
 
@@ -139,6 +142,8 @@ class Failure(enum.StrEnum):
     NONFINITE = "nonfinite"
     """Infinite or NaN values, or a function that cannot be evaluated along the way."""
     STEP_COLLAPSE = "step"
+    SURFACE_JUMP = "jump"
+    """The step size collapsed on a switching surface where the forces jump."""
     NO_CONVERGENCE = "convergence"
     BUDGET = "budget"
     TIME_LIMIT = "time limit"

@@ -343,7 +343,7 @@ def _near_singular(model: Model, p: Sequence[float], y0: Sequence[float]) -> tup
 
 
 AUTO = Candidate("auto")
-FAILURE_FINDINGS = (Failure.SINGULAR, Failure.NONFINITE, Failure.STEP_COLLAPSE)
+FAILURE_FINDINGS = (Failure.SINGULAR, Failure.NONFINITE, Failure.STEP_COLLAPSE, Failure.SURFACE_JUMP)
 """Failed runs the diagnosis reports: a blow-up, a singular matrix, a step that collapsed (at a singularity, or too stiff)."""
 
 
