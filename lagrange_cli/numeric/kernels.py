@@ -848,22 +848,7 @@ def _erk_loop(pair, y, f, state, control, ts, ys, p, stats, accel, event, switch
         if rows is not None:  # noqa: SIM102  (a branch on the argument alone: numba prunes it where rows is None)
             if landed and t_new == bound:  # a projection time: the state projected there, f afresh
                 record[PROJECTIONS] += 1.0
-                if _project(rows, energy, t, y, p, holonomic, record, projected, found, x, a):
-                    record[FAILURES] += 1.0
-                    if not np.isfinite(record[FAILED_AT]):
-                        record[FAILED_AT] = t
-                else:
-                    for i in range(n):
-                        y[i] = projected[i]
-                    record[POSITION] = max(record[POSITION], found[0])
-                    record[VELOCITY] = max(record[VELOCITY], found[1])
-                    record[MOVED] = max(record[MOVED], found[2])
-                    record[ENERGY] = max(record[ENERGY], found[3])
-                    j = int(state[NEXT_SAMPLE])
-                    if j > 0 and ts[j - 1] == t:
-                        for i in range(n):
-                            ys[j - 1, i] = y[i]
-                record[NEXT_BOUND] += 1.0
+                _projected(_project(rows, energy, t, y, p, holonomic, record, projected, found, x, a), t, y, record, projected, found, state, ts, ys)
                 if t < t_bound:
                     if _rhs(accel, t, y, p, f, x, a):
                         return SINGULAR
@@ -1070,6 +1055,30 @@ def _project(rows, energy, t, y, p, holonomic, record, out, found, x, a):
         moved = max(moved, abs(out[i] - y[i]))
     found[0], found[1], found[2], found[3] = first_position, largest_residual, moved, energy_error
     return 0
+
+
+@njit(error_model="numpy", inline="always")
+def _projected(failed, t, y, record, projected, found, state, ts, ys):
+    """After `_project` at a projection time t (erk_projected's and radau_projected's loops): a failure counted
+    (FAILURES, FAILED_AT) and the state kept; else the state replaced by the projected one, the corrections'
+    maxima recorded, and a sample written at t rewritten with it. Then on to the next projection time."""
+    if failed:
+        record[FAILURES] += 1.0
+        if not np.isfinite(record[FAILED_AT]):
+            record[FAILED_AT] = t
+    else:
+        n = y.shape[0]
+        for i in range(n):
+            y[i] = projected[i]
+        record[POSITION] = max(record[POSITION], found[0])
+        record[VELOCITY] = max(record[VELOCITY], found[1])
+        record[MOVED] = max(record[MOVED], found[2])
+        record[ENERGY] = max(record[ENERGY], found[3])
+        j = int(state[NEXT_SAMPLE])
+        if j > 0 and ts[j - 1] == t:
+            for i in range(n):
+                ys[j - 1, i] = y[i]
+    record[NEXT_BOUND] += 1.0
 
 
 def project_state(t, y, p, holonomic, record, out, size, rows, energy):
@@ -2134,22 +2143,8 @@ def _radau_loop(y, f, state, control, ts, ys, p, stats, jac, dense, y_old, memor
         if landed:
             h_abs = h_wanted * min(1.0, factor)  # the step size before it was shortened onto the projection time
             projected_record[PROJECTIONS] += 1.0
-            if _call_project(rows, energy, t, y, p, holonomic, projected_record, projected, found_projection, x, a):
-                projected_record[FAILURES] += 1.0
-                if not np.isfinite(projected_record[FAILED_AT]):
-                    projected_record[FAILED_AT] = t
-            else:
-                for i in range(n):
-                    y[i] = projected[i]
-                projected_record[POSITION] = max(projected_record[POSITION], found_projection[0])
-                projected_record[VELOCITY] = max(projected_record[VELOCITY], found_projection[1])
-                projected_record[MOVED] = max(projected_record[MOVED], found_projection[2])
-                projected_record[ENERGY] = max(projected_record[ENERGY], found_projection[3])
-                j = int(state[NEXT_SAMPLE])
-                if j > 0 and ts[j - 1] == t:
-                    for i in range(n):
-                        ys[j - 1, i] = y[i]
-            projected_record[NEXT_BOUND] += 1.0
+            failed = _call_project(rows, energy, t, y, p, holonomic, projected_record, projected, found_projection, x, a)
+            _projected(failed, t, y, projected_record, projected, found_projection, state, ts, ys)
             if t < t_bound:  # restart as at a crossing (f at the projected state; J and the factors afresh, no predictor, no controller memory)
                 if _rhs(accel, t, y, p, f, x, a):
                     state[T], state[H] = t, h_abs
