@@ -336,6 +336,8 @@ def _report_stress(report: Report, to_stderr: bool, file: str, model: Model) -> 
             for other in o.ties:
                 console.print(f"  tie (within {TIE_MARGIN:.0%} of its run time): {inert(other.resolved)} at {inert(other.setting)} (error {_e(other.error)} in {_seconds(other.seconds)})")
                 _reproduce(console, file, model, other, "    ")
+        elif o.beyond:
+            console.print(plain(f"  beyond the model: {o.beyond}"), markup=False)
         elif o.undecided and o.open_reason:
             console.print(plain(f"  undecided: no method was shown to meet error {tol_text(report.accuracy)}: {o.open_reason}"), markup=False)
         elif o.undecided:
@@ -347,17 +349,22 @@ def _report_stress(report: Report, to_stderr: bool, file: str, model: Model) -> 
             inert("; ".join(f.kind for f in d.findings) or "benign"),
             inert(_naive(o, report.accuracy)),
             inert(_brief(o.auto, report.accuracy)),
-            inert(_brief(best, report.accuracy) + (f" (tie: {', '.join(t.method for t in o.ties)})" if o.ties else "")) if best else "undecided" if o.undecided else "[red]none[/red]",
+            inert(_brief(best, report.accuracy) + (f" (tie: {', '.join(t.method for t in o.ties)})" if o.ties else "")) if best else _open(o),
         )
     console.print()
     console.print(summary)
     if report.passed:
-        verdict = "every regime has a method that meets it"
+        verdict = "every regime has a method that meets it" if not any(o.beyond for o in report.outcomes) else "every regime the model reaches has a method that meets it"
     elif report.failed:
         verdict = "[red]some regime has no method that meets it[/red]"
     else:
         verdict = "[yellow]undecided: in some regime it is open whether a method meets it (no reference could be made, the reference's own error leaves it open, or the time limit (--budget) stopped its runs); no regime failed[/yellow]"
     console.print(f"required error {tol_text(report.accuracy)}: {verdict}")
+
+
+def _open(o: Outcome) -> str:
+    """The summary's recommendation cell of a regime without one."""
+    return "beyond the model" if o.beyond else "undecided" if o.undecided else "[red]none[/red]"
 
 
 def _measurements(d: Diagnosis) -> str:

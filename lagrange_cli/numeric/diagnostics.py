@@ -22,6 +22,9 @@
 - `singular_coordinate(model, condition, y)`: at such a peak, which coordinate is at its
   singularity and along which velocities M loses its inertia (for the suggestion to change
   coordinates).
+- `time_singularity(mass, t0, t1, q0, scale)`: the first time at which M is singular whatever the
+  state, where it depends on t explicitly (a rope reeled in to zero length, L(t) = L0 - u t): a
+  singularity of the model itself, which no method and no change of coordinates passes.
 - `jacobian(rhs, t, y)`: a forward-difference Jacobian of any right-hand side.
 """
 
@@ -332,6 +335,87 @@ def condition_peak(condition: Callable[[float, np.ndarray], float], t: np.ndarra
             if local[m] > best[0]:
                 best = (float(local[m]), float(times[m]), np.array(states[m]))
     return Peak(*best, evaluations, reruns)
+
+
+TIME_GRID = 2001
+"""Times at which `time_singularity` samples cond M over the span before refining its peaks."""
+REFINE = 0.1
+"""A local minimum of M's smallest eigenvalue (over its largest at the start) above this at the samples is not refined
+(the lowest one always is): M losing 90% of its inertia between samples 1/2000 of the span apart is the only way to
+hide a zero there. The parametric swing's cos(w t) makes 250 shallow minima over its long horizon."""
+STATES = 4
+"""Other states (the coordinates moved by up to their size, an angle by up to pi) at which a time singularity
+must also be singular: a singularity of the coordinates depends on where they are, one of the model's on t alone."""
+
+
+def time_singularity(mass: Callable[[float, Sequence[float] | np.ndarray], np.ndarray | None], t0: float, t1: float, q0: Sequence[float], scale: np.ndarray) -> float | None:
+    """The first time in (t0, t1] at which M(q, t) is singular for the coordinates q0 and for STATES others, while
+    at t0 it is regular for all of them: a singularity in time (a length, a mass or an inertia of the model reaching
+    zero), None where there is none. Singular means: the smallest |eigenvalue| of L M(q, t) L (L = diag(scale))
+    below 1 / SINGULAR_CONDITION of the largest at (q, t0). Not cond M at t alone: a mass matrix that shrinks as a
+    whole, m (L0 - u t)^2 for a bead on a shrinking rod, keeps cond 1 all the way to zero.
+
+    The ratio at q0 is sampled at TIME_GRID times; each local minimum is refined by a bounded minimisation
+    between its neighbouring samples (a zero crossing of L(t) makes M vanish like L^2 over a stretch far shorter
+    than the grid), then the other states are tried at the time found."""
+    rng = np.random.default_rng(0)  # the same states every time: the diagnosis is reproducible
+    n = len(q0)
+    base = np.asarray(q0, dtype=float)
+    states = [base] + [base + rng.uniform(-1.0, 1.0, n) * np.maximum(scale[:n], math.pi) for _ in range(STATES)]
+
+    def eigenvalues(t: float, q: np.ndarray) -> np.ndarray | None:
+        m = mass(t, q)
+        if m is None:
+            return None
+        with np.errstate(all="ignore"):
+            try:
+                return np.abs(np.linalg.eigvalsh(0.5 * (scale[:n, None] * m * scale[None, :n] + (scale[:n, None] * m * scale[None, :n]).T)))
+            except np.linalg.LinAlgError:
+                return None
+
+    start = [eigenvalues(t0, q) for q in states]
+    if any(e is None or not np.all(np.isfinite(e)) or e.min() * SINGULAR_CONDITION < e.max() for e in start):
+        return None  # singular at the start for some state: the coordinates' doing, or the model's from the outset
+    largest = [float(e.max()) for e in start if e is not None]
+
+    def ratio(t: float, k: int = 0) -> float:
+        """The smallest |eigenvalue| at (t, state k) over the largest at (t0, state k): 0 where M is undefined."""
+        e = eigenvalues(t, states[k])
+        return float(e.min()) / largest[k] if e is not None and np.all(np.isfinite(e)) else 0.0
+
+    times = np.linspace(t0, t1, TIME_GRID)
+    values = np.array([ratio(float(t)) for t in times])
+    before, after = np.r_[np.inf, values[:-1]], np.r_[values[1:], np.inf]
+    lowest = int(np.argmin(values))
+    for k in range(1, TIME_GRID):  # in time order: the first singular minimum is where the model ends
+        if not (values[k] <= before[k] and values[k] <= after[k]) or (values[k] > REFINE and k != lowest):
+            continue
+        a, b = float(times[k - 1]), float(times[min(k + 1, TIME_GRID - 1)])
+        found = _golden(ratio, a, b, 1e-12 * max(1.0, abs(b)))
+        at = found if ratio(found) <= values[k] else float(times[k])
+        if all(ratio(at, j) * SINGULAR_CONDITION < 1.0 for j in range(len(states))):
+            return at
+    return None
+
+
+GOLDEN = (math.sqrt(5.0) - 1.0) / 2.0
+
+
+def _golden(f: Callable[[float], float], a: float, b: float, tolerance: float) -> float:
+    """A minimum of f on [a, b] by golden-section search, to `tolerance` (f unimodal there; scipy.optimize's
+    import alone costs ~1 s of CPU, more than the search)."""
+    c, d = b - GOLDEN * (b - a), a + GOLDEN * (b - a)
+    fc, fd = f(c), f(d)
+    while b - a > tolerance:
+        if fc <= fd:
+            b, d, fd = d, c, fc
+            c = b - GOLDEN * (b - a)
+            fc = f(c)
+        else:
+            a, c, fc = c, d, fd
+            d = a + GOLDEN * (b - a)
+            fd = f(d)
+    return c if fc <= fd else d
 
 
 SPECIAL = (0.0, math.pi / 2, -math.pi / 2, math.pi, -math.pi)

@@ -484,8 +484,38 @@ def _trajectory(model: Model, settings: Settings, python: compile.Functions, run
         else:
             reason = FAILURES[run.status].format(" (with the constraint rows)" if model.constraints else "")
         message = f"{model.source}: simulation failed at t = {_g(run.t_last)}: {reason}; state: {state_text(model, run.y_last)}"
+    if status == "failed" and run.problem is None:
+        ended = model_end(model, settings, run.t_last)
+        if ended is not None:
+            message = (
+                f"{model.source}: stopped at t = {_g(run.t_last)} ({run.stats.steps} steps), where the model itself ends: its mass matrix is singular at"
+                f" t = {_g(ended)} whatever the state (it depends on t explicitly: a length, mass or inertia of the model reaches zero there); no method"
+                f" and no change of coordinates passes it: give a t_end before it (--t-end); state: {state_text(model, run.y_last)}"
+            )
     notes = (*settings.notes, *(warning.message for warning in run.warnings), *switching.notes(run.switching, getattr(python.module, "_SWITCHES", 0), switching.LOCATE))
     return Trajectory(model.title, model.coordinates, settings, run.t, run.y, energy, status, message, run.t_last, run.y_last, run.stats, timing, invariants, notes, run.status, run.warnings)
+
+
+ENDED = 1e-3
+"""A run that stops within ENDED x max(1, |t|) of a time at which the mass matrix is singular whatever the state
+(`diagnostics.time_singularity`) stopped because the model ends there."""
+
+
+def model_end(model: Model, settings: Settings, t_last: float) -> float | None:
+    """The time at which the model itself ends (its mass matrix singular whatever the state, which only a mass
+    matrix depending on t explicitly can be) where a run stopped at `t_last` next to it; else None. Audit 7's crane
+    reels its rope in to zero length at t = 13.33: a run past it stopped at its step budget with the angle's rate
+    at 4e8/s, a "singularity" no coordinates remove."""
+    import sympy as sp
+
+    from lagrange_cli.numeric import diagnostics
+
+    if model.t not in sp.Matrix(model.mass_matrix).free_symbols or not math.isfinite(t_last):
+        return None
+    sizes = diagnostics.coordinate_sizes(settings.y0, model.n)
+    reach = t_last + ENDED * max(1.0, abs(t_last))
+    ended = diagnostics.time_singularity(diagnostics.mass_at(model, settings.values), settings.t0, reach, settings.y0[: model.n], sizes)
+    return ended if ended is not None and abs(ended - t_last) <= ENDED * max(1.0, abs(ended)) else None
 
 
 def _on_surface(module: Any, run: Run, p: Sequence[float]) -> bool:

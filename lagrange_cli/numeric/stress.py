@@ -138,6 +138,8 @@ class Regime:
     initial: Mapping[str, float]
     samples: int = SAMPLES
     """Evenly spaced times its errors are measured at."""
+    horizon: bool = False
+    """A regime of stress's own past the time the file (or --t-end) asks for: the long horizon."""
 
 
 class Finding(str):
@@ -197,6 +199,9 @@ class Outcome:
     open_reason: str = ""
     """Why no verdict can be given although no method was shown to meet the accuracy: no reference
     could be made (short of a confirmed blow-up), or the reference's own error leaves it open."""
+    beyond: str = ""
+    """Why a regime of stress's own (the long horizon) was not run: the model itself ends before its
+    t_end (its mass matrix singular in time, whatever the state). Such a regime has no verdict."""
 
     @property
     def met(self) -> bool:
@@ -206,7 +211,7 @@ class Outcome:
     def undecided(self) -> bool:
         """No method was shown to meet the accuracy, but it is open: some run was stopped by the
         time limit (it might have met it), or `open_reason`."""
-        return not self.met and (bool(self.open_reason) or any(p.status == PointStatus.UNDECIDED for p in self.points))
+        return not self.met and not self.beyond and (bool(self.open_reason) or any(p.status == PointStatus.UNDECIDED for p in self.points))
 
     def meets(self, point: Point, target: float) -> bool:
         """Whether `point` is shown to meet `target`: its error against the reference plus the
@@ -216,7 +221,7 @@ class Outcome:
 
     @property
     def verdict(self) -> str:
-        return "met" if self.met else "undecided" if self.undecided else "not met"
+        return "met" if self.met else "beyond the model" if self.beyond else "undecided" if self.undecided else "not met"
 
 
 @dataclass(frozen=True)
@@ -227,12 +232,12 @@ class Report:
 
     @property
     def passed(self) -> bool:
-        return all(o.met for o in self.outcomes)
+        return all(o.met or o.beyond for o in self.outcomes)
 
     @property
     def failed(self) -> bool:
         """Some regime is decided and no method meets the accuracy there (what exits 1)."""
-        return any(not o.met and not o.undecided for o in self.outcomes)
+        return any(not o.met and not o.undecided and not o.beyond for o in self.outcomes)
 
     @property
     def verdict(self) -> str:
@@ -270,7 +275,7 @@ def regimes(model: Model, scales: Sequence[tuple[str, Sequence[float]]], long_fa
             result += [Regime(f"{name} = {v:g}", base.t_end, {name: v}, {}) for v in values]
         return tuple(result)
     longer = min(MAX_SAMPLES, max(SAMPLES, round((SAMPLES - 1) * long_factor) + 1))
-    result = [Regime("defaults", base.t_end, {}, {}), Regime(f"long horizon (t_end x {long_factor:g})", base.t_end * long_factor, {}, {}, longer)]
+    result = [Regime("defaults", base.t_end, {}, {}), Regime(f"long horizon (t_end x {long_factor:g})", base.t_end * long_factor, {}, {}, longer, horizon=True)]
     at_rest = not any(base.y0[model.n :])  # then "x 3" would be 0: the velocities come from the slowest mode (`_high_energy`), and the name says so
     energetic, mode = _high_energy(model, base.values, base.y0, energy_factor)
     how = f"velocities x {energy_factor:g}" if not at_rest else f"at rest in the file: velocities {energy_factor:g} x the {mode}'s rate x each coordinate's size"
@@ -460,6 +465,9 @@ def _regime(model: Model, regime: Regime, target: float, candidates: Sequence[Ca
     """One regime; `budget` carries the step budget and time limit."""
     times = tuple(np.linspace(0.0, regime.t_end, regime.samples).tolist())
     setup = starting(model, Setup(regime.t_end, times, dict(regime.parameters), dict(regime.initial), budget.max_steps, time_limit=budget.time_limit))
+    ended = _model_end(model, setup)
+    if ended is not None:
+        return _ended(model, regime, setup, ended)
     ref_tol = reference_tolerance(target)
     try:
         setup, reference, horizon, _ = prepare(model, setup, ref_tol, say, window=WINDOW_FACTOR * target, hint=", a looser --accuracy", implicit=implicit_reference_tolerances(target))
@@ -896,6 +904,36 @@ def implicit_reference_tolerances(target: float) -> tuple[float, ...]:
     return implicit_tolerances(max(target * 1e-4, IMPLICIT_TIGHTEST), 0.1 * target)
 
 
+def _model_end(model: Model, setup: Setup) -> float | None:
+    """Where the model itself ends before the regime's t_end: its mass matrix singular whatever the state
+    (`diagnostics.time_singularity`), which only a mass matrix depending on t explicitly can be. Audit 7's crane
+    reels its rope in to zero length at t = 13.33: the long horizon ran four reference runs of up to 2e6 steps
+    each into it, to report "no reference" and a coordinate singularity no coordinates remove."""
+    import sympy as sp
+
+    if model.t not in sp.Matrix(model.mass_matrix).free_symbols:
+        return None
+    start = start_of(model, setup)
+    mass = diagnostics.mass_at(model, start.values)
+    return diagnostics.time_singularity(mass, start.t0, setup.t_end, start.y0[: model.n], diagnostics.coordinate_sizes(start.y0, model.n))
+
+
+def _ended(model: Model, regime: Regime, setup: Setup, ended: float) -> Outcome:
+    """A regime whose t_end lies past the model's end (`_model_end`): nothing is run. The long horizon, stress's
+    own, has no verdict (`Outcome.beyond`); a regime over the time the file asks for is not met (exit 1), as no
+    method and no coordinates pass that time."""
+    start = start_of(model, setup)
+    measured = _measure(model, setup, np.array([start.t0]), np.array([start.y0], dtype=float), None, setup.t_end)
+    detail = (
+        f"the mass matrix is singular at t = {ended:.6g} whatever the state (it depends on t explicitly: a length, mass or inertia of the"
+        f" model reaches zero there), before this regime's t_end = {setup.t_end:.6g}. The model itself ends there: no method and no change of"
+        f" coordinates passes it; give a t_end before it (--t-end)"
+    )
+    diagnosis = replace(measured, findings=(Finding("singular in time", detail), *measured.findings), where="at the initial state only (nothing was run)")
+    beyond = f"not run: the model ends at t = {ended:.6g}, before this regime's t_end (see the diagnosis)" if regime.horizon else ""
+    return Outcome(regime, setup.t_end, "none", math.nan, (), diagnosis, None, None, None, beyond=beyond)
+
+
 def _without_reference(model: Model, regime: Regime, setup: Setup, error: ReferenceFailed) -> Outcome:
     """A regime where no reference could be made: the diagnosis along what the reference run
     reached, no method tried (nothing to measure them against), and the verdict open - unless
@@ -1107,6 +1145,7 @@ def json_text(report: Report) -> str:
                 "reference": o.reference,
                 "reference_error": number(o.reference_error),
                 "open_reason": o.open_reason or None,
+                "beyond": o.beyond or None,
                 "measured": o.diagnosis.where,
                 "not_measured": o.diagnosis.unmeasured or None,
                 "max_mass_condition_at": number(o.diagnosis.condition_at),
