@@ -899,7 +899,9 @@ def erk_switched(pair, y, f, state, control, ts, ys, p, stats, accel, event, swi
     them), the step is discarded and taken again (shortened by the usual control as needed) to land on
     it; there the integrator restarts: f evaluated afresh (no FSAL reuse across the kink) and scipy's
     initial step chosen again. A step that lands on a crossing counts as one step; the discarded one as
-    rejected. `record` (switching_record) carries what is located across pauses."""
+    rejected. Where the forces jump across the surface and the steps collapse onto it (a tight rtol), the
+    loop hops across (`_hop`, one step); CHATTER quick crossings in a row (a sliding mode) stop it
+    (STEP_COLLAPSE). `record` (switching_record) carries what is located across pauses."""
     return _erk_loop(pair, y, f, state, control, ts, ys, p, stats, accel, event, switch, record, None, None, None, None, None)
 
 
@@ -2001,7 +2003,9 @@ def radau_switched(y, f, state, control, ts, ys, p, stats, jac, dense, y_old, me
     (record, switching_record); where one changed sign, the crossing is located on the step's collocation
     polynomial (the Illinois method, the earliest of them), the step is discarded (counted as rejected) and
     taken again to land on it; there the method restarts as at t0: a fresh Jacobian and LU, scipy's
-    initial step, no predictor from the step before and the predictive controller's memory cleared."""
+    initial step, no predictor from the step before and the predictive controller's memory cleared. A
+    collapse onto a surface where the forces jump hops across it, and a sliding mode stops the run, as in
+    erk_switched."""
     bounds, unused = _no_projection()
     return _radau_loop(y, f, state, control, ts, ys, p, stats, jac, dense, y_old, memory, accel, event, jacobian, switch, record, event, event, bounds, unused, unused)
 
