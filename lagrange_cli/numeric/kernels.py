@@ -676,15 +676,32 @@ def _erk_samples(accel, event, pair, t, h, t_new, y, y_new, K, coef, work, ts, y
 
 # -- the explicit loop: plain, switched and projected runs (issue 15) ------------------------------
 
-SWITCH_PENDING, SWITCH_INDEX, SWITCH_COUNT = 0, 1, 2
-"""The first entries of erk_switched's `switching` record: the located crossing ahead (inf: none), the
-surface crossing there, the crossings landed on so far; then g at the last accepted point (m values)
-and g at the end of the step that found the crossing (m values)."""
-SWITCH_HEAD = 3
+SWITCH_PENDING, SWITCH_INDEX, SWITCH_COUNT, SWITCH_HOPS, SWITCH_SINCE, SWITCH_QUICK = 0, 1, 2, 3, 4, 5
+"""The first entries of a switched loop's `switching` record (erk_switched, radau_switched): the located crossing
+ahead (inf: none), the surface crossing there, the crossings landed on so far (hops included), the hops across a
+jump among them (`_hop`), the steps accepted since the last crossing and the crossings in a row each at most
+QUICK_STEPS steps after the one before (`_chattering`); then g at the last accepted point (m values) and g at the
+end of the step that found the crossing (m values)."""
+SWITCH_HEAD = 6
+
+LINEAR = 3
+"""The interpolant kind of `_hop`'s path, y(t) = y_old + (t - t_old) coef[0] (kinds 0 and 1: the explicit pairs'
+dense output, `_erk_eval`; RADAU_KIND: the collocation polynomial, `_radau_eval`)."""
+RADAU_KIND = 2
+HOP_REACH = 2.0 / MIN_FACTOR
+"""A hop looks for the crossing within HOP_REACH x the collapse step (MIN_STEP_SPACINGS spacings of t): the last step
+rejected was at most 1 / MIN_FACTOR times that."""
+QUICK_STEPS = 2
+CHATTER = 8
+"""CHATTER crossings in a row, each at most QUICK_STEPS accepted steps after the one before, are a sliding mode: the
+forces jump across the surface and the field on both sides points into it (dry friction sign(v) where the block
+sticks), so every restart crosses back at once. Filippov's solution slides along the surface, which the loop does
+not follow: it stops there (STEP_COLLAPSE, which `simulate` reports as a jump on a switching surface), after a
+number of steps, not at the step budget. A contact resolved at all lasts more than QUICK_STEPS steps."""
 
 
 def switching_record(m):
-    """erk_switched's record for m switching functions, nothing located yet (g filled by the caller)."""
+    """A switched loop's record for m switching functions, nothing located yet (g filled by the caller)."""
     record = np.zeros(SWITCH_HEAD + 2 * m)
     record[SWITCH_PENDING] = np.inf
     record[SWITCH_INDEX] = -1.0
@@ -692,22 +709,179 @@ def switching_record(m):
 
 
 @njit(error_model="numpy")
-def _switch_root(switch, i, pair, t_old, h, y_old, coef, p, work, g, g_lo, g_hi):
-    """The time in (t_old, t_old + h] where switching function i changes sign: the Illinois method on the
-    dense output (as `_erk_root`), the bracket's far end returned (g_i there on the new side)."""
+def _interpolant(kind, t_old, h, y_old, coef, t, out):
+    """The state at t on a step's interpolant: the explicit pair's dense output (kind = its code), Radau's collocation
+    polynomial (RADAU_KIND) or the straight line of a hop (LINEAR: coef[0] the slope)."""
+    if kind == RADAU_KIND:
+        _radau_eval(t_old, h, y_old, coef, t, out)
+    elif kind == LINEAR:
+        for i in range(y_old.shape[0]):
+            out[i] = y_old[i] + (t - t_old) * coef[0, i]
+    else:
+        _erk_eval(kind, t_old, h, y_old, coef, t, out)
+
+
+@njit(error_model="numpy")
+def _switch_root(switch, i, kind, t_old, h, y_old, coef, p, work, g, g_lo, g_hi):
+    """The time in (t_old, t_old + h] where switching function i changes sign: the Illinois method on the step's
+    interpolant (`_interpolant`, as `_erk_root` for the event), the bracket's far end returned (g_i there on the new
+    side), or a point where g_i is exactly 0."""
     lo, hi = t_old, t_old + h
     side = 0
     for _ in range(100):
         if hi - lo <= 4e-16 * max(abs(hi), 1.0):
             break
         mid = _illinois_guess(lo, hi, g_lo, g_hi)
-        _erk_eval(pair, t_old, h, y_old, coef, mid, work)
-        switch(mid, work, p, g)
+        _interpolant(kind, t_old, h, y_old, coef, mid, work)
+        _call_switch(switch, mid, work, p, g)
         g_mid = g[i]
         if g_mid == 0.0:
             return mid
         lo, hi, g_lo, g_hi, side = _illinois_update(lo, hi, g_lo, g_hi, side, mid, g_mid)
     return hi
+
+
+@njit(error_model="numpy")
+def _changed(switch, t, y, p, record, m, g_end, g_start):
+    """Whether a switching function changed sign over an accepted step from (t, y) (g_end: g at its end, against g at
+    the last accepted point in `record`); g_start = g(t, y) computed once one of them may have. A function whose g at
+    the step's start itself is 0 or on g_end's side did not cross in the step: after a landing record holds the far
+    side's value, and the path touched the surface there and turned back."""
+    started = False
+    for i in range(m):
+        g_old = record[SWITCH_HEAD + i]
+        if (g_old < 0.0) != (g_end[i] < 0.0) and g_old != 0.0:
+            if not started:
+                _call_switch(switch, t, y, p, g_start)
+                started = True
+            if not (g_start[i] == 0.0 or (g_start[i] < 0.0) == (g_end[i] < 0.0)):
+                return True
+    return False
+
+
+@njit(error_model="numpy")
+def _earliest(switch, kind, t, h, y, coef, p, record, m, g_end, g_start, g_work, work):
+    """After `_changed` found a crossing in the step [t, t + h] (its interpolant `kind`, `coef`): (the surface crossed
+    first, the time of its crossing), each located by `_switch_root`."""
+    first, t_first = -1, t + h
+    for i in range(m):
+        g_old = record[SWITCH_HEAD + i]
+        if (g_old < 0.0) != (g_end[i] < 0.0) and g_old != 0.0:
+            if g_start[i] == 0.0 or (g_start[i] < 0.0) == (g_end[i] < 0.0):
+                continue
+            t_i = _switch_root(switch, i, kind, t, h, y, coef, p, work, g_work, g_start[i], g_end[i])
+            if first < 0 or t_i < t_first:
+                first, t_first = i, t_i
+    return first, t_first
+
+
+@njit(error_model="numpy")
+def _found(record, m, first, t_first, g_end, ahead):
+    """A crossing of surface `first` found on an accepted step: `ahead` (inside the step, at t_first: the step is to
+    be taken again onto it) or at the step's end (landed there); g at the step's end kept for the landing."""
+    if ahead:
+        record[SWITCH_PENDING] = t_first
+    record[SWITCH_INDEX] = float(first)
+    for i in range(m):
+        record[SWITCH_HEAD + m + i] = g_end[i]
+
+
+@njit(error_model="numpy")
+def _chattering(record):
+    """One more crossing (a landing or a hop): counted, and whether it is the CHATTER-th in a row each at most
+    QUICK_STEPS accepted steps after the one before (a sliding mode)."""
+    record[SWITCH_COUNT] += 1.0
+    record[SWITCH_QUICK] = record[SWITCH_QUICK] + 1.0 if record[SWITCH_SINCE] <= QUICK_STEPS else 1.0
+    record[SWITCH_SINCE] = 0.0
+    return record[SWITCH_QUICK] >= CHATTER
+
+
+@njit(error_model="numpy")
+def _landed(switch, t, y, p, record, m, g):
+    """The record after a landing on the crossing at t: g on the crossing's far side for the surface crossed, at the
+    landing point for the others (g: workspace), nothing pending, one more crossing; True when it is a sliding mode
+    (`_chattering`)."""
+    _call_switch(switch, t, y, p, g)
+    crossed = int(record[SWITCH_INDEX])
+    for i in range(m):
+        record[SWITCH_HEAD + i] = record[SWITCH_HEAD + m + i] if i == crossed else g[i]
+    record[SWITCH_PENDING], record[SWITCH_INDEX] = np.inf, -1.0
+    return _chattering(record)
+
+
+@njit(error_model="numpy")
+def _hop(switch, accel, t, y, f, reach, p, record, m, g_start, g_end, g_work, work, slope, y_far, f_far, x, a, stats):
+    """Across a jump of the forces: the step size collapsed at (t, y) (f = f(t, y)), the steps rejected because their
+    stages straddle a switching surface where the forces jump (a step across it has an error of h x the jump, above
+    any tight tolerance). The accepted steps have brought t to within a few spacings of the crossing, on the near
+    side: the crossing is located on the line y + (s - t) f within `reach` (`_switch_root`, LINEAR; the line's error
+    over that span, of order reach^2 y'', is far below round-off) and the state moved along it to the first point
+    past the crossing (g there strictly on the far side, so that the forces restarting there are the far side's). The
+    state's error is then the crossing's time error (a spacing of t) x the jump, as for any method landing on a
+    floating-point time. A state exactly on the surface (g = 0: neither side's forces) is moved to the side the line
+    goes to. (RUNNING, t_far): y_far, f_far = f(t_far, y_far) and g_end = g there filled, the record updated (a
+    crossing, a hop); (STEP_COLLAPSE, t): no crossing within reach (a collapse for another reason), or a sliding mode
+    (`_chattering`); (SINGULAR, t): the matrix singular at the far point."""
+    n = y.shape[0]
+    for i in range(n):
+        slope[0, i] = f[i]
+    t_reach = t + reach
+    _interpolant(LINEAR, t, reach, y, slope, t_reach, work)
+    _call_switch(switch, t_reach, work, p, g_end)
+    _call_switch(switch, t, y, p, g_start)
+    first, t_far, far_negative = -1, t_reach, False
+    for i in range(m):
+        if g_end[i] != 0.0 and (g_start[i] == 0.0 or (g_start[i] < 0.0) != (g_end[i] < 0.0)):
+            t_i = t if g_start[i] == 0.0 else _switch_root(switch, i, LINEAR, t, reach, y, slope, p, work, g_work, g_start[i], g_end[i])
+            if first < 0 or t_i < t_far:
+                first, t_far, far_negative = i, t_i, g_end[i] < 0.0
+    if first < 0:
+        return STEP_COLLAPSE, t
+    for _ in range(8):  # strictly past the surface: on it (g exactly 0) the forces are neither side's
+        _interpolant(LINEAR, t, reach, y, slope, t_far, y_far)
+        _call_switch(switch, t_far, y_far, p, g_end)
+        if g_end[first] != 0.0:
+            break
+        t_far = np.nextafter(t_far, np.inf)
+    if g_end[first] == 0.0 or (g_end[first] < 0.0) != far_negative:
+        return STEP_COLLAPSE, t
+    if _rhs(accel, t_far, y_far, p, f_far, x, a):
+        return SINGULAR, t
+    stats[NFEV] += 1
+    # a landing just before that stopped short of the surface (its step's end a spacing on the near side) counted this
+    # crossing already: its record holds the far side's g
+    counted = record[SWITCH_HEAD + first] != 0.0 and (record[SWITCH_HEAD + first] < 0.0) == far_negative
+    for i in range(m):
+        record[SWITCH_HEAD + i] = g_end[i]
+    record[SWITCH_PENDING], record[SWITCH_INDEX] = np.inf, -1.0
+    record[SWITCH_HOPS] += 1.0
+    if not counted and _chattering(record):
+        return STEP_COLLAPSE, t
+    return RUNNING, t_far
+
+
+@njit(error_model="numpy")
+def _hopped(event, t, t_far, y, f, y_far, f_far, slope, ts, ys, p, x, a, state, stats, use_event):
+    """After a hop t -> t_far (`_hop`): the samples it passes written (on its line), (y, f) = (y_far, f_far), one
+    step counted; EVENT where the stop condition changed sign across the hop (the run stops at t_far, the hop's
+    few spacings of t the event's time error), else RUNNING."""
+    j = int(state[NEXT_SAMPLE])
+    while j < ts.shape[0] and ts[j] <= t_far:
+        for i in range(y.shape[0]):
+            ys[j, i] = y[i] + (ts[j] - t) * slope[0, i]
+        j += 1
+    state[NEXT_SAMPLE] = j
+    for i in range(y.shape[0]):
+        y[i] = y_far[i]
+        f[i] = f_far[i]
+    stats[NSTEPS] += 1
+    if use_event:
+        g = event(t_far, y, p, x, a)
+        if (state[EVENT_VALUE] < 0.0) != (g < 0.0) and state[EVENT_VALUE] != 0.0:
+            state[T] = t_far
+            return EVENT
+        state[EVENT_VALUE] = g
+    return RUNNING
 
 
 def erk_run(pair, y, f, state, control, ts, ys, p, stats, accel, event):
@@ -725,7 +899,9 @@ def erk_switched(pair, y, f, state, control, ts, ys, p, stats, accel, event, swi
     them), the step is discarded and taken again (shortened by the usual control as needed) to land on
     it; there the integrator restarts: f evaluated afresh (no FSAL reuse across the kink) and scipy's
     initial step chosen again. A step that lands on a crossing counts as one step; the discarded one as
-    rejected. `record` (switching_record) carries what is located across pauses."""
+    rejected. Where the forces jump across the surface and the steps collapse onto it (a tight rtol), the
+    loop hops across (`_hop`, one step); CHATTER quick crossings in a row (a sliding mode) stop it
+    (STEP_COLLAPSE). `record` (switching_record) carries what is located across pauses."""
     return _erk_loop(pair, y, f, state, control, ts, ys, p, stats, accel, event, switch, record, None, None, None, None, None)
 
 
@@ -757,7 +933,7 @@ def _erk_loop(pair, y, f, state, control, ts, ys, p, stats, accel, event, switch
     coef = np.empty((_DENSE[pair], n))
     y_new, work = np.empty(n), np.empty(n)
     if switch is not None:
-        g_new, g_work, g_start = np.empty(m), np.empty(m), np.empty(m)
+        g_new, g_work, g_start, slope = np.empty(m), np.empty(m), np.empty(m), np.empty((1, n))
     if rows is not None:
         projected, found = np.empty(n), np.zeros(4)
     exponent = -1.0 / (_ERROR_ORDER[pair] + 1.0)
@@ -776,6 +952,17 @@ def _erk_loop(pair, y, f, state, control, ts, ys, p, stats, accel, event, switch
             bound, hold_landed = bounds[int(record[NEXT_BOUND])], True
             limit = min(limit, bound)
         code, t_new, h, h_abs, factor, landed = _erk_attempt(accel, pair, t, y, f, h_abs, min_step, limit, hold_landed, K, y_new, p, x, a, stats, state, rtol, atol, exponent)
+        if switch is not None and code == STEP_COLLAPSE:  # onto a surface where the forces jump: across it (`_hop`)
+            code, t_far = _hop(switch, accel, t, y, f, HOP_REACH * min_step, p, switching, m, g_start, g_new, g_work, work, slope, y_new, K[0], x, a, stats)
+            if code == RUNNING:
+                code = _hopped(event, t, t_far, y, f, y_new, K[0], slope, ts, ys, p, x, a, state, stats, use_event)
+                t = t_far
+                if code == EVENT:
+                    state[H] = min_step
+                    return EVENT
+                h_abs = _initial_step(accel, t, y, f, t_bound, max_step, _ERROR_ORDER[pair], rtol, atol, p, x, a, stats)
+                state[T], state[H] = t, h_abs
+                continue
         if code != RUNNING:
             return code
         arrived = False
@@ -784,34 +971,20 @@ def _erk_loop(pair, y, f, state, control, ts, ys, p, stats, accel, event, switch
             if not arrived:
                 switch(t_new, y_new, p, g_new)
                 first, t_first = -1, t_new
-                started = False
-                for i in range(m):
-                    g_old = switching[SWITCH_HEAD + i]
-                    if (g_old < 0.0) != (g_new[i] < 0.0) and g_old != 0.0:
-                        if not started:  # g at the step's start itself (after a landing, g_old is the far side's value)
-                            switch(t, y, p, g_start)
-                            started = True
-                        if g_start[i] == 0.0 or (g_start[i] < 0.0) == (g_new[i] < 0.0):
-                            continue  # the path touched the surface at the landing and turned back: no crossing here
-                        if first < 0 and _erk_dense(accel, pair, t, y, y_new, K[stages], h, K, coef, p, x, a, stats):  # the step's interpolant, once
-                            state[T], state[H] = t, h
-                            return SINGULAR
-                        t_i = _switch_root(switch, i, pair, t, h, y, coef, p, work, g_work, g_start[i], g_new[i])
-                        if first < 0 or t_i < t_first:
-                            first, t_first = i, t_i
+                if _changed(switch, t, y, p, switching, m, g_new, g_start):
+                    if _erk_dense(accel, pair, t, y, y_new, K[stages], h, K, coef, p, x, a, stats):  # the step's interpolant
+                        state[T], state[H] = t, h
+                        return SINGULAR
+                    first, t_first = _earliest(switch, pair, t, h, y, coef, p, switching, m, g_new, g_start, g_work, work)
                 if first >= 0 and t < t_first < t_new:  # discard the step: take it again to land on the crossing
-                    switching[SWITCH_PENDING], switching[SWITCH_INDEX] = t_first, float(first)
-                    for i in range(m):
-                        switching[SWITCH_HEAD + m + i] = g_new[i]
+                    _found(switching, m, first, t_first, g_new, True)
                     stats[NREJECT] += 1
                     h_abs = t_first - t
                     state[H] = h_abs  # a pause right here resumes with this step
                     continue
                 if first >= 0:  # the crossing is at the step's end: it has landed there
                     arrived = True
-                    switching[SWITCH_INDEX] = float(first)
-                    for i in range(m):
-                        switching[SWITCH_HEAD + m + i] = g_new[i]
+                    _found(switching, m, first, t_first, g_new, False)
         stats[NSTEPS] += 1
         if not landed:
             stats[HMIN] = min(stats[HMIN], h)
@@ -827,19 +1000,16 @@ def _erk_loop(pair, y, f, state, control, ts, ys, p, stats, accel, event, switch
         h_abs *= factor
         if switch is not None:
             if arrived and status != EVENT:
-                # g on the crossing's far side for the surface crossed, at the landing point for the others
-                switch(t, y, p, g_new)
-                crossed = int(switching[SWITCH_INDEX])
-                for i in range(m):
-                    switching[SWITCH_HEAD + i] = switching[SWITCH_HEAD + m + i] if i == crossed else g_new[i]
-                switching[SWITCH_PENDING], switching[SWITCH_INDEX] = np.inf, -1.0
-                switching[SWITCH_COUNT] += 1.0
+                if _landed(switch, t, y, p, switching, m, g_new):
+                    state[T], state[H] = t, h_abs
+                    return STEP_COLLAPSE
                 if _rhs(accel, t, y, p, f, x, a):  # restart: f afresh, scipy's initial step
                     state[T], state[H] = t, h_abs
                     return SINGULAR
                 stats[NFEV] += 1
                 h_abs = _initial_step(accel, t, y, f, t_bound, max_step, _ERROR_ORDER[pair], rtol, atol, p, x, a, stats)
             elif not arrived:
+                switching[SWITCH_SINCE] += 1.0
                 for i in range(m):
                     switching[SWITCH_HEAD + i] = g_new[i]
         state[T], state[H] = t, h_abs
@@ -1833,7 +2003,9 @@ def radau_switched(y, f, state, control, ts, ys, p, stats, jac, dense, y_old, me
     (record, switching_record); where one changed sign, the crossing is located on the step's collocation
     polynomial (the Illinois method, the earliest of them), the step is discarded (counted as rejected) and
     taken again to land on it; there the method restarts as at t0: a fresh Jacobian and LU, scipy's
-    initial step, no predictor from the step before and the predictive controller's memory cleared."""
+    initial step, no predictor from the step before and the predictive controller's memory cleared. A
+    collapse onto a surface where the forces jump hops across it, and a sliding mode stops the run, as in
+    erk_switched."""
     bounds, unused = _no_projection()
     return _radau_loop(y, f, state, control, ts, ys, p, stats, jac, dense, y_old, memory, accel, event, jacobian, switch, record, event, event, bounds, unused, unused)
 
@@ -1876,31 +2048,12 @@ def _call_project_typed(rows, energy, t, y, p, holonomic, record, out, found, x,
 
 
 @njit(error_model="numpy")
-def _radau_switch_root(switch, i, t_old, h, y_old, dense, p, work, g, g_lo, g_hi):
-    """The time in (t_old, t_old + h] where switching function i changes sign: the Illinois method on the
-    collocation polynomial (as `_switch_root`), the bracket's far end returned (g_i there on the new side)."""
-    lo, hi = t_old, t_old + h
-    side = 0
-    for _ in range(100):
-        if hi - lo <= 4e-16 * max(abs(hi), 1.0):
-            break
-        mid = _illinois_guess(lo, hi, g_lo, g_hi)
-        _radau_eval(t_old, h, y_old, dense, mid, work)
-        _call_switch(switch, mid, work, p, g)
-        g_mid = g[i]
-        if g_mid == 0.0:
-            return mid
-        lo, hi, g_lo, g_hi, side = _illinois_update(lo, hi, g_lo, g_hi, side, mid, g_mid)
-    return hi
-
-
-@njit(error_model="numpy")
 def _radau_loop(y, f, state, control, ts, ys, p, stats, jac, dense, y_old, memory, accel, event, jacobian, switch, record, rows, energy, bounds, holonomic, projected_record):
     """radau_run, radau_switched and radau_projected (m = 0 switching functions in `record` and no projection
     time in `bounds` (+inf): radau_run's steps exactly)."""
     n = y.shape[0]
     m = (record.shape[0] - SWITCH_HEAD) // 2
-    g_end, g_work, g_start, trial = np.empty(m), np.empty(m), np.empty(m), np.empty((3, n))
+    g_end, g_work, g_start, trial, slope = np.empty(m), np.empty(m), np.empty(m), np.empty((3, n)), np.empty((1, n))
     rtol = max(control[RTOL], 100 * _EPS)  # scipy's floor for Radau
     atol, max_step, t_bound, t_stop, use_event = control[ATOL], control[MAX_STEP], control[T_BOUND], control[T_STOP], control[USE_EVENT] != 0.0
     newton_tol = max(10 * _EPS / rtol, min(0.03, rtol**0.5))
@@ -1941,10 +2094,14 @@ def _radau_loop(y, f, state, control, ts, ys, p, stats, jac, dense, y_old, memor
         first = memory[HAVE_DENSE] == 0.0
         contraction = max(memory[CONTRACTION], _EPS) ** 0.8  # radau5.f: the last factor, relaxed toward 1
         converged, iterations, rate, error_norm, safety, t_new, h, h_wanted = False, 0, np.nan, 0.0, 1.0, t, 0.0, h_abs
+        hop = False
         while True:
             if h_abs < min_step:
                 state[T], state[H] = t, h_abs
-                return NONFINITE if bad else STEP_COLLAPSE
+                if bad or m == 0:
+                    return NONFINITE if bad else STEP_COLLAPSE
+                hop = True  # onto a surface where the forces jump: across it (`_hop`)
+                break
             t_new = t + h_abs
             h_wanted = h_abs
             if t_new > limit or (limit < t_bound and limit - t_new <= 4 * _EPS * abs(limit)):
@@ -2024,32 +2181,38 @@ def _radau_loop(y, f, state, control, ts, ys, p, stats, jac, dense, y_old, memor
                 rejected = True
                 continue
             break
+        if hop:
+            code, t_far = _hop(switch, accel, t, y, f, HOP_REACH * min_step, p, record, m, g_start, g_end, g_work, work, slope, y_new, f_new, x, a, stats)
+            if code != RUNNING:
+                return code
+            code = _hopped(event, t, t_far, y, f, y_new, f_new, slope, ts, ys, p, x, a, state, stats, use_event)
+            t = t_far
+            if code == EVENT:
+                state[H] = min_step
+                return EVENT
+            # restart as at a landing: J and the factors afresh, no predictor, no controller memory, scipy's initial step
+            if _radau_jac(accel, jacobian, analytic, t, y, f, p, x, a, jac, work, fw, rows_work, pivots, column, stats):
+                state[T], state[H] = t, min_step
+                return SINGULAR
+            current_jac, have_lu = True, False
+            memory[CURRENT_JAC], memory[LU_STEP], memory[HAVE_DENSE], memory[CONTRACTION] = 1.0, 0.0, 0.0, 1.0
+            memory[H_ABS_OLD], memory[ERROR_OLD] = np.nan, np.nan
+            h_abs = _initial_step(accel, t, y, f, t_bound, max_step, RADAU_ERROR_ORDER, rtol, atol, p, x, a, stats)
+            state[T], state[H] = t, h_abs
+            continue
         arrived = False
         if m > 0:  # the switching functions: a crossing inside the step discards it (retaken to land there)
             arrived = t_new == pending
             if not arrived:
                 _call_switch(switch, t_new, y_new, p, g_end)
                 first, t_first = -1, t_new
-                started = False
-                for i in range(m):
-                    g_old = record[SWITCH_HEAD + i]
-                    if (g_old < 0.0) != (g_end[i] < 0.0) and g_old != 0.0:
-                        if not started:  # g at the step's start itself (after a landing, g_old is the far side's value)
-                            _call_switch(switch, t, y, p, g_start)
-                            started = True
-                        if g_start[i] == 0.0 or (g_start[i] < 0.0) == (g_end[i] < 0.0):
-                            continue  # the path touched the surface at the landing and turned back: no crossing here
-                        if first < 0:  # the step's collocation polynomial, once
-                            for k in range(3):
-                                for j in range(n):
-                                    trial[k, j] = Z[0, j] * _RP[0, k] + Z[1, j] * _RP[1, k] + Z[2, j] * _RP[2, k]
-                        t_i = _radau_switch_root(switch, i, t, h, y, trial, p, work, g_work, g_start[i], g_end[i])
-                        if first < 0 or t_i < t_first:
-                            first, t_first = i, t_i
+                if _changed(switch, t, y, p, record, m, g_end, g_start):
+                    for k in range(3):  # the step's collocation polynomial
+                        for j in range(n):
+                            trial[k, j] = Z[0, j] * _RP[0, k] + Z[1, j] * _RP[1, k] + Z[2, j] * _RP[2, k]
+                    first, t_first = _earliest(switch, RADAU_KIND, t, h, y, trial, p, record, m, g_end, g_start, g_work, work)
                 if first >= 0 and t < t_first < t_new:  # discard the step: take it again to land on the crossing
-                    record[SWITCH_PENDING], record[SWITCH_INDEX] = t_first, float(first)
-                    for i in range(m):
-                        record[SWITCH_HEAD + m + i] = g_end[i]
+                    _found(record, m, first, t_first, g_end, True)
                     stats[NREJECT] += 1
                     h_abs = t_first - t
                     have_lu = False  # the factors were for the step discarded
@@ -2058,9 +2221,7 @@ def _radau_loop(y, f, state, control, ts, ys, p, stats, jac, dense, y_old, memor
                     continue
                 if first >= 0:  # the crossing is at the step's end: it has landed there
                     arrived = True
-                    record[SWITCH_INDEX] = float(first)
-                    for i in range(m):
-                        record[SWITCH_HEAD + m + i] = g_end[i]
+                    _found(record, m, first, t_first, g_end, False)
         landed = t_new == bound  # on a projection time: the state is projected there and the method restarts (before t_bound)
         recompute_jac = iterations > 2 and rate > JAC_RATE and not arrived and not (landed and t_new < t_bound)  # (a landing computes J afresh)
         factor = min(MAX_FACTOR, safety * _predict_factor(h_abs, h_abs_old, error_norm, error_old))
@@ -2122,13 +2283,9 @@ def _radau_loop(y, f, state, control, ts, ys, p, stats, jac, dense, y_old, memor
         t = t_new
         h_abs *= factor
         if arrived:
-            # g on the crossing's far side for the surface crossed, at the landing point for the others
-            _call_switch(switch, t, y, p, g_end)
-            crossed = int(record[SWITCH_INDEX])
-            for i in range(m):
-                record[SWITCH_HEAD + i] = record[SWITCH_HEAD + m + i] if i == crossed else g_end[i]
-            record[SWITCH_PENDING], record[SWITCH_INDEX] = np.inf, -1.0
-            record[SWITCH_COUNT] += 1.0
+            if _landed(switch, t, y, p, record, m, g_end):
+                state[T], state[H] = t, h_abs
+                return STEP_COLLAPSE
             # restart as radau_start (f = f(t, y) is fresh): J and the factors afresh, no predictor, no controller memory, scipy's initial step
             if _radau_jac(accel, jacobian, analytic, t, y, f, p, x, a, jac, work, fw, rows_work, pivots, column, stats):
                 state[T], state[H] = t, h_abs
@@ -2138,6 +2295,7 @@ def _radau_loop(y, f, state, control, ts, ys, p, stats, jac, dense, y_old, memor
             memory[H_ABS_OLD], memory[ERROR_OLD] = np.nan, np.nan
             h_abs = _initial_step(accel, t, y, f, t_bound, max_step, RADAU_ERROR_ORDER, rtol, atol, p, x, a, stats)
         elif m > 0:
+            record[SWITCH_SINCE] += 1.0
             for i in range(m):
                 record[SWITCH_HEAD + i] = g_end[i]
         if landed:

@@ -42,9 +42,11 @@ FAILURES = {
     integrators.NO_CONVERGENCE: "the implicit stage equations did not converge (the step is too large for this motion: give a smaller --step)",
 }
 SURFACE_COLLAPSE = (
-    "the step size collapsed on a switching surface (an argument of Abs, sign or Heaviside, a Piecewise condition or a Max/Min"
-    " difference is 0 there) where the forces jump: every step across it was rejected at this tolerance (a discontinuous force,"
-    " such as a damper switched on by sign(...)); loosen --rtol, or write the switch smoothly (tanh(e/eps) for sign(e))"
+    "the motion could not be followed across a switching surface (an argument of Abs, sign or Heaviside, a Piecewise condition or a"
+    " Max/Min difference is 0 there) where the forces jump: the field on both sides points into the surface (a sliding mode, such as"
+    " dry friction sign(v) where the body sticks: the equations have no classical solution there; write the switch smoothly,"
+    " tanh(v/eps) for sign(v)), or, through scipy (the python backend), every step across the jump was rejected at this tolerance"
+    " (loosen --rtol, or use the compiled backend, which steps across a jump)"
 )
 """Why a run stopped, where its step size collapsed on a switching surface (`_on_surface`): not a singularity."""
 SURFACE_TOLERANCE = 1e-9

@@ -108,8 +108,10 @@ class Status(enum.StrEnum):
     NONFINITE = "nonfinite"
     STEP_COLLAPSE = "step"
     SURFACE_JUMP = "jump"
-    """The step size collapsed on a switching surface where the forces jump (`simulate._on_surface`):
-    not a blow-up; a looser tolerance may pass it."""
+    """The run stopped on a switching surface where the forces jump (`simulate._on_surface`): a sliding mode (the
+    field on both sides pointing into the surface, as dry friction where a body sticks: the compiled loops stop after
+    kernels.CHATTER quick crossings in a row), or through scipy a step size that collapsed there (the compiled loops hop
+    across such a jump, kernels._hop). Not a blow-up; through scipy a looser tolerance may pass it."""
     NO_CONVERGENCE = "convergence"
     BUDGET = "budget"
 
@@ -143,7 +145,7 @@ class Failure(enum.StrEnum):
     """Infinite or NaN values, or a function that cannot be evaluated along the way."""
     STEP_COLLAPSE = "step"
     SURFACE_JUMP = "jump"
-    """The step size collapsed on a switching surface where the forces jump."""
+    """The run stopped on a switching surface where the forces jump (Status.SURFACE_JUMP)."""
     NO_CONVERGENCE = "convergence"
     BUDGET = "budget"
     TIME_LIMIT = "time limit"
