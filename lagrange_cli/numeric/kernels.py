@@ -35,6 +35,7 @@ from lagrange_cli.numeric.status import (
     ANALYTIC,
     ATOL,
     CHANGE_LIMIT,
+    CHATTER,
     CONDITION_LIMIT,
     CONTRACTION,
     CURRENT_JAC,
@@ -74,6 +75,7 @@ from lagrange_cli.numeric.status import (
     POSITION,
     PROJECTION_SIZE,
     PROJECTIONS,
+    QUICK_STEPS,
     ROUND_OFF_LEVEL,
     RTOL,
     RUNNING,
@@ -691,13 +693,6 @@ RADAU_KIND = 2
 HOP_REACH = 2.0 / MIN_FACTOR
 """A hop looks for the crossing within HOP_REACH x the collapse step (MIN_STEP_SPACINGS spacings of t): the last step
 rejected was at most 1 / MIN_FACTOR times that."""
-QUICK_STEPS = 2
-CHATTER = 8
-"""CHATTER crossings in a row, each at most QUICK_STEPS accepted steps after the one before, are a sliding mode: the
-forces jump across the surface and the field on both sides points into it (dry friction sign(v) where the block
-sticks), so every restart crosses back at once. Filippov's solution slides along the surface, which the loop does
-not follow: it stops there (STEP_COLLAPSE, which `simulate` reports as a jump on a switching surface), after a
-number of steps, not at the step budget. A contact resolved at all lasts more than QUICK_STEPS steps."""
 
 
 def switching_record(m):

@@ -480,7 +480,7 @@ def _trajectory(model: Model, settings: Settings, python: compile.Functions, run
         status = "failed"
         if run.problem is not None:
             reason = f"{run.problem.what} cannot be evaluated at t = {_g(run.problem.t)} ({state_text(model, run.problem.y)}): {run.problem.cause}"
-        elif run.status == integrators.STEP_COLLAPSE and _on_surface(python.module, run, p):
+        elif run.status == Status.SURFACE_JUMP or (run.status == integrators.STEP_COLLAPSE and _on_surface(python.module, run, p)):
             reason = SURFACE_COLLAPSE
             run = dataclasses.replace(run, status=Status.SURFACE_JUMP)
         else:

@@ -109,8 +109,8 @@ class Status(enum.StrEnum):
     STEP_COLLAPSE = "step"
     SURFACE_JUMP = "jump"
     """The run stopped on a switching surface where the forces jump (`simulate._on_surface`): a sliding mode (the
-    field on both sides pointing into the surface, as dry friction where a body sticks: the compiled loops stop after
-    kernels.CHATTER quick crossings in a row), or through scipy a step size that collapsed there (the compiled loops hop
+    field on both sides pointing into the surface, as dry friction where a body sticks: the loops stop after CHATTER
+    quick crossings in a row), or through scipy a step size that collapsed there (the compiled loops hop
     across such a jump, kernels._hop). Not a blow-up; through scipy a looser tolerance may pass it."""
     NO_CONVERGENCE = "convergence"
     BUDGET = "budget"
@@ -123,6 +123,15 @@ class Status(enum.StrEnum):
     @property
     def failed(self) -> bool:
         return self not in (Status.FINISHED, Status.EVENT)
+
+
+QUICK_STEPS = 2
+CHATTER = 8
+"""CHATTER crossings in a row, each at most QUICK_STEPS accepted steps after the one before, are a sliding mode: the
+forces jump across the surface and the field on both sides points into it (dry friction sign(v) where the block
+sticks), so every restart crosses back at once. Filippov's solution slides along the surface, which the loops (the compiled ones and
+integrators.run_scipy) do not follow: it stops there (STEP_COLLAPSE, which `simulate` reports as a jump on a switching surface), after a
+number of steps, not at the step budget. A contact resolved at all lasts more than QUICK_STEPS steps."""
 
 
 _BY_CODE = {
