@@ -906,8 +906,9 @@ def _bounded(main: Trajectory, candidate: Candidate, rtol: float) -> int:
     """The compiled steps of `main` where they bound those of a compiled explicit run of `candidate` at `rtol` over the
     same window (0 where they do not): `main` a finished compiled explicit run at CONVERGENCE_STEP x tighter or more, and
     `candidate` its own method or one of a higher order with a wider stability interval (DOP853 after RK45), whose steps,
-    limited by accuracy or by stability, are then no more. `explicit_attempt` sizes its probe by it, so that a confirmation
-    is not probed, stopped and made again from t = 0."""
+    limited by accuracy or by stability, are then expected to be fewer. `explicit_attempt` sizes its probe by it, so that a
+    confirmation is not probed, stopped and made again from t = 0; where the run takes more all the same (DOP853's error
+    estimate rejecting steps in a stiff component's round-off), its probe runs out and its pace decides, as before."""
     s = main.settings
     if main.failed or s.backend != "compiled" or candidate.backend != "compiled" or s.method not in STABLE_PROBE or candidate.method not in STABLE_PROBE:
         return 0
