@@ -296,18 +296,28 @@ class Attempt:
     needed: float | None = None
 
 
-def explicit_attempt(model: Model, candidate: Candidate, rtol: float, setup: Setup, ceiling: int = 0) -> Attempt:
+def explicit_attempt(model: Model, candidate: Candidate, rtol: float, setup: Setup, ceiling: int = 0, expected: int = 0) -> Attempt:
     """A compiled explicit reference run within `setup`'s reference budget, paced: a probe with PACE_PROBE
     of the budget first (when it finishes or fails it is the run: the same steps as a run with the whole
     budget); where it runs out, its pace (compiled steps over the share of the window done) says how many
     steps the run needs. Above PACE_SKIP x the budget (`ceiling` > 0: above the budget raised to at most
     PACE_EXTENSION x, and `ceiling`) it is not run (the probe returned, `needed` set); else it runs in full,
-    with PACE_ROOM x what it needs when `ceiling` allows more than the budget. Counted in steps, never timed."""
+    with PACE_ROOM x what it needs when `ceiling` allows more than the budget. Counted in steps, never timed.
+
+    The probe is sized so that it is not stopped only to be made again from t = 0 where the steps the run
+    needs are known ahead: PACE_ROOM x its stability-limited steps (`stable_steps`), or `expected` (compiled
+    steps: a finished run the attempt follows over the same window and takes no more steps than, `_bounded`),
+    within the budget."""
     budget = setup.reference_steps
     share = max(1, math.ceil(PACE_PROBE * budget))
     stable = stable_steps(model, setup, candidate.method) / COMPILED_STEPS  # in the budget's scipy steps
-    if share < PACE_ROOM * stable <= budget:
-        share = math.ceil(PACE_ROOM * stable)  # a probe its stability limit alone would stop: PACE_ROOM x that, within the budget
+    known = max(stable, expected / COMPILED_STEPS)
+    bounded = share < PACE_ROOM * expected / COMPILED_STEPS <= budget and expected / COMPILED_STEPS > stable
+    if share < PACE_ROOM * known <= budget:
+        # a probe its stability limit, or a run it follows, says it would stop: PACE_ROOM x that, within the budget (the stiff
+        # elastic pendulum in r over t = 100: compiled DOP853 at 1e-7 confirming RK45 at 1e-9, 1.19e7 steps, was probed with 6e6
+        # steps, 8 s, stopped at 76 % of the window and made again from t = 0: 7.9e6 steps)
+        share = math.ceil(PACE_ROOM * known)
     probe = run(model, candidate, rtol, replace(setup, reference_max_steps=share), reference=True)
     if not over_step_budget(probe):
         return Attempt(probe)
@@ -316,7 +326,10 @@ def explicit_attempt(model: Model, candidate: Candidate, rtol: float, setup: Set
     needed = probe.stats.steps / done if done > 0 else math.inf  # compiled steps (a compiled run's budget is COMPILED_STEPS x the setup's)
     scale = COMPILED_STEPS if probe.settings.backend == "compiled" else 1
     limit = min(PACE_EXTENSION * budget, max(ceiling, budget)) if ceiling else PACE_SKIP * budget
-    if needed > limit * scale:
+    if needed > limit * scale and not bounded:
+        # a probe sized by `expected` that ran out is not judged by its pace: a pace judged later in the run than the tenth's can
+        # differ from it (a stiff start), and the run the old probe would have made is made (accuracy on the stiff elastic pendulum:
+        # DOP853 at 1e-9 after RK45 at 1e-10, probed with 4.6e6 steps, paced at more than its budget, finishes in 5.9e6)
         return Attempt(probe, needed)
     steps = max(budget, min(math.floor(limit), math.ceil(PACE_ROOM * needed / scale))) if ceiling else budget
     return Attempt(run(model, candidate, rtol, replace(setup, reference_max_steps=steps), reference=True))
@@ -893,6 +906,24 @@ def _tightened(model: Model, setup: Setup, main: Trajectory, tolerance: float, f
     return found
 
 
+def _bounded(main: Trajectory, candidate: Candidate, rtol: float) -> int:
+    """The compiled steps of `main` where they bound those of a compiled explicit run of `candidate` at `rtol` over the
+    same window (0 where they do not): `main` a finished compiled explicit run, and `candidate` its own method at
+    CONVERGENCE_STEP x its rtol or looser, or one of a higher order with a wider stability interval (DOP853 after RK45) at
+    CONVERGENCE_STEP**2 x or looser (a decade looser is not enough: on the stiff elastic pendulum in r DOP853 at 1e-9 took
+    5.9e6 steps where RK45 at 1e-10 took 3.7e6, its error estimate rejecting steps in the stiff component), whose steps,
+    limited by accuracy or by stability, are then expected to be fewer. `explicit_attempt` sizes its probe by it, so that a
+    confirmation is not probed, stopped and made again from t = 0; where the run takes more all the same (DOP853's error
+    estimate rejecting steps in a stiff component's round-off), its probe runs out and its pace decides, as before."""
+    s = main.settings
+    if main.failed or s.backend != "compiled" or candidate.backend != "compiled" or s.method not in STABLE_PROBE or candidate.method not in STABLE_PROBE:
+        return 0
+    looser = CONVERGENCE_STEP if candidate.method == s.method else CONVERGENCE_STEP**2
+    if STABLE_PROBE[candidate.method] < STABLE_PROBE[s.method] or rtol < looser * s.rtol * (1 - 1e-9):
+        return 0
+    return main.stats.steps
+
+
 def _confirmed(model: Model, setup: Setup, main: Trajectory, tolerance: float, confirmations: list[tuple[Candidate, float]], seconds: float, ceiling: int = 0) -> Reference:
     """`main` as the reference, confirmed by the first of `confirmations` that finishes (own error:
     their largest scaled disagreement), unconfirmed (own error nan) when none does. A compiled
@@ -904,7 +935,7 @@ def _confirmed(model: Model, setup: Setup, main: Trajectory, tolerance: float, c
     confirmer: Candidate | None = None
     for candidate, rtol in confirmations:
         paced = candidate.backend == "compiled" and candidate.method in EXPLICIT
-        other = explicit_attempt(model, candidate, rtol, setup, ceiling).trajectory if paced else paced_run(model, candidate, rtol, setup)
+        other = explicit_attempt(model, candidate, rtol, setup, ceiling, _bounded(main, candidate, rtol)).trajectory if paced else paced_run(model, candidate, rtol, setup)
         if isinstance(other, Unaffordable):
             continue  # at its pace it would not finish within its budget: not a confirmation
         if not other.failed and len(other.t) == len(main.t):
