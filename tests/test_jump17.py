@@ -20,21 +20,10 @@ from lagrange_cli.numeric.simulate import SURFACE_COLLAPSE, simulate
 from lagrange_cli.numeric.status import Status
 
 from .helpers import model_of
+from .test_nonsmooth import GATED
 
 HERE = Path(__file__).parent
 BLOCK = HERE / "nonsmooth" / "block_dry_friction_sticks.yaml"
-GATED = """
-coordinates: [theta, w]
-parameters: {m: 1.0, l: 1.0, mw: 0.5, kw: 200.0, d: 0.3, kc: 1.0e6, cc: 300.0, g: 9.81}
-gravity: [0, -g]
-particles:
-  bob: {mass: m, position: [l*sin(theta), -l*cos(theta)]}
-  plate: {mass: mw, position: [d + w, 0]}
-potential: kw*w**2/2 + kc/2*((l*sin(theta) - d - w + Abs(l*sin(theta) - d - w))/2)**2
-dissipation: cc/2*(1 + sign(l*sin(theta) - d - w))/2*(l*cos(theta)*theta_dot - w_dot)**2
-initial: {theta: -1.2, w: 0.0}
-simulate: {t_end: 1}
-"""
 
 
 def _crossings(notes: tuple[str, ...]) -> int:

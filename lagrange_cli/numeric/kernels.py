@@ -1848,6 +1848,18 @@ def _radau_jac(accel, jacobian, analytic, t, y, f, p, x, a, jac, work, fw, rows,
 
 
 @njit(error_model="numpy")
+def _radau_afresh(accel, jacobian, analytic, t, y, f, p, x, a, jac, work, fw, rows, pivots, column, stats, memory):
+    """A restart of the Radau loop at (t, y) with f = f(t, y) (after a landing on a crossing, a hop across a jump, a
+    projection): the Jacobian afresh, no predictor, no controller memory (as radau_start). True where the Jacobian
+    cannot be evaluated there (the caller returns SINGULAR); the caller marks J current and the factors stale."""
+    if _radau_jac(accel, jacobian, analytic, t, y, f, p, x, a, jac, work, fw, rows, pivots, column, stats):
+        return True
+    memory[CURRENT_JAC], memory[LU_STEP], memory[HAVE_DENSE], memory[CONTRACTION] = 1.0, 0.0, 0.0, 1.0
+    memory[H_ABS_OLD], memory[ERROR_OLD] = np.nan, np.nan
+    return False
+
+
+@njit(error_model="numpy")
 def _radau_eval(t_old, h, y_old, dense, t, out):
     """The collocation polynomial of the step [t_old, t_old + h] at t (dense[k]: the coefficient of x^(k + 1))."""
     xi = (t - t_old) / h
@@ -2186,12 +2198,10 @@ def _radau_loop(y, f, state, control, ts, ys, p, stats, jac, dense, y_old, memor
                 state[H] = min_step
                 return EVENT
             # restart as at a landing: J and the factors afresh, no predictor, no controller memory, scipy's initial step
-            if _radau_jac(accel, jacobian, analytic, t, y, f, p, x, a, jac, work, fw, rows_work, pivots, column, stats):
+            if _radau_afresh(accel, jacobian, analytic, t, y, f, p, x, a, jac, work, fw, rows_work, pivots, column, stats, memory):
                 state[T], state[H] = t, min_step
                 return SINGULAR
             current_jac, have_lu = True, False
-            memory[CURRENT_JAC], memory[LU_STEP], memory[HAVE_DENSE], memory[CONTRACTION] = 1.0, 0.0, 0.0, 1.0
-            memory[H_ABS_OLD], memory[ERROR_OLD] = np.nan, np.nan
             h_abs = _initial_step(accel, t, y, f, t_bound, max_step, RADAU_ERROR_ORDER, rtol, atol, p, x, a, stats)
             state[T], state[H] = t, h_abs
             continue
@@ -2282,12 +2292,10 @@ def _radau_loop(y, f, state, control, ts, ys, p, stats, jac, dense, y_old, memor
                 state[T], state[H] = t, h_abs
                 return STEP_COLLAPSE
             # restart as radau_start (f = f(t, y) is fresh): J and the factors afresh, no predictor, no controller memory, scipy's initial step
-            if _radau_jac(accel, jacobian, analytic, t, y, f, p, x, a, jac, work, fw, rows_work, pivots, column, stats):
+            if _radau_afresh(accel, jacobian, analytic, t, y, f, p, x, a, jac, work, fw, rows_work, pivots, column, stats, memory):
                 state[T], state[H] = t, h_abs
                 return SINGULAR
             current_jac, have_lu = True, False
-            memory[CURRENT_JAC], memory[LU_STEP], memory[HAVE_DENSE], memory[CONTRACTION] = 1.0, 0.0, 0.0, 1.0
-            memory[H_ABS_OLD], memory[ERROR_OLD] = np.nan, np.nan
             h_abs = _initial_step(accel, t, y, f, t_bound, max_step, RADAU_ERROR_ORDER, rtol, atol, p, x, a, stats)
         elif m > 0:
             record[SWITCH_SINCE] += 1.0
@@ -2305,11 +2313,9 @@ def _radau_loop(y, f, state, control, ts, ys, p, stats, jac, dense, y_old, memor
                 stats[NFEV] += 1
                 if use_event:
                     state[EVENT_VALUE] = event(t, y, p, x, a)
-                if _radau_jac(accel, jacobian, analytic, t, y, f, p, x, a, jac, work, fw, rows_work, pivots, column, stats):
+                if _radau_afresh(accel, jacobian, analytic, t, y, f, p, x, a, jac, work, fw, rows_work, pivots, column, stats, memory):
                     state[T], state[H] = t, h_abs
                     return SINGULAR
                 current_jac, have_lu = True, False
-                memory[CURRENT_JAC], memory[LU_STEP], memory[HAVE_DENSE], memory[CONTRACTION] = 1.0, 0.0, 0.0, 1.0
-                memory[H_ABS_OLD], memory[ERROR_OLD] = np.nan, np.nan
         state[T], state[H] = t, h_abs
     return DONE if t >= t_bound else RUNNING
