@@ -25,6 +25,7 @@
 - `time_singularity(mass, t0, t1, q0, scale)`: the first time at which M is singular whatever the
   state, where it depends on t explicitly (a rope reeled in to zero length, L(t) = L0 - u t): a
   singularity of the model itself, which no method and no change of coordinates passes.
+  `model_end(model, values, t0, t1, y0)` asks it only of a mass matrix that depends on t.
 - `jacobian(rhs, t, y)`: a forward-difference Jacobian of any right-hand side.
 """
 
@@ -396,6 +397,18 @@ def time_singularity(mass: Callable[[float, Sequence[float] | np.ndarray], np.nd
         if all(ratio(at, j) * SINGULAR_CONDITION < 1.0 for j in range(len(states))):
             return at
     return None
+
+
+def model_end(model: Model, values: Sequence[float], t0: float, t1: float, y0: Sequence[float]) -> float | None:
+    """Where the model itself ends in (t0, t1]: its mass matrix singular whatever the state (`time_singularity`, for
+    the parameter `values` and the coordinates of the state y0), which only a mass matrix depending on t explicitly can
+    be; None for every other model, without evaluating anything (shared by `stress`, which runs nothing past it, and
+    `simulate`, which says a run stopped there stopped where the model ends)."""
+    import sympy as sp
+
+    if model.t not in sp.Matrix(model.mass_matrix).free_symbols:
+        return None
+    return time_singularity(mass_at(model, values), t0, t1, y0[: model.n], coordinate_sizes(y0, model.n))
 
 
 GOLDEN = (math.sqrt(5.0) - 1.0) / 2.0

@@ -508,15 +508,11 @@ def model_end(model: Model, settings: Settings, t_last: float) -> float | None:
     matrix depending on t explicitly can be) where a run stopped at `t_last` next to it; else None. Audit 7's crane
     reels its rope in to zero length at t = 13.33: a run past it stopped at its step budget with the angle's rate
     at 4e8/s, a "singularity" no coordinates remove."""
-    import sympy as sp
-
     from lagrange_cli.numeric import diagnostics
 
-    if model.t not in sp.Matrix(model.mass_matrix).free_symbols or not math.isfinite(t_last):
+    if not math.isfinite(t_last):
         return None
-    sizes = diagnostics.coordinate_sizes(settings.y0, model.n)
-    reach = t_last + ENDED * max(1.0, abs(t_last))
-    ended = diagnostics.time_singularity(diagnostics.mass_at(model, settings.values), settings.t0, reach, settings.y0[: model.n], sizes)
+    ended = diagnostics.model_end(model, settings.values, settings.t0, t_last + ENDED * max(1.0, abs(t_last)), settings.y0)
     return ended if ended is not None and abs(ended - t_last) <= ENDED * max(1.0, abs(ended)) else None
 
 
