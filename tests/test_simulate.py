@@ -263,3 +263,14 @@ def test_settings_only_validate_and_the_policy_decides(monkeypatch: pytest.Monke
     decided = policy.decide(model, asked)
     assert decided.method != "auto" and decided.backend != "auto" and decided.alpha is not None and decided.alpha > 0
     assert decided.p == (*asked.values, decided.alpha) and len(decided.values) == len(model.parameters)
+
+
+def test_a_run_refused_before_its_first_step_says_nothing_was_integrated(tmp_path: Path) -> None:
+    """A fixed symplectic step that needs more steps than the budget is refused before it starts (exit 1,
+    a numerical outcome, not bad input): the message must not claim a trajectory "up to there" (audit 8 F4)."""
+    out = tmp_path / "run.csv"
+    result = runner.invoke(app, ["simulate", str(ROOT / "systems" / "damped_oscillator_rayleigh.yaml"), "--step", "1e-9", "--t-end", "10", "-o", str(out)])
+    assert result.exit_code == 1, result.output
+    assert "more than the step budget" in result.stderr and "not run" in result.stderr
+    assert "nothing was integrated" in result.stderr
+    assert "up to there is kept" not in result.stderr

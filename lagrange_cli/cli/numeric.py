@@ -153,7 +153,8 @@ def _report(trajectory: Trajectory, to_stderr: bool) -> None:
     for note in trajectory.notes:
         console.print(f"  [dim]{inert(note)}[/dim]")
     if trajectory.failed:
-        make_console(stderr=True).print(plain(f"error: {trajectory.message}; the trajectory up to there is kept"), markup=False)
+        kept = "the trajectory up to there is kept" if stats.steps else "nothing was integrated"
+        make_console(stderr=True).print(plain(f"error: {trajectory.message}; {kept}"), markup=False)
     else:
         console.print(plain(f"{trajectory.status}: {trajectory.message}"), markup=False)
     rejected = f" ({stats.rejected} rejected)" if stats.rejected else ""
