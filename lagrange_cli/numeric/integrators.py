@@ -699,12 +699,12 @@ def run_scipy(functions: Functions, problem: Problem, method: str, rtol: float, 
     event = _python_event(module, p) if problem.use_event else None
     outcome, t_last, y_last = FINISHED, problem.t0, problem.y0.copy()
     failure: EvaluationError | None = None
-    switches = _Switches(module, p) if hasattr(module, "_switch") and switching.LOCATE else None
+    rhs = python_rhs(module, p, problems)
+    switches = _Switches(module, p, rhs) if hasattr(module, "_switch") and switching.LOCATE else None
     with warnings.catch_warnings(), np.errstate(all="ignore"):
         warnings.simplefilter("ignore")
         try:
             g_old = event(problem.t0, problem.y0) if event else 1.0
-            rhs = python_rhs(module, p, problems)
             solver = solver_class(rhs, problem.t0, problem.y0, problem.t_end, **options)
             if switches is not None:
                 switches.start(problem.t0, problem.y0)
@@ -734,6 +734,9 @@ def run_scipy(functions: Functions, problem: Problem, method: str, rtol: float, 
                     progress((t_last - problem.t0) / (problem.t_end - problem.t0))
                 if outcome == EVENT:
                     break
+                if switches is not None and switches.crawling(t_old, solver.t, solver.y, problem.t_end - problem.t0):
+                    outcome = Status.SURFACE_JUMP
+                    break
                 if switches is not None and switches.landed(solver) and solver.t < problem.t_end:  # restart there: no history, a fresh step
                     if switches.sliding:  # the field points into the surface from both sides: no classical solution goes on
                         outcome = Status.SURFACE_JUMP
@@ -754,14 +757,19 @@ def run_scipy(functions: Functions, problem: Problem, method: str, rtol: float, 
     return Run(ts[:m], y, outcome, float(t_last), np.asarray(y_last, dtype=float), stats, 0.0, time.perf_counter() - began, failure, switching=switched)
 
 
+CRAWL = 1e-9
+"""A scipy step shorter than this fraction of the run's span, next to a switching surface, is tested for a sliding
+mode (`_Switches.crawling`)."""
+
+
 class _Switches:
     """The switching functions g(t, y) of a scipy run (the generated `_switch`, switching.py): a step
     over which one changes sign is discarded, the solver started again from the step's start to land
     on the crossing (located by brentq on the step's dense output), and there restarted afresh (a
     multistep method's history, which spans the kink, dropped; a new initial step)."""
 
-    def __init__(self, module: Any, p: Sequence[float]) -> None:
-        self.function, self.p, self.count = module._switch, list(p), int(module._SWITCHES)
+    def __init__(self, module: Any, p: Sequence[float], rhs: Callable[[float, np.ndarray], Sequence[float]]) -> None:
+        self.function, self.p, self.count, self.rhs = module._switch, list(p), int(module._SWITCHES), rhs
         self.g = np.zeros(self.count)
         self.pending, self.far, self.index, self.crossings = math.inf, np.zeros(self.count), -1, 0
         self.since, self.quick = 0, 0
@@ -811,10 +819,12 @@ class _Switches:
         return False
 
     def landed(self, solver: Any) -> bool:
-        """Whether the step ended on the located crossing: g set past it, the count increased."""
+        """Whether the step ended on the located crossing: g set past it, the count increased, and whether the
+        field points into that surface from both sides there (`attracted`)."""
         if solver.t != self.pending:
             return False
         g_here = self.values(solver.t, solver.y)
+        self.attracted = self.attracting(solver.t, solver.y, self.index)
         self.g = np.where(np.arange(self.count) == self.index, self.far, g_here)
         self.pending, self.index = math.inf, -1
         self.crossings += 1
@@ -822,12 +832,57 @@ class _Switches:
         self.since = 0
         return True
 
+    attracted = False
+    """Whether the field pointed into the surface from both sides where the last landing was (`attracting`)."""
+
     @property
     def sliding(self) -> bool:
-        """A sliding mode (status.CHATTER): the last status.CHATTER landings each came at most status.QUICK_STEPS
-        accepted steps after the one before, every restart crossing back at once (dry friction where a body sticks,
-        audit 8 F1: 1302 landings in 2617 steps, to the step budget)."""
-        return self.quick >= status.CHATTER
+        """A sliding mode: at the last landing the field points into the surface from both sides (`attracting`),
+        or the last status.CHATTER landings each came at most status.QUICK_STEPS accepted steps after the one
+        before, every restart crossing back at once (dry friction where a body sticks, audit 8 F1: 1302 landings
+        in 2617 steps, to the step budget). The first catches a method that crawls along the surface instead
+        (scipy's RK45 on a sticking block: one landing, then 19558 steps of 6e-11 to the budget)."""
+        return self.attracted or self.quick >= status.CHATTER
+
+    def crawling(self, t_old: float, t: float, y: np.ndarray, span: float) -> bool:
+        """Whether an accepted step shorter than CRAWL x the run's span ends next to a surface whose field points
+        into it from both sides (`attracting`): a method that crawls along a sliding surface in tiny steps without
+        landing on it (scipy's RK45 on a sticking block, its stages straddling the surface). Only such tiny steps
+        are tested, so that a run that takes ordinary steps pays nothing."""
+        return t - t_old < CRAWL * span and any(self.attracting(t, y, i) for i in range(self.count))
+
+    def attracting(self, t: float, y: np.ndarray, index: int) -> bool:
+        """Filippov's condition for a sliding mode on surface `index` at (t, y), a point on it: the rate of g
+        (grad g . f + dg/dt) is negative just on its positive side and positive just on its negative side, and f
+        truly jumps across it. The sides are y moved along grad g (finite differences of the switching functions)
+        to g = +s and g = -s, s a 1e-7 relative change of y; f jumps where the difference of the two rates is
+        over 100 x the change of the rate from g = s to g = 2s on one side (a force that is continuous with a
+        kink, such as a contact k max(0, e), changes by as much over each: so a grazing contact is never taken
+        for a sliding mode). A few evaluations per landing."""
+        y = np.asarray(y, dtype=float)
+        g0 = float(self.values(t, y)[index])
+        grad = np.zeros(len(y))
+        for j in range(len(y)):
+            h = 1.5e-8 * max(abs(y[j]), 1.0)
+            moved = y.copy()
+            moved[j] += h
+            grad[j] = (float(self.values(t, moved)[index]) - g0) / h
+        ht = 1.5e-8 * max(abs(t), 1.0)
+        g_t = (float(self.values(t + ht, y)[index]) - g0) / ht
+        norm2 = float(grad @ grad)
+        if not (norm2 > 0.0 and math.isfinite(norm2) and math.isfinite(g_t)):
+            return False
+        s = 1e-7 * max(float(np.max(np.abs(y))), 1.0) * math.sqrt(norm2)
+        if abs(g0) > 1e3 * s:  # not next to the surface
+            return False
+
+        def rate(level: float) -> float:
+            return float(grad @ np.asarray(self.rhs(t, y + (level - g0) * grad / norm2), dtype=float)) + g_t
+
+        above, below, further = rate(s), rate(-s), rate(2.0 * s)
+        if not all(map(math.isfinite, (above, below, further))):
+            return False
+        return above < 0.0 < below and below - above > 100.0 * abs(further - above)
 
 
 def _scipy_samples(solver: Any, t_old: float, ts: np.ndarray, samples: list[np.ndarray], event: Callable[[float, np.ndarray], float] | None, g_old: float) -> tuple[float, Status]:

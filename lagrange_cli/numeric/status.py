@@ -110,7 +110,8 @@ class Status(enum.StrEnum):
     SURFACE_JUMP = "jump"
     """The run stopped on a switching surface where the forces jump (`simulate._on_surface`): a sliding mode (the
     field on both sides pointing into the surface, as dry friction where a body sticks: the loops stop after CHATTER
-    quick crossings in a row), or through scipy a step size that collapsed there (the compiled loops hop
+    quick crossings in a row; the scipy loop also where Filippov's condition holds, integrators._Switches.attracting),
+    or through scipy a step size that collapsed there (the compiled loops hop
     across such a jump, kernels._hop). Not a blow-up; through scipy a looser tolerance may pass it."""
     NO_CONVERGENCE = "convergence"
     BUDGET = "budget"
