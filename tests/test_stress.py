@@ -16,7 +16,7 @@ from lagrange_cli.numeric import reference, stress
 from lagrange_cli.numeric.accuracy import Candidate
 
 from .conftest import ROOT
-from .helpers import model_from
+from .helpers import model_from, model_of
 
 runner = CliRunner()
 SCIPY = [Candidate("RK45", "python"), Candidate("Radau", "python"), Candidate("DOP853", "python")]
@@ -483,3 +483,26 @@ def test_scipy_runs_after_a_compiled_one_met_share_one_budget_over_their_ladder(
     setup = Setup(5.0, (0.0, 5.0), max_steps=60_000)
     assert stress._cap(Candidate("BDF"), best, None, setup, 15_000.0) < stress._cap(Candidate("BDF"), best, None, setup)
     assert stress._remaining(Candidate("RK45", "compiled"), best, 1e9) == stress.LOSING * work(best)  # compiled runs: per run, as before
+
+
+def test_the_high_energy_start_meets_a_constraint_that_moves_in_time() -> None:
+    """Audit 9 F1: with a kept constraint depending on t, x^2 + y^2 = l(t)^2, the velocities must meet
+    a . v + b = 0 with b = -2 l l' (here 2 l(0) a w = 1.98), not a . v = 0: the high-energy regime's start was
+    projected onto the latter, so it began at rest radially, off the constraint, and its verdict was about a
+    state simulate calls inconsistent."""
+    model = model_of(
+        """
+title: a pendulum whose length is pumped by a kept constraint
+coordinates: [x, y]
+parameters: {m: {value: 0.7}, l0: {value: 1.2}, a: {value: 0.15}, w: {value: 5.5}, g: {value: 9.81}}
+gravity: [0, -g]
+particles: {bob: {mass: m, position: [x, y]}}
+constraints: {string: x**2 + y**2 = (l0 + a*sin(w*t))**2}
+initial: {x: 0.4673020107703806, y: -1.105273192803462, x_dot: 0.32127013240463664, y_dot: -0.7598753200523801}
+"""
+    )
+    high = next(r for r in stress.regimes(model, []) if r.name.startswith("high energy"))
+    x, y = 0.4673020107703806, -1.105273192803462
+    v = np.array([high.initial["x_dot"], high.initial["y_dot"]])
+    assert 2 * x * v[0] + 2 * y * v[1] == pytest.approx(2 * 1.2 * 0.15 * 5.5, rel=1e-12)  # d/dt (x^2 + y^2) = d/dt l^2 at t = 0
+    assert np.hypot(*v) > 0.5  # not at rest: the radial speed l'(0) = a w, tangentially 3 x the file's (0 here)

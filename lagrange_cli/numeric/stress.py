@@ -277,7 +277,7 @@ def regimes(model: Model, scales: Sequence[tuple[str, Sequence[float]]], long_fa
     longer = min(MAX_SAMPLES, max(SAMPLES, round((SAMPLES - 1) * long_factor) + 1))
     result = [Regime("defaults", base.t_end, {}, {}), Regime(f"long horizon (t_end x {long_factor:g})", base.t_end * long_factor, {}, {}, longer, horizon=True)]
     at_rest = not any(base.y0[model.n :])  # then "x 3" would be 0: the velocities come from the slowest mode (`_high_energy`), and the name says so
-    energetic, mode = _high_energy(model, base.values, base.y0, energy_factor)
+    energetic, mode = _high_energy(model, base.values, base.y0, energy_factor, base.t0)
     how = f"velocities x {energy_factor:g}" if not at_rest else f"at rest in the file: velocities {energy_factor:g} x the {mode}'s rate x each coordinate's size"
     result.append(Regime(f"high energy ({how})", base.t_end, {}, energetic))
     singular = _near_singular(model, base.values, base.y0)
@@ -298,9 +298,10 @@ m/s and rad/s, the defaults again, for a pendulum that swings at 2.2 rad/s (Van 
 against its oscillation's 1.5/s)."""
 
 
-def _high_energy(model: Model, p: Sequence[float], y0: Sequence[float], factor: float) -> tuple[dict[str, float], str]:
+def _high_energy(model: Model, p: Sequence[float], y0: Sequence[float], factor: float, t0: float) -> tuple[dict[str, float], str]:
     """The high-energy regime's initial velocities, and which mode's rate set them where the file starts at rest
-    ("slowest mode", or "slowest oscillation": CREEPING)."""
+    ("slowest mode", or "slowest oscillation": CREEPING); with kept constraints the nearest velocities that meet
+    them at (t0, q0), a . v + b = 0."""
     n = model.n
     v = np.array(y0[n:], dtype=float)
     mode = "slowest mode"
@@ -315,10 +316,11 @@ def _high_energy(model: Model, p: Sequence[float], y0: Sequence[float], factor: 
         import sympy as sp
 
         values = {parameter.symbol: value for parameter, value in zip(model.parameters, p, strict=False)}
-        rows = sp.Matrix([list(c.jacobian) for c in model.constraints]).subs(values)
+        rows = sp.Matrix([[*c.jacobian, c.bias] for c in model.constraints]).subs(values)
         try:
-            a = np.array(sp.lambdify([model.t, *model.q], rows.tolist(), modules="math")(0.0, *y0[:n]), dtype=float)
-            v = v - a.T @ np.linalg.solve(a @ a.T, a @ v)
+            ab = np.array(sp.lambdify([model.t, *model.q], rows.tolist(), modules="math")(t0, *y0[:n]), dtype=float)
+            a, b = ab[:, :n], ab[:, n]
+            v = v - a.T @ np.linalg.solve(a @ a.T, a @ v + b)  # the nearest velocities with a . v + b = 0 (b: a constraint moving in time, audit 9 F1)
         except (ArithmeticError, ValueError, TypeError, np.linalg.LinAlgError):
             pass  # the constraint rows cannot be evaluated (or are dependent) at the start: velocities as they are; the run reports it
     return dict(zip(_names(model)[n:], v.tolist(), strict=True)), mode
