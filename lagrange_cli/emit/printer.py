@@ -44,7 +44,7 @@ import math
 from collections.abc import Callable, Collection, Iterable, Mapping, Sequence
 from typing import Any, ClassVar
 
-from lagrange_cli._symengine import se
+from lagrange_cli._symengine import se, to_symengine
 from lagrange_cli.errors import DerivationError
 
 ATOM = 100
@@ -54,6 +54,8 @@ UNARY = 50
 MUL = 40
 ADD = 30
 
+OFFSET_TERMS = 12
+"""The largest group of terms `restructure` factors around a constant offset (sympy on a few terms)."""
 EXACT = 2**53
 """Integers below this are exact doubles (and fit every language's integer type we print)."""
 
@@ -450,6 +452,8 @@ class _Restructure:
         self.angles: dict[str, Any] = {}
         self.singles: dict[str, set[str]] = {}
         self.pairs: dict[tuple[str, str], set[str]] = {}
+        self.made: set[str] = set()
+        """names of the temporaries made here (`_sin0`, `_cd1_2`, ...)"""
 
     def collect(self, expr: Any) -> list[tuple[Any, Any, Any, Any]]:
         """`expr` as terms (c, v, x, K): number, velocity part, position part, constant part
@@ -490,7 +494,90 @@ class _Restructure:
             elif k.is_Mul and k.args[0].is_Number:
                 c, k = k.args[0], k / k.args[0]
             rows.append((c, v, x, k))
-        return rows
+        return self.offsets(rows) if len(rows) > 1 else rows
+
+    def offsets(self, rows: list[tuple[Any, Any, Any, Any]]) -> list[tuple[Any, Any, Any, Any]]:
+        """`rows` with each group of terms polynomial in the varying symbols around a constant offset
+        factored: k*l - k*r -> -k*(r - l), k/2*r**2 - k*l*r + k/2*l**2 -> k/2*(r - l)**2, the same
+        under a common varying factor (k*r*sin(th) - k*l*sin(th) -> k*(r - l)*sin(th)).
+
+        Collected by varying part, k*l and k*r are two terms of size k whose difference, near
+        r = l, is the force: with k = 1e10 it carries round-off of a spacing of 1e10, where
+        k*(r - l) is exact to a few ulps of itself. A group is the terms sharing their velocity
+        part and their non-polynomial position factors (trig temporaries, roots, ...); it is
+        factored (sympy's `factor`, on a few terms) only when, its polynomial parts divided by
+        their common monomial, one of them is 1 (a coordinate-free offset, the source of the
+        cancellation) and another is not; when the whole group does not factor, the terms sharing
+        each constant symbol are tried in turn (k*l - k*y - g*m -> -k*(y - l) - g*m). Groups of
+        more than `OFFSET_TERMS` terms, or with floating-point coefficients, are left as they are,
+        so that the cost stays a small multiple of the number of such groups."""
+        groups: dict[tuple[Any, Any], list[tuple[tuple[Any, Any, Any, Any], dict[Any, int]]]] = {}
+        for row in rows:
+            powers, rest = self.polynomial(row[2])
+            groups.setdefault((row[1], rest), []).append((row, powers))
+        result: list[tuple[Any, Any, Any, Any]] = []
+        for (v, rest), members in groups.items():
+            if len(members) < 2 or len(members) > OFFSET_TERMS or not _offset([powers for _, powers in members]):
+                result += [row for row, _ in members]
+                continue
+            result += self.factored(v, rest, members)
+        return result
+
+    def polynomial(self, x: Any) -> tuple[dict[Any, int], Any]:
+        """({varying symbol: power}, the other factors) of a position part `x`: its factors that are a
+        coordinate or t (not a temporary made here) to a positive integer power, and the rest."""
+        powers: dict[Any, int] = {}
+        rest: list[Any] = []
+        for factor in x.args if x.is_Mul else (x,):
+            base, exponent = factor.args if factor.is_Pow else (factor, _ONE)
+            if base.is_Symbol and str(base) not in self.made and exponent.is_Integer and int(exponent) > 0:
+                powers[base] = int(exponent)
+            elif not factor.is_Number:
+                rest.append(factor)
+        return powers, se.Mul(*rest)
+
+    def factored(self, v: Any, rest: Any, members: list[tuple[tuple[Any, Any, Any, Any], dict[Any, int]]]) -> list[tuple[Any, Any, Any, Any]]:
+        """The rows of one group with offsets (see `offsets`), factored where it pays: the whole
+        group first, then the terms sharing a constant symbol, most shared first."""
+        import sympy as sp
+
+        terms = [sp.sympify(c * k * _monomial(_ONE, powers)) for (c, _, _, k), powers in members]
+        if any(term.has(sp.Float) for term in terms):
+            return [row for row, _ in members]
+        left = list(range(len(members)))
+        result: list[tuple[Any, Any, Any, Any]] = []
+        tried: set[tuple[int, ...]] = set()
+        while True:
+            candidates = [tuple(left)]
+            counts: dict[Any, int] = {}
+            for i in left:
+                for symbol in terms[i].free_symbols:
+                    if str(symbol) in self.constant:
+                        counts[symbol] = counts.get(symbol, 0) + 1
+            for symbol in sorted(counts, key=lambda s: (-counts[s], str(s))):
+                candidates.append(tuple(i for i in left if symbol in terms[i].free_symbols))
+            for subset in candidates:
+                if subset in tried or len(subset) < 2 or not _offset([members[i][1] for i in subset]):
+                    continue
+                tried.add(subset)
+                product = sp.factor(sp.Add(*(terms[i] for i in subset)))
+                factors = product.as_ordered_factors() if product.is_Mul else []
+                if len([f for f in factors if not f.is_Number]) < 2:
+                    continue
+                coefficient, constant, varying = _ONE, _ONE, rest
+                for f in factors:
+                    value = to_symengine(f)
+                    if f.is_Number:
+                        coefficient = coefficient * value
+                    elif all(str(s) in self.constant for s in f.free_symbols):
+                        constant = constant * value
+                    else:
+                        varying = varying * value
+                result.append((coefficient, v, varying, constant))
+                left = [i for i in left if i not in subset]
+                break
+            else:
+                return result + [members[i][0] for i in left]
 
     def classify(self, factor: Any) -> tuple[int, Any, int]:
         """(sign, replacement, kind) of one factor of a term: kind 0 constant, 1 position, 2 velocity."""
@@ -525,7 +612,7 @@ class _Restructure:
         if argument.is_Symbol and str(argument) not in self.constant:
             k = self.number(argument)
             self.singles.setdefault(str(argument), set()).add(kind)
-            return 1, se.Symbol(f"_{kind}{self.tag}{k}")
+            return 1, self.temporary(f"_{kind}{self.tag}{k}")
         if not (argument.is_Add and len(argument.args) == 2):
             return 1, None
         difference = _difference(argument, self.constant)
@@ -534,8 +621,13 @@ class _Restructure:
         a, b, sign = difference
         k, j = self.number(a), self.number(b)
         self.pairs.setdefault((str(a), str(b)), set()).add(kind)
-        symbol = se.Symbol(f"_{'sd' if kind == 'sin' else 'cd'}{self.tag}{k}_{j}")
+        symbol = self.temporary(f"_{'sd' if kind == 'sin' else 'cd'}{self.tag}{k}_{j}")
         return (sign if kind == "sin" else 1), symbol
+
+    def temporary(self, name: str) -> Any:
+        """The symbol of a temporary made here (never a polynomial variable in `offsets`)."""
+        self.made.add(name)
+        return se.Symbol(name)
 
     def definitions(self, products: bool) -> list[tuple[str, Any]]:
         """The temporaries in order: sin and cos of single angles, then of the differences."""
@@ -569,6 +661,14 @@ def _difference(argument: Any, constant: frozenset[str]) -> tuple[Any, Any, int]
     if str(a) in constant or str(b) in constant:
         return None
     return (a, b, 1) if str(a) < str(b) else (b, a, -1)
+
+
+def _offset(parts: list[dict[Any, int]]) -> bool:
+    """Whether polynomial parts ({symbol: power}), divided by their common monomial, hold both a 1
+    (a coordinate-free offset) and a varying monomial."""
+    common = {s: min(p.get(s, 0) for p in parts) for s in parts[0]}
+    reduced = [any(power > common.get(s, 0) for s, power in p.items()) for p in parts]
+    return any(reduced) and not all(reduced)
 
 
 def _horner(items: list[tuple[Any, dict[Any, Any]]]) -> Any:
