@@ -497,27 +497,24 @@ class _Restructure:
         return self.offsets(rows) if len(rows) > 1 else rows
 
     def offsets(self, rows: list[tuple[Any, Any, Any, Any]]) -> list[tuple[Any, Any, Any, Any]]:
-        """`rows` with each group of terms polynomial in the varying symbols around a constant offset
-        factored: k*l - k*r -> -k*(r - l), k/2*r**2 - k*l*r + k/2*l**2 -> k/2*(r - l)**2, the same
-        under a common varying factor (k*r*sin(th) - k*l*sin(th) -> k*(r - l)*sin(th)).
+        """`rows` with the terms polynomial in the varying symbols around a constant offset factored:
+        k*l - k*r -> -k*(r - l), k/2*r**2 - k*l*r + k/2*l**2 -> k/2*(r - l)**2, k*x1 - k*x2 - k*l ->
+        k*(x1 - x2 - l), the same under a common varying factor (k*r*sin(th) - k*l*sin(th) -> k*(r - l)*sin(th)).
 
         Collected by varying part, k*l and k*r are two terms of size k whose difference, near
         r = l, is the force: with k = 1e10 it carries round-off of a spacing of 1e10, where
         k*(r - l) is exact to a few ulps of itself. A group is the terms sharing their velocity
-        part and their non-polynomial position factors (trig temporaries, roots, ...); it is
-        factored (sympy's `factor`, on a few terms) only when, its polynomial parts divided by
-        their common monomial, one of them is 1 (a coordinate-free offset, the source of the
-        cancellation) and another is not; when the whole group does not factor, the terms sharing
-        each constant symbol are tried in turn (k*l - k*y - g*m -> -k*(y - l) - g*m). Groups of
-        more than `OFFSET_TERMS` terms, or with floating-point coefficients, are left as they are,
-        so that the cost stays a small multiple of the number of such groups."""
+        part and their non-polynomial position factors (trig temporaries, roots, ...); only a group
+        whose polynomial parts, divided by their common monomial, hold a 1 (a coordinate-free
+        offset, the only source of this cancellation) and a varying monomial is looked at
+        (`factored`); every other sum costs one pass over its terms."""
         groups: dict[tuple[Any, Any], list[tuple[tuple[Any, Any, Any, Any], dict[Any, int]]]] = {}
         for row in rows:
             powers, rest = self.polynomial(row[2])
             groups.setdefault((row[1], rest), []).append((row, powers))
         result: list[tuple[Any, Any, Any, Any]] = []
         for (v, rest), members in groups.items():
-            if len(members) < 2 or len(members) > OFFSET_TERMS or not _offset([powers for _, powers in members]):
+            if len(members) < 2 or not _offset([powers for _, powers in members]):
                 result += [row for row, _ in members]
                 continue
             result += self.factored(v, rest, members)
@@ -537,47 +534,51 @@ class _Restructure:
         return powers, se.Mul(*rest)
 
     def factored(self, v: Any, rest: Any, members: list[tuple[tuple[Any, Any, Any, Any], dict[Any, int]]]) -> list[tuple[Any, Any, Any, Any]]:
-        """The rows of one group with offsets (see `offsets`), factored where it pays: the whole
-        group first, then the terms sharing a constant symbol, most shared first."""
-        import sympy as sp
-
-        terms = [sp.sympify(c * k * _monomial(_ONE, powers)) for (c, _, _, k), powers in members]
-        if any(term.has(sp.Float) for term in terms):
-            return [row for row, _ in members]
-        left = list(range(len(members)))
+        """The rows of one group with an offset (see `offsets`), as monomials (the constant parts
+        expanded), factored where that pulls out a common factor (`_content`): the whole group
+        first when it has at most `OFFSET_TERMS` monomials, then, once each, the monomials sharing
+        a constant symbol, the most shared first (k1*l1 - k1*x1 + k2*x2 - k2*x1 - k2*l2 - g*m ->
+        -k1*(x1 - l1) + k2*(x2 - x1 - l2) - g*m): at most one try of at most `OFFSET_TERMS` terms
+        per constant symbol. Monomials left over stay collected by varying part. A group with
+        floating-point coefficients is left as it is."""
+        monomials: list[tuple[Any, dict[Any, int], int]] = []
+        for index, ((c, _, _, k), powers) in enumerate(members):
+            constant = se.expand(c * k)
+            if any(isinstance(part, se.RealDouble) for part in _atoms(constant)):
+                return [row for row, _ in members]
+            monomials += [(part, powers, index) for part in (constant.args if constant.is_Add else (constant,))]
+        names = [{s for s in term.free_symbols if str(s) in self.constant} for term, _, _ in monomials]
+        counts: dict[Any, int] = {}
+        for found in names:
+            for symbol in found:
+                counts[symbol] = counts.get(symbol, 0) + 1
+        left = list(range(len(monomials)))
         result: list[tuple[Any, Any, Any, Any]] = []
-        tried: set[tuple[int, ...]] = set()
-        while True:
-            candidates = [tuple(left)]
-            counts: dict[Any, int] = {}
-            for i in left:
-                for symbol in terms[i].free_symbols:
-                    if str(symbol) in self.constant:
-                        counts[symbol] = counts.get(symbol, 0) + 1
-            for symbol in sorted(counts, key=lambda s: (-counts[s], str(s))):
-                candidates.append(tuple(i for i in left if symbol in terms[i].free_symbols))
-            for subset in candidates:
-                if subset in tried or len(subset) < 2 or not _offset([members[i][1] for i in subset]):
-                    continue
-                tried.add(subset)
-                product = sp.factor(sp.Add(*(terms[i] for i in subset)))
-                factors = product.as_ordered_factors() if product.is_Mul else []
-                if len([f for f in factors if not f.is_Number]) < 2:
-                    continue
-                coefficient, constant, varying = _ONE, _ONE, rest
-                for f in factors:
-                    value = to_symengine(f)
-                    if f.is_Number:
-                        coefficient = coefficient * value
-                    elif all(str(s) in self.constant for s in f.free_symbols):
-                        constant = constant * value
-                    else:
-                        varying = varying * value
-                result.append((coefficient, v, varying, constant))
-                left = [i for i in left if i not in subset]
-                break
-            else:
-                return result + [members[i][0] for i in left]
+        for symbol in [None, *sorted(counts, key=lambda s: (-counts[s], str(s)))]:
+            subset = [i for i in left if symbol is None or symbol in names[i]]
+            if not 2 <= len(subset) <= OFFSET_TERMS or not _offset([monomials[i][1] for i in subset]):
+                continue
+            factored = _content([(monomials[i][0], monomials[i][1]) for i in subset], self.constant)
+            if factored is None:
+                continue
+            coefficient, constant_part, varying = factored
+            result.append((coefficient, v, rest * varying, constant_part))
+            left = [i for i in left if i not in subset]
+        if len(left) == len(monomials):
+            return [row for row, _ in members]
+        kept: dict[int, list[Any]] = {}
+        for i in left:
+            kept.setdefault(monomials[i][2], []).append(monomials[i][0])
+        for index, parts in kept.items():
+            (_, _, x, _), _ = members[index]
+            k = se.Add(*parts)
+            number: Any = _ONE
+            if k.is_Number:
+                number, k = k, _ONE
+            elif k.is_Mul and k.args[0].is_Number:
+                number, k = k.args[0], k / k.args[0]
+            result.append((number, v, x, k))
+        return result
 
     def classify(self, factor: Any) -> tuple[int, Any, int]:
         """(sign, replacement, kind) of one factor of a term: kind 0 constant, 1 position, 2 velocity."""
@@ -669,6 +670,118 @@ def _offset(parts: list[dict[Any, int]]) -> bool:
     common = {s: min(p.get(s, 0) for p in parts) for s in parts[0]}
     reduced = [any(power > common.get(s, 0) for s, power in p.items()) for p in parts]
     return any(reduced) and not all(reduced)
+
+
+def _content(terms: list[tuple[Any, dict[Any, int]]], constant: frozenset[str]) -> tuple[Any, Any, Any] | None:
+    """(number, constant factor, varying factor) of sum(K * prod(symbol**power)) over `terms`
+    (K a monomial in the constants), their common factor pulled out: k*l - k*r -> (1, k, l - r);
+    a polynomial left of degree 2 or more in the varying symbols is factored further by sympy's
+    `factor` (k/2*(r**2 - 2*l*r + l**2) -> (1/2, k, (r - l)**2)); None when nothing factors."""
+    bases: list[dict[Any, Any]] = []
+    numbers: list[Any] = []
+    for k, powers in terms:
+        number: Any = _ONE
+        factors: dict[Any, Any] = {}
+        for factor in k.args if k.is_Mul else (k,):
+            if factor.is_Number:
+                number = number * factor
+                continue
+            base, exponent = factor.args if factor.is_Pow and factor.args[1].is_Number else (factor, _ONE)
+            factors[base] = factors.get(base, 0) + exponent
+        factors.update(powers)
+        numbers.append(number)
+        bases.append(factors)
+    common = {b: min(f.get(b, 0) for f in bases) for b in bases[0] if all(b in f for f in bases)}
+    inside = se.Add(*(n * _monomial(_ONE, {b: e - common.get(b, 0) for b, e in f.items() if e != common.get(b, 0)}) for n, f in zip(numbers, bases, strict=True)))
+    outside = _monomial(_ONE, common)
+    coefficient: Any = _ONE
+    degree = _degree([{s: p for s, p in f.items() if s.is_Symbol and str(s) not in constant} for f in bases])
+    square = _square(inside, constant) if degree == 2 else None
+    if square is not None:
+        coefficient, inside = square[0], square[1] ** 2
+    elif degree >= 2:
+        import sympy as sp
+
+        product = sp.factor(sp.sympify(inside))
+        pieces = product.as_ordered_factors() if product.is_Mul else [product]
+        if any(f.is_Pow and f.args[0].is_Add for f in pieces) or len([f for f in pieces if not f.is_Number]) >= 2:
+            inside = _ONE
+            for f in pieces:
+                if f.is_Number:
+                    coefficient = coefficient * to_symengine(f)
+                else:
+                    inside = inside * to_symengine(f)
+        elif not common:
+            return None
+    elif not common:
+        return None
+    fixed, varying = _split(outside * inside, constant)
+    if fixed.is_Number:
+        coefficient, fixed = coefficient * fixed, _ONE
+    elif fixed.is_Mul and fixed.args[0].is_Number:
+        coefficient, fixed = coefficient * fixed.args[0], fixed / fixed.args[0]
+    return coefficient, fixed, varying
+
+
+def _square(polynomial: Any, constant: frozenset[str]) -> tuple[Any, Any] | None:
+    """(a, L) with `polynomial` = a*L**2, a a number and L linear in the varying symbols (those not
+    in `constant`), when it is such a square (r**2 - 2*l*r + l**2 -> (1, r - l)), else None: the
+    shape of every spring's energy, recognised without sympy (one expansion to check it)."""
+    rows: dict[tuple[tuple[str, int], ...], list[Any]] = {}
+    symbols: dict[str, Any] = {}
+    for term in polynomial.args if polynomial.is_Add else (polynomial,):
+        key: list[tuple[str, int]] = []
+        fixed: list[Any] = []
+        for factor in term.args if term.is_Mul else (term,):
+            base, exponent = factor.args if factor.is_Pow else (factor, _ONE)
+            if base.is_Symbol and str(base) not in constant and exponent.is_Integer:
+                key.append((str(base), int(exponent)))
+                symbols[str(base)] = base
+            else:
+                fixed.append(factor)
+        rows.setdefault(tuple(sorted(key)), []).append(se.Mul(*fixed))
+    squares = sorted(name for ((name, power),) in (k for k in rows if len(k) == 1) if power == 2)
+    if not squares:
+        return None
+    name = squares[0]
+    a = se.Add(*rows[((name, 2),)])
+    if not a.is_Number or a == 0:
+        return None
+    linear = se.Add(symbols[name])
+    for powers, parts in rows.items():
+        if (name, 1) in powers:
+            others = se.Mul(*(symbols[n] ** p for n, p in powers if n != name))
+            linear = linear + se.Add(*parts) * others / (2 * a)
+    if se.expand(a * linear**2 - polynomial) != 0:
+        return None
+    return a, linear
+
+
+def _split(product: Any, constant: frozenset[str]) -> tuple[Any, Any]:
+    """(the factors of `product` free of varying symbols, the others)."""
+    fixed: list[Any] = []
+    varying: list[Any] = []
+    for factor in product.args if product.is_Mul else (product,):
+        (fixed if all(str(s) in constant for s in factor.free_symbols) else varying).append(factor)
+    return se.Mul(*fixed), se.Mul(*varying)
+
+
+def _atoms(expr: Any) -> list[Any]:
+    """The numbers of `expr`, at any depth."""
+    stack, found = [expr], []
+    while stack:
+        e = stack.pop()
+        if e.is_Number:
+            found.append(e)
+        else:
+            stack.extend(e.args)
+    return found
+
+
+def _degree(parts: list[dict[Any, int]]) -> int:
+    """The largest total degree of polynomial parts ({symbol: power}) divided by their common monomial."""
+    common = {s: min(p.get(s, 0) for p in parts) for s in parts[0]}
+    return max(sum(power - common.get(s, 0) for s, power in p.items()) for p in parts)
 
 
 def _horner(items: list[tuple[Any, dict[Any, Any]]]) -> Any:
