@@ -55,7 +55,7 @@ MUL = 40
 ADD = 30
 
 OFFSET_TERMS = 12
-"""The largest group of terms `restructure` factors around a constant offset (sympy on a few terms)."""
+"""The most monomials `restructure` factors at once around a constant offset (a spring's energy has 6)."""
 EXACT = 2**53
 """Integers below this are exact doubles (and fit every language's integer type we print)."""
 
@@ -396,6 +396,10 @@ def restructure(exprs: Sequence[Any], constants: Collection[str], velocities: Co
       each K_k, a polynomial in the constants (symbol names `constants`), factored greedily
       (Horner: l1*l2*m2 + l1*l2*m3 = l1*l2*(m2 + m3)) and all of them CSE'd together (sharing
       the suffix sums m2 + m3 within m1 + m2 + m3, and products of constants);
+    - except around a constant offset: the terms of a sum polynomial in the varying symbols
+      that hold a coordinate-free term are factored first (k*l - k*r -> -k*(r - l), k/2 r^2 -
+      k l r + k/2 l^2 -> k/2 (r - l)^2, see `_Restructure.offsets`), since collected they are
+      terms of size k cancelling to the force near r = l (round-off of a spacing of k);
     - a product x_k K_k met more than once (e.g. l_i l_j S sin(q_i - q_j) in F_i and F_j) is
       the temporary `_pk<i>`, computed once.
 
@@ -675,8 +679,9 @@ def _offset(parts: list[dict[Any, int]]) -> bool:
 def _content(terms: list[tuple[Any, dict[Any, int]]], constant: frozenset[str]) -> tuple[Any, Any, Any] | None:
     """(number, constant factor, varying factor) of sum(K * prod(symbol**power)) over `terms`
     (K a monomial in the constants), their common factor pulled out: k*l - k*r -> (1, k, l - r);
-    a polynomial left of degree 2 or more in the varying symbols is factored further by sympy's
-    `factor` (k/2*(r**2 - 2*l*r + l**2) -> (1/2, k, (r - l)**2)); None when nothing factors."""
+    a polynomial left of degree 2 in the varying symbols that is a square of a linear form is
+    written so (`_square`: k/2*(r**2 - 2*l*r + l**2) -> (1/2, k, (r - l)**2)), any other of degree
+    2 or more is given to sympy's `factor` (at most `OFFSET_TERMS` terms); None when nothing factors."""
     bases: list[dict[Any, Any]] = []
     numbers: list[Any] = []
     for k, powers in terms:
