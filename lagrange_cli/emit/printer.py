@@ -44,7 +44,7 @@ import math
 from collections.abc import Callable, Collection, Iterable, Mapping, Sequence
 from typing import Any, ClassVar
 
-from lagrange_cli._symengine import se
+from lagrange_cli._symengine import se, to_symengine
 from lagrange_cli.errors import DerivationError
 
 ATOM = 100
@@ -54,6 +54,8 @@ UNARY = 50
 MUL = 40
 ADD = 30
 
+OFFSET_TERMS = 12
+"""The most monomials `restructure` factors at once around a constant offset (a spring's energy has 6)."""
 EXACT = 2**53
 """Integers below this are exact doubles (and fit every language's integer type we print)."""
 
@@ -394,6 +396,10 @@ def restructure(exprs: Sequence[Any], constants: Collection[str], velocities: Co
       each K_k, a polynomial in the constants (symbol names `constants`), factored greedily
       (Horner: l1*l2*m2 + l1*l2*m3 = l1*l2*(m2 + m3)) and all of them CSE'd together (sharing
       the suffix sums m2 + m3 within m1 + m2 + m3, and products of constants);
+    - except around a constant offset: the terms of a sum polynomial in the varying symbols
+      that hold a coordinate-free term are factored first (k*l - k*r -> -k*(r - l), k/2 r^2 -
+      k l r + k/2 l^2 -> k/2 (r - l)^2, see `_Restructure.offsets`), since collected they are
+      terms of size k cancelling to the force near r = l (round-off of a spacing of k);
     - a product x_k K_k met more than once (e.g. l_i l_j S sin(q_i - q_j) in F_i and F_j) is
       the temporary `_pk<i>`, computed once.
 
@@ -450,6 +456,8 @@ class _Restructure:
         self.angles: dict[str, Any] = {}
         self.singles: dict[str, set[str]] = {}
         self.pairs: dict[tuple[str, str], set[str]] = {}
+        self.made: set[str] = set()
+        """names of the temporaries made here (`_sin0`, `_cd1_2`, ...)"""
 
     def collect(self, expr: Any) -> list[tuple[Any, Any, Any, Any]]:
         """`expr` as terms (c, v, x, K): number, velocity part, position part, constant part
@@ -490,7 +498,91 @@ class _Restructure:
             elif k.is_Mul and k.args[0].is_Number:
                 c, k = k.args[0], k / k.args[0]
             rows.append((c, v, x, k))
-        return rows
+        return self.offsets(rows) if len(rows) > 1 else rows
+
+    def offsets(self, rows: list[tuple[Any, Any, Any, Any]]) -> list[tuple[Any, Any, Any, Any]]:
+        """`rows` with the terms polynomial in the varying symbols around a constant offset factored:
+        k*l - k*r -> -k*(r - l), k/2*r**2 - k*l*r + k/2*l**2 -> k/2*(r - l)**2, k*x1 - k*x2 - k*l ->
+        k*(x1 - x2 - l), the same under a common varying factor (k*r*sin(th) - k*l*sin(th) -> k*(r - l)*sin(th)).
+
+        Collected by varying part, k*l and k*r are two terms of size k whose difference, near
+        r = l, is the force: with k = 1e10 it carries round-off of a spacing of 1e10, where
+        k*(r - l) is exact to a few ulps of itself. A group is the terms sharing their velocity
+        part and their non-polynomial position factors (trig temporaries, roots, ...); only a group
+        whose polynomial parts, divided by their common monomial, hold a 1 (a coordinate-free
+        offset, the only source of this cancellation) and a varying monomial is looked at
+        (`factored`); every other sum costs one pass over its terms."""
+        groups: dict[tuple[Any, Any], list[tuple[tuple[Any, Any, Any, Any], dict[Any, int]]]] = {}
+        for row in rows:
+            powers, rest = self.polynomial(row[2])
+            groups.setdefault((row[1], rest), []).append((row, powers))
+        result: list[tuple[Any, Any, Any, Any]] = []
+        for (v, rest), members in groups.items():
+            if len(members) < 2 or not _offset([powers for _, powers in members]):
+                result += [row for row, _ in members]
+                continue
+            result += self.factored(v, rest, members)
+        return result
+
+    def polynomial(self, x: Any) -> tuple[dict[Any, int], Any]:
+        """({varying symbol: power}, the other factors) of a position part `x`: its factors that are a
+        coordinate or t (not a temporary made here) to a positive integer power, and the rest."""
+        powers: dict[Any, int] = {}
+        rest: list[Any] = []
+        for factor in x.args if x.is_Mul else (x,):
+            base, exponent = factor.args if factor.is_Pow else (factor, _ONE)
+            if base.is_Symbol and str(base) not in self.made and exponent.is_Integer and int(exponent) > 0:
+                powers[base] = int(exponent)
+            elif not factor.is_Number:
+                rest.append(factor)
+        return powers, se.Mul(*rest)
+
+    def factored(self, v: Any, rest: Any, members: list[tuple[tuple[Any, Any, Any, Any], dict[Any, int]]]) -> list[tuple[Any, Any, Any, Any]]:
+        """The rows of one group with an offset (see `offsets`), as monomials (the constant parts
+        expanded), factored where that pulls out a common factor (`_content`): the whole group
+        first when it has at most `OFFSET_TERMS` monomials, then, once each, the monomials sharing
+        a constant symbol, the most shared first (k1*l1 - k1*x1 + k2*x2 - k2*x1 - k2*l2 - g*m ->
+        -k1*(x1 - l1) + k2*(x2 - x1 - l2) - g*m): at most one try of at most `OFFSET_TERMS` terms
+        per constant symbol. Monomials left over stay collected by varying part. A group with
+        floating-point coefficients is left as it is."""
+        monomials: list[tuple[Any, dict[Any, int], int]] = []
+        for index, ((c, _, _, k), powers) in enumerate(members):
+            constant = se.expand(c * k)
+            if any(isinstance(part, se.RealDouble) for part in _atoms(constant)):
+                return [row for row, _ in members]
+            monomials += [(part, powers, index) for part in (constant.args if constant.is_Add else (constant,))]
+        names = [{s for s in term.free_symbols if str(s) in self.constant} for term, _, _ in monomials]
+        counts: dict[Any, int] = {}
+        for found in names:
+            for symbol in found:
+                counts[symbol] = counts.get(symbol, 0) + 1
+        left = list(range(len(monomials)))
+        result: list[tuple[Any, Any, Any, Any]] = []
+        for symbol in [None, *sorted(counts, key=lambda s: (-counts[s], str(s)))]:
+            subset = [i for i in left if symbol is None or symbol in names[i]]
+            if not 2 <= len(subset) <= OFFSET_TERMS or not _offset([monomials[i][1] for i in subset]):
+                continue
+            factored = _content([(monomials[i][0], monomials[i][1]) for i in subset], self.constant)
+            if factored is None:
+                continue
+            coefficient, constant_part, varying = factored
+            result.append((coefficient, v, rest * varying, constant_part))
+            left = [i for i in left if i not in subset]
+        if len(left) == len(monomials):
+            return [row for row, _ in members]
+        kept: dict[int, list[Any]] = {}
+        for i in left:
+            kept.setdefault(monomials[i][2], []).append(monomials[i][0])
+        for index, parts in kept.items():
+            (_, _, x, _), _ = members[index]
+            k = se.Add(*parts)
+            number: Any = _ONE
+            if k.is_Number:
+                number, k = k, _ONE
+            elif k.is_Mul and k.args[0].is_Number:
+                number, k = k.args[0], k / k.args[0]
+            result.append((number, v, x, k))
+        return result
 
     def classify(self, factor: Any) -> tuple[int, Any, int]:
         """(sign, replacement, kind) of one factor of a term: kind 0 constant, 1 position, 2 velocity."""
@@ -525,7 +617,7 @@ class _Restructure:
         if argument.is_Symbol and str(argument) not in self.constant:
             k = self.number(argument)
             self.singles.setdefault(str(argument), set()).add(kind)
-            return 1, se.Symbol(f"_{kind}{self.tag}{k}")
+            return 1, self.temporary(f"_{kind}{self.tag}{k}")
         if not (argument.is_Add and len(argument.args) == 2):
             return 1, None
         difference = _difference(argument, self.constant)
@@ -534,8 +626,13 @@ class _Restructure:
         a, b, sign = difference
         k, j = self.number(a), self.number(b)
         self.pairs.setdefault((str(a), str(b)), set()).add(kind)
-        symbol = se.Symbol(f"_{'sd' if kind == 'sin' else 'cd'}{self.tag}{k}_{j}")
+        symbol = self.temporary(f"_{'sd' if kind == 'sin' else 'cd'}{self.tag}{k}_{j}")
         return (sign if kind == "sin" else 1), symbol
+
+    def temporary(self, name: str) -> Any:
+        """The symbol of a temporary made here (never a polynomial variable in `offsets`)."""
+        self.made.add(name)
+        return se.Symbol(name)
 
     def definitions(self, products: bool) -> list[tuple[str, Any]]:
         """The temporaries in order: sin and cos of single angles, then of the differences."""
@@ -569,6 +666,127 @@ def _difference(argument: Any, constant: frozenset[str]) -> tuple[Any, Any, int]
     if str(a) in constant or str(b) in constant:
         return None
     return (a, b, 1) if str(a) < str(b) else (b, a, -1)
+
+
+def _offset(parts: list[dict[Any, int]]) -> bool:
+    """Whether polynomial parts ({symbol: power}), divided by their common monomial, hold both a 1
+    (a coordinate-free offset) and a varying monomial."""
+    common = {s: min(p.get(s, 0) for p in parts) for s in parts[0]}
+    reduced = [any(power > common.get(s, 0) for s, power in p.items()) for p in parts]
+    return any(reduced) and not all(reduced)
+
+
+def _content(terms: list[tuple[Any, dict[Any, int]]], constant: frozenset[str]) -> tuple[Any, Any, Any] | None:
+    """(number, constant factor, varying factor) of sum(K * prod(symbol**power)) over `terms`
+    (K a monomial in the constants), their common factor pulled out: k*l - k*r -> (1, k, l - r);
+    a polynomial left of degree 2 in the varying symbols that is a square of a linear form is
+    written so (`_square`: k/2*(r**2 - 2*l*r + l**2) -> (1/2, k, (r - l)**2)), any other of degree
+    2 or more is given to sympy's `factor` (at most `OFFSET_TERMS` terms); None when nothing factors."""
+    bases: list[dict[Any, Any]] = []
+    numbers: list[Any] = []
+    for k, powers in terms:
+        number: Any = _ONE
+        factors: dict[Any, Any] = {}
+        for factor in k.args if k.is_Mul else (k,):
+            if factor.is_Number:
+                number = number * factor
+                continue
+            base, exponent = factor.args if factor.is_Pow and factor.args[1].is_Number else (factor, _ONE)
+            factors[base] = factors.get(base, 0) + exponent
+        factors.update(powers)
+        numbers.append(number)
+        bases.append(factors)
+    common = {b: min(f.get(b, 0) for f in bases) for b in bases[0] if all(b in f for f in bases)}
+    inside = se.Add(*(n * _monomial(_ONE, {b: e - common.get(b, 0) for b, e in f.items() if e != common.get(b, 0)}) for n, f in zip(numbers, bases, strict=True)))
+    outside = _monomial(_ONE, common)
+    coefficient: Any = _ONE
+    degree = _degree([{s: p for s, p in f.items() if s.is_Symbol and str(s) not in constant} for f in bases])
+    square = _square(inside, constant) if degree == 2 else None
+    if square is not None:
+        coefficient, inside = square[0], square[1] ** 2
+    elif degree >= 2:
+        import sympy as sp
+
+        product = sp.factor(sp.sympify(inside))
+        pieces = product.as_ordered_factors() if product.is_Mul else [product]
+        if any(f.is_Pow and f.args[0].is_Add for f in pieces) or len([f for f in pieces if not f.is_Number]) >= 2:
+            inside = _ONE
+            for f in pieces:
+                if f.is_Number:
+                    coefficient = coefficient * to_symengine(f)
+                else:
+                    inside = inside * to_symengine(f)
+        elif not common:
+            return None
+    elif not common:
+        return None
+    fixed, varying = _split(outside * inside, constant)
+    if fixed.is_Number:
+        coefficient, fixed = coefficient * fixed, _ONE
+    elif fixed.is_Mul and fixed.args[0].is_Number:
+        coefficient, fixed = coefficient * fixed.args[0], fixed / fixed.args[0]
+    return coefficient, fixed, varying
+
+
+def _square(polynomial: Any, constant: frozenset[str]) -> tuple[Any, Any] | None:
+    """(a, L) with `polynomial` = a*L**2, a a number and L linear in the varying symbols (those not
+    in `constant`), when it is such a square (r**2 - 2*l*r + l**2 -> (1, r - l)), else None: the
+    shape of every spring's energy, recognised without sympy (one expansion to check it)."""
+    rows: dict[tuple[tuple[str, int], ...], list[Any]] = {}
+    symbols: dict[str, Any] = {}
+    for term in polynomial.args if polynomial.is_Add else (polynomial,):
+        key: list[tuple[str, int]] = []
+        fixed: list[Any] = []
+        for factor in term.args if term.is_Mul else (term,):
+            base, exponent = factor.args if factor.is_Pow else (factor, _ONE)
+            if base.is_Symbol and str(base) not in constant and exponent.is_Integer:
+                key.append((str(base), int(exponent)))
+                symbols[str(base)] = base
+            else:
+                fixed.append(factor)
+        rows.setdefault(tuple(sorted(key)), []).append(se.Mul(*fixed))
+    squares = sorted(name for ((name, power),) in (k for k in rows if len(k) == 1) if power == 2)
+    if not squares:
+        return None
+    name = squares[0]
+    a = se.Add(*rows[((name, 2),)])
+    if not a.is_Number or a == 0:
+        return None
+    linear = se.Add(symbols[name])
+    for powers, parts in rows.items():
+        if (name, 1) in powers:
+            others = se.Mul(*(symbols[n] ** p for n, p in powers if n != name))
+            linear = linear + se.Add(*parts) * others / (2 * a)
+    if se.expand(a * linear**2 - polynomial) != 0:
+        return None
+    return a, linear
+
+
+def _split(product: Any, constant: frozenset[str]) -> tuple[Any, Any]:
+    """(the factors of `product` free of varying symbols, the others)."""
+    fixed: list[Any] = []
+    varying: list[Any] = []
+    for factor in product.args if product.is_Mul else (product,):
+        (fixed if all(str(s) in constant for s in factor.free_symbols) else varying).append(factor)
+    return se.Mul(*fixed), se.Mul(*varying)
+
+
+def _atoms(expr: Any) -> list[Any]:
+    """The numbers of `expr`, at any depth."""
+    stack, found = [expr], []
+    while stack:
+        e = stack.pop()
+        if e.is_Number:
+            found.append(e)
+        else:
+            stack.extend(e.args)
+    return found
+
+
+def _degree(parts: list[dict[Any, int]]) -> int:
+    """The largest total degree of polynomial parts ({symbol: power}) divided by their common monomial."""
+    common = {s: min(p.get(s, 0) for p in parts) for s in parts[0]}
+    return max(sum(power - common.get(s, 0) for s, power in p.items()) for p in parts)
 
 
 def _horner(items: list[tuple[Any, dict[Any, Any]]]) -> Any:

@@ -14,10 +14,9 @@ def mass_matrix(q, p=PARAMETERS):
     m = p["m"]
     l = p["l"]  # noqa: E741
     x, _ = q
-    _kk0 = l*m
-    _c0 = x*x
-    _c1 = l*l*m + m*_c0
-    return [[m, 0], [0, 2*x*_kk0 + _c1]]
+    _c0 = l + x
+    _c1 = m*_c0*_c0
+    return [[m, 0], [0, _c1]]
 
 
 def forcing(q, q_dot, p=PARAMETERS):
@@ -31,14 +30,12 @@ def forcing(q, q_dot, p=PARAMETERS):
     x_dot, theta_dot = q_dot
     _sin0 = sin(theta)
     _cos0 = cos(theta)
-    _k0 = g*m
-    _kk0 = l*m
-    _c2 = _k0*_cos0
+    _kk0 = g*m
+    _c0 = l + x
+    _c2 = _kk0*_cos0
     _c3 = theta_dot*theta_dot
-    _c4 = m*x
-    _c5 = _k0*_sin0
-    _c6 = 2*_c4
-    return [_c2 + _c3*_kk0 + _c3*_c4 - k*x - 2*zeta*sqrt(k*m)*x_dot, -x*_c5 - l*_c5 - x_dot*(_c6 + 2*l*m)*theta_dot]
+    _c4 = -x - l
+    return [_c2 + m*_c3*_c0 - k*x - 2*zeta*sqrt(k*m)*x_dot, _c4*_kk0*_sin0 - (2*x + 2*l)*m*x_dot*theta_dot]
 
 
 def energy(q, q_dot, p=PARAMETERS):
@@ -50,14 +47,13 @@ def energy(q, q_dot, p=PARAMETERS):
     x, theta = q
     x_dot, theta_dot = q_dot
     _cos0 = cos(theta)
-    _k0 = g*m
-    _c0 = x*x
-    _c1 = l*l*m + m*_c0
-    _c2 = _k0*_cos0
+    _kk0 = g*m
+    _c0 = l + x
+    _c1 = m*_c0*_c0
+    _c2 = _kk0*_cos0
     _c3 = theta_dot*theta_dot
-    _c4 = m*x
-    _c6 = 2*_c4
-    return _c3*(l*_c6 + _c1)/2 + (-l - x)*_c2 + m*x_dot*x_dot/2 + k*_c0/2
+    _c4 = -x - l
+    return m*x_dot*x_dot/2 + _c3*_c1/2 + _c4*_c2 + k*x*x/2
 
 
 def rhs(t, y, p=PARAMETERS):
@@ -70,19 +66,16 @@ def rhs(t, y, p=PARAMETERS):
     x, theta, x_dot, theta_dot = y.tolist() if hasattr(y, "tolist") else y
     _sin0 = sin(theta)
     _cos0 = cos(theta)
-    _k0 = g*m
-    _kk0 = l*m
-    _c0 = x*x
-    _c1 = l*l*m + m*_c0
-    _c2 = _k0*_cos0
+    _kk0 = g*m
+    _c0 = l + x
+    _c1 = m*_c0*_c0
+    _c2 = _kk0*_cos0
     _c3 = theta_dot*theta_dot
-    _c4 = m*x
-    _c5 = _k0*_sin0
-    _c6 = 2*_c4
+    _c4 = -x - l
     _m00 = m
     _m01 = 0
-    _m11 = 2*x*_kk0 + _c1
-    _f0 = _c2 + _c3*_kk0 + _c3*_c4 - k*x - 2*zeta*sqrt(k*m)*x_dot
-    _f1 = -x*_c5 - l*_c5 - x_dot*(_c6 + 2*l*m)*theta_dot
+    _m11 = _c1
+    _f0 = _c2 + m*_c3*_c0 - k*x - 2*zeta*sqrt(k*m)*x_dot
+    _f1 = _c4*_kk0*_sin0 - (2*x + 2*l)*m*x_dot*theta_dot
     _det = _m00*_m11 - _m01*_m01
     return [x_dot, theta_dot, (_m11*_f0 - _m01*_f1)/_det, (_m00*_f1 - _m01*_f0)/_det]
