@@ -32,7 +32,7 @@ SYSTEMS = A9.systems()
 # of the kept l(t) constraint; the first pass through periapsis (r = 0.008, phi_dot = 3117) and back out;
 # 100 periods of the undamped 9.6e3 rad/s spring; the tumble through the drag's kinks; the chirp through
 # both resonances' lower edge; 5 nutations (36 spin turns) of the top; two periods of the FPU chain's lowest mode;
-# eight turns of the rolling disk with both velocity constraints kept.
+# five rolling turns of the disk (its heading through 7 rad) with both velocity constraints kept.
 CASES = [
     ("pumped_pendulum", 3.0, "DOP853"),
     ("kepler099", 0.5, "exact"),
