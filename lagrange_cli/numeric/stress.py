@@ -276,9 +276,8 @@ def regimes(model: Model, scales: Sequence[tuple[str, Sequence[float]]], long_fa
         return tuple(result)
     longer = min(MAX_SAMPLES, max(SAMPLES, round((SAMPLES - 1) * long_factor) + 1))
     result = [Regime("defaults", base.t_end, {}, {}), Regime(f"long horizon (t_end x {long_factor:g})", base.t_end * long_factor, {}, {}, longer, horizon=True)]
-    at_rest = not any(base.y0[model.n :])  # then "x 3" would be 0: the velocities come from the slowest mode (`_high_energy`), and the name says so
-    energetic, mode = _high_energy(model, base.values, base.y0, energy_factor, base.t0)
-    how = f"velocities x {energy_factor:g}" if not at_rest else f"at rest in the file: velocities {energy_factor:g} x the {mode}'s rate x each coordinate's size"
+    energetic, mode = _high_energy(model, base.values, base.y0, energy_factor, base.t0)  # at rest (mode): "x 3" would be 0, the velocities come from the slowest mode
+    how = f"velocities x {energy_factor:g}" if mode is None else f"at rest in the file: velocities {energy_factor:g} x the {mode}'s rate x each coordinate's size"
     result.append(Regime(f"high energy ({how})", base.t_end, {}, energetic))
     singular = _near_singular(model, base.values, base.y0)
     if singular is not None:
@@ -298,20 +297,19 @@ m/s and rad/s, the defaults again, for a pendulum that swings at 2.2 rad/s (Van 
 against its oscillation's 1.5/s)."""
 
 
-def _high_energy(model: Model, p: Sequence[float], y0: Sequence[float], factor: float, t0: float) -> tuple[dict[str, float], str]:
+def _high_energy(model: Model, p: Sequence[float], y0: Sequence[float], factor: float, t0: float) -> tuple[dict[str, float], str | None]:
     """The high-energy regime's initial velocities, and which mode's rate set them where the file starts at rest
-    ("slowest mode", or "slowest oscillation": CREEPING); with kept constraints the nearest velocities that meet
-    them at (t0, q0), a . v + b = 0."""
+    ("slowest mode", or "slowest oscillation": CREEPING), None where it does not.
+
+    With kept constraints a . v + b = 0 at (t0, q0), the velocities are the part the constraints prescribe,
+    v_b = -a^T (a a^T)^-1 b (a constraint moving in time: b = df/dt), plus `factor` x the free part, the file's
+    velocities projected onto a . v = 0: "at rest" means that free part is 0. Audit 9 F1: a pendulum whose length is
+    pumped by a kept constraint was started with all its velocities x 3 projected onto a . v = 0, so at rest
+    radially, off its constraint, and its verdict was about a state simulate calls inconsistent."""
     n = model.n
     v = np.array(y0[n:], dtype=float)
-    mode = "slowest mode"
-    if not np.any(v):
-        found = policy.initial_spectrum(model, p, y0)
-        rate = found.slowest if found is not None and found.slowest > 0 else 1.0
-        if found is not None and found.oscillation > 0 and rate < CREEPING * found.oscillation:
-            rate, mode = found.oscillation, "slowest oscillation"  # a creeping mode (a friction's, a relaxation's) would leave it at rest
-        v = rate * diagnostics.coordinate_sizes(y0, n)  # r = 7e6 m moves by metres per second, not by 1e-6 of itself
-    v = factor * v
+    prescribed = np.zeros(n)
+    free = np.eye(n)
     if model.constraints:
         import sympy as sp
 
@@ -320,9 +318,20 @@ def _high_energy(model: Model, p: Sequence[float], y0: Sequence[float], factor: 
         try:
             ab = np.array(sp.lambdify([model.t, *model.q], rows.tolist(), modules="math")(t0, *y0[:n]), dtype=float)
             a, b = ab[:, :n], ab[:, n]
-            v = v - a.T @ np.linalg.solve(a @ a.T, a @ v + b)  # the nearest velocities with a . v + b = 0 (b: a constraint moving in time, audit 9 F1)
+            prescribed = -a.T @ np.linalg.solve(a @ a.T, b)
+            free = free - a.T @ np.linalg.solve(a @ a.T, a)
         except (ArithmeticError, ValueError, TypeError, np.linalg.LinAlgError):
             pass  # the constraint rows cannot be evaluated (or are dependent) at the start: velocities as they are; the run reports it
+    moving = free @ v
+    mode = None
+    if not np.any(np.abs(moving) > (1e-12 * max(1.0, float(np.max(np.abs(v)))) if model.constraints else 0.0)):  # a projection's round-off is 0
+        mode = "slowest mode"
+        found = policy.initial_spectrum(model, p, y0)
+        rate = found.slowest if found is not None and found.slowest > 0 else 1.0
+        if found is not None and found.oscillation > 0 and rate < CREEPING * found.oscillation:
+            rate, mode = found.oscillation, "slowest oscillation"  # a creeping mode (a friction's, a relaxation's) would leave it at rest
+        moving = free @ (rate * diagnostics.coordinate_sizes(y0, n))  # r = 7e6 m moves by metres per second, not by 1e-6 of itself
+    v = prescribed + factor * moving
     return dict(zip(_names(model)[n:], v.tolist(), strict=True)), mode
 
 
