@@ -513,6 +513,8 @@ class _Stopped:
     budget: int
     steps: int
     t_last: float
+    span: float
+    """The end of its window (its start the settings' t0)."""
 
 
 def _stopped_probes(model: Model) -> list[_Stopped]:
@@ -537,7 +539,7 @@ def _probe_settings(model: Model, candidate: Candidate, rtol: float, probe: Setu
 
 
 def _shared_probe(model: Model, candidate: Candidate, rtol: float, probe: Setup) -> _Stopped | None:
-    """A probe kept by `_keep_probe` that is this probe's run, where there is one. Compiled Radau's steps depend on the window's
+    """A probe kept by `_keep_probe` that is this probe's run, where there is one (over a window no shorter). Compiled Radau's steps depend on the window's
     end only where a trial step is clamped to it (the initial step, scipy's, is at most the window; a step is shortened onto the
     end), so a run over a longer window from the same state with the same settings takes the same steps as a kept probe that
     never tried a step reaching its own end (`_keep_probe`); its driver checks the budget at the same step counts, so with a
@@ -549,7 +551,7 @@ def _shared_probe(model: Model, candidate: Candidate, rtol: float, probe: Setup)
         return None
     settings, budget = found
     for kept in _stopped_probes(model):
-        if kept.settings == settings and kept.budget <= budget <= kept.steps and kept.t_last < probe.t_end:
+        if kept.settings == settings and kept.span <= probe.t_end and kept.budget <= budget <= kept.steps:
             return kept
     return None
 
@@ -565,7 +567,7 @@ def _keep_probe(model: Model, candidate: Candidate, rtol: float, probe: Setup, f
     settings, budget = shared
     if not max(_first_step(model, found.settings)) < FIRST_STEP_ROOM * probe.t_end:
         return
-    _stopped_probes(model).append(_Stopped(settings, budget, found.stats.steps, found.t_last))
+    _stopped_probes(model).append(_Stopped(settings, budget, found.stats.steps, found.t_last, probe.t_end))
 
 
 FIRST_STEP_ROOM = 0.5
