@@ -22,7 +22,7 @@ import numpy as np
 from lagrange_cli.errors import LagrangeError
 from lagrange_cli.inputs import substitute
 from lagrange_cli.model import Model
-from lagrange_cli.numeric import compile, diagnostics, integrators, memo, policy
+from lagrange_cli.numeric import compile, diagnostics, integrators, memo, policy, switching
 from lagrange_cli.numeric.codegen import real_diff
 from lagrange_cli.numeric.runs import (
     ATOL_RATIO,
@@ -38,14 +38,16 @@ from lagrange_cli.numeric.runs import (
     component_scale,
     over_step_budget,
     run,
+    run_steps,
     scaled_errors,
+    settings_for,
     start_of,
     step_factor,
     tol_text,
 )
 from lagrange_cli.numeric.settings import Settings, code_parameters
 from lagrange_cli.numeric.simulate import Trajectory, integrate, state_text
-from lagrange_cli.numeric.status import Status
+from lagrange_cli.numeric.status import MAX_FACTOR, Status
 from lagrange_cli.numeric.tableaux import EXPLICIT
 
 HORIZON_THRESHOLD = 1e-3  # separation (scaled) at which nearby trajectories have parted
@@ -307,7 +309,16 @@ def explicit_attempt(model: Model, candidate: Candidate, rtol: float, setup: Set
     The probe is sized so that it is not stopped only to be made again from t = 0 where the steps the run
     needs are known ahead: PACE_ROOM x its stability-limited steps (`stable_steps`), or `expected` (compiled
     steps: a finished run the attempt follows over the same window and takes no more steps than, `_bounded`),
-    within the budget."""
+    within the budget.
+
+    Once per model and arguments: `horizon`'s base run is the reference's first attempt (the same call), and where its probe
+    runs out the reference would probe it again (the penalty pendulum of k = 1e9: compiled DOP853 at 2.5e-14, 200000 steps,
+    0.3-0.4 s, twice in each of its three regimes). A run is deterministic: the same arguments give the same steps."""
+    key = ("explicit attempt", candidate, rtol, ceiling, expected, *reference_key(setup, rtol))
+    return memo.once(model, key, lambda: _explicit_attempt(model, candidate, rtol, setup, ceiling, expected))
+
+
+def _explicit_attempt(model: Model, candidate: Candidate, rtol: float, setup: Setup, ceiling: int, expected: int) -> Attempt:
     budget = setup.reference_steps
     share = max(1, math.ceil(PACE_PROBE * budget))
     stable = stable_steps(model, setup, candidate.method) / COMPILED_STEPS  # in the budget's scipy steps
@@ -474,6 +485,9 @@ def _doomed(model: Model, setup: Setup, rtol: float, candidate: Candidate = RADA
         return f"at rtol {tol_text(rtol)} a pilot run extrapolates to {measured.implicit_steps(setup.t_end):.3g} steps, above the budget of {allowed}"
     span = PROBE_SPAN * setup.t_end
     probe = replace(setup, t_end=span, times=(0.0, span), reference_max_steps=max(PROBE_STEPS, math.ceil(PROBE_SHARE * budget)))
+    shared = _shared_probe(model, candidate, rtol, probe)
+    if shared is not None:
+        return f"at rtol {tol_text(rtol)} {candidate.method} took {shared.steps} steps to reach t = {shared.t_last:.3g} of the first {span:.3g}"
     # paced (REFERENCE_PACE_MARGIN) except for the loosest rtol, whose verdict decides between Radau and the explicit fallback: a pace
     # judged in a fast transient can doom an rtol that finishes (the elastic pendulum of k = 1e11 at high energy: Radau at 1e-7,
     # judged after 238 steps at 0.018% of the probe's span, finishes the window in its budget)
@@ -484,8 +498,106 @@ def _doomed(model: Model, setup: Setup, rtol: float, candidate: Candidate = RADA
             f" not cover it within {found.margin:g} x its share of the budget ({found.budget})"
         )
     if over_step_budget(found):
+        _keep_probe(model, candidate, rtol, probe, found)
         return f"at rtol {tol_text(rtol)} {candidate.method} took {found.stats.steps} steps to reach t = {found.t_last:.3g} of the first {span:.3g}"
     return ""
+
+
+@dataclass(frozen=True)
+class _Stopped:
+    """A compiled Radau probe (`_doomed`) that ran out of its step budget inside its window, kept for the probes after it
+    (`_shared_probe`): its decided settings (less the window and notes), its compiled step budget, the steps it took and
+    where it stopped."""
+
+    settings: Settings
+    budget: int
+    steps: int
+    t_last: float
+    span: float
+    """The end of its window (its start the settings' t0)."""
+
+
+def _stopped_probes(model: Model) -> list[_Stopped]:
+    """The compiled Radau probes of this model that ran out of their budget (`_keep_probe`), once per model."""
+    return memo.once(model, ("stopped probes",), list)
+
+
+def _probe_settings(model: Model, candidate: Candidate, rtol: float, probe: Setup) -> tuple[Settings, int] | None:
+    """The decided settings (window and notes blanked) and compiled step budget a compiled Radau probe over `probe` runs with
+    (as `paced_run` sizes it), None where its steps may depend on the window's end other than through the last step: another
+    method, scipy's Radau, kept constraints (projections restart the method with an initial step clamped to the window), switching
+    functions (landings and hops restart it likewise) or a stop condition."""
+    if candidate.method != "Radau" or backend_for(candidate) != "compiled" or model.constraints:
+        return None
+    sized = replace(probe, reference_max_steps=min(probe.reference_steps, _implicit_budget(model, probe)))
+    decided = settings_for(model, candidate, rtol, sized)
+    if decided.backend != "compiled" or decided.projection or decided.until is not None or decided.event is not None:
+        return None
+    if switching.located(compile.build(model, "python").module):
+        return None
+    return replace(decided, t_end=0.0, t_eval=(), notes=()), run_steps(decided, sized.reference_steps, reference=True)
+
+
+def _shared_probe(model: Model, candidate: Candidate, rtol: float, probe: Setup) -> _Stopped | None:
+    """A probe kept by `_keep_probe` that is this probe's run, where there is one (over a window no shorter). Compiled Radau's steps depend on the window's
+    end only where a trial step is clamped to it (the initial step, scipy's, is at most the window; a step is shortened onto the
+    end), so a run over a longer window from the same state with the same settings takes the same steps as a kept probe that
+    never tried a step reaching its own end (`_keep_probe`); its driver checks the budget at the same step counts, so with a
+    budget between the kept probe's and the steps the kept probe took it stops where that one stopped, at the same t. The
+    stiff elastic pendulum in r: the long horizon's probes of Radau at 1e-10, 1e-9 and 1e-8 over [0, 10] stop at t = 0.0144,
+    0.0421 and 0.289 after 100000 steps each, where the defaults' over [0, 1] stopped (1.4-2.2 s of `stress`)."""
+    found = _probe_settings(model, candidate, rtol, probe)
+    if found is None:
+        return None
+    settings, budget = found
+    for kept in _stopped_probes(model):
+        if kept.settings == settings and kept.span <= probe.t_end and kept.budget <= budget <= kept.steps:
+            return kept
+    return None
+
+
+def _keep_probe(model: Model, candidate: Candidate, rtol: float, probe: Setup, found: Trajectory) -> None:
+    """Keep `found`, a probe over `probe`'s window that ran out of its budget, for `_shared_probe`, where no trial step of it can
+    have reached the window's end: every trial after the first is at most status.MAX_FACTOR x the largest step taken, from a t
+    no later than where it stopped, and the first (scipy's initial step, `_first_step`) was below the window."""
+    shared = _probe_settings(model, candidate, rtol, probe)
+    largest = found.stats.max_step
+    if shared is None or largest is None or not found.t_last + MAX_FACTOR * largest < probe.t_end:
+        return
+    settings, budget = shared
+    if not max(_first_step(model, found.settings)) < FIRST_STEP_ROOM * probe.t_end:
+        return
+    _stopped_probes(model).append(_Stopped(settings, budget, found.stats.steps, found.t_last, probe.t_end))
+
+
+FIRST_STEP_ROOM = 0.5
+"""`_keep_probe` keeps a probe whose initial step, recomputed here in Python, is below this fraction of its window: the
+compiled start computes it in a different order of operations, so not exactly alike."""
+
+
+RADAU_ERROR_ORDER = 3
+"""kernels.RADAU_ERROR_ORDER (kernels imports numba, which reference.py does not need)."""
+
+
+def _first_step(model: Model, settings: Settings) -> tuple[float, float]:
+    """The Euler step that tests the slope and the initial step compiled Radau takes at the start of `settings`
+    (kernels.radau_start: scipy's `select_initial_step`, error order 3, rtol at least 100 x the machine epsilon) over an
+    unbounded window, neither clamped to its end; inf where the right-hand side cannot be evaluated."""
+    rhs = policy.safe_rhs(compile.build(model, "python").module, settings.p)
+    y0 = np.array(settings.y0, dtype=float)
+    f0 = rhs(settings.t0, y0)
+    if f0 is None:
+        return math.inf, math.inf
+    rtol = max(settings.rtol, 100 * np.finfo(float).eps)
+    scale = settings.atol + np.abs(y0) * rtol
+    d0, d1 = float(np.sqrt(np.mean((y0 / scale) ** 2))), float(np.sqrt(np.mean((f0 / scale) ** 2)))
+    h0 = 1e-6 if d0 < 1e-5 or d1 < 1e-5 else 0.01 * d0 / d1
+    f1 = rhs(settings.t0 + h0, y0 + h0 * f0)
+    if f1 is None:
+        return math.inf, math.inf
+    d2 = float(np.sqrt(np.mean(((f1 - f0) / scale) ** 2))) / h0
+    h1 = max(1e-6, h0 * 1e-3) if d1 <= 1e-15 and d2 <= 1e-15 else (0.01 / max(d1, d2)) ** (1.0 / (RADAU_ERROR_ORDER + 1))
+    return h0, min(100 * h0, h1, settings.max_step)
 
 
 def reference_key(setup: Setup, tolerance: float, *more: object) -> tuple[object, ...]:
