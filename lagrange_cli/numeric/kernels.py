@@ -29,7 +29,6 @@ from typing import Any
 
 import numpy as np
 from numba import njit, types
-from numba.extending import overload
 
 from lagrange_cli.numeric.status import (
     ANALYTIC,
@@ -73,7 +72,6 @@ from lagrange_cli.numeric.status import (
     NSTEPS,
     PAUSE_STEPS,
     POSITION,
-    PROJECTION_SIZE,
     PROJECTIONS,
     QUICK_STEPS,
     ROUND_OFF_LEVEL,
@@ -690,6 +688,11 @@ LINEAR = 3
 """The interpolant kind of `_hop`'s path, y(t) = y_old + (t - t_old) coef[0] (kinds 0 and 1: the explicit pairs'
 dense output, `_erk_eval`; RADAU_KIND: the collocation polynomial, `_radau_eval`)."""
 RADAU_KIND = 2
+_LINEAR, _RADAU_KIND = np.int64(LINEAR), np.int64(RADAU_KIND)
+AHEAD = np.bool_(True)
+"""The kinds and `_found`'s flag as typed values (int64, bool), never literals: numba compiles a helper once for each
+literal value it is called with (3 and 2 made `_interpolant`, `_switch_root` and `_erk_eval`, never called for a
+literal kind, two more times each; True and False, `_found` twice: helper compile18)."""
 HOP_REACH = 2.0 / MIN_FACTOR
 """A hop looks for the crossing within HOP_REACH x the collapse step (MIN_STEP_SPACINGS spacings of t): the last step
 rejected was at most 1 / MIN_FACTOR times that."""
@@ -728,7 +731,7 @@ def _switch_root(switch, i, kind, t_old, h, y_old, coef, p, work, g, g_lo, g_hi)
             break
         mid = _illinois_guess(lo, hi, g_lo, g_hi)
         _interpolant(kind, t_old, h, y_old, coef, mid, work)
-        _call_switch(switch, mid, work, p, g)
+        switch(mid, work, p, g)
         g_mid = g[i]
         if g_mid == 0.0:
             return mid
@@ -747,7 +750,7 @@ def _changed(switch, t, y, p, record, m, g_end, g_start):
         g_old = record[SWITCH_HEAD + i]
         if (g_old < 0.0) != (g_end[i] < 0.0) and g_old != 0.0:
             if not started:
-                _call_switch(switch, t, y, p, g_start)
+                switch(t, y, p, g_start)
                 started = True
             if not (g_start[i] == 0.0 or (g_start[i] < 0.0) == (g_end[i] < 0.0)):
                 return True
@@ -796,7 +799,7 @@ def _landed(switch, t, y, p, record, m, g):
     """The record after a landing on the crossing at t: g on the crossing's far side for the surface crossed, at the
     landing point for the others (g: workspace), nothing pending, one more crossing; True when it is a sliding mode
     (`_chattering`)."""
-    _call_switch(switch, t, y, p, g)
+    switch(t, y, p, g)
     crossed = int(record[SWITCH_INDEX])
     for i in range(m):
         record[SWITCH_HEAD + i] = record[SWITCH_HEAD + m + i] if i == crossed else g[i]
@@ -821,20 +824,20 @@ def _hop(switch, accel, t, y, f, reach, p, record, m, g_start, g_end, g_work, wo
     for i in range(n):
         slope[0, i] = f[i]
     t_reach = t + reach
-    _interpolant(LINEAR, t, reach, y, slope, t_reach, work)
-    _call_switch(switch, t_reach, work, p, g_end)
-    _call_switch(switch, t, y, p, g_start)
+    _interpolant(_LINEAR, t, reach, y, slope, t_reach, work)
+    switch(t_reach, work, p, g_end)
+    switch(t, y, p, g_start)
     first, t_far, far_negative = -1, t_reach, False
     for i in range(m):
         if g_end[i] != 0.0 and (g_start[i] == 0.0 or (g_start[i] < 0.0) != (g_end[i] < 0.0)):
-            t_i = t if g_start[i] == 0.0 else _switch_root(switch, i, LINEAR, t, reach, y, slope, p, work, g_work, g_start[i], g_end[i])
+            t_i = t if g_start[i] == 0.0 else _switch_root(switch, i, _LINEAR, t, reach, y, slope, p, work, g_work, g_start[i], g_end[i])
             if first < 0 or t_i < t_far:
                 first, t_far, far_negative = i, t_i, g_end[i] < 0.0
     if first < 0:
         return STEP_COLLAPSE, t
     for _ in range(8):  # strictly past the surface: on it (g exactly 0) the forces are neither side's
-        _interpolant(LINEAR, t, reach, y, slope, t_far, y_far)
-        _call_switch(switch, t_far, y_far, p, g_end)
+        _interpolant(_LINEAR, t, reach, y, slope, t_far, y_far)
+        switch(t_far, y_far, p, g_end)
         if g_end[first] != 0.0:
             break
         t_far = np.nextafter(t_far, np.inf)
@@ -972,14 +975,14 @@ def _erk_loop(pair, y, f, state, control, ts, ys, p, stats, accel, event, switch
                         return SINGULAR
                     first, t_first = _earliest(switch, pair, t, h, y, coef, p, switching, m, g_new, g_start, g_work, work)
                 if first >= 0 and t < t_first < t_new:  # discard the step: take it again to land on the crossing
-                    _found(switching, m, first, t_first, g_new, True)
+                    _found(switching, m, first, t_first, g_new, AHEAD)
                     stats[NREJECT] += 1
                     h_abs = t_first - t
                     state[H] = h_abs  # a pause right here resumes with this step
                     continue
                 if first >= 0:  # the crossing is at the step's end: it has landed there
                     arrived = True
-                    _found(switching, m, first, t_first, g_new, False)
+                    _found(switching, m, first, t_first, g_new, not AHEAD)
         stats[NSTEPS] += 1
         if not landed:
             stats[HMIN] = min(stats[HMIN], h)
@@ -1702,6 +1705,8 @@ NEWTON_MAXITER = 6
 """Newton iterations of one step at most (RADAU5's NIT = 7 is the default there; scipy takes 6)."""
 RADAU_ERROR_ORDER = 3
 """The error estimate's order (scipy's `error_estimator_order` of Radau): the initial step is chosen for it."""
+_RADAU_ORDER = np.int64(RADAU_ERROR_ORDER)
+"""RADAU_ERROR_ORDER typed int64 as the explicit pairs' orders are, so that `_initial_step` compiles once for both."""
 JAC_RATE = 1e-3
 """A step whose Newton iteration took more than 2 iterations at a contraction rate above this refreshes J."""
 DIVERGENT = 0.99
@@ -1977,20 +1982,7 @@ def radau_start(t0, y, f, control, p, stats, jac, memory, accel, jacobian):
     memory[T_OLD], memory[STEP_OLD], memory[H_ABS_OLD], memory[ERROR_OLD] = t0, 0.0, np.nan, np.nan
     memory[CURRENT_JAC], memory[LU_STEP], memory[HAVE_DENSE], memory[CONTRACTION] = 1.0, 0.0, 0.0, 1.0
     rtol = max(control[RTOL], 100 * _EPS)
-    return _initial_step(accel, t0, y, f, control[T_BOUND], control[MAX_STEP], RADAU_ERROR_ORDER, rtol, control[ATOL], p, x, a, stats)
-
-
-def _call_switch(switch, t, y, p, out):
-    """switch(t, y, p, out) in _radau_loop: radau_run passes its stop condition in its place (never called,
-    m = 0), which this compiles to nothing (a jitted stand-in would be a dynamic global: no caching)."""
-    return switch(t, y, p, out)
-
-
-@overload(_call_switch)
-def _call_switch_typed(switch, t, y, p, out):
-    if switch == _SWITCH_T:
-        return lambda switch, t, y, p, out: switch(t, y, p, out)
-    return lambda switch, t, y, p, out: 0
+    return _initial_step(accel, t0, y, f, control[T_BOUND], control[MAX_STEP], _RADAU_ORDER, rtol, control[ATOL], p, x, a, stats)
 
 
 def radau_run(y, f, state, control, ts, ys, p, stats, jac, dense, y_old, memory, accel, event, jacobian):
@@ -1998,10 +1990,7 @@ def radau_run(y, f, state, control, ts, ys, p, stats, jac, dense, y_old, memory,
     J = jac, the last step's collocation polynomial (dense, y_old) and the step control's `memory`, all
     from `radau_start` or the call before) by Radau IIA until t >= control[T_STOP], writing ys[j] = y(ts[j])
     for the samples passed (state[NEXT_SAMPLE]: the next one); returns a status code (RUNNING: paused)."""
-    none = np.empty(SWITCH_HEAD)  # switching_record(0)
-    none[SWITCH_PENDING] = np.inf
-    bounds, unused = _no_projection()
-    return _radau_loop(y, f, state, control, ts, ys, p, stats, jac, dense, y_old, memory, accel, event, jacobian, event, none, event, event, bounds, unused, unused)
+    return _radau_loop(y, f, state, control, ts, ys, p, stats, jac, dense, y_old, memory, accel, event, jacobian, None, None, None, None, None, None, None)
 
 
 def radau_switched(y, f, state, control, ts, ys, p, stats, jac, dense, y_old, memory, accel, event, jacobian, switch, record):
@@ -2013,8 +2002,7 @@ def radau_switched(y, f, state, control, ts, ys, p, stats, jac, dense, y_old, me
     initial step, no predictor from the step before and the predictive controller's memory cleared. A
     collapse onto a surface where the forces jump hops across it, and a sliding mode stops the run, as in
     erk_switched."""
-    bounds, unused = _no_projection()
-    return _radau_loop(y, f, state, control, ts, ys, p, stats, jac, dense, y_old, memory, accel, event, jacobian, switch, record, event, event, bounds, unused, unused)
+    return _radau_loop(y, f, state, control, ts, ys, p, stats, jac, dense, y_old, memory, accel, event, jacobian, switch, record, None, None, None, None, None)
 
 
 def radau_projected(y, f, state, control, ts, ys, p, stats, jac, dense, y_old, memory, accel, event, jacobian, rows, energy, bounds, holonomic, record):
@@ -2027,39 +2015,20 @@ def radau_projected(y, f, state, control, ts, ys, p, stats, jac, dense, y_old, m
     step size it had before it was shortened (its growth capped at 1). The largest corrections and the
     counts go into `record` (status.POSITION, ...); record[NEXT_BOUND] is the next projection time's index.
     No switching functions are located (as erk_projected). Pauses as radau_run does; returns a status code."""
-    none = np.empty(SWITCH_HEAD)  # switching_record(0)
-    none[SWITCH_PENDING] = np.inf
-    return _radau_loop(y, f, state, control, ts, ys, p, stats, jac, dense, y_old, memory, accel, event, jacobian, event, none, rows, energy, bounds, holonomic, record)
-
-
-@njit(error_model="numpy")
-def _no_projection():
-    """The projection arguments of radau_run and radau_switched: no projection time (the bound +inf),
-    the holonomic marks and record unused."""
-    bounds = np.empty(1)
-    bounds[0] = np.inf
-    return bounds, np.zeros(PROJECTION_SIZE)
-
-
-def _call_project(rows, energy, t, y, p, holonomic, record, out, found, x, a):
-    """`_project` in _radau_loop: radau_run and radau_switched pass their stop condition in place of `rows`
-    (never called: no projection time), which this compiles to nothing, as `_call_switch`."""
-    return _project(rows, energy, t, y, p, holonomic, record, out, found, x, a)
-
-
-@overload(_call_project)
-def _call_project_typed(rows, energy, t, y, p, holonomic, record, out, found, x, a):
-    if rows == _ROWS_T:
-        return lambda rows, energy, t, y, p, holonomic, record, out, found, x, a: _project(rows, energy, t, y, p, holonomic, record, out, found, x, a)
-    return lambda rows, energy, t, y, p, holonomic, record, out, found, x, a: 1
+    return _radau_loop(y, f, state, control, ts, ys, p, stats, jac, dense, y_old, memory, accel, event, jacobian, None, None, rows, energy, bounds, holonomic, record)
 
 
 @njit(error_model="numpy")
 def _radau_loop(y, f, state, control, ts, ys, p, stats, jac, dense, y_old, memory, accel, event, jacobian, switch, record, rows, energy, bounds, holonomic, projected_record):
-    """radau_run, radau_switched and radau_projected (m = 0 switching functions in `record` and no projection
-    time in `bounds` (+inf): radau_run's steps exactly)."""
+    """radau_run, radau_switched and radau_projected. `switch` (and its `record`) or `rows` (and `energy`, `bounds`,
+    `holonomic`, `projected_record`) None: that case is left out when numba compiles the loop for the entry point
+    (its branches `if switch is not None`, `if rows is not None` pruned, as in `_erk_loop`), so radau_run compiles
+    none of the crossing search, the hop or the projection (helper compile18: it compiled them, never called, for
+    every smooth system) and takes its steps exactly as before."""
     n = y.shape[0]
-    m = (record.shape[0] - SWITCH_HEAD) // 2
+    m = 0
+    if switch is not None:
+        m = (record.shape[0] - SWITCH_HEAD) // 2
     g_end, g_work, g_start, trial, slope = np.empty(m), np.empty(m), np.empty(m), np.empty((3, n)), np.empty((1, n))
     rtol = max(control[RTOL], 100 * _EPS)  # scipy's floor for Radau
     atol, max_step, t_bound, t_stop, use_event = control[ATOL], control[MAX_STEP], control[T_BOUND], control[T_STOP], control[USE_EVENT] != 0.0
@@ -2086,9 +2055,13 @@ def _radau_loop(y, f, state, control, ts, ys, p, stats, jac, dense, y_old, memor
     while t < t_stop and t < t_bound and taken < pause:
         taken += 1
         min_step = MIN_STEP_SPACINGS * abs(np.nextafter(t, np.inf) - t)
-        pending = record[SWITCH_PENDING]
-        next_bound = int(projected_record[NEXT_BOUND])
-        bound = bounds[next_bound] if next_bound < bounds.shape[0] else np.inf  # the next projection time (+inf: none)
+        pending, bound = np.inf, np.inf  # the crossing located ahead, the next projection time (+inf: none)
+        if switch is not None:
+            pending = record[SWITCH_PENDING]
+        if rows is not None:
+            next_bound = int(projected_record[NEXT_BOUND])
+            if next_bound < bounds.shape[0]:
+                bound = bounds[next_bound]
         limit = min(t_bound, pending, bound)
         h_abs_start = h_abs
         if h_abs > max_step:
@@ -2188,7 +2161,7 @@ def _radau_loop(y, f, state, control, ts, ys, p, stats, jac, dense, y_old, memor
                 rejected = True
                 continue
             break
-        if hop:
+        if switch is not None and hop:
             code, t_far = _hop(switch, accel, t, y, f, HOP_REACH * min_step, p, record, m, g_start, g_end, g_work, work, slope, y_new, f_new, x, a, stats)
             if code != RUNNING:
                 return code
@@ -2202,22 +2175,22 @@ def _radau_loop(y, f, state, control, ts, ys, p, stats, jac, dense, y_old, memor
                 state[T], state[H] = t, min_step
                 return SINGULAR
             current_jac, have_lu = True, False
-            h_abs = _initial_step(accel, t, y, f, t_bound, max_step, RADAU_ERROR_ORDER, rtol, atol, p, x, a, stats)
+            h_abs = _initial_step(accel, t, y, f, t_bound, max_step, _RADAU_ORDER, rtol, atol, p, x, a, stats)
             state[T], state[H] = t, h_abs
             continue
         arrived = False
-        if m > 0:  # the switching functions: a crossing inside the step discards it (retaken to land there)
+        if switch is not None and m > 0:  # the switching functions: a crossing inside the step discards it (retaken to land there)
             arrived = t_new == pending
             if not arrived:
-                _call_switch(switch, t_new, y_new, p, g_end)
+                switch(t_new, y_new, p, g_end)
                 first, t_first = -1, t_new
                 if _changed(switch, t, y, p, record, m, g_end, g_start):
                     for k in range(3):  # the step's collocation polynomial
                         for j in range(n):
                             trial[k, j] = Z[0, j] * _RP[0, k] + Z[1, j] * _RP[1, k] + Z[2, j] * _RP[2, k]
-                    first, t_first = _earliest(switch, RADAU_KIND, t, h, y, trial, p, record, m, g_end, g_start, g_work, work)
+                    first, t_first = _earliest(switch, _RADAU_KIND, t, h, y, trial, p, record, m, g_end, g_start, g_work, work)
                 if first >= 0 and t < t_first < t_new:  # discard the step: take it again to land on the crossing
-                    _found(record, m, first, t_first, g_end, True)
+                    _found(record, m, first, t_first, g_end, AHEAD)
                     stats[NREJECT] += 1
                     h_abs = t_first - t
                     have_lu = False  # the factors were for the step discarded
@@ -2226,7 +2199,7 @@ def _radau_loop(y, f, state, control, ts, ys, p, stats, jac, dense, y_old, memor
                     continue
                 if first >= 0:  # the crossing is at the step's end: it has landed there
                     arrived = True
-                    _found(record, m, first, t_first, g_end, False)
+                    _found(record, m, first, t_first, g_end, not AHEAD)
         landed = t_new == bound  # on a projection time: the state is projected there and the method restarts (before t_bound)
         recompute_jac = iterations > 2 and rate > JAC_RATE and not arrived and not (landed and t_new < t_bound)  # (a landing computes J afresh)
         factor = min(MAX_FACTOR, safety * _predict_factor(h_abs, h_abs_old, error_norm, error_old))
@@ -2287,7 +2260,7 @@ def _radau_loop(y, f, state, control, ts, ys, p, stats, jac, dense, y_old, memor
             f[i] = f_new[i]
         t = t_new
         h_abs *= factor
-        if arrived:
+        if switch is not None and arrived:
             if _landed(switch, t, y, p, record, m, g_end):
                 state[T], state[H] = t, h_abs
                 return STEP_COLLAPSE
@@ -2296,15 +2269,15 @@ def _radau_loop(y, f, state, control, ts, ys, p, stats, jac, dense, y_old, memor
                 state[T], state[H] = t, h_abs
                 return SINGULAR
             current_jac, have_lu = True, False
-            h_abs = _initial_step(accel, t, y, f, t_bound, max_step, RADAU_ERROR_ORDER, rtol, atol, p, x, a, stats)
-        elif m > 0:
+            h_abs = _initial_step(accel, t, y, f, t_bound, max_step, _RADAU_ORDER, rtol, atol, p, x, a, stats)
+        elif switch is not None and m > 0:
             record[SWITCH_SINCE] += 1.0
             for i in range(m):
                 record[SWITCH_HEAD + i] = g_end[i]
-        if landed:
+        if rows is not None and landed:
             h_abs = h_wanted * min(1.0, factor)  # the step size before it was shortened onto the projection time
             projected_record[PROJECTIONS] += 1.0
-            failed = _call_project(rows, energy, t, y, p, holonomic, projected_record, projected, found_projection, x, a)
+            failed = _project(rows, energy, t, y, p, holonomic, projected_record, projected, found_projection, x, a)
             _projected(failed, t, y, projected_record, projected, found_projection, state, ts, ys)
             if t < t_bound:  # restart as at a crossing (f at the projected state; J and the factors afresh, no predictor, no controller memory)
                 if _rhs(accel, t, y, p, f, x, a):
