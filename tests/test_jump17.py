@@ -60,3 +60,14 @@ def test_a_block_that_sticks_stops_on_the_surface(method: str, rtol: float) -> N
     assert abs(trajectory.y_last[0] - (1.0 - 4 * 0.3 * 9.81 / 10.0)) < 1e-6  # x = 1 - 4 mu g / k after two half swings
     assert trajectory.stats.steps < 5000, trajectory.stats
     assert _crossings(trajectory.notes) <= 4 * kernels.CHATTER, trajectory.notes
+
+
+def test_crossings_of_different_surfaces_close_together_are_no_sliding_mode() -> None:
+    """Audit 9 F2: a double pendulum with drag |v| v on three velocities (continuous forces: only a kink) crosses its
+    three surfaces close together at each turn of the swing; at rtol 1e-5 the compiled loop counted 8 quick crossings
+    in a row as a sliding mode and stopped at t = 4.99 with a false "step size collapsed". Only crossings of one
+    surface back and forth count now: the run reaches t_end, and the sticking block still stops where it sticks."""
+    drag = simulate(api.load(HERE / "numeric_audit9" / "double_pendulum_quadratic_air_drag_abs.yaml").model, method="DOP853", backend="compiled", rtol=1e-5, atol=1e-8)
+    assert drag.outcome == Status.FINISHED, drag.message
+    stuck = simulate(api.load(BLOCK).model, method="DOP853", backend="compiled")
+    assert stuck.outcome != Status.FINISHED and stuck.t_last == pytest.approx(1.98692, abs=1e-4)

@@ -676,13 +676,13 @@ def _erk_samples(accel, event, pair, t, h, t_new, y, y_new, K, coef, work, ts, y
 
 # -- the explicit loop: plain, switched and projected runs (issue 15) ------------------------------
 
-SWITCH_PENDING, SWITCH_INDEX, SWITCH_COUNT, SWITCH_HOPS, SWITCH_SINCE, SWITCH_QUICK = 0, 1, 2, 3, 4, 5
+SWITCH_PENDING, SWITCH_INDEX, SWITCH_COUNT, SWITCH_HOPS, SWITCH_SINCE, SWITCH_QUICK, SWITCH_LAST = 0, 1, 2, 3, 4, 5, 6
 """The first entries of a switched loop's `switching` record (erk_switched, radau_switched): the located crossing
 ahead (inf: none), the surface crossing there, the crossings landed on so far (hops included), the hops across a
 jump among them (`_hop`), the steps accepted since the last crossing and the crossings in a row each at most
-QUICK_STEPS steps after the one before (`_chattering`); then g at the last accepted point (m values) and g at the
-end of the step that found the crossing (m values)."""
-SWITCH_HEAD = 6
+QUICK_STEPS steps after the one before, of the same surface (`_chattering`), the surface crossed last (-1: none); then g
+at the last accepted point (m values) and g at the end of the step that found the crossing (m values)."""
+SWITCH_HEAD = 7
 
 LINEAR = 3
 """The interpolant kind of `_hop`'s path, y(t) = y_old + (t - t_old) coef[0] (kinds 0 and 1: the explicit pairs'
@@ -701,6 +701,7 @@ rejected was at most 1 / MIN_FACTOR times that."""
 def switching_record(m):
     """A switched loop's record for m switching functions, nothing located yet (g filled by the caller)."""
     record = np.zeros(SWITCH_HEAD + 2 * m)
+    record[SWITCH_LAST] = -1.0
     record[SWITCH_PENDING] = np.inf
     record[SWITCH_INDEX] = -1.0
     return record
@@ -785,12 +786,16 @@ def _found(record, m, first, t_first, g_end, ahead):
 
 
 @njit(error_model="numpy")
-def _chattering(record):
-    """One more crossing (a landing or a hop): counted, and whether it is the CHATTER-th in a row each at most
-    QUICK_STEPS accepted steps after the one before (a sliding mode)."""
+def _chattering(record, crossed):
+    """One more crossing (a landing or a hop) of surface `crossed`: counted, and whether it is the CHATTER-th in a row
+    of that surface each at most QUICK_STEPS accepted steps after the one before (a sliding mode: the same surface
+    crossed back and forth). Crossings of different surfaces close together are no sliding mode: audit 9 F2, a double
+    pendulum with drag |v| v on three velocities, each 0 near each turn of the swing, at rtol 1e-5."""
     record[SWITCH_COUNT] += 1.0
-    record[SWITCH_QUICK] = record[SWITCH_QUICK] + 1.0 if record[SWITCH_SINCE] <= QUICK_STEPS else 1.0
+    same = record[SWITCH_SINCE] <= QUICK_STEPS and record[SWITCH_LAST] == crossed
+    record[SWITCH_QUICK] = record[SWITCH_QUICK] + 1.0 if same else 1.0
     record[SWITCH_SINCE] = 0.0
+    record[SWITCH_LAST] = crossed
     return record[SWITCH_QUICK] >= CHATTER
 
 
@@ -804,7 +809,7 @@ def _landed(switch, t, y, p, record, m, g):
     for i in range(m):
         record[SWITCH_HEAD + i] = record[SWITCH_HEAD + m + i] if i == crossed else g[i]
     record[SWITCH_PENDING], record[SWITCH_INDEX] = np.inf, -1.0
-    return _chattering(record)
+    return _chattering(record, crossed)
 
 
 @njit(error_model="numpy")
@@ -853,7 +858,7 @@ def _hop(switch, accel, t, y, f, reach, p, record, m, g_start, g_end, g_work, wo
         record[SWITCH_HEAD + i] = g_end[i]
     record[SWITCH_PENDING], record[SWITCH_INDEX] = np.inf, -1.0
     record[SWITCH_HOPS] += 1.0
-    if not counted and _chattering(record):
+    if not counted and _chattering(record, first):
         return STEP_COLLAPSE, t
     return RUNNING, t_far
 
