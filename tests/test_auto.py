@@ -89,7 +89,7 @@ def test_the_explicit_probe_counts_the_step_attempts_dop853_really_takes() -> No
     """Where the decay alone would let compiled DOP853 win (the same pendulum at k = 2e8 over t = 5:
     decay 1e4/s, ~8300 stability-limited steps against 25 x ~750 LSODA steps), a short DOP853
     probe (used where `auto` cannot start with the compiled run: kept constraints) measures the
-    attempts, rejections included: ~2.5 x the decay's estimate. The probe's rate agrees with a
+    attempts, rejections included: ~1.9 x the decay's estimate (2.5 x when the force was computed k*l - k*r). The probe's rate agrees with a
     budget-limited DOP853 run from the start (counted in evaluations), and with the rate `auto`
     measures on the compiled run it started with, gone on past the stiffness; the attempts that run
     needs for the rest of the run against IMPLICIT_COST x the pilot's LSODA steps decide (there:
@@ -103,7 +103,7 @@ def test_the_explicit_probe_counts_the_step_attempts_dop853_really_takes() -> No
     probe = policy.explicit_probe(model, settings, measured)
     assert not probe.failed and probe.steps == policy.PROBE_STEPS
     attempts = probe.attempts(settings.t_end)
-    assert attempts > 2 * estimate, (attempts, estimate)
+    assert attempts > 1.5 * estimate, (attempts, estimate)  # 1.9 x since the spring force is k*(l - r) (offset18), 2.5 x with k*l - k*r
     explicit = simulate(model, method="DOP853", backend="python", parameters={"k": 2e8}, samples=11, max_steps=3000)
     assert explicit.outcome == "budget"
     measured_attempts = explicit.stats.nfev / policy.DOP853_EVALUATIONS * settings.t_end / explicit.t_last

@@ -11,31 +11,18 @@ import pytest
 
 from lagrange_cli.numeric import compile, reference
 from lagrange_cli.numeric.accuracy import Candidate
-from lagrange_cli.numeric.runs import Setup, run
-from lagrange_cli.numeric.simulate import Trajectory
+from lagrange_cli.numeric.runs import Setup
 from lagrange_cli.numeric.status import Status
 
 from .conftest import ROOT
 from .helpers import model_from
+from .test_budget17 import _counting
 
 pytestmark = pytest.mark.skipif(not compile.numba_available(), reason="compiled Radau probes and explicit reference runs")
 
 STIFF = ROOT / "tests" / "numeric_audit_pilot" / "stiff_elastic_pendulum_r.yaml"
 DOUBLE = ROOT / "systems" / "double_pendulum.yaml"
 PROBE_BUDGET = 3000  # scipy steps: a probe of a tenth of it, 300 x COMPILED_STEPS = 30000 compiled Radau steps
-
-
-def _counting(monkeypatch: pytest.MonkeyPatch) -> list[Trajectory]:
-    """Every run the reference module makes from now on, in order."""
-    made: list[Trajectory] = []
-
-    def counted(*args: object, **kwargs: object) -> Trajectory:
-        trajectory = run(*args, **kwargs)  # type: ignore[arg-type]
-        made.append(trajectory)
-        return trajectory
-
-    monkeypatch.setattr(reference, "run", counted)
-    return made
 
 
 def _setup(t_end: float, budget: int = PROBE_BUDGET) -> Setup:

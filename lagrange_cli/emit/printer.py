@@ -491,12 +491,7 @@ class _Restructure:
             groups.setdefault((se.Mul(*velocity), se.Mul(*position)), []).append((coefficient, fixed))
         rows = []
         for (v, x), items in groups.items():
-            k = _horner(items)
-            c: Any = _ONE
-            if k.is_Number:
-                c, k = k, _ONE
-            elif k.is_Mul and k.args[0].is_Number:
-                c, k = k.args[0], k / k.args[0]
+            c, k = _number_apart(_horner(items))
             rows.append((c, v, x, k))
         return self.offsets(rows) if len(rows) > 1 else rows
 
@@ -575,12 +570,7 @@ class _Restructure:
             kept.setdefault(monomials[i][2], []).append(monomials[i][0])
         for index, parts in kept.items():
             (_, _, x, _), _ = members[index]
-            k = se.Add(*parts)
-            number: Any = _ONE
-            if k.is_Number:
-                number, k = k, _ONE
-            elif k.is_Mul and k.args[0].is_Number:
-                number, k = k.args[0], k / k.args[0]
+            number, k = _number_apart(se.Add(*parts))
             result.append((number, v, x, k))
         return result
 
@@ -817,6 +807,15 @@ def _horner(items: list[tuple[Any, dict[Any, Any]]]) -> Any:
     common = best**exponent * _horner(reduced)
     without = [item for item in items if best not in item[1]]
     return common + _horner(without) if without else common
+
+
+def _number_apart(k: Any) -> tuple[Any, Any]:
+    """(number, rest) with k = number * rest: 2*l*m -> (2, l*m), 3 -> (3, 1), l + m -> (1, l + m)."""
+    if k.is_Number:
+        return k, _ONE
+    if k.is_Mul and k.args[0].is_Number:
+        return k.args[0], k / k.args[0]
+    return _ONE, k
 
 
 def _monomial(coefficient: Any, powers: dict[Any, Any]) -> Any:
