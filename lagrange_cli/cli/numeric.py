@@ -161,6 +161,10 @@ def _report(trajectory: Trajectory, to_stderr: bool) -> None:
     smallest = f", smallest step {stats.min_step:.3g}" if stats.min_step else ""
     jacobians = f", {stats.njev} Jacobian{'s' * (stats.njev != 1)}, {stats.nlu} LU" if stats.njev or stats.nlu else ""
     console.print(f"work: {stats.steps} steps{rejected}, {stats.nfev} evaluations{jacobians}{smallest}")
+    if stats.floored:
+        console.print(
+            f"  [dim]{stats.floored} step{'s' * (stats.floored != 1)} held some component's error to its round-off floor, above rtol/atol: the tolerance asks for less than double precision resolves there[/dim]"
+        )
     once = f", one-time: compile/load {_seconds(timing.compile)}, import {_seconds(timing.load)}, codegen {_seconds(timing.generate)}"
     console.print(f"time: run {_seconds(timing.run)}{once}")
     if trajectory.invariants:

@@ -63,6 +63,9 @@ class Stats:
     rejected: int | None
     min_step: float | None
     max_step: float | None
+    floored: int = 0
+    """Steps whose error test was held at the round-off floor (the compiled Radau method: a component's
+    tolerance below what double precision resolves for it, kernels._radau_floor)."""
 
 
 @dataclass(frozen=True)
@@ -224,7 +227,9 @@ def cause(error: BaseException) -> str:
 def _stats(raw: np.ndarray, nlu: int = 0) -> Stats:
     """The counters of a compiled loop (status.NFEV, ...) by name."""
     low, high = float(raw[status.HMIN]), float(raw[status.HMAX])
-    return Stats(int(raw[status.NFEV]), int(raw[status.NJEV]), nlu, int(raw[status.NSTEPS]), int(raw[status.NREJECT]), low if math.isfinite(low) else None, high if high > 0 else None)
+    return Stats(
+        int(raw[status.NFEV]), int(raw[status.NJEV]), nlu, int(raw[status.NSTEPS]), int(raw[status.NREJECT]), low if math.isfinite(low) else None, high if high > 0 else None, int(raw[status.FLOORED])
+    )
 
 
 def _new_stats(smallest: float, largest: float) -> np.ndarray:

@@ -46,6 +46,8 @@ from lagrange_cli.numeric.status import (
     EVENT_VALUE,
     FAILED_AT,
     FAILURES,
+    FLOOR_SAFETY,
+    FLOORED,
     H_ABS_OLD,
     H_LAMBDA,
     HAVE_DENSE,
@@ -1793,6 +1795,35 @@ def _radau_matrices(jac, h, lu_real, pivots_real, lu_complex, pivots_complex, st
 
 
 @njit(error_model="numpy")
+def _radau_floor(jac, lu_real, pivots_real, y, f, floor, work):
+    """The round-off floor of each component's Newton corrections and error estimate (into `floor`):
+    what evaluating f at a state rounded to double precision puts into them through the factors of
+    MU_REAL / h - J (`lu_real`). Each equation's perturbation is eps x (sum_k |J_jk| |y_k| + |f_j|);
+    the signs of rounding errors are unknown and one pattern can cancel, so it is solved with three
+    (alike, alternating, alternating in pairs) and the largest of each component kept, x FLOOR_SAFETY.
+    A stiff spring written in its length shows why: each stage sees r rounded to its spacing, so the
+    force k (r - l) carries k eps |r| and r_dot's corrections h k eps |r| / MU_REAL, far above an
+    atol of 1e-12 at k = 1e10. A Newton iteration held to less stalls, the step is halved, and the run
+    crawls (1e6 steps of 1e-9 s). The scale of Newton's test and of the error test is raised to this
+    floor instead (FLOORED counts the steps where the error test's was)."""
+    n = y.shape[0]
+    for pattern in range(3):
+        for i in range(n):
+            total = abs(f[i])
+            for k in range(n):
+                total += abs(jac[i, k]) * abs(y[k])
+            sign = 1.0
+            if (pattern == 1 and i % 2 == 1) or (pattern == 2 and (i // 2) % 2 == 1):
+                sign = -1.0
+            work[i] = _EPS * total * sign
+        _lu_back(lu_real, pivots_real, work)
+        for i in range(n):
+            value = FLOOR_SAFETY * abs(work[i])
+            if pattern == 0 or value > floor[i]:
+                floor[i] = value
+
+
+@njit(error_model="numpy")
 def _radau_jacobian(accel, t, y, f, p, x, a, jac, work, fw, stats):
     """J = df/dy at (t, y) by forward differences (radau5.f's increments sqrt(eps max(1e-5, |y_j|))),
     f = f(t, y) given; the rows of dq/dt are exact ([0 I]). 1 when the matrix is singular."""
@@ -2046,7 +2077,7 @@ def _radau_loop(y, f, state, control, ts, ys, p, stats, jac, dense, y_old, memor
     Z, W, F, dW = np.empty((3, n)), np.empty((3, n)), np.empty((3, n)), np.empty((3, n))
     rhs_complex = np.empty(n, dtype=np.complex128)
     y_new, f_new, work, fw, error, scale = np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(n)
-    ze = np.empty(n)
+    ze, floor = np.empty(n), np.zeros(n)
     projected, found_projection = np.empty(n), np.zeros(4)
     analytic = control[ANALYTIC] != 0.0
     rows_work, pivots, column = np.empty((size, n)), np.empty(size, dtype=np.int64), np.empty(size)
@@ -2093,14 +2124,15 @@ def _radau_loop(y, f, state, control, ts, ys, p, stats, jac, dense, y_old, memor
                 t_new = limit  # the end, a projection time, or the crossing located (retaken: land on it, round-off apart)
             h = t_new - t
             h_abs = abs(h)
-            for i in range(n):
-                scale[i] = atol + abs(y[i]) * rtol
             converged = False
             while True:
                 if not have_lu:
                     have_lu = _radau_matrices(jac, h, lu_real, pivots_real, lu_complex, pivots_complex, stats) == 0
                     memory[LU_STEP] = h if have_lu else 0.0
                 if have_lu:
+                    _radau_floor(jac, lu_real, pivots_real, y, f, floor, work)
+                    for i in range(n):  # Newton's corrections converge to their round-off floor, not below
+                        scale[i] = max(atol + abs(y[i]) * rtol, floor[i] / newton_tol)
                     for r in range(3):  # the predictor: the last step's collocation polynomial extrapolated (zero at the start)
                         if memory[HAVE_DENSE] != 0.0:
                             _radau_eval(memory[T_OLD], memory[STEP_OLD], y_old, dense, t + _RC[r] * h, work)
@@ -2130,11 +2162,15 @@ def _radau_loop(y, f, state, control, ts, ys, p, stats, jac, dense, y_old, memor
                 stats[NREJECT] += 1
                 rejected = True
                 continue
+            floored = False
             for i in range(n):
                 y_new[i] = y[i] + Z[2, i]
                 ze[i] = (_RE[0] * Z[0, i] + _RE[1] * Z[1, i] + _RE[2] * Z[2, i]) / h
                 error[i] = f[i] + ze[i]
                 scale[i] = atol + max(abs(y[i]), abs(y_new[i])) * rtol
+                if floor[i] > scale[i]:
+                    scale[i] = floor[i]
+                    floored = True
             _lu_back(lu_real, pivots_real, error)
             error_norm = _rms(error, scale)
             safety = 0.9 * (2 * NEWTON_MAXITER + 1) / (2 * NEWTON_MAXITER + iterations)
@@ -2234,6 +2270,8 @@ def _radau_loop(y, f, state, control, ts, ys, p, stats, jac, dense, y_old, memor
             y_old[i] = y[i]
         memory[T_OLD], memory[STEP_OLD], memory[HAVE_DENSE] = t, h, 1.0
         stats[NSTEPS] += 1
+        if floored:
+            stats[FLOORED] += 1
         if t_new < limit:
             stats[HMIN] = min(stats[HMIN], h)
         stats[HMAX] = max(stats[HMAX], h)

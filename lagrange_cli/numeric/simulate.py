@@ -413,6 +413,7 @@ def _projected(
         None if any(r.stats.rejected is None for r in runs) else sum(r.stats.rejected or 0 for r in runs),
         min((r.stats.min_step for r in runs if r.stats.min_step is not None), default=None),
         max((r.stats.max_step for r in runs if r.stats.max_step is not None), default=None),
+        sum(r.stats.floored for r in runs),
     )
     outcome = integrators.BUDGET if over_budget else last.status
     y_last = y if outcome in (integrators.FINISHED, integrators.BUDGET) else last.y_last

@@ -31,13 +31,14 @@ progress and stop a run over its budget (a near-collision orbit may take minutes
 to reach the first 1% of its time span)."""
 
 # -- the counter array `stats` of a compiled loop (float64, STATS_SIZE entries)
-NFEV, NJEV, NSTEPS, NREJECT, HMIN, HMAX, STIFF, NONSTIFF, H_LAMBDA, NLU = 0, 1, 2, 3, 4, 5, 6, 7, 8, 9
+NFEV, NJEV, NSTEPS, NREJECT, HMIN, HMAX, STIFF, NONSTIFF, H_LAMBDA, NLU, FLOORED = 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10
 """Right-hand side evaluations, Jacobians (the Gauss method: its Newton matrices), steps taken,
 rejected steps, smallest and largest step; DOP853's stiffness test where it is asked for
 (control[STIFFNESS]): the positive tests since the last run of STIFF_RESET negative ones, the
 negative ones in a row, and the last h |lambda| measured; the LU decompositions (the compiled Radau
-method: its real and complex Newton matrices count one each)."""
-STATS_SIZE = 10
+method: its real and complex Newton matrices count one each); the compiled Radau method's steps
+accepted with the scale of its error test raised to the round-off floor (kernels._radau_floor)."""
+STATS_SIZE = 11
 
 # -- the loop state `state` (float64): where a paused loop resumes
 T, H, EVENT_VALUE, NEXT_SAMPLE, NEWTON = 0, 1, 2, 3, 4
@@ -97,6 +98,9 @@ MAX_FACTOR = 10.0
 """... nor grows by more than this one."""
 MIN_STEP_SPACINGS = 10.0
 """The step collapses below this many floating-point spacings of t."""
+FLOOR_SAFETY = 10.0
+"""The compiled Radau method's error test asks no component for less than this x the round-off in
+its error estimate (kernels._radau_floor)."""
 
 
 class Status(enum.StrEnum):
