@@ -20,7 +20,12 @@ from .test_budget17 import _counting
 
 pytestmark = pytest.mark.skipif(not compile.numba_available(), reason="compiled Radau probes and explicit reference runs")
 
-STIFF = ROOT / "tests" / "numeric_audit_pilot" / "stiff_elastic_pendulum_r.yaml"
+PILOT = ROOT / "tests" / "numeric_audit_pilot" / "stiff_elastic_pendulum_r.yaml"
+STIFF = ROOT / "tests" / "numeric_audit7" / "coupled_oscillators_weak_damping_t1e5.yaml"
+"""Compiled Radau at 1e-10 over t = 1e5 of two weakly damped oscillators: about 40 steps a period, so a probe of the
+first tenth runs out of its 30000 steps (the stiff pendulum in r was the example until kernels._radau_floor ended its
+crawl)."""
+WINDOW = 1e5
 DOUBLE = ROOT / "systems" / "double_pendulum.yaml"
 PROBE_BUDGET = 3000  # scipy steps: a probe of a tenth of it, 300 x COMPILED_STEPS = 30000 compiled Radau steps
 
@@ -30,20 +35,20 @@ def _setup(t_end: float, budget: int = PROBE_BUDGET) -> Setup:
 
 
 def test_a_longer_windows_probe_is_the_kept_probe(monkeypatch: pytest.MonkeyPatch) -> None:
-    """Compiled Radau at 1e-10 on the stiff pendulum runs out of its probe's 30000 steps well inside the first 0.1; the
+    """Compiled Radau at 1e-10 on the oscillators runs out of its probe's 30000 steps inside the first tenth; the
     probe of a window ten times longer (the long horizon's) is answered by it without a run, and a model that kept no probe
     runs that longer probe and stops at the same step count and the same t (the same steps: their end is not reached)."""
     model = model_from(STIFF).with_definitions()
     made = _counting(monkeypatch)
-    short = reference._doomed(model, _setup(1.0), 1e-10)
-    assert len(made) == 1 and made[0].outcome == Status.BUDGET and made[0].t_last < 0.05, short
+    short = reference._doomed(model, _setup(WINDOW), 1e-10)
+    assert len(made) == 1 and made[0].outcome == Status.BUDGET and made[0].t_last < 0.1 * WINDOW, short
     kept = reference._stopped_probes(model)
     assert len(kept) == 1 and kept[0].steps == made[0].stats.steps and kept[0].t_last == made[0].t_last
     made.clear()
-    shared = reference._doomed(model, _setup(10.0), 1e-10)
-    assert made == [] and shared == short.replace("of the first 0.1", "of the first 1")
+    shared = reference._doomed(model, _setup(10 * WINDOW), 1e-10)
+    assert made == [] and shared == short.replace(f"of the first {0.1 * WINDOW:.3g}", f"of the first {WINDOW:.3g}")
     fresh = model_from(STIFF).with_definitions()
-    ran = reference._doomed(fresh, _setup(10.0), 1e-10)
+    ran = reference._doomed(fresh, _setup(10 * WINDOW), 1e-10)
     assert len(made) == 1 and made[0].outcome == Status.BUDGET
     assert ran == shared  # the same steps, stopped at the same t, as the kept probe says
     assert made[0].stats.steps == kept[0].steps and made[0].t_last == kept[0].t_last
@@ -53,16 +58,16 @@ def test_a_probe_is_shared_only_where_it_is_the_same_run(monkeypatch: pytest.Mon
     """Not for another rtol, another initial state, or a budget past the steps the kept probe took (the longer probe
     would go on past where it stopped); nor is a probe kept whose trial steps could have reached its window's end."""
     model = model_from(STIFF).with_definitions()
-    reference._doomed(model, _setup(1.0), 1e-10)
+    reference._doomed(model, _setup(WINDOW), 1e-10)
     assert len(reference._stopped_probes(model)) == 1
     made = _counting(monkeypatch)
-    reference._doomed(model, _setup(10.0), 1e-9)
-    reference._doomed(model, Setup(10.0, (0.0, 10.0), initial={"theta": 0.4}, reference_max_steps=PROBE_BUDGET), 1e-10)
-    reference._doomed(model, _setup(10.0, 2 * PROBE_BUDGET), 1e-10)  # 60000 steps allowed, the kept probe took 30000
-    reference._doomed(model, _setup(0.5), 1e-10)  # a shorter window: a trial step of the kept probe may have gone past its end
+    reference._doomed(model, _setup(10 * WINDOW), 1e-9)
+    reference._doomed(model, Setup(10 * WINDOW, (0.0, 10 * WINDOW), initial={"x1": 0.4}, reference_max_steps=PROBE_BUDGET), 1e-10)
+    reference._doomed(model, _setup(10 * WINDOW, 2 * PROBE_BUDGET), 1e-10)  # 60000 steps allowed, the kept probe took 30000
+    reference._doomed(model, _setup(0.5 * WINDOW), 1e-10)  # a shorter window: a trial step of the kept probe may have gone past its end
     assert len(made) == 4 and all(t.outcome == Status.BUDGET for t in made)
     # a window so short that the probe's steps come near its end: 300 probe steps... its largest step x MAX_FACTOR past it
-    tiny = model_from(STIFF).with_definitions()
+    tiny = model_from(PILOT).with_definitions()
     made.clear()
     found = reference._doomed(tiny, Setup(1e-4, (0.0, 1e-4), reference_max_steps=PROBE_BUDGET), 1e-10)
     assert len(made) == 1
@@ -82,7 +87,7 @@ def test_the_first_step_is_scipys() -> None:
     from lagrange_cli.numeric import policy
     from lagrange_cli.numeric.runs import settings_for
 
-    model = model_from(STIFF).with_definitions()
+    model = model_from(PILOT).with_definitions()
     for initial in ({}, {"r_dot": 3.0, "theta_dot": 2.0}):
         settings = settings_for(model, Candidate("Radau", "compiled"), 1e-9, Setup(10.0, (0.0, 10.0), initial=initial))
         rhs = policy.safe_rhs(compile.build(model, "python").module, settings.p)

@@ -1795,32 +1795,66 @@ def _radau_matrices(jac, h, lu_real, pivots_real, lu_complex, pivots_complex, st
 
 
 @njit(error_model="numpy")
-def _radau_floor(jac, lu_real, pivots_real, y, f, floor, work):
-    """The round-off floor of each component's Newton corrections and error estimate (into `floor`):
-    what evaluating f at a state rounded to double precision puts into them through the factors of
-    MU_REAL / h - J (`lu_real`). Each equation's perturbation is eps x (sum_k |J_jk| |y_k| + |f_j|);
-    the signs of rounding errors are unknown and one pattern can cancel, so it is solved with three
-    (alike, alternating, alternating in pairs) and the largest of each component kept, x FLOOR_SAFETY.
-    A stiff spring written in its length shows why: each stage sees r rounded to its spacing, so the
-    force k (r - l) carries k eps |r| and r_dot's corrections h k eps |r| / MU_REAL, far above an
-    atol of 1e-12 at k = 1e10. A Newton iteration held to less stalls, the step is halved, and the run
-    crawls (1e6 steps of 1e-9 s). The scale of Newton's test and of the error test is raised to this
-    floor instead (FLOORED counts the steps where the error test's was)."""
-    n = y.shape[0]
+def _floor_solve(lu_real, pivots_real, delta, floor, work):
+    """floor = FLOOR_SAFETY x |(MU_REAL / h - J)^-1 delta| for perturbations of the sizes `delta` whose signs
+    are unknown: solved with three sign patterns (alike, alternating, alternating in pairs: one alone can
+    cancel) and the largest of each component kept."""
+    n = delta.shape[0]
     for pattern in range(3):
         for i in range(n):
-            total = abs(f[i])
-            for k in range(n):
-                total += abs(jac[i, k]) * abs(y[k])
             sign = 1.0
             if (pattern == 1 and i % 2 == 1) or (pattern == 2 and (i // 2) % 2 == 1):
                 sign = -1.0
-            work[i] = _EPS * total * sign
+            work[i] = delta[i] * sign
         _lu_back(lu_real, pivots_real, work)
         for i in range(n):
             value = FLOOR_SAFETY * abs(work[i])
             if pattern == 0 or value > floor[i]:
                 floor[i] = value
+
+
+@njit(error_model="numpy")
+def _radau_floor(accel, t, y, f, p, x, a, jac, lu_real, pivots_real, floor, delta, work, fw, atol, rtol, newton_tol, stats):
+    """The round-off floor of each component's Newton corrections and error estimate (into `floor`): what
+    evaluating f at a state rounded to double precision puts into them through the factors of MU_REAL / h - J
+    (`lu_real`). A stiff spring written in its length shows why: each stage sees r rounded to its spacing, so
+    the force k (r - l) carries k eps |r| and r_dot's corrections h k eps |r| / MU_REAL, far above an atol of
+    1e-12 at k = 1e10. A Newton iteration held to less stalls, the step is halved, which leaves that noise as
+    it is, and the run crawls (1e6 steps of 1e-9 s). The scale of Newton's test and of the error test is
+    raised to this floor instead (FLOORED counts the steps where the error test's was).
+
+    First from J: eps x (sum_k |J_jk| |y_k| + |f_j|) per equation. J may be stale (kept while Newton
+    converges: a relaxation oscillator's slow branch keeps the J of its last jump, 1e5 x too large), so where
+    that floor would bind, the perturbation is measured instead: f at y moved by eps |y| (one spacing or two)
+    with two sign patterns, two evaluations, |f(y') - f(y)| + eps |f|. 1 when f cannot be evaluated."""
+    n = y.shape[0]
+    for i in range(n):
+        total = abs(f[i])
+        for k in range(n):
+            total += abs(jac[i, k]) * abs(y[k])
+        delta[i] = _EPS * total
+    _floor_solve(lu_real, pivots_real, delta, floor, work)
+    binds = False
+    for i in range(n):
+        if floor[i] > newton_tol * (atol + abs(y[i]) * rtol):
+            binds = True
+    if not binds:
+        return 0
+    for i in range(n):
+        delta[i] = 0.0
+    for pattern in range(2):
+        for k in range(n):
+            sign = -1.0 if pattern == 1 and k % 2 == 1 else 1.0
+            work[k] = y[k] + sign * _EPS * abs(y[k])
+        if _rhs(accel, t, work, p, fw, x, a):
+            return 1
+        stats[NFEV] += 1
+        for i in range(n):
+            delta[i] = max(delta[i], abs(fw[i] - f[i]))
+    for i in range(n):
+        delta[i] += _EPS * abs(f[i])
+    _floor_solve(lu_real, pivots_real, delta, floor, work)
+    return 0
 
 
 @njit(error_model="numpy")
@@ -2077,7 +2111,8 @@ def _radau_loop(y, f, state, control, ts, ys, p, stats, jac, dense, y_old, memor
     Z, W, F, dW = np.empty((3, n)), np.empty((3, n)), np.empty((3, n)), np.empty((3, n))
     rhs_complex = np.empty(n, dtype=np.complex128)
     y_new, f_new, work, fw, error, scale = np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(n)
-    ze, floor = np.empty(n), np.zeros(n)
+    ze, floor, delta = np.empty(n), np.zeros(n), np.empty(n)
+    floor_due = True
     projected, found_projection = np.empty(n), np.zeros(4)
     analytic = control[ANALYTIC] != 0.0
     rows_work, pivots, column = np.empty((size, n)), np.empty(size, dtype=np.int64), np.empty(size)
@@ -2129,8 +2164,13 @@ def _radau_loop(y, f, state, control, ts, ys, p, stats, jac, dense, y_old, memor
                 if not have_lu:
                     have_lu = _radau_matrices(jac, h, lu_real, pivots_real, lu_complex, pivots_complex, stats) == 0
                     memory[LU_STEP] = h if have_lu else 0.0
+                    floor_due = True
                 if have_lu:
-                    _radau_floor(jac, lu_real, pivots_real, y, f, floor, work)
+                    if floor_due:  # once per factorization
+                        if _radau_floor(accel, t, y, f, p, x, a, jac, lu_real, pivots_real, floor, delta, work, fw, atol, rtol, newton_tol, stats):
+                            state[T], state[H] = t, h
+                            return SINGULAR
+                        floor_due = False
                     for i in range(n):  # Newton's corrections converge to their round-off floor, not below
                         scale[i] = max(atol + abs(y[i]) * rtol, floor[i] / newton_tol)
                     for r in range(3):  # the predictor: the last step's collocation polynomial extrapolated (zero at the start)
