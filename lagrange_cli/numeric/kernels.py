@@ -1814,7 +1814,7 @@ def _floor_solve(lu_real, pivots_real, delta, floor, work):
 
 
 @njit(error_model="numpy")
-def _radau_floor(accel, t, y, f, p, x, a, jac, lu_real, pivots_real, floor, delta, work, fw, atol, rtol, newton_tol, stats):
+def _radau_floor(accel, t, y, f, p, x, a, jac, lu_real, pivots_real, floor, delta, measured, work, fw, atol, rtol, newton_tol, stats):
     """The round-off floor of each component's Newton corrections and error estimate (into `floor`): what
     evaluating f at a state rounded to double precision puts into them through the factors of MU_REAL / h - J
     (`lu_real`). A stiff spring written in its length shows why: each stage sees r rounded to its spacing, so
@@ -1825,8 +1825,10 @@ def _radau_floor(accel, t, y, f, p, x, a, jac, lu_real, pivots_real, floor, delt
 
     First from J: eps x (sum_k |J_jk| |y_k| + |f_j|) per equation. J may be stale (kept while Newton
     converges: a relaxation oscillator's slow branch keeps the J of its last jump, 1e5 x too large), so where
-    that floor would bind, the perturbation is measured instead: f at y moved by eps |y| (one spacing or two)
-    with two sign patterns, two evaluations, |f(y') - f(y)| + eps |f|. 1 when f cannot be evaluated."""
+    that floor would bind, the perturbation is also measured: f at y moved by eps |y| (one spacing or two)
+    with two sign patterns, two evaluations, |f(y') - f(y)| + eps |f|, and the smaller of the two kept (the
+    measured one overstates where y' is across a jump of the forces: a gated damper's 970 at its touch).
+    1 when f cannot be evaluated."""
     n = y.shape[0]
     for i in range(n):
         total = abs(f[i])
@@ -1841,7 +1843,7 @@ def _radau_floor(accel, t, y, f, p, x, a, jac, lu_real, pivots_real, floor, delt
     if not binds:
         return 0
     for i in range(n):
-        delta[i] = 0.0
+        measured[i] = 0.0
     for pattern in range(2):
         for k in range(n):
             sign = -1.0 if pattern == 1 and k % 2 == 1 else 1.0
@@ -1850,9 +1852,9 @@ def _radau_floor(accel, t, y, f, p, x, a, jac, lu_real, pivots_real, floor, delt
             return 1
         stats[NFEV] += 1
         for i in range(n):
-            delta[i] = max(delta[i], abs(fw[i] - f[i]))
-    for i in range(n):
-        delta[i] += _EPS * abs(f[i])
+            measured[i] = max(measured[i], abs(fw[i] - f[i]))
+    for i in range(n):  # the smaller: J's overstates where J is stale, the measured one where y' is across a jump of f
+        delta[i] = min(delta[i], measured[i] + _EPS * abs(f[i]))
     _floor_solve(lu_real, pivots_real, delta, floor, work)
     return 0
 
@@ -2111,7 +2113,7 @@ def _radau_loop(y, f, state, control, ts, ys, p, stats, jac, dense, y_old, memor
     Z, W, F, dW = np.empty((3, n)), np.empty((3, n)), np.empty((3, n)), np.empty((3, n))
     rhs_complex = np.empty(n, dtype=np.complex128)
     y_new, f_new, work, fw, error, scale = np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(n)
-    ze, floor, delta = np.empty(n), np.zeros(n), np.empty(n)
+    ze, floor, delta, measured = np.empty(n), np.zeros(n), np.empty(n), np.empty(n)
     floor_due = True
     projected, found_projection = np.empty(n), np.zeros(4)
     analytic = control[ANALYTIC] != 0.0
@@ -2167,7 +2169,7 @@ def _radau_loop(y, f, state, control, ts, ys, p, stats, jac, dense, y_old, memor
                     floor_due = True
                 if have_lu:
                     if floor_due:  # once per factorization
-                        if _radau_floor(accel, t, y, f, p, x, a, jac, lu_real, pivots_real, floor, delta, work, fw, atol, rtol, newton_tol, stats):
+                        if _radau_floor(accel, t, y, f, p, x, a, jac, lu_real, pivots_real, floor, delta, measured, work, fw, atol, rtol, newton_tol, stats):
                             state[T], state[H] = t, h
                             return SINGULAR
                         floor_due = False
