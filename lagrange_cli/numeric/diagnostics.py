@@ -268,23 +268,41 @@ def mass_at(model: Model, p: Sequence[float]) -> Callable[[float, Sequence[float
     return mass
 
 
-def mass_condition(model: Model, p: Sequence[float], y0: Sequence[float] | None = None) -> Callable[[float, np.ndarray], float]:
+def mass_condition(model: Model, p: Sequence[float], y0: Sequence[float] | None = None) -> MassCondition:
     """cond(L M(q, t) L) at (t, y) with y = [q..., q_dot...], L = diag(max(1, |q0_i|)) from the
     state y0 (the identity without it): M for the coordinates q_i / L_i, so that a coordinate
     of size 7e6 counts like one of size 1; inf where M is singular or undefined."""
-    mass = mass_at(model, p)
     n = model.n
-    scale = np.ones(n) if y0 is None else coordinate_sizes(y0, n)
+    return MassCondition(mass_at(model, p), np.ones(n) if y0 is None else coordinate_sizes(y0, n))
 
-    def condition(t: float, y: np.ndarray) -> float:
-        m = mass(t, y)
-        if m is None:
-            return math.inf
-        with np.errstate(all="ignore"):
-            value = float(np.linalg.cond(scale[:, None] * m * scale[None, :]))
-        return value if math.isfinite(value) else math.inf
 
-    return condition
+class MassCondition:
+    """`mass_condition`'s cond(L M L) at one state (a call), or at many at once (`many`: one batched SVD)."""
+
+    def __init__(self, mass: Callable[[float, Sequence[float] | np.ndarray], np.ndarray | None], scale: np.ndarray) -> None:
+        self.mass, self.scale = mass, scale
+
+    def __call__(self, t: float, y: np.ndarray) -> float:
+        return float(self.many(np.array([t], dtype=float), np.array([y], dtype=float))[0])
+
+    def many(self, t: np.ndarray, y: np.ndarray) -> np.ndarray:
+        """cond(L M L) at each state (t_k, y_k), inf where M is singular or undefined."""
+        n = len(self.scale)
+        values = np.full(len(t), math.inf)
+        found = [(k, m) for k in range(len(t)) if (m := self.mass(float(t[k]), y[k])) is not None]
+        if found:
+            stack = np.array([m for _, m in found]).reshape(len(found), n, n)
+            with np.errstate(all="ignore"):
+                cond = np.linalg.cond(self.scale[None, :, None] * stack * self.scale[None, None, :])
+            values[[k for k, _ in found]] = np.where(np.isfinite(cond), cond, math.inf)
+        return values
+
+
+def _conditions(condition: Callable[[float, np.ndarray], float], t: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """`condition` at each sample: at once where it can (`MassCondition.many`)."""
+    if isinstance(condition, MassCondition):
+        return condition.many(np.asarray(t, dtype=float), np.asarray(y, dtype=float))
+    return np.array([condition(float(ti), yi) for ti, yi in zip(t, y, strict=True)])
 
 
 Rerun = Callable[[float, np.ndarray, float, int], "tuple[np.ndarray, np.ndarray] | None"]
@@ -310,7 +328,7 @@ def condition_peak(condition: Callable[[float, np.ndarray], float], t: np.ndarra
     again around the highest of those, `levels` times (None without samples)."""
     if len(t) == 0:
         return None
-    values = np.array([condition(float(ti), yi) for ti, yi in zip(t, y, strict=True)])
+    values = _conditions(condition, t, y)
     evaluations, reruns = len(values), 0
     k = int(np.argmax(values))
     best = (float(values[k]), float(t[k]), np.array(y[k]))
@@ -330,7 +348,7 @@ def condition_peak(condition: Callable[[float, np.ndarray], float], t: np.ndarra
             if found is None:
                 break
             times, states = found
-            local = np.array([condition(float(ti), yi) for ti, yi in zip(times, states, strict=True)])
+            local = _conditions(condition, times, states)
             evaluations += len(local)
             m = int(np.argmax(local))
             if local[m] > best[0]:

@@ -184,10 +184,23 @@ def _method(name: str) -> str:
     raise LagrangeError(f"unknown method '{name}'; choose one of {', '.join(METHODS)}" + (f" (did you mean '{hint}'?)" if hint else ""))
 
 
+def _finite_times(t_eval: Sequence[float]) -> list[float]:
+    """The times of `t_eval` as finite floats (all at once where they all are: `stress` and `accuracy` decide the
+    settings of some 150 runs of 2001 samples each), else a LagrangeError naming the first that is not."""
+    if isinstance(t_eval, np.ndarray | tuple | list):
+        try:
+            array = np.asarray(t_eval, dtype=float)
+        except (TypeError, ValueError, OverflowError):
+            array = None
+        if array is not None and array.ndim == 1 and bool(np.all(np.isfinite(array))):
+            return array.tolist()
+    return [_finite("a time of t_eval", v) for v in t_eval]
+
+
 def _times(t_end: float, t_eval: Sequence[float] | None, samples: object) -> tuple[float, ...]:
     """The sample times: `t_eval` as given (sorted, within [0, t_end]) or `samples` evenly spaced."""
     if t_eval is not None:
-        values = [_finite("a time of t_eval", v) for v in t_eval]
+        values = _finite_times(t_eval)
         if len(values) > MAX_SAMPLES:
             raise LagrangeError(f"t_eval has {len(values)} times, more than a run keeps (at most {MAX_SAMPLES}, for memory)")
         if not values or any(not (0.0 <= v <= t_end) for v in values) or values != sorted(values):

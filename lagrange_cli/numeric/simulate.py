@@ -537,7 +537,10 @@ class _MonitorFailure(Exception):
 
 def _values(function: object, run: Run, p: list[float], what: str, every: int = 1) -> np.ndarray:
     """function(t, y, p) at the samples (every `every`-th), one row each; `_MonitorFailure` at
-    the first sample where it cannot be evaluated."""
+    the first sample where it cannot be evaluated (all samples at once where they can be: `integrators.evaluate_samples`)."""
+    at_once = integrators.evaluate_samples(function, run.t[::every], run.y[::every], p)  # type: ignore[arg-type]
+    if at_once is not None:
+        return at_once
     rows = []
     for k in range(0, len(run.t), every):
         try:
