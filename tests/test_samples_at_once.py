@@ -6,15 +6,18 @@ once, with the same values, and the samples one at a time still say where and wh
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 from lagrange_cli.errors import LagrangeError
-from lagrange_cli.numeric import compile, diagnostics, integrators, reference, settings
-from lagrange_cli.numeric.runs import Setup
+from lagrange_cli.numeric import compile, diagnostics, integrators, reference, settings, stress
+from lagrange_cli.numeric import runs as runs_module
+from lagrange_cli.numeric.runs import PointStatus, Setup, component_scale, run
 from lagrange_cli.numeric.simulate import simulate
+from lagrange_cli.numeric.status import Status
 from lagrange_cli.numeric.stress import implicit_reference_tolerances
 
 from .conftest import ROOT
@@ -120,3 +123,32 @@ def test_stress_confirms_by_convergence_before_a_looser_second_method(monkeypatc
     assert rk45 and all(r == 2.5e-14 for r in rk45), rk45  # only its probe at the primary's rtol
     looser = sorted(t.settings.rtol for t in made if t.settings.method == "DOP853" and t.outcome.name == "FINISHED")
     assert looser == [2.5e-14, 2.5e-13, 2.5e-12]
+
+
+@pytest.mark.skipif(not compile.numba_available(), reason="compiled RK45, scipy's RK45's twin")
+def test_scipys_rk45_is_not_run_where_its_twin_shows_it_cannot_finish(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The double pendulum over t = 10 at rtol 1e-5: scipy's RK45 takes exactly its compiled twin's steps. Within a budget
+    below them it is not run (no Python run made) and says why; within one above them it runs as before."""
+    model = model_from(DOUBLE).with_definitions()
+    setup = Setup(10.0, tuple(np.linspace(0.0, 10.0, 201).tolist()), max_steps=60_000)
+    found = reference.computed_reference(model, setup, 2.5e-14)
+    scale = component_scale(found.y)
+    twin = run(model, stress.TWIN, 1e-5, setup)
+    scipy = run(model, stress.NAIVE, 1e-5, setup)
+    assert twin.outcome == scipy.outcome == Status.FINISHED and twin.stats.steps == scipy.stats.steps
+    made: list[str] = []
+    real = runs_module.run
+
+    def counted(*args: object, **kwargs: object) -> object:
+        trajectory = real(*args, **kwargs)  # type: ignore[arg-type]
+        made.append(trajectory.settings.backend)
+        return trajectory
+
+    monkeypatch.setattr(runs_module, "run", counted)
+    below = twin.stats.steps // 2
+    point = stress._capped(model, stress.NAIVE, 1e-5, replace(setup, max_steps=below), found, scale, None, None)
+    assert "python" not in made and point.status == PointStatus.OVER_BUDGET and point.steps == 0
+    assert "compiled RK45 at this rtol" in point.reason and f"took {twin.stats.steps} steps" in point.reason and f"({below})" in point.reason
+    made.clear()
+    point = stress._capped(model, stress.NAIVE, 1e-5, setup, found, scale, None, None)
+    assert "python" in made and point.status == PointStatus.FINISHED and point.steps == twin.stats.steps

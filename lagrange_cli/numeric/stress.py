@@ -676,6 +676,12 @@ def _capped(
             f" above {STABILITY_MARGIN:g} x its step budget ({allowed})"
         )
         return unrun(candidate, tolerance, PointStatus.OVER_BUDGET, reason, Failure.BUDGET)
+    beyond = _beyond_twin(model, tolerance, setup, reference, scale, made if made is not None else {}, cap) if candidate == NAIVE else ""
+    if beyond:
+        if cap < setup.steps and best is not None:
+            reason = f"{beyond}; its budget is {_losing(candidate, best):g} x the work of {best.method} ({best.setting}), which meets the accuracy: it could only lose"
+            return unrun(candidate, tolerance, PointStatus.CAPPED, reason, Failure.BUDGET)
+        return unrun(candidate, tolerance, PointStatus.OVER_BUDGET, beyond, Failure.BUDGET)
     # a Python run is stopped as soon as its pace shows it cannot finish within PACE_MARGIN x its budget (`runs.PACE_AFTER` of it
     # taken first): whether it can only lose to `best` or would run out of its whole budget, it decides nothing more by going on
     # (audit4 F7: the trammel's long horizon, where nothing met the accuracy, ran scipy's four methods to 60000 steps each)
@@ -754,6 +760,42 @@ def _twin(
         else:
             proof["differs"] = 1.0  # not the same run: every rung is made
     return point
+
+
+TWIN_BEYOND = 1.1
+"""scipy's RK45 (`NAIVE`) is not run where its compiled twin (TWIN) at the same rtol takes more than this times the
+scipy run's step budget (`_beyond_twin`): the same algorithm takes the same steps (to round-off, which this margin
+covers), so it would run out of its budget. The penalty pendulum of k = 1e9 over t = 50: scipy's RK45 at its default
+rtol spent 15000 steps, 5.3 s, to be stopped by its pace, where its twin is stability-limited to some 7e5 steps."""
+
+
+def _beyond_twin(model: Model, tolerance: float, setup: Setup, reference: Reference, scale: np.ndarray, made: dict[Settings, Point], cap: int) -> str:
+    """Why scipy's RK45 at `tolerance` within `cap` steps is not run ("" to run it): its compiled twin at that rtol (the
+    regime's run, else made now within TWIN_BEYOND x `cap` compiled steps, a few ms to a second) took more than TWIN_BEYOND x
+    `cap`. Only where the two are the same run: no kept constraints (projections) and no switching functions (where the
+    forces jump, scipy rejects steps the compiled loop steps across)."""
+    if model.constraints or int(getattr(compile.build(model, "python").module, "_SWITCHES", 0)) > 0:
+        return ""
+    try:
+        decided = settings_for(model, TWIN, tolerance, setup)
+    except LagrangeError:
+        return ""
+    if decided.backend != "compiled":
+        return ""
+    limit = math.floor(TWIN_BEYOND * cap)
+    twin = made.get(_made_key(decided))
+    if twin is None or twin.status not in (PointStatus.FINISHED, PointStatus.OVER_BUDGET):
+        budget = max(1, math.ceil((limit + 1) / COMPILED_STEPS))  # scipy steps: the compiled run may take COMPILED_STEPS x as many
+        twin = measure(model, TWIN, tolerance, replace(setup, max_steps=min(budget, setup.steps)), reference, scale, repeats=0)
+        if twin.status == PointStatus.FINISHED and twin.settings is not None:
+            made.setdefault(_made_key(twin.settings), twin)
+    if twin.steps <= limit or twin.status not in (PointStatus.FINISHED, PointStatus.OVER_BUDGET):
+        return ""
+    took = f"took {twin.steps} steps" if twin.status == PointStatus.FINISHED else f"did not finish within {twin.steps} steps"
+    return (
+        f"not run: its compiled twin (compiled RK45 at this rtol: the same Dormand-Prince pair and step control, so the same steps) {took},"
+        f" more than {TWIN_BEYOND:g} x its step budget ({cap})"
+    )
 
 
 def _twin_run(model: Model, tolerance: float, setup: Setup, reference: Reference, scale: np.ndarray, made: dict[Settings, Point], cap: int) -> Point | None:
