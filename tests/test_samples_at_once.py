@@ -1,13 +1,17 @@
-"""Issue 15, `stress` within 30 s: the per-sample work done at once. The invariants along each run's samples (energy,
+"""Issue 15, `stress` within 30 s (session 20): the per-sample work done at once. The invariants along each run's samples (energy,
 momenta, constraint residuals) took 5 us a sample through `integrators.evaluate`, a fifth of `stress`'s time on
 Kepler's orbit of e = 0.99; cond M along the reference one SVD a sample. Both are now evaluated for all samples at
-once, with the same values, and the samples one at a time still say where and why a value is bad."""
+once, with the same values, and the samples one at a time still say where and why a value is bad. Also: a reference
+confirmed by its own convergence before a looser second method, scipy's RK45 not run where its compiled twin shows it
+cannot finish, and a compiled run stopped next to a sliding surface called that."""
 
 from __future__ import annotations
 
+import importlib
 import math
 from dataclasses import replace
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -25,6 +29,7 @@ from .helpers import model_from
 from .test_budget17 import _counting
 
 DOUBLE = ROOT / "systems" / "double_pendulum.yaml"
+simulate_module = importlib.import_module("lagrange_cli.numeric.simulate")
 OSCILLATORS = ROOT / "tests" / "numeric_audit7" / "coupled_oscillators_weak_damping_t1e5.yaml"
 
 
@@ -152,3 +157,22 @@ def test_scipys_rk45_is_not_run_where_its_twin_shows_it_cannot_finish(monkeypatc
     made.clear()
     point = stress._capped(model, stress.NAIVE, 1e-5, setup, found, scale, None, None)
     assert "python" in made and point.status == PointStatus.FINISHED and point.steps == twin.stats.steps
+
+
+@pytest.mark.skipif(not compile.numba_available(), reason="the compiled explicit loop")
+def test_a_compiled_run_that_creeps_onto_a_sliding_surface_says_so() -> None:
+    """The block on a belt (dry friction mu m g sign(v0 - x_dot)) sticks at t = 0.117: compiled DOP853's steps collapse
+    3.7e-9 short of x_dot = v0, above SURFACE_TOLERANCE, which its flow reaches in about 1e-9 s. It is the sliding mode's
+    stop, not a singularity; a state farther from the surface, at its rate, is not called on it."""
+    model = model_from(ROOT / "tests" / "numeric_audit8" / "stick_slip_block_on_belt_shaken_wall.yaml")
+    stopped = simulate(model, method="DOP853", backend="compiled")
+    assert stopped.outcome == Status.SURFACE_JUMP and "sliding mode" in stopped.message, stopped.message
+    assert abs(stopped.y_last[1] - 0.4) > 1.4e-9 * (1 + 0.4)  # the old test alone (|g| <= SURFACE_TOLERANCE x scale) missed it
+    module = compile.build(model.with_definitions(), "python").module
+    p = list(stopped.settings.p)
+
+    def at(x_dot: float) -> bool:
+        return simulate_module._on_surface(module, SimpleNamespace(t_last=stopped.t_last, y_last=np.array([stopped.y_last[0], x_dot])), p)  # type: ignore[arg-type]
+
+    assert at(float(stopped.y_last[1])) and at(0.4 - 1e-12)
+    assert not at(0.3) and not at(0.4 - 1e-5)  # reached in 0.03 s and 3e-6 s at its rate (~3 m/s^2): not next to it

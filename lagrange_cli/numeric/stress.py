@@ -792,10 +792,7 @@ def _beyond_twin(model: Model, tolerance: float, setup: Setup, reference: Refere
     if twin.steps <= limit or twin.status not in (PointStatus.FINISHED, PointStatus.OVER_BUDGET):
         return ""
     took = f"took {twin.steps} steps" if twin.status == PointStatus.FINISHED else f"did not finish within {twin.steps} steps"
-    return (
-        f"not run: its compiled twin (compiled RK45 at this rtol: the same Dormand-Prince pair and step control, so the same steps) {took},"
-        f" more than {TWIN_BEYOND:g} x its step budget ({cap})"
-    )
+    return f"not run: its compiled twin (compiled RK45 at this rtol: the same Dormand-Prince pair and step control, so the same steps) {took}, more than {TWIN_BEYOND:g} x its step budget ({cap})"
 
 
 def _twin_run(model: Model, tolerance: float, setup: Setup, reference: Reference, scale: np.ndarray, made: dict[Settings, Point], cap: int) -> Point | None:
