@@ -539,10 +539,11 @@ def _on_surface(module: Any, run: Run, p: Sequence[float]) -> bool:
     if any(abs(value) <= SURFACE_TOLERANCE * scale for value in g):
         return True
     delta = SURFACE_PROBE * max(1.0, abs(t))
-    f = integrators.python_rhs(module, values)(t, run.y_last)
+    n = len(y) // 2
     try:
+        f = y[n:] + integrators.evaluate(module._accel, t, y, values, "the equations of motion")[:n]
         moved = integrators.evaluate(module._switch, t + delta, [v + delta * d for v, d in zip(y, f, strict=True)], values, "the switching functions")
-    except integrators.EvaluationError:
+    except integrators.EvaluationError:  # the forces cannot be evaluated there (a singular matrix, a domain error): no verdict
         return False
     horizon = SURFACE_TIME * max(1.0, abs(t))
     return any(value * (after - value) < 0 and abs(value) * delta <= horizon * abs(after - value) for value, after in zip(g, moved, strict=True))
