@@ -245,8 +245,8 @@ def evaluate_samples(function: Callable[..., Any], t: np.ndarray, y: np.ndarray,
     """function(t, y, p) (a generated `_energy`, `_momenta`, ...) at every sample (`t`: k times, `y`: k x states)
     at once, one row each, where every value comes out finite: 5 us a sample in `evaluate` was a fifth of `stress`'s
     time on Kepler's orbit (four values a sample for each of its 130 runs). None where it cannot be evaluated so: a
-    branch on a value (a sign, a piecewise force), a math function without an elementwise twin, a value that is not
-    finite. The caller then evaluates the samples one at a time, which says where and why a value is bad. The values
+    branch on a value (a sign, a piecewise force), a table of work slots (long generated code), a domain error, a
+    value that is not finite. The caller then evaluates the samples one at a time, which says where and why a value is bad. The values
     are those of one call per sample to the last bit or so: the arithmetic is IEEE's either way and each math function
     is math's, but numpy squares where Python's x**2 calls pow (1 ulp apart at times)."""
     k = len(t)
