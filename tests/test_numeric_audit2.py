@@ -137,15 +137,16 @@ def test_a_losing_run_is_stopped_by_its_pace() -> None:
     """A paced run (one capped at the work of a run that met the accuracy already) is stopped once
     its steps over the share of the span done exceed runs.PACE_MARGIN x its budget: Radau at rtol
     1e-8 on the k = 1e10 pendulum (round-off-limited, 5705 steps to get nowhere) stops after a
-    quarter of a 400-step budget, counted; unpaced, the same run spends its whole budget."""
-    from lagrange_cli.numeric.runs import PACE_AFTER, PointStatus, measure
+    sixteenth of a 400-step budget (runs.PACE_EARLY: its pace is far beyond), counted; unpaced, the same
+    run spends its whole budget."""
+    from lagrange_cli.numeric.runs import PACE_EARLY, PointStatus, measure
     from lagrange_cli.numeric.status import Failure
 
     model = _model(PILOT / "stiff_elastic_pendulum_r.yaml")
     setup = Setup(10.0, tuple(np.linspace(0.0, 10.0, 11).tolist()), max_steps=400)
     paced = measure(model, Candidate("Radau", "python"), 1e-8, setup, None, np.ones(4), repeats=0, paced=True)  # type: ignore[arg-type]
     assert paced.status == PointStatus.OVER_BUDGET and paced.failure == Failure.BUDGET
-    assert paced.steps == round(PACE_AFTER * 400)
+    assert paced.steps == round(PACE_EARLY * 400)
     assert "at that pace" in paced.reason
     full = measure(model, Candidate("Radau", "python"), 1e-8, setup, None, np.ones(4), repeats=0)  # type: ignore[arg-type]
     assert full.status == PointStatus.OVER_BUDGET and full.steps > 3 * paced.steps

@@ -172,8 +172,31 @@ def test_a_scipy_ladder_whose_error_falls_too_slowly_stops_where_meeting_would_c
     assert stress._out_of_reach(bdf, first, quick, 9e-7, None, spent, setup) == ""
     near = _finished("BDF", 1e-6, 18447, 42000, 1.5e-6)  # the next rung may meet: the ladder's own rules decide
     assert stress._out_of_reach(bdf, _finished("BDF", 1e-5, 13004, 30000, 1.5e-5), near, 9e-7, compiled, spent, setup) == ""
-    # compiled runs are left to their own rules
-    assert stress._out_of_reach(Candidate("DOP853", "compiled"), first, second, 9e-7, compiled, spent, setup) == ""
+    # before anything meets, compiled runs are left to their own rules
+    assert stress._out_of_reach(Candidate("DOP853", "compiled"), first, second, 9e-7, None, spent, setup) == ""
+
+
+def _compiled(method: str, tolerance: float, steps: int, nfev: int, error: float) -> runs.Point:
+    return replace(_finished(method, tolerance, steps, nfev, error), candidate=Candidate(method, "compiled"), ran=runs.Ran(method, "compiled"))
+
+
+def test_a_compiled_ladder_stops_where_the_run_that_would_meet_alone_costs_more_than_it_may() -> None:
+    """The weakly damped coupled oscillators over t = 1e5 (audit 7): compiled RK45 at rtol 1e-5 and 1e-6, 2.9e-2 and
+    2.6e-3 off, its work 1.65 x a rung. Even at FASTEST_FALL the run meeting 1e-6 is 4 rungs on, 7.4 x the work at 1e-6,
+    above SAME_BACKEND_LOSING x that of compiled DOP853, which meets: its ladder stops (it ran to 1e-8, 3.4 s more per regime).
+    Where that run would cost no more than that, or nothing meets yet, or the candidate is auto, the ladder goes on."""
+    setup = Setup(1e5, (0.0, 1e5), max_steps=stress.MAX_STEPS)
+    rk45 = Candidate("RK45", "compiled")
+    first = _compiled("RK45", 1e-5, 400307, 2_401_842, 2.9e-2)
+    second = _compiled("RK45", 1e-6, 660656, 3_963_936, 2.6e-3)
+    best = _compiled("DOP853", 1e-10, 461513, 5_711_597, 2.6e-7)
+    spent = runs.work(first) + runs.work(second)
+    why = stress._out_of_reach(rk45, first, second, 9.99e-7, best, spent, setup)
+    assert "4 more rtols" in why and "the last of them alone" in why and "above what it may spend" in why, why
+    assert stress._out_of_reach(rk45, first, second, 9.99e-7, None, spent, setup) == ""  # nothing meets yet: its runs may decide
+    assert stress._out_of_reach(stress.AUTO, first, second, 9.99e-7, best, spent, setup) == ""  # auto's own ladder is measured in full
+    cheap = _compiled("DOP853", 1e-10, 461513, 60_000_000, 2.6e-7)  # a best whose work leaves room for the 4 rungs' last
+    assert stress._out_of_reach(rk45, first, second, 9.99e-7, cheap, spent, setup) == ""
 
 
 def test_a_high_energy_regime_from_rest_is_not_set_by_a_creeping_mode() -> None:

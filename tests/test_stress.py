@@ -429,6 +429,34 @@ def test_a_lone_meeting_run_is_not_timed_again(monkeypatch: pytest.MonkeyPatch) 
     assert stress._retimed(None, missing, None, setup, 1e-6, 0.0)[0] == missing  # type: ignore[arg-type]
 
 
+def test_only_meeting_runs_are_timed_again_and_one_run_under_two_names_once(monkeypatch: pytest.MonkeyPatch) -> None:
+    """auto resolved to DOP853 at rtol 1e-10 and DOP853's own run at 1e-10 are one run: timed again once, the time
+    given to both; a run that misses the accuracy (RK45, 0.6 s against 0.9 s) can neither be recommended nor tie,
+    so its first time stands; a second meeting run (Radau) is timed in turns with them."""
+    from dataclasses import replace
+
+    from lagrange_cli.numeric.runs import Setup
+    from lagrange_cli.numeric.settings import validate
+
+    model = model_from(ROOT / "systems" / "simple_pendulum.yaml")
+    timed: list[list[str]] = []
+
+    def retime(model: object, points: list, setup: object, repeats: int) -> list:  # type: ignore[type-arg]
+        timed.append([p.ran.method for p in points])
+        return [replace(p, seconds=p.seconds / 2, runs=repeats) for p in points]
+
+    monkeypatch.setattr(stress, "retime", retime)
+    dop = validate(model, method="DOP853", backend="compiled", rtol=1e-10, atol=1e-13)
+    auto = replace(_point("DOP853", "compiled", 100, 3e-7, 0.9), candidate=stress.AUTO, settings=replace(dop, notes=("auto: picked",)))
+    same = replace(_point("DOP853", "compiled", 100, 3e-7, 0.95), settings=dop)
+    missing = replace(_point("RK45", "compiled", 100, 3e-6, 0.6), settings=validate(model, method="RK45", backend="compiled", rtol=1e-6, atol=1e-9))
+    radau = replace(_point("Radau", "compiled", 100, 4e-7, 1.2), settings=validate(model, method="Radau", backend="compiled", rtol=1e-7, atol=1e-10))
+    result, _ = stress._retimed(model, [missing, same, radau, auto], None, Setup(1.0, (0.0, 1.0)), 1e-6, 0.0)
+    assert timed == [["DOP853", "Radau"]]  # the shared run once, in turns with Radau; not RK45
+    assert result[0] == missing
+    assert result[1].seconds == result[3].seconds == 0.475 and result[2].seconds == 0.6
+
+
 def test_a_scipy_run_after_a_compiled_one_met_the_accuracy_gets_little_budget() -> None:
     """Once a compiled run meets the accuracy, scipy's runs (Python right-hand side, counted at
     COMPILED_STEPS x a compiled evaluation's work, where they cost 400-500 x as much) may spend only
@@ -509,3 +537,26 @@ initial: {x: 0.4673020107703806, y: -1.105273192803462, x_dot: 0.321270132404636
     tangential = (x * v[1] - y * v[0]) / np.hypot(x, y)
     assert high.name.startswith("high energy (at rest in the file")  # its free part, the swing, is 0 in the file
     assert abs(tangential) > 0.1  # so the swing is set from the slowest mode's rate, on top of l'(0) = a w radially
+
+
+def test_a_high_energy_start_from_rest_on_a_kept_constraint_swings_along_it() -> None:
+    """The Cartesian pendulum with a multiplier at rest at 2.5 rad (audit 3): the linearisation in (x, y) has a double
+    zero rate across the rod, which forward differences turn into a spurious 2.7e-4/s mode; its high-energy regime got
+    2.2e-5 m/s from it, the defaults again. Taken along the constraint (`policy.initial_spectrum`'s `tangent`), the
+    slowest rate is the swing's 2.2/s, and the regime starts on the rod, moving along it at metres per second."""
+    from lagrange_cli.numeric import policy
+    from lagrange_cli.numeric.settings import validate
+
+    model = model_from(ROOT / "tests" / "numeric_audit3" / "pendulum_multiplier_large_swing.yaml")
+    base = validate(model, method="DOP853", backend="python")
+    x, y = base.y0[0], base.y0[1]
+    across = policy.initial_spectrum(model, base.values, base.y0)
+    along = policy.initial_spectrum(model, base.values, base.y0, np.array([[-y], [x]]) / np.hypot(x, y))
+    assert across is not None and along is not None
+    assert across.slowest < 1e-3 * across.rate  # the spurious mode across the rod
+    assert along.slowest == pytest.approx(along.rate, rel=1e-6) and along.rate == pytest.approx(across.rate, rel=1e-6)
+    high = next(r for r in stress.regimes(model, []) if r.name.startswith("high energy"))
+    assert "at rest in the file" in high.name and "slowest mode" in high.name, high.name
+    v = np.array([high.initial["x_dot"], high.initial["y_dot"]])
+    assert abs(x * v[0] + y * v[1]) <= 1e-12 * np.hypot(x, y) * np.linalg.norm(v)  # on the rod: d/dt (x^2 + y^2) = 0
+    assert np.linalg.norm(v) > 3 * along.slowest  # 3 x the rate x the coordinates' sizes (at least 1 each)

@@ -39,6 +39,36 @@ def test_the_step_count_explodes_only_between_finished_runs() -> None:
     assert explosion is not None and explosion.kind == "explicit step count explodes" and "153 steps against Radau's 2" in explosion.detail
 
 
+def _steps_until_stopped(budget: int, fractions: list[float]) -> int | None:
+    progress = runs._paced(budget, None)
+    try:
+        for fraction in fractions:
+            progress(fraction)
+    except runs.Unaffordable as stopped:
+        return stopped.steps
+    return None
+
+
+def test_a_pace_far_beyond_its_budget_is_judged_early_and_a_growing_one_is_not() -> None:
+    """From PACE_EARLY of its budget a paced run is stopped where its pace needs more than PACE_AFTER /
+    PACE_EARLY x PACE_MARGIN x its budget, judged from the faster of the paces of the latter half and the last
+    quarter of its steps; between that and PACE_MARGIN x, it is judged at PACE_AFTER as before."""
+    budget = 400
+    early, late = round(runs.PACE_EARLY * budget), round(runs.PACE_AFTER * budget)
+    wide = runs.PACE_MARGIN * runs.PACE_AFTER / runs.PACE_EARLY
+    steady = [(k + 1) / (2 * wide * budget) for k in range(budget)]  # a steady pace: 2 x the wide margin x the budget to t_end
+    assert _steps_until_stopped(budget, steady) == early
+    beyond = [(k + 1) / (8 * budget) for k in range(budget)]  # 8 x its budget: beyond PACE_MARGIN, within the wide margin
+    assert _steps_until_stopped(budget, beyond) == late
+    # a transient: 80 % of the early steps at a pace of 1e9 steps to t_end, the last ones at 2 x the budget's pace
+    slow, fast = 1e-9, 1 / (2 * budget)
+    growing: list[float] = []
+    for k in range(budget):
+        growing.append((growing[-1] if growing else 0.0) + (slow if k < 0.8 * early else fast))
+    assert _steps_until_stopped(budget, growing) is None  # the last quarter's pace: it finishes within its budget
+    assert runs.remaining(growing[:early], 4) < runs.remaining(growing[:early])
+
+
 def test_a_pace_is_never_judged_from_a_runs_first_steps() -> None:
     """A paced run's first PACE_STEPS steps are not judged (scipy's first steps are tiny by design): with a
     budget of 6 it runs to its budget, not stopped after 2 with a pace of 'about 7.96e+04 steps to t_end'."""
@@ -49,7 +79,7 @@ def test_a_pace_is_never_judged_from_a_runs_first_steps() -> None:
     with pytest.raises(runs.Unaffordable) as stopped:
         for _ in range(400):
             large(1e-7)
-    assert stopped.value.steps == max(round(runs.PACE_AFTER * 400), runs.PACE_STEPS)
+    assert stopped.value.steps == max(round(runs.PACE_EARLY * 400), runs.PACE_STEPS)  # no progress at all: far beyond, judged early
     # the pace is the latter half's: 10 tiny first steps, then 10 of 1% each, leave 90 such steps to t_end (not 180)
     done = [1e-9 * (k + 1) for k in range(10)] + [0.01 * (k + 1) for k in range(10)]
     assert runs.remaining(done) == pytest.approx(90.0, rel=1e-6)

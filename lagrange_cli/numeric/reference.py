@@ -626,6 +626,17 @@ def computed_reference(model: Model, setup: Setup, tolerance: float, hint: str =
     return found
 
 
+SECOND_COST = 4.0
+SECOND_STEPS = 1_000_000
+"""In `stress`, a second method at the primary's rtol that would take more than SECOND_COST x the primary's steps,
+and more than SECOND_STEPS compiled steps (a second or more: cheaper second opinions are always asked for), is
+not run before the primary's own convergence (`_converged`: its runs 10 x and 100 x looser, together about 1.3 x
+its steps, the first of them run anyway) has had the chance to bound the reference's error; it still runs where
+that convergence cannot vouch. The Cartesian pendulum with a multiplier over t = 1e4: compiled RK45 at 2.5e-14 took
+6.4e6 steps, 10 s of `stress`'s 42, to confirm DOP853's 5.1e5 by 1.3e-10, where DOP853 at 2.5e-13 and 2.5e-12 (3.8e5 and
+2.9e5 steps) bound its error by 4.4e-8, the reference's own error either way (`_floored`)."""
+
+
 def _computed_reference(model: Model, setup: Setup, tolerance: float, hint: str, implicit: tuple[float, ...] | None) -> Reference:
     """The primary reference run confirmed by the second; where the primary (explicit) run cannot
     go - it fails, or runs out of its step budget, as on a stiff system - or where the system is
@@ -666,9 +677,18 @@ def _computed_reference(model: Model, setup: Setup, tolerance: float, hint: str,
                     # (`_converged`), which its looser runs would be asked for anyway where the second method's looser run disagrees
                     # by its own error (the weakly damped oscillators over t = 1e5: compiled RK45 at 2.5e-10, 3.8e6 steps, 4.5 s,
                     # 1.6e-6 off DOP853 at 2.5e-14, whose runs at 2.5e-13 and 2.5e-12 then bounded its error by 5.2e-10)
-                    same = _confirmed(model, capped, main, rtol, confirmations[:1], time.perf_counter() - began, ceiling=setup.reference_steps)
+                    # (and where it would take more than SECOND_COST x the primary's steps: the multiplier pendulum over t = 1e4)
+                    affordable = math.ceil(max(SECOND_COST * main.stats.steps, SECOND_STEPS) / COMPILED_STEPS)
+                    within = replace(capped, reference_max_steps=min(capped.reference_steps, affordable))
+                    ceiling = min(setup.reference_steps, affordable) if affordable > capped.reference_steps else 0
+                    same = _confirmed(model, within, main, rtol, confirmations[:1], time.perf_counter() - began, ceiling=ceiling)
                     if not math.isfinite(same.own_error):  # (where it finishes, the path below confirms and floors as before)
-                        same = replace(same, confirmation=f"{second.method} ({second.backend}) at the same tolerance cannot finish within its budget")
+                        why = (
+                            "within its budget"
+                            if affordable >= setup.reference_steps
+                            else f"within {affordable * COMPILED_STEPS} steps ({SECOND_COST:g} x those of {primary.method}, at least {SECOND_STEPS})"
+                        )
+                        same = replace(same, confirmation=f"{second.method} ({second.backend}) at the same tolerance cannot finish {why}")
                         early = _converged(model, capped, main, rtol, same, primary, rtols[-1], time.perf_counter() - began)
                         found = early if early.own_error <= rtols[-1] else None
                 if found is None:

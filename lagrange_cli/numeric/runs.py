@@ -294,6 +294,15 @@ elastic pendulum, capped at 6 steps, was judged after 2 to need 7.96e4 steps to 
 had covered 0.18% of a 10 x longer window). A run whose budget is below it is stopped by its budget."""
 
 
+PACE_EARLY = PACE_AFTER / 4
+"""... or already from this share of its budget where the pace says it needs PACE_AFTER / PACE_EARLY times more
+than that (16 x its budget at the default margin), judged from the faster of two paces: that of the latter half
+of its steps and that of their last quarter, so that steps still growing (a transient left behind) are not
+judged by the smaller ones before them. The weakly damped coupled oscillators over t = 1e5: scipy's BDF at rtol
+1e-5, 28558 steps allowed, was stopped at a quarter of them, 7140 steps and 2.5 s of each regime, where the
+first 1785 already put it at some 40 x its budget."""
+
+
 class Unaffordable(Exception):
     """A paced run was stopped: at its pace it needs `needed` steps, above PACE_MARGIN x its `budget`."""
 
@@ -306,6 +315,7 @@ def _paced(budget: int, then: Progress | None, margin: float = PACE_MARGIN) -> P
     """A progress report, told once a step (scipy's runs), that raises Unaffordable (`PACE_MARGIN`). The
     pace is that of the latter half of the steps so far (`remaining`): the first steps are tiny by design."""
     done: list[float] = []
+    early: list[int] = []
 
     def progress(fraction: float) -> None:
         done.append(fraction)
@@ -314,19 +324,26 @@ def _paced(budget: int, then: Progress | None, margin: float = PACE_MARGIN) -> P
             needed = taken + remaining(done)
             if needed > margin * budget:
                 raise Unaffordable(taken, fraction, needed, budget, margin)
+        elif taken >= max(PACE_EARLY * budget, PACE_STEPS) and not early:
+            early.append(taken)  # judged once: a pace far beyond its budget now, however it speeds up later
+            wide = margin * PACE_AFTER / PACE_EARLY
+            needed = taken + min(remaining(done), remaining(done, 4))
+            if needed > wide * budget:
+                raise Unaffordable(taken, fraction, needed, budget, wide)
         if then is not None:
             then(fraction)
 
     return progress
 
 
-def remaining(done: Sequence[float]) -> float:
+def remaining(done: Sequence[float], part: int = 2) -> float:
     """The steps a run still needs to the end of its span at the pace of the latter half of its steps so far
     (`done`: the share of the span done after each step). The first half is left out, scipy's first steps
     being tiny by design: on an elastic pendulum its BDF at rtol 1e-5 needed 1472 steps to t_end, which the
-    pace of its first 20 steps put at 5.1e3, that of steps 11-20 at 2.7e3 (at 100 steps: 1.74e3 and 1.50e3)."""
+    pace of its first 20 steps put at 5.1e3, that of steps 11-20 at 2.7e3 (at 100 steps: 1.74e3 and 1.50e3).
+    `part`: the pace of the last 1/part of its steps instead (PACE_EARLY)."""
     taken = len(done)
-    half = taken // 2
+    half = taken * (part - 1) // part  # the steps left out: the first half (`part` 4: the first three quarters)
     start = done[half - 1] if half > 0 else 0.0
     gained = done[-1] - start
     return (taken - half) * (1.0 - done[-1]) / gained if gained > 0 else math.inf
@@ -434,8 +451,10 @@ def _repeats(first: float, repeats: int) -> int:
 
 
 def unrun(candidate: Candidate, tolerance: float, status: PointStatus = PointStatus.NOT_APPLICABLE, reason: str = "", failure: Failure | None = None) -> Point:
-    """A point that did not run (nothing measured): `status` and `reason` say why."""
-    empty = Point(candidate.label, candidate.label, tolerance, None, "", "", math.nan, math.nan, math.nan, None, math.nan, 0, 0.0, 0, 0, 0, candidate=candidate)
+    """A point that did not run (nothing measured): `status` and `reason` say why. Shown as a run is
+    (`RK45 (python)`, not the option's `RK45:python`) where its backend is asked for."""
+    shown = candidate.label if candidate.backend == "auto" else str(Ran(candidate.method, candidate.backend))
+    empty = Point(candidate.label, shown, tolerance, None, "", "", math.nan, math.nan, math.nan, None, math.nan, 0, 0.0, 0, 0, 0, candidate=candidate)
     return replace(empty, status=status, reason=reason, failure=failure) if reason or failure is not None else empty
 
 

@@ -305,11 +305,14 @@ def _high_energy(model: Model, p: Sequence[float], y0: Sequence[float], factor: 
     v_b = -a^T (a a^T)^-1 b (a constraint moving in time: b = df/dt), plus `factor` x the free part, the file's
     velocities projected onto a . v = 0: "at rest" means that free part is 0. Audit 9 F1: a pendulum whose length is
     pumped by a kept constraint was started with all its velocities x 3 projected onto a . v = 0, so at rest
-    radially, off its constraint, and its verdict was about a state simulate calls inconsistent."""
+    radially, off its constraint, and its verdict was about a state simulate calls inconsistent. The slowest mode
+    is then one along the constraints (`policy.initial_spectrum`'s `tangent`): the Cartesian pendulum with a multiplier
+    at rest got 2.2e-5 m/s from a spurious 2.7e-4/s mode across its rod, its defaults again."""
     n = model.n
     v = np.array(y0[n:], dtype=float)
     prescribed = np.zeros(n)
     free = np.eye(n)
+    tangent = None  # the free directions, an orthonormal basis: the slowest mode is one that moves along the constraints
     if model.constraints:
         import sympy as sp
 
@@ -320,17 +323,22 @@ def _high_energy(model: Model, p: Sequence[float], y0: Sequence[float], factor: 
             a, b = ab[:, :n], ab[:, n]
             prescribed = -a.T @ np.linalg.solve(a @ a.T, b)
             free = free - a.T @ np.linalg.solve(a @ a.T, a)
+            _, _, rows = np.linalg.svd(a)
+            tangent = rows[len(a) :].T
         except (ArithmeticError, ValueError, TypeError, np.linalg.LinAlgError):
             pass  # the constraint rows cannot be evaluated (or are dependent) at the start: velocities as they are; the run reports it
     moving = free @ v
     mode = None
     if not np.any(np.abs(moving) > (1e-12 * max(1.0, float(np.max(np.abs(v)))) if model.constraints else 0.0)):  # a projection's round-off is 0
         mode = "slowest mode"
-        found = policy.initial_spectrum(model, p, y0)
+        found = policy.initial_spectrum(model, p, y0, tangent)
         rate = found.slowest if found is not None and found.slowest > 0 else 1.0
         if found is not None and found.oscillation > 0 and rate < CREEPING * found.oscillation:
             rate, mode = found.oscillation, "slowest oscillation"  # a creeping mode (a friction's, a relaxation's) would leave it at rest
-        moving = free @ (rate * diagnostics.coordinate_sizes(y0, n))  # r = 7e6 m moves by metres per second, not by 1e-6 of itself
+        sizes = diagnostics.coordinate_sizes(y0, n)  # r = 7e6 m moves by metres per second, not by 1e-6 of itself
+        # along the constraints, each free direction at the rate x the sizes of the coordinates it moves: the rate x sizes
+        # projected onto them can all but cancel (the multiplier pendulum at 2.5 rad: 0.07 of the rate, a slow creep)
+        moving = free @ (rate * sizes) if tangent is None else tangent @ (rate * (np.abs(tangent).T @ sizes))
     v = prescribed + factor * moving
     return dict(zip(_names(model)[n:], v.tolist(), strict=True)), mode
 
@@ -857,10 +865,14 @@ def _out_of_reach(candidate: Candidate, previous: Point | None, last: Point | No
     of them alone would take more than one run's whole step budget at its work per step: a prediction from two
     rungs can be pessimistic (the swinging Atwood machine's long horizon, chaotic: LSODA's error fell 1.1 x from
     1e-6 to 1e-7, and 10 x a decade further on), so it never stops the only runs that could decide a verdict.
+    A compiled method's ladder (not auto's) stops too once `best` meets, where the last of those runs alone would
+    take more than `_losing` x best's work, as `_regime` stops it once a run has: the weakly damped coupled oscillators over t = 1e5, compiled RK45
+    at rtol 1e-7 and 1e-8 (1.1e6 and 1.7e6 steps, 3.4 s of each regime's 18) to end 6.8e-5 off against 1e-6.
     Counted in evaluations. Van der
     Pol (mu = 1000): scipy's BDF at rtol 1e-5, 1e-6 and 1e-7 over t = 2000 was 1.9e-4 ... 1.7e-4 off, each rung
     some 1.4 x the work of the one before (10 s of the regime's 31)."""
-    if backend_for(candidate) != "python" or previous is None or last is None or not (previous.ok and last.ok) or not (need > 0) or last.error <= need:
+    compiled = backend_for(candidate) == "compiled" and candidate != AUTO
+    if not (backend_for(candidate) == "python" or (compiled and best is not None)) or previous is None or last is None or not (previous.ok and last.ok) or not (need > 0) or last.error <= need:
         return ""
     gain = previous.error / last.error if last.error > 0 else math.inf
     if not (gain > 1.0) or not math.isfinite(gain):
@@ -870,6 +882,14 @@ def _out_of_reach(candidate: Candidate, previous: Point | None, last: Point | No
     if rungs < 2:
         return ""
     growth = predicted_growth(previous, last)
+    if compiled and best is not None:  # `_regime` stops a compiled ladder whose run takes more than `_losing` x best's: the last, the one that would meet, alone
+        final = work(last) * growth**rungs
+        if final <= _losing(candidate, best, last) * work(best):
+            return ""
+        return (
+            f"not run tighter: even with its error falling {gain:.2g} x a rtol from here, meeting the accuracy needs {rungs} more rtols, the last of them"
+            f" alone about {final / max(work(best), 1e-300):.2g} x the work of {best.method} ({best.setting}), which meets it: above what it may spend"
+        )
     if best is not None:
         total = work(last) * sum(growth**k for k in range(1, rungs + 1))
         allowed = _remaining(candidate, best, spent)
@@ -930,20 +950,30 @@ def _cap(candidate: Candidate, best: Point | None, last: Point | None, setup: Se
 
 
 def _retimed(model: Model, points: list[Point], naive_default: Point | None, setup: Setup, target: float, own: float) -> tuple[list[Point], Point | None]:
-    """The runs that may decide the recommendation or a tie (within RETIME_WITHIN of the fastest
-    meeting run), and scipy's default run, timed again in turns (`runs.interleave`)."""
-    meeting = [p.seconds for p in points if p.ok and p.error + own <= target and not p.predicted]
+    """The runs that may decide the recommendation or a tie: those meeting the accuracy within RETIME_WITHIN of
+    the fastest of them (a run that misses it is neither; its first time stands), and scipy's default run, timed
+    again in turns (`runs.interleave`). Runs of the same decided settings (auto and the method it picked, at one
+    rtol) are one run: timed once, the time given to each (the weakly damped oscillators over t = 1e5: auto's and
+    DOP853's 0.9 s run, and RK45's 0.6 s one that missed, each timed twice more, 3 s of each regime)."""
+    deciding = [p.ok and p.error + own <= target and not p.predicted for p in points]
+    meeting = [p.seconds for p, d in zip(points, deciding, strict=True) if d]
     if not meeting:
         return list(points), naive_default  # no recommendation for the times to decide: the first ones stand
     limit = RETIME_WITHIN * min(meeting)
-    chosen = [k for k, p in enumerate(points) if p.seconds <= limit and p.status == PointStatus.FINISHED and not p.predicted]  # only finished runs are timed again
+    chosen = [k for k, p in enumerate(points) if deciding[k] and p.seconds <= limit and p.status == PointStatus.FINISHED]  # only finished runs are timed again
     extra = [naive_default] if naive_default is not None and naive_default.seconds <= limit and naive_default.status == PointStatus.FINISHED else []
-    if len(chosen) + len(extra) < 2:
+    runs_of: dict[object, list[int]] = {}  # the chosen points by their run: one timer each
+    for k in chosen:
+        settings = points[k].settings
+        runs_of.setdefault(replace(settings, notes=()) if settings is not None else k, []).append(k)
+    if len(runs_of) + len(extra) < 2:
         return list(points), naive_default  # nothing to compare the one run with: its first time stands
-    timed = retime(model, [points[k] for k in chosen] + extra, setup, TIMED_RUNS)  # in turns: a changing load slows all alike
+    firsts = [group[0] for group in runs_of.values()]
+    timed = retime(model, [points[k] for k in firsts] + extra, setup, TIMED_RUNS)  # in turns: a changing load slows all alike
     result = list(points)
-    for k, point in zip(chosen, timed, strict=False):
-        result[k] = point
+    for group, point in zip(runs_of.values(), timed, strict=False):
+        for k in group:
+            result[k] = replace(points[k], seconds=point.seconds, runs=point.runs)
     return result, (timed[-1] if extra else naive_default)
 
 
