@@ -876,8 +876,9 @@ def _out_of_reach(candidate: Candidate, previous: Point | None, last: Point | No
     rungs can be pessimistic (the swinging Atwood machine's long horizon, chaotic: LSODA's error fell 1.1 x from
     1e-6 to 1e-7, and 10 x a decade further on), so it never stops the only runs that could decide a verdict.
     A compiled method's ladder (not auto's) stops too once `best` meets, where the last of those runs alone would
-    take more than `_losing` x best's work, as `_regime` stops it once a run has: the weakly damped coupled oscillators over t = 1e5, compiled RK45
-    at rtol 1e-7 and 1e-8 (1.1e6 and 1.7e6 steps, 3.4 s of each regime's 18) to end 6.8e-5 off against 1e-6.
+    take more than `_losing` x best's work, as `_regime` stops it once a run has: the weakly damped coupled
+    oscillators over t = 1e5, compiled RK45 at rtol 1e-7 and 1e-8 (1.1e6 and 1.7e6 steps, 3.4 s of each regime's
+    18) to end 6.8e-5 off against 1e-6.
     Counted in evaluations. Van der
     Pol (mu = 1000): scipy's BDF at rtol 1e-5, 1e-6 and 1e-7 over t = 2000 was 1.9e-4 ... 1.7e-4 off, each rung
     some 1.4 x the work of the one before (10 s of the regime's 31)."""
