@@ -95,3 +95,24 @@ def audit_reference(system: Any, rhs: Any, t_end: float, samples: int, method: s
     done = solve_ivp(rhs(system), (0.0, t_end), system.y0, method=method, rtol=1e-12, atol=1e-14, t_eval=ts)
     assert done.status == 0, done.message
     return system.to_lagrange(done.y.T)
+
+
+def counting_integrations(monkeypatch: Any) -> list[tuple[str, str, float, int, int, str]]:
+    """Every integration made through `runs.integrate` from now on, in order: (method, backend, rtol, budget, steps,
+    outcome), a paced run that was stopped with the outcome "paced"."""
+    from lagrange_cli.numeric import runs
+
+    made: list[tuple[str, str, float, int, int, str]] = []
+    real = runs.integrate
+
+    def counted(model: Any, settings: Any, progress: Any = None, budget: Any = None, *more: Any, **options: Any) -> Any:
+        try:
+            found = real(model, settings, progress, budget, *more, **options)
+        except runs.Unaffordable as over:
+            made.append((settings.method, settings.backend, settings.rtol, budget, over.steps, "paced"))
+            raise
+        made.append((settings.method, settings.backend, settings.rtol, budget, found.stats.steps, str(found.outcome)))
+        return found
+
+    monkeypatch.setattr(runs, "integrate", counted)
+    return made

@@ -12,30 +12,11 @@ import pytest
 
 from lagrange_cli.numeric import compile, reference, runs, stress
 from lagrange_cli.numeric.runs import Candidate, Setup
-from lagrange_cli.numeric.simulate import Trajectory
 
 from .conftest import ROOT
-from .helpers import model_from
+from .helpers import counting_integrations, model_from
 
 pytestmark = [pytest.mark.usefixtures("private_cache"), pytest.mark.skipif(not compile.numba_available(), reason="the compiled methods need numba")]
-
-
-def _counting(monkeypatch: pytest.MonkeyPatch) -> list[tuple[str, str, float, int, str]]:
-    """Every integration made through `runs.integrate`: (method, backend, rtol, steps, outcome)."""
-    made: list[tuple[str, str, float, int, str]] = []
-    real = runs.integrate
-
-    def counted(model: Any, settings: Any, progress: Any = None, budget: Any = None, *more: Any, **options: Any) -> Trajectory:
-        try:
-            found = real(model, settings, progress, budget, *more, **options)
-        except runs.Unaffordable as over:
-            made.append((settings.method, settings.backend, settings.rtol, over.steps, "paced"))
-            raise
-        made.append((settings.method, settings.backend, settings.rtol, found.stats.steps, str(found.outcome)))
-        return found
-
-    monkeypatch.setattr(runs, "integrate", counted)
-    return made
 
 
 def test_a_regime_whose_reference_cannot_vouch_runs_each_compiled_ladder_once(monkeypatch: pytest.MonkeyPatch) -> None:
@@ -53,7 +34,7 @@ def test_a_regime_whose_reference_cannot_vouch_runs_each_compiled_ladder_once(mo
     regime = stress.Regime("defaults", 2.0, {}, {})
     budget = Setup(0.0, (), max_steps=stress.MAX_STEPS)
     monkeypatch.setattr(stress, "prepare", doubtful)
-    made = _counting(monkeypatch)
+    made = counting_integrations(monkeypatch)
     outcome = stress._regime(model, regime, 1e-6, candidates, budget, None)
     measured = [m for m in made if m[1] == "compiled" and m[2] >= 1e-5 * (1 - 1e-9)]  # the ladders' (not the reference's)
     assert sorted((m[0], m[2]) for m in measured) == [("DOP853", 1e-5), ("RK45", 1e-5)], made  # auto's first run is DOP853's
@@ -74,14 +55,14 @@ def test_a_reference_probe_out_of_budget_is_not_made_again_for_the_horizons_samp
     three regimes, 1.1 s each). Its steps do not depend on the samples (checked here: both grids reach the same
     state after the same steps)."""
     model = model_from(ROOT / "systems" / "double_pendulum.yaml").with_definitions()
-    made = _counting(monkeypatch)
+    made = counting_integrations(monkeypatch)
     study = runs.starting(model, Setup(2000.0, tuple(np.linspace(0.0, 2000.0, 2001).tolist()), max_steps=stress.MAX_STEPS, reference_max_steps=5))
     fine = replace(study, times=tuple(np.linspace(0.0, 2000.0, 8001).tolist()))
     dop = Candidate("DOP853", "compiled")
     first = reference.explicit_attempt(model, dop, 2.5e-14, fine)
     again = reference.explicit_attempt(model, dop, 2.5e-14, study)
     assert first.needed is not None and again.needed == first.needed and again.trajectory.outcome == runs.Status.BUDGET
-    assert [m for m in made if m[:3] == ("DOP853", "compiled", 2.5e-14)] == [("DOP853", "compiled", 2.5e-14, 20000, "budget")], made  # once
+    assert [m[4:] for m in made if m[:3] == ("DOP853", "compiled", 2.5e-14)] == [(20000, "budget")], made  # once
     probes = [runs.run(model, dop, 2.5e-14, replace(s, reference_max_steps=1), reference=True) for s in (fine, study)]
     assert probes[0].stats.steps == probes[1].stats.steps == 20000 and probes[0].outcome == runs.Status.BUDGET
     assert (probes[0].t_last, probes[0].y_last.tolist()) == (probes[1].t_last, probes[1].y_last.tolist())

@@ -14,10 +14,9 @@ import pytest
 
 from lagrange_cli.numeric import compile, reference, runs, stress
 from lagrange_cli.numeric.runs import Candidate, Setup
-from lagrange_cli.numeric.simulate import Trajectory
 
 from .conftest import ROOT
-from .helpers import damped_stiff_spring, model_from, model_of
+from .helpers import counting_integrations, damped_stiff_spring, model_from, model_of
 
 pytestmark = [pytest.mark.usefixtures("private_cache"), pytest.mark.skipif(not runs.compiled_radau(), reason="the compiled Radau method needs numba")]
 
@@ -25,24 +24,6 @@ ANGLE_DAMPER = ROOT / "tests" / "numeric_audit6" / "spring_pendulum_angle_damper
 
 SPRING = damped_stiff_spring(k=1.0e12, c=2.0e6)
 """x decays at c = 2e6/s (x t_end = 1e7: compiled RK45 needs about 3.4e6 stability-limited steps), y swings at 1 rad/s."""
-
-
-def _counting(monkeypatch: pytest.MonkeyPatch) -> list[tuple[str, str, float, int, int, str]]:
-    """Every integration made through `runs.integrate`: (method, backend, rtol, budget, steps, outcome)."""
-    made: list[tuple[str, str, float, int, int, str]] = []
-    real = runs.integrate
-
-    def counted(model: Any, settings: Any, progress: Any = None, budget: Any = None, *more: Any, **options: Any) -> Trajectory:
-        try:
-            found = real(model, settings, progress, budget, *more, **options)
-        except runs.Unaffordable as over:
-            made.append((settings.method, settings.backend, settings.rtol, budget, over.steps, "paced"))
-            raise
-        made.append((settings.method, settings.backend, settings.rtol, budget, found.stats.steps, str(found.outcome)))
-        return found
-
-    monkeypatch.setattr(runs, "integrate", counted)
-    return made
 
 
 def test_radau_runs_compiled_in_a_study_and_scipys_only_where_asked(monkeypatch: pytest.MonkeyPatch) -> None:
@@ -76,7 +57,7 @@ def test_the_angle_damped_spring_near_r_0_is_met_by_compiled_radau_with_few_scip
     compiled Radau meets the accuracy, and scipy's runs are capped by it: a few hundred Python steps in all."""
     model = model_from(ANGLE_DAMPER).with_definitions()
     regime = next(r for r in stress.regimes(model, []) if r.name.startswith("near singular"))
-    made = _counting(monkeypatch)
+    made = counting_integrations(monkeypatch)
     outcome = stress._regime(model, regime, 1e-6, stress.default_candidates(model), Setup(0.0, (), max_steps=stress.MAX_STEPS), None)
     assert outcome.verdict == "met", (outcome.reference, outcome.open_reason)
     assert outcome.reference.startswith("Radau (compiled) at rtol 1e-10"), outcome.reference
@@ -107,7 +88,7 @@ def test_a_compiled_radau_reference_no_explicit_run_can_confirm_is_confirmed_by_
     reference's error, which an independent run (compiled DOP853 at 1e-12) shows; no scipy run is made."""
     model, setup = _spring()
     monkeypatch.setattr(reference, "_explicit_budget", lambda model, setup: 1)
-    made = _counting(monkeypatch)
+    made = counting_integrations(monkeypatch)
     found = reference.computed_reference(model, setup, stress.reference_tolerance(1e-5), implicit=stress.implicit_reference_tolerances(1e-5))
     assert found.settings is not None and (found.settings.method, found.settings.backend, found.settings.rtol) == ("Radau", "compiled", 1e-9)
     assert "converges with the tolerance" in found.description, found.description
@@ -126,7 +107,7 @@ def test_a_compiled_radau_reference_whose_convergence_is_not_as_its_order_says_g
     model, setup = _spring()
     monkeypatch.setattr(reference, "_explicit_budget", lambda model, setup: 1)
     monkeypatch.setattr(reference, "CONVERGENCE_RATIO", (1e3, 1e4))
-    made = _counting(monkeypatch)
+    made = counting_integrations(monkeypatch)
     found = reference.computed_reference(model, setup, stress.reference_tolerance(1e-6), implicit=stress.implicit_reference_tolerances(1e-6))
     assert found.settings is not None and (found.settings.method, found.settings.backend, found.settings.rtol) == ("Radau", "compiled", 1e-10)
     assert "converges" not in found.description and found.confirmer == Candidate("LSODA"), found.description

@@ -12,28 +12,13 @@ import pytest
 
 from lagrange_cli.numeric import compile, reference, runs, stress
 from lagrange_cli.numeric.runs import Candidate, Setup
-from lagrange_cli.numeric.simulate import Trajectory
 
 from .conftest import ROOT
-from .helpers import model_from
+from .helpers import counting_integrations, model_from
 
 pytestmark = [pytest.mark.usefixtures("private_cache"), pytest.mark.skipif(not compile.numba_available(), reason="the compiled methods need numba")]
 
 PENDULUM = ROOT / "tests" / "numeric_audit3" / "pendulum_multiplier_large_swing.yaml"
-
-
-def _counting(monkeypatch: pytest.MonkeyPatch) -> list[tuple[str, str, float, int, int, str]]:
-    """Every integration made through `runs.integrate`: (method, backend, rtol, budget, steps, outcome)."""
-    made: list[tuple[str, str, float, int, int, str]] = []
-    real = runs.integrate
-
-    def counted(model: Any, settings: Any, progress: Any = None, budget: Any = None, *more: Any, **options: Any) -> Trajectory:
-        found = real(model, settings, progress, budget, *more, **options)
-        made.append((settings.method, settings.backend, settings.rtol, budget, found.stats.steps, str(found.outcome)))
-        return found
-
-    monkeypatch.setattr(runs, "integrate", counted)
-    return made
 
 
 def _reference(t_end: float, samples: int) -> tuple[Any, Setup, reference.Reference]:
@@ -47,7 +32,7 @@ def test_a_costly_second_method_waits_for_the_primarys_convergence(monkeypatch: 
     """The multiplier pendulum over t = 2000: compiled RK45 at 2.5e-14 needs some 1.3e6 steps, 12 x DOP853's: it is
     only probed, and DOP853 10 x and 100 x looser, converging, bound the reference's error. That bound holds against
     the RK45 run that was left out, made here."""
-    made = _counting(monkeypatch)
+    made = counting_integrations(monkeypatch)
     model, setup, found = _reference(2000.0, 4001)
     assert found.settings is not None and (found.settings.method, found.settings.rtol) == ("DOP853", 2.5e-14)
     assert "converges with the tolerance" in found.description and "cannot finish within" in found.description, found.description
@@ -62,7 +47,7 @@ def test_a_costly_second_method_waits_for_the_primarys_convergence(monkeypatch: 
 
 def test_a_cheap_second_method_still_confirms(monkeypatch: pytest.MonkeyPatch) -> None:
     """Over t = 100 the same RK45 run takes some 6.4e4 steps, below SECOND_STEPS: it confirms at the primary's rtol."""
-    made = _counting(monkeypatch)
+    made = counting_integrations(monkeypatch)
     _, _, found = _reference(100.0, 2001)
     assert found.confirmer == Candidate("RK45", "compiled") and found.confirmed_rtol == 2.5e-14, found.description
     assert any(m[:3] == ("RK45", "compiled", 2.5e-14) and m[5] == "finished" for m in made), made
