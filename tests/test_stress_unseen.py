@@ -58,6 +58,11 @@ def test_a_pace_far_beyond_its_budget_is_judged_early_and_a_growing_one_is_not()
     wide = runs.PACE_MARGIN * runs.PACE_AFTER / runs.PACE_EARLY
     steady = [(k + 1) / (2 * wide * budget) for k in range(budget)]  # a steady pace: 2 x the wide margin x the budget to t_end
     assert _steps_until_stopped(budget, steady) == early
+    unjudged = runs._paced(budget, None, early=False)  # LSODA's and reference-side runs: from PACE_AFTER only
+    with pytest.raises(runs.Unaffordable) as stopped:
+        for fraction in steady:
+            unjudged(fraction)
+    assert stopped.value.steps == late
     beyond = [(k + 1) / (8 * budget) for k in range(budget)]  # 8 x its budget: beyond PACE_MARGIN, within the wide margin
     assert _steps_until_stopped(budget, beyond) == late
     # a transient: 80 % of the early steps at a pace of 1e9 steps to t_end, the last ones at 2 x the budget's pace
