@@ -234,12 +234,17 @@ def jacobian(rhs: Callable[[float, np.ndarray], np.ndarray | None], t: float, y:
     return result if np.all(np.isfinite(result)) else None
 
 
-def spectrum_at(rhs: Callable[[float, np.ndarray], np.ndarray | None], t: float, y: np.ndarray) -> Spectrum | None:
+def spectrum_at(rhs: Callable[[float, np.ndarray], np.ndarray | None], t: float, y: np.ndarray, tangent: np.ndarray | None = None) -> Spectrum | None:
     """The rates of the linearisation of `rhs` at (t, y) (`jacobian`, `spectrum`), its decays told from the
     solution's own motion there (`own_rate`, from the same evaluation of rhs(t, y)); None where rhs cannot
-    be evaluated or differentiated."""
+    be evaluated or differentiated. `tangent` (n x k, orthonormal columns): the linearisation restricted to
+    the coordinate directions it spans and their velocities, (tangent dq, tangent dv)."""
     f0 = rhs(t, y)
     found = jacobian(rhs, t, y, f0) if f0 is not None else None
+    if found is not None and tangent is not None:
+        zero = np.zeros_like(tangent)
+        basis = np.block([[tangent, zero], [zero, tangent]])
+        found = basis.T @ found @ basis
     return spectrum(found, own_rate(f0, y)) if found is not None else None
 
 

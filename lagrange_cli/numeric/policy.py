@@ -362,16 +362,7 @@ def initial_spectrum(model: Model, p: Sequence[float], y0: Sequence[float], tang
     turn into a spurious slow mode (the Cartesian pendulum with a multiplier at rest: 2.7e-4/s beside its 2.2/s)."""
     functions = compile.build(model, "python")
     rhs = safe_rhs(functions.module, code_parameters(p, 0.0 if model.constraints else None))
-    y = np.array(y0, dtype=float)
-    if tangent is None:
-        return diagnostics.spectrum_at(rhs, 0.0, y)
-    f0 = rhs(0.0, y)
-    found = diagnostics.jacobian(rhs, 0.0, y, f0) if f0 is not None else None
-    if found is None:
-        return None
-    zero = np.zeros_like(tangent)
-    basis = np.block([[tangent, zero], [zero, tangent]])
-    return diagnostics.spectrum(basis.T @ found @ basis, diagnostics.own_rate(f0, y))
+    return diagnostics.spectrum_at(rhs, 0.0, np.array(y0, dtype=float), tangent)
 
 
 def safe_rhs(module: object, p: tuple[float, ...]) -> Callable[[float, np.ndarray], np.ndarray | None]:
