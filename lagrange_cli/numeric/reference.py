@@ -320,6 +320,16 @@ def explicit_attempt(model: Model, candidate: Candidate, rtol: float, setup: Set
     return memo.once(model, key, lambda: _explicit_attempt(model, candidate, rtol, setup, ceiling, expected))
 
 
+def attempt_ahead(model: Model, candidate: Candidate, rtol: float, setup: Setup, ceiling: int = 0, expected: int = 0) -> None:
+    """`explicit_attempt` with these arguments started in a thread of its own (`memo.ahead`), for the call
+    that follows to take up: compiled runs release the GIL, so on a machine with two cores it runs beside
+    what the caller does meanwhile. What it looks up first (the pilot behind `stable_steps`) is looked up
+    here, so that the thread only integrates."""
+    stable_steps(model, setup, candidate.method)
+    key = ("explicit attempt", candidate, rtol, ceiling, expected, *reference_key(setup, rtol))
+    memo.ahead(model, key, lambda: _explicit_attempt(model, candidate, rtol, setup, ceiling, expected))
+
+
 def _explicit_attempt(model: Model, candidate: Candidate, rtol: float, setup: Setup, ceiling: int, expected: int) -> Attempt:
     budget = setup.reference_steps
     share = max(1, math.ceil(PACE_PROBE * budget))
@@ -626,6 +636,8 @@ def computed_reference(model: Model, setup: Setup, tolerance: float, hint: str =
             return _computed_reference(model, setup, tolerance, hint, implicit)
         except ReferenceFailed as failure:
             return failure
+        finally:
+            memo.settle(model)  # no run started ahead (`attempt_ahead`) goes on beside the measured runs that follow
 
     found = memo.once(model, ("reference", *reference_key(setup, tolerance, implicit, hint)), compute)
     if isinstance(found, ReferenceFailed):
@@ -679,7 +691,11 @@ def _computed_reference(model: Model, setup: Setup, tolerance: float, hint: str,
                 looser = [(second, r) for r in looser_confirmations(rtol, rtols[-1])] if second.backend == "compiled" else []
                 confirmations = [(second, rtol), *looser, (Candidate("Radau"), max(rtols[0], rtol))]
                 found = None
-                if implicit and looser:
+                if implicit and looser and primary.backend == "compiled":
+                    # the primary's own run CONVERGENCE_STEP x looser is asked for on every path below (`_floored`, `_converged`):
+                    # made beside the second method's
+                    near = _looser(rtol, CONVERGENCE_STEP)
+                    attempt_ahead(model, primary, near, capped, 0, _bounded(main, primary, near))
                     # `stress`, where the second method cannot finish at the primary's rtol: the primary's own convergence first
                     # (`_converged`), which its looser runs would be asked for anyway where the second method's looser run disagrees
                     # by its own error (the weakly damped oscillators over t = 1e5: compiled RK45 at 2.5e-10, 3.8e6 steps, 4.5 s,
@@ -690,6 +706,9 @@ def _computed_reference(model: Model, setup: Setup, tolerance: float, hint: str,
                     ceiling = min(setup.reference_steps, affordable) if affordable > capped.reference_steps else 0
                     same = _confirmed(model, within, main, rtol, confirmations[:1], time.perf_counter() - began, ceiling=ceiling)
                     if not math.isfinite(same.own_error):  # (where it finishes, the path below confirms and floors as before)
+                        # `_converged` asks next for the run CONVERGENCE_STEP**2 x looser: made beside the one CONVERGENCE_STEP x looser
+                        far = _looser(rtol, CONVERGENCE_STEP**2)
+                        attempt_ahead(model, primary, far, capped, 0, _bounded(main, primary, far))
                         why = (
                             "within its budget"
                             if affordable >= setup.reference_steps
