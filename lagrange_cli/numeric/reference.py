@@ -691,7 +691,7 @@ def _computed_reference(model: Model, setup: Setup, tolerance: float, hint: str,
                 looser = [(second, r) for r in looser_confirmations(rtol, rtols[-1])] if second.backend == "compiled" else []
                 confirmations = [(second, rtol), *looser, (Candidate("Radau"), max(rtols[0], rtol))]
                 found = None
-                if implicit and looser and primary.backend == "compiled":
+                if implicit and looser:  # (looser confirmations are compiled ones: the primary is compiled DOP853)
                     # the primary's own run CONVERGENCE_STEP x looser is asked for on every path below (`_floored`, `_converged`):
                     # made beside the second method's
                     near = _looser(rtol, CONVERGENCE_STEP)
