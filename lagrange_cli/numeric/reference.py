@@ -316,8 +316,13 @@ def explicit_attempt(model: Model, candidate: Candidate, rtol: float, setup: Set
     Once per model and arguments: `horizon`'s base run is the reference's first attempt (the same call), and where its probe
     runs out the reference would probe it again (the penalty pendulum of k = 1e9: compiled DOP853 at 2.5e-14, 200000 steps,
     0.3-0.4 s, twice in each of its three regimes). A run is deterministic: the same arguments give the same steps."""
-    key = ("explicit attempt", candidate, rtol, ceiling, expected, *reference_key(setup, rtol))
-    return memo.once(model, key, lambda: _explicit_attempt(model, candidate, rtol, setup, ceiling, expected))
+    return memo.once(model, _attempt_key(candidate, rtol, setup, ceiling, expected), lambda: _explicit_attempt(model, candidate, rtol, setup, ceiling, expected))
+
+
+def _attempt_key(candidate: Candidate, rtol: float, setup: Setup, ceiling: int, expected: int) -> tuple[object, ...]:
+    """The memo key of an explicit attempt, one for `explicit_attempt` and `attempt_ahead`: an attempt started ahead
+    is taken up only by a call with the same key."""
+    return ("explicit attempt", candidate, rtol, ceiling, expected, *reference_key(setup, rtol))
 
 
 def attempt_ahead(model: Model, candidate: Candidate, rtol: float, setup: Setup, ceiling: int = 0, expected: int = 0) -> None:
@@ -326,8 +331,7 @@ def attempt_ahead(model: Model, candidate: Candidate, rtol: float, setup: Setup,
     what the caller does meanwhile. What it looks up first (the pilot behind `stable_steps`) is looked up
     here, so that the thread only integrates."""
     stable_steps(model, setup, candidate.method)
-    key = ("explicit attempt", candidate, rtol, ceiling, expected, *reference_key(setup, rtol))
-    memo.ahead(model, key, lambda: _explicit_attempt(model, candidate, rtol, setup, ceiling, expected))
+    memo.ahead(model, _attempt_key(candidate, rtol, setup, ceiling, expected), lambda: _explicit_attempt(model, candidate, rtol, setup, ceiling, expected))
 
 
 def _explicit_attempt(model: Model, candidate: Candidate, rtol: float, setup: Setup, ceiling: int, expected: int) -> Attempt:
