@@ -316,6 +316,8 @@ def _report_stress(report: Report, to_stderr: bool, file: str, model: Model) -> 
         console.print(plain(f"  {_measurements(d)}"), markup=False)
         for finding in d.findings:
             console.print(plain(f"  - {finding}"), markup=False)
+        for known in o.known:
+            console.print(plain(f"  - {known}"), markup=False)
         table = Table(box=None, padding=(0, 1))
         for column in ("method", "setting", "error", "final/RMS", "energy", "constraint", "run time", "steps", "evals (jac)", "status"):
             table.add_column(column, justify="left" if column in ("method", "setting", "status") else "right")

@@ -44,6 +44,10 @@ made is reported as not measured, with why. cond M is sampled along the referenc
 output (`diagnostics.condition_peak`), and a coordinate singularity names the coordinate and the
 change of coordinates to make.
 
+Rungs known to miss: a regime over a longer span from the same start and parameters (the long horizon after the
+defaults) does not run again a rung the earlier regime's run showed to miss by more than any slack
+(`_missed_before`): those methods take the same steps over the shared span.
+
 Budget: compiled candidates (auto first) run before scipy's; once a method meets the accuracy,
 the others' runs are capped at LOSING (scipy's RK45: NAIVE_LOSING; a scipy run after a compiled
 one met it: PYTHON_AFTER_COMPILED) times its work, counted in right-hand side evaluations (`work`),
@@ -199,6 +203,8 @@ class Outcome:
     open_reason: str = ""
     """Why no verdict can be given although no method was shown to meet the accuracy: no reference
     could be made (short of a confirmed blow-up), or the reference's own error leaves it open."""
+    known: tuple[str, ...] = ()
+    """Rungs of a method's ladder not run because an earlier regime's run showed them to miss (`_missed_before`)."""
     beyond: str = ""
     """Why a regime of stress's own (the long horizon) was not run: the model itself ends before its
     t_end (its mass matrix singular in time, whatever the state). Such a regime has no verdict."""
@@ -427,9 +433,10 @@ def stress(
     chosen = tuple(candidates) if candidates else default_candidates(model)
     planned = regimes(model, scales, long_factor, energy_factor, t_end)
     outcomes = []
+    earlier: list[_Earlier] = []
     for k, regime in enumerate(planned):
         say = (lambda text, k=k, name=regime.name: progress(study.Step(k, len(planned), name, text))) if progress else None
-        outcomes.append(_regime(model, regime, target, chosen, Setup(0.0, (), max_steps=max_steps, time_limit=time_limit), say))
+        outcomes.append(_regime(model, regime, target, chosen, Setup(0.0, (), max_steps=max_steps, time_limit=time_limit), say, earlier))
         if progress:  # a regime's work grows with its time span (a long horizon is long_factor x the others)
             progress(study.Step(k + 1, len(planned), regime.name, fraction=sum(r.t_end for r in planned[: k + 1]) / sum(r.t_end for r in planned)))
     return Report(model.title, target, tuple(outcomes))
@@ -480,8 +487,76 @@ long horizon, own error 7.9e-7 from a Radau reference at 1e-7, left the runs 2.1
 tightest rung, 10 x Radau's rtol, could not reach it (a false "not met")."""
 
 
-def _regime(model: Model, regime: Regime, target: float, candidates: Sequence[Candidate], budget: Setup, say: Callable[[str], None] | None) -> Outcome:
-    """One regime; `budget` carries the step budget and time limit."""
+@dataclass(frozen=True)
+class _Earlier:
+    """A regime's measured runs, kept for the regimes after it (`_missed_before`)."""
+
+    name: str
+    setup: Setup
+    scale: np.ndarray
+    own: float
+    runs: Mapping[tuple[Candidate, float], Point]
+
+
+PREFIX_METHODS = ("RK45", "DOP853", "Radau", "BDF")
+"""Methods whose steps do not depend on t_end or on the sample times, only on the start, the rtol and the system,
+so that a run over a longer span takes the same steps as a shorter one up to the shorter one's last step (clipped to
+end there): compiled and scipy's alike, checked bit for bit on the samples (LSODA's are not the same: its Fortran
+steps towards the end time; `auto` and the symplectic method choose from t_end)."""
+PREFIX_SLACK = 100.0
+"""Where the shorter run's last step, clipped to end on its t_end, and the longer run's step there differ, their samples
+differ by about a step's local error, within rtol x the scale; this many times the rtol is taken off the shorter
+run's error before it counts as a lower bound of the longer run's."""
+
+
+def _missed_before(
+    model: Model, candidate: Candidate, tolerance: float, tighter: float | None, setup: Setup, earlier: Sequence[_Earlier], scale: np.ndarray, own: float, target: float
+) -> tuple[str, bool]:
+    """Why the run of `candidate` at `tolerance` need not be made in this regime: an earlier regime of the same
+    parameters and start, over a shorter span whose sample times are among this one's, ran it with the same settings
+    and it missed the accuracy there by more than any slack. The longer run takes the same steps over that span
+    (PREFIX_METHODS), so its error at those samples, against this regime's reference, is at least the earlier error
+    less PREFIX_SLACK x rtol and both references' own errors, rescaled to this regime's component scales. Only a rung
+    the earlier ladder went on from (its next rung, `tighter`, was run there too), so that the ladder here goes on
+    too, or the rung where the earlier ladder stopped because a tighter run could not be the recommendation ("not run
+    tighter", True: the ladder here stops too, with that reason; its runs would take longer still). ("", False) when
+    it must be run."""
+    if model.constraints:
+        return "", False  # kept constraints: the state is projected at each sample, so the samples change the steps
+    times = np.array(setup.times)
+    for before in earlier:
+        shorter = before.setup
+        if dict(shorter.parameters) != dict(setup.parameters) or dict(shorter.initial) != dict(setup.initial) or not shorter.t_end < setup.t_end:
+            continue
+        point = before.runs.get((candidate, tolerance))
+        if point is None or not point.ok or point.settings is None:
+            continue
+        stopped = (tighter is None or (candidate, tighter) not in before.runs) and point.reason.startswith("not run tighter")
+        if (tighter is None or (candidate, tighter) not in before.runs) and not stopped:
+            continue
+        theirs = np.array(shorter.times)
+        at = np.clip(np.searchsorted(times, theirs), 0, len(times) - 1)
+        near = np.minimum(np.abs(times[at] - theirs), np.abs(times[np.maximum(at - 1, 0)] - theirs))
+        if len(theirs) == 0 or float(np.max(near)) > 1e-12 * setup.t_end:
+            continue
+        mine = settings_for(model, candidate, tolerance, setup)  # `auto` resolved: the same method, and it did not switch from it there
+        if mine.method not in PREFIX_METHODS or point.ran != Ran(mine.method, mine.backend):
+            continue
+        if replace(mine, t_end=0.0, t_eval=(), notes=()) != replace(point.settings, t_end=0.0, t_eval=(), notes=()):
+            continue
+        ratio = float(np.min(before.scale / scale))
+        bound = (point.error - PREFIX_SLACK * tolerance) * ratio - before.own - own
+        if bound > target:
+            why = (
+                f"{'auto -> ' if candidate == AUTO else ''}{point.resolved} at rtol {tol_text(tolerance)} not run: it misses over t = 0 .. {shorter.t_end:.3g} already (regime {before.name}: error"
+                f" {point.error:.1e} there; over a longer span it takes the same steps, so its error here is at least {bound:.1e})"
+            )
+            return (f"{why}; there its ladder stopped: {point.reason}", True) if stopped else (why, False)
+    return "", False
+
+
+def _regime(model: Model, regime: Regime, target: float, candidates: Sequence[Candidate], budget: Setup, say: Callable[[str], None] | None, earlier: list[_Earlier] | None = None) -> Outcome:
+    """One regime; `budget` carries the step budget and time limit; `earlier` the regimes before it (this one is added)."""
     times = tuple(np.linspace(0.0, regime.t_end, regime.samples).tolist())
     setup = starting(model, Setup(regime.t_end, times, dict(regime.parameters), dict(regime.initial), budget.max_steps, time_limit=budget.time_limit))
     ended = _model_end(model, setup)
@@ -505,6 +580,7 @@ def _regime(model: Model, regime: Regime, target: float, candidates: Sequence[Ca
     open_only = own > REFERENCE_ROOM * target  # then, unless a run meets the accuracy, the verdict is open (never "not met")
     proof: dict[str, float] = {}  # scipy's RK45 shown equal to its compiled twin (`_twin`)
     twinned = any(c in candidates for c in (TWIN, Candidate("RK45")))  # the twin a candidate too: scipy's RK45 shows scipy's cost; else it is run as asked
+    known: list[str] = []
     for candidate in _order(model, setup, candidates):
         if not vouches and candidate != AUTO and backend_for(candidate) != "compiled":
             why = "unconfirmed" if not math.isfinite(own) else f"{own:.1e}"
@@ -521,6 +597,14 @@ def _regime(model: Model, regime: Regime, target: float, candidates: Sequence[Ca
                 reason = f"not run tighter: its runs already took {spent / max(work(best), 1e-300):.2g} x the work of {best.method} ({best.setting}), which meets the accuracy"
                 last = runs[(candidate, previous_tolerance)] = replace(last, reason=reason)
                 break
+            tighter = next((r for r in rungs if r < tolerance * (1 - 1e-9)), None)
+            missed, stopped = ("", False) if candidate == NAIVE and twinned else _missed_before(model, candidate, tolerance, tighter, setup, earlier or (), scale, own, target)
+            if stopped:
+                last = unrun(candidate, tolerance, PointStatus.CAPPED, missed)
+                break
+            if missed:
+                known.append(missed)
+                continue
             if candidate == NAIVE and twinned:
                 previous, last = last, _twin(model, tolerance, setup, reference, scale, best, last, spent, made, open_only, proof)
             else:
@@ -596,7 +680,9 @@ def _regime(model: Model, regime: Regime, target: float, candidates: Sequence[Ca
             f"the reference's own error ({reference.own_error:.1e}) leaves the runs less than {1 - REFERENCE_ROOM:.0%} of the accuracy asked, and no rung of the ladder"
             f" comes within what is left: a failure of the methods cannot be told from the reference's{_closest(ordered, own, target)}"
         )
-    return Outcome(regime, setup.t_end, reference.description, reference.own_error, tuple(ordered), diagnosis, recommended, naive, auto, naive_default, tied, open_reason)
+    if earlier is not None:
+        earlier.append(_Earlier(regime.name, setup, scale, own, dict(runs)))
+    return Outcome(regime, setup.t_end, reference.description, reference.own_error, tuple(ordered), diagnosis, recommended, naive, auto, naive_default, tied, open_reason, tuple(known))
 
 
 def _why_own(reference: Reference) -> str:
@@ -1241,6 +1327,7 @@ def json_text(report: Report) -> str:
                 "time_scale_ratio": number(o.diagnosis.scale_ratio),
                 "max_mass_condition": number(o.diagnosis.condition),
                 "findings": [str(f) for f in o.diagnosis.findings],
+                "not_run": list(o.known),
                 "recommended": point(o.recommended),
                 "ties": [point(p) for p in o.ties],
                 "naive": point(o.naive),
