@@ -598,7 +598,8 @@ def _regime(model: Model, regime: Regime, target: float, candidates: Sequence[Ca
                 last = runs[(candidate, previous_tolerance)] = replace(last, reason=reason)
                 break
             tighter = next((r for r in rungs if r < tolerance * (1 - 1e-9)), None)
-            missed, stopped = ("", False) if candidate == NAIVE and twinned else _missed_before(model, candidate, tolerance, tighter, setup, earlier or (), scale, own, target)
+            # not where the reference cannot vouch: there a method's first run, the loosest, only shows how far off it is
+            missed, stopped = ("", False) if (candidate == NAIVE and twinned) or not vouches else _missed_before(model, candidate, tolerance, tighter, setup, earlier or (), scale, own, target)
             if stopped:
                 last = unrun(candidate, tolerance, PointStatus.CAPPED, missed)
                 break
