@@ -163,3 +163,38 @@ def test_over_a_long_horizon_its_own_error_bounds_the_true_one() -> None:
         exact = np.array([[float(mp.re(v)) for v in vectors * mp.matrix([mp.exp(values[i] * mp.mpf(setup.times[k])) * weights[i] for i in range(4)])] for k in picked])
     error = float(np.max(scaled_errors(found.y[picked], exact, component_scale(found.y))))
     assert error <= found.own_error < 1e-7
+
+
+@needs_numba
+def test_what_an_earlier_ladder_says_decides_what_is_skipped() -> None:
+    """`_missed_before` on a real run of compiled DOP853 at 1e-5 over t = 3000 that missed: nothing is skipped where the
+    earlier ladder neither went on nor stopped for want of a chance (its reference could not vouch, say); the rung is
+    skipped where it went on, and the ladder stops there where it stopped; never for other parameters or a start
+    whose samples are not among the longer regime's."""
+    from dataclasses import replace
+
+    from lagrange_cli.numeric.runs import measure
+    from lagrange_cli.numeric.stress import _Earlier, _missed_before
+
+    model = model_from(ROOT / "tests" / "numeric_audit7" / "coupled_oscillators_weak_damping_t1e5.yaml").with_definitions()
+    dop853 = Candidate("DOP853", "compiled")
+    short, longer = _setup(model, 3000.0, 3001), _setup(model, 6000.0, 6001)
+    found = linear_reference(model, short)
+    assert found is not None
+    scale = component_scale(found.y)
+    point = measure(model, dop853, 1e-5, short, found, scale, repeats=0)
+    assert point.ok and point.error > 1e-3  # it misses 1e-6 by far, and by more than the slack (1e-3 at rtol 1e-5)
+    far = linear_reference(model, longer)
+    assert far is not None
+    wide = component_scale(far.y)
+
+    def asked(runs: dict[tuple[Candidate, float], object], ended: frozenset[tuple[Candidate, float]], setup: Setup = longer) -> tuple[str, bool]:
+        return _missed_before(model, dop853, 1e-5, 1e-6, setup, [_Earlier("defaults", short, scale, found.own_error, runs, ended)], wide, far.own_error, 1e-6)  # type: ignore[arg-type]
+
+    assert asked({(dop853, 1e-5): point}, frozenset()) == ("", False)
+    why, stopped = asked({(dop853, 1e-5): point, (dop853, 1e-6): point}, frozenset())
+    assert not stopped and "not run: it misses over t = 0 .. 3e+03 already" in why
+    why, stopped = asked({(dop853, 1e-5): point}, frozenset({(dop853, 1e-5)}))
+    assert stopped and "there its ladder stopped" in why
+    assert asked({(dop853, 1e-5): point, (dop853, 1e-6): point}, frozenset(), replace(longer, parameters={"c": 3e-5})) == ("", False)
+    assert asked({(dop853, 1e-5): point, (dop853, 1e-6): point}, frozenset(), _setup(model, 6000.0, 4000)) == ("", False)

@@ -496,6 +496,9 @@ class _Earlier:
     scale: np.ndarray
     own: float
     runs: Mapping[tuple[Candidate, float], Point]
+    ended: frozenset[tuple[Candidate, float]]
+    """The rungs where a ladder stopped because no tighter run could be the recommendation (its work, or the work its
+    error's fall predicts, against the run that met the accuracy): not where the reference could not vouch."""
 
 
 PREFIX_METHODS = ("RK45", "DOP853", "Radau", "BDF")
@@ -531,7 +534,7 @@ def _missed_before(
         point = before.runs.get((candidate, tolerance))
         if point is None or not point.ok or point.settings is None:
             continue
-        stopped = (tighter is None or (candidate, tighter) not in before.runs) and point.reason.startswith("not run tighter")
+        stopped = (tighter is None or (candidate, tighter) not in before.runs) and (candidate, tolerance) in before.ended
         if (tighter is None or (candidate, tighter) not in before.runs) and not stopped:
             continue
         theirs = np.array(shorter.times)
@@ -581,6 +584,7 @@ def _regime(model: Model, regime: Regime, target: float, candidates: Sequence[Ca
     proof: dict[str, float] = {}  # scipy's RK45 shown equal to its compiled twin (`_twin`)
     twinned = any(c in candidates for c in (TWIN, Candidate("RK45")))  # the twin a candidate too: scipy's RK45 shows scipy's cost; else it is run as asked
     known: list[str] = []
+    stopped_at: set[tuple[Candidate, float]] = set()  # (`_Earlier.ended`)
     for candidate in _order(model, setup, candidates):
         if not vouches and candidate != AUTO and backend_for(candidate) != "compiled":
             why = "unconfirmed" if not math.isfinite(own) else f"{own:.1e}"
@@ -596,12 +600,14 @@ def _regime(model: Model, regime: Regime, target: float, candidates: Sequence[Ca
             if best is not None and _remaining(candidate, best, spent) <= 0 and last is not None:
                 reason = f"not run tighter: its runs already took {spent / max(work(best), 1e-300):.2g} x the work of {best.method} ({best.setting}), which meets the accuracy"
                 last = runs[(candidate, previous_tolerance)] = replace(last, reason=reason)
+                stopped_at.add((candidate, previous_tolerance))
                 break
             tighter = next((r for r in rungs if r < tolerance * (1 - 1e-9)), None)
             # not where the reference cannot vouch: there a method's first run, the loosest, only shows how far off it is
             missed, stopped = ("", False) if (candidate == NAIVE and twinned) or not vouches else _missed_before(model, candidate, tolerance, tighter, setup, earlier or (), scale, own, target)
             if stopped:
                 last = unrun(candidate, tolerance, PointStatus.CAPPED, missed)
+                stopped_at.add((candidate, tolerance))
                 break
             if missed:
                 known.append(missed)
@@ -629,6 +635,7 @@ def _regime(model: Model, regime: Regime, target: float, candidates: Sequence[Ca
                 if last.ok:
                     ratio = work(last) / max(work(best), 1e-300)
                     last = runs[(candidate, tolerance)] = replace(last, reason=f"not run tighter: it already took {ratio:.2g} x the work of {best.method} ({best.setting}), which meets the accuracy")
+                    stopped_at.add((candidate, tolerance))
                 break  # tighter tolerances cost more still: it cannot be the recommendation
             growth = predicted_growth(previous, last)
             if best is not None and work(last) * growth > _remaining(candidate, best, spent):
@@ -638,10 +645,12 @@ def _regime(model: Model, regime: Regime, target: float, candidates: Sequence[Ca
                     f" {best.method} ({best.setting}), which meets the accuracy: above what it may spend"
                 )
                 last = runs[(candidate, tolerance)] = replace(last, reason=reason)
+                stopped_at.add((candidate, tolerance))
                 break  # it would be stopped at its cap: it cannot be the recommendation
             far = _out_of_reach(candidate, previous, last, target - own, best, spent, setup, open_only)
             if far:
                 last = runs[(candidate, tolerance)] = replace(last, reason=far)
+                stopped_at.add((candidate, tolerance))
                 break  # at the pace its error falls, the run that would meet the accuracy costs more than it may spend
             stalled = previous is not None and previous.ok and previous.error < SATURATED and last.error > previous.error / STALLED
             stalls = stalls + 1 if stalled else 0
@@ -682,7 +691,7 @@ def _regime(model: Model, regime: Regime, target: float, candidates: Sequence[Ca
             f" comes within what is left: a failure of the methods cannot be told from the reference's{_closest(ordered, own, target)}"
         )
     if earlier is not None:
-        earlier.append(_Earlier(regime.name, setup, scale, own, dict(runs)))
+        earlier.append(_Earlier(regime.name, setup, scale, own, dict(runs), frozenset(stopped_at)))
     return Outcome(regime, setup.t_end, reference.description, reference.own_error, tuple(ordered), diagnosis, recommended, naive, auto, naive_default, tied, open_reason, tuple(known))
 
 
