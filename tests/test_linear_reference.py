@@ -93,6 +93,7 @@ def test_a_solution_past_what_a_double_holds_has_none() -> None:
     model = model_of(FALLING.replace("k*x**2/2 - F*x", "-k*x**2/2 - F*x"))
     assert linear_reference(model, _setup(model, 1000.0, 101)) is None
     assert linear_reference(model, _setup(model, 2.0, 101)) is not None
+    assert linear_reference(model, _setup(model, 2.0, 0)) is None  # no samples: nothing to measure against
 
 
 @needs_numba

@@ -171,6 +171,8 @@ def linear_reference(model: Model, setup: Setup) -> Reference | None:
     p = list(s.p)
     size = 2 * model.n
     times = np.array(setup.times, dtype=float)
+    if len(times) == 0:
+        return None
     try:
         with np.errstate(all="ignore"):
             a = np.asarray(module._jac(0.0, [0.0] * size, p), dtype=float)
@@ -178,13 +180,13 @@ def linear_reference(model: Model, setup: Setup) -> Reference | None:
             augmented = np.zeros((size + 1, size + 1))
             augmented[:size, :size], augmented[:size, size] = a, b
             z0 = np.array([*s.y0, 1.0])
-            y, stepped, offset = _exponential(augmented, z0, times)
+            y, stepped, offset = _exponential(augmented, z0, times - s.t0)  # autonomous: exp(B (t - t0)) from the start
     except (ArithmeticError, ValueError, TypeError, np.linalg.LinAlgError):
         return None
     if not (np.all(np.isfinite(y)) and np.all(np.isfinite(stepped)) and np.all(np.isfinite(a))):
         return None
     if np.max(np.abs(y[0] - np.array(s.y0))) > 1e-12 * max(1.0, float(np.max(np.abs(y[0])))):
-        return None  # the samples do not start at t = 0 (a window that does not begin at the start)
+        return None  # the samples do not start at the start (a window that begins later)
     norm = float(np.linalg.norm(a, 1))  # the times a grid point is off its sample time move the solution by at most about offset x ||A||_1 (scaled)
     floor = LINEAR_FLOOR * float(np.finfo(float).eps) * norm * float(times[-1] - times[0]) + offset * norm
     own = max(LINEAR_MARGIN * float(np.max(scaled_errors(stepped, y, component_scale(y)))), floor)
