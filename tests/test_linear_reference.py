@@ -86,6 +86,11 @@ def test_only_linear_autonomous_systems_have_one() -> None:
     assert not autonomous_linear(pendulum) and linear_reference(pendulum, _setup(pendulum, 5.0, 11)) is None
     driven = model_of(FALLING.replace("potential: m*g*z + k*x**2/2 - F*x", "potential: m*g*z + k*x**2/2 - F*cos(t)*x"))
     assert not autonomous_linear(driven) and linear_reference(driven, _setup(driven, 5.0, 11)) is None
+    # dry friction: piecewise constant in the state, which the generated Jacobian (d sign = 0) cannot tell from linear
+    friction = model_of(FALLING.replace("dissipation: c*x_dot**2/2", "forces:\n  generalized: {x: -c*m*g*sign(x_dot)}"))
+    assert not autonomous_linear(friction) and linear_reference(friction, _setup(friction, 5.0, 11)) is None
+    gated = model_of(FALLING.replace("dissipation: c*x_dot**2/2", "forces:\n  generalized: {x: -c*Abs(x)*x_dot}"))
+    assert not autonomous_linear(gated)
 
 
 def test_a_solution_past_what_a_double_holds_has_none() -> None:

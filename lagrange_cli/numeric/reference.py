@@ -232,13 +232,24 @@ def _exponential(matrix: np.ndarray, z0: np.ndarray, times: np.ndarray) -> tuple
 
 
 def autonomous_linear(model: Model) -> bool:
-    """`linear`, and t in neither M nor F (no drive): y' = A y + b with A and b constant."""
+    """`linear`, t in neither M nor F (no drive), and F a polynomial of degree at most 1 in the state: y' = A y + b
+    with A and b constant. The last is not `linear`'s test, which differentiates as the generated Jacobian does (the
+    derivative of sign(u) taken as 0): dry friction mu m g sign(v0 - x_dot) passes it, and exp(A t) would be wrong."""
 
     def compute() -> bool:
+        import sympy as sp
+
         if not linear(model):
             return False
         forms = substitute(model).with_definitions().symengine
-        return not any(forms.t in entry.free_symbols for entry in (*forms.forcing, *(e for row in forms.mass for e in row)))
+        if any(forms.t in entry.free_symbols for entry in (*forms.forcing, *(e for row in forms.mass for e in row))):
+            return False
+        state = [sp.sympify(v) for v in (*forms.q, *forms.qd)]
+        for entry in forms.forcing:
+            expression = sp.expand(sp.sympify(entry))
+            if not expression.is_polynomial(*state) or sp.Poly(expression, *state).total_degree() > 1:
+                return False
+        return True
 
     return memo.once(model, ("autonomous linear",), compute)
 
