@@ -139,10 +139,15 @@ def exact_reference(model: Model, setup: Setup) -> Reference | None:
         y = np.array([integrators.evaluate(lambda ti, _y, _p: evaluate(ti), ti, [], [], "the exact solution") for ti in times.tolist()])
         if np.max(np.abs(y[0] - np.array(s.y0))) > 1e-9 * max(1.0, float(np.max(np.abs(y[0])))):
             return None
-        energy = np.array([integrators.evaluate(module._energy, ti, yi.tolist(), list(s.p), "the energy")[0] for ti, yi in zip(times.tolist(), y, strict=True)])
+        energy = _energies(module, times, y, list(s.p))
     except integrators.EvaluationError:
         return None
     return Reference("exact", "the file's exact solution", 0.0, times, y, energy, 0.0)
+
+
+def _energies(module: object, times: np.ndarray, y: np.ndarray, p: list[float]) -> np.ndarray:
+    """The energy function at each sample of a reference (integrators.EvaluationError where it cannot be evaluated)."""
+    return np.array([integrators.evaluate(module._energy, ti, yi.tolist(), p, "the energy")[0] for ti, yi in zip(times.tolist(), y, strict=True)])  # type: ignore[attr-defined]
 
 
 LINEAR_FLOOR = 100.0
@@ -191,7 +196,7 @@ def linear_reference(model: Model, setup: Setup) -> Reference | None:
     floor = LINEAR_FLOOR * float(np.finfo(float).eps) * norm * float(times[-1] - times[0]) + offset * norm
     own = max(LINEAR_MARGIN * float(np.max(scaled_errors(stepped, y, component_scale(y)))), floor)
     try:
-        energy = np.array([integrators.evaluate(module._energy, ti, yi.tolist(), p, "the energy")[0] for ti, yi in zip(times.tolist(), y, strict=True)])
+        energy = _energies(module, times, y, p)
     except integrators.EvaluationError:
         return None
     description = "the exact solution of the linear equations, exp(A t) at each time, confirmed by stepping with exp(A h) from sample to sample"
@@ -1323,13 +1328,11 @@ def prepare(
     notes: list[str] = []
     reference = exact_reference(model, setup)
     found: Horizon | None = None
+    if reference is None and model.exact:
+        notes.append("the file's exact solution was not used (it does not cover every coordinate, or the initial state was changed)")
     if reference is None:
         reference = linear_reference(model, setup)
-        if reference is not None and model.exact:
-            notes.append("the file's exact solution was not used (it does not cover every coordinate, or the initial state was changed)")
     if reference is None:
-        if model.exact:
-            notes.append("the file's exact solution was not used (it does not cover every coordinate, or the initial state was changed)")
         if progress:
             progress("reference")
         found = horizon(model, replace(setup, times=tuple(np.linspace(0.0, setup.t_end, max(len(setup.times), min(4 * len(setup.times), HORIZON_SAMPLES))).tolist())), ref_tol)

@@ -529,13 +529,12 @@ def _missed_before(
     times = np.array(setup.times)
     for before in earlier:
         shorter = before.setup
-        if dict(shorter.parameters) != dict(setup.parameters) or dict(shorter.initial) != dict(setup.initial) or not shorter.t_end < setup.t_end:
-            continue
         point = before.runs.get((candidate, tolerance))
-        if point is None or not point.ok or point.settings is None:
+        if not shorter.t_end < setup.t_end or point is None or not point.ok or point.settings is None:
             continue
-        stopped = (tighter is None or (candidate, tighter) not in before.runs) and (candidate, tolerance) in before.ended
-        if (tighter is None or (candidate, tighter) not in before.runs) and not stopped:
+        went_on = tighter is not None and (candidate, tighter) in before.runs
+        stopped = not went_on and (candidate, tolerance) in before.ended
+        if not (went_on or stopped):
             continue
         theirs = np.array(shorter.times)
         at = np.clip(np.searchsorted(times, theirs), 0, len(times) - 1)
@@ -545,8 +544,8 @@ def _missed_before(
         mine = settings_for(model, candidate, tolerance, setup)  # `auto` resolved: the same method, and it did not switch from it there
         if mine.method not in PREFIX_METHODS or point.ran != Ran(mine.method, mine.backend):
             continue
-        if replace(mine, t_end=0.0, t_eval=(), notes=()) != replace(point.settings, t_end=0.0, t_eval=(), notes=()):
-            continue
+        if _made_key(replace(mine, t_end=0.0, t_eval=())) != _made_key(replace(point.settings, t_end=0.0, t_eval=())):
+            continue  # the same start, parameters, method and tolerances: all but the span and the samples
         ratio = float(np.min(before.scale / scale))
         bound = (point.error - PREFIX_SLACK * tolerance) * ratio - before.own - own
         if bound > target:
