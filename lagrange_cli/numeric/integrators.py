@@ -175,6 +175,9 @@ class Problem:
     p: np.ndarray
     use_event: bool
     max_steps: int = MAX_STEPS["python"]
+    pace: Callable[[int, float], None] | None = None
+    """Told (steps taken, share of the span done) each time a compiled loop returns to Python (at most every
+    status.PAUSE_STEPS steps); it may raise to stop the run there (`runs._compiled_pace`)."""
 
 
 EVALUATIONS_PER_STEP = 20
@@ -315,14 +318,17 @@ def _drive(advance: Callable[[float], int], now: Callable[[], float], taken: Cal
     """Call a compiled loop (`advance(t_stop)` -> status, -1 while running: at t_stop or after
     status.PAUSE_STEPS steps) until it stops or has taken `problem.max_steps` steps (status.BUDGET),
     returning to Python about every PROGRESS_PERIOD seconds to report progress."""
+    span = problem.t_end - problem.t0
+    pace = problem.pace
     if progress is None:
         code = advance(problem.t_end)
         while code == status.RUNNING:  # paused after status.PAUSE_STEPS steps
             if taken() >= problem.max_steps:
                 return status.BUDGET
+            if pace is not None:
+                pace(taken(), (now() - problem.t0) / span)
             code = advance(problem.t_end)
         return code
-    span = problem.t_end - problem.t0
     target = max(problem.t0 + span / 100, float(np.nextafter(problem.t0, math.inf)))
     while True:
         began, t_before = time.perf_counter(), now()
@@ -330,6 +336,8 @@ def _drive(advance: Callable[[float], int], now: Callable[[], float], taken: Cal
         progress((now() - problem.t0) / span)
         if code != status.RUNNING:
             return code
+        if pace is not None:
+            pace(taken(), (now() - problem.t0) / span)
         if taken() >= problem.max_steps:
             return status.BUDGET
         speed = (now() - t_before) / max(time.perf_counter() - began, 1e-6)

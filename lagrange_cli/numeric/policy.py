@@ -713,7 +713,7 @@ def take_attempt(model: Model, settings: Settings, problem: integrators.Problem)
     )
     if not same:
         return None
-    loop.problem = dataclasses.replace(mine, max_steps=problem.max_steps)
+    loop.problem = dataclasses.replace(mine, max_steps=problem.max_steps, pace=problem.pace)
     return loop
 
 

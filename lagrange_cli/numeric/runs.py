@@ -284,7 +284,8 @@ PACE_MARGIN = 4.0
 """... and stopped when its steps so far over the share of the time span done, the steps it needs
 at that pace, exceed this times its budget: it cannot finish within the budget (scipy's BDF at rtol
 1e-8 on the k = 1e10 pendulum started at r = 0.01 spent its whole cap, 14895 steps, 4 s, to reach
-1% of the span). Counted in steps, never timed; only Python runs (whose progress is told every step)."""
+1% of the span). Counted in steps, never timed; Python runs every step, compiled ones each time their loop returns to
+Python (`_compiled_pace`)."""
 
 
 PACE_STEPS = 20
@@ -317,7 +318,7 @@ class Unaffordable(Exception):
 def _paced(budget: int, then: Progress | None, margin: float = PACE_MARGIN, early: bool = True) -> Progress:
     """A progress report, told once a step (scipy's runs), that raises Unaffordable (`PACE_MARGIN`). The
     pace is that of the latter half of the steps so far (`remaining`): the first steps are tiny by design.
-    `early`: judged at PACE_EARLY too."""
+    `early`: judged at PACE_EARLIEST and PACE_EARLY too (`EARLY_LEVELS`)."""
     done: list[float] = []
     judged: list[int] = []
 
@@ -328,16 +329,62 @@ def _paced(budget: int, then: Progress | None, margin: float = PACE_MARGIN, earl
             needed = taken + remaining(done)
             if needed > margin * budget:
                 raise Unaffordable(taken, fraction, needed, budget, margin)
-        elif early and taken >= max(PACE_EARLY * budget, PACE_STEPS) and not judged:
-            judged.append(taken)  # judged once: a pace far beyond its budget now, however it speeds up later
-            wide = margin * PACE_AFTER / PACE_EARLY
-            needed = taken + min(remaining(done), remaining(done, 4))
-            if needed > wide * budget:
-                raise Unaffordable(taken, fraction, needed, budget, wide)
+        elif early:
+            for level, (share, least) in enumerate(EARLY_LEVELS):
+                if level in judged or taken < max(share * budget, least):
+                    continue
+                judged.append(level)  # each level judged once: a pace far beyond its budget now, however it speeds up later
+                wide = margin * PACE_AFTER / share
+                needed = taken + min(remaining(done), remaining(done, 4))
+                if needed > wide * budget:
+                    raise Unaffordable(taken, fraction, needed, budget, wide)
         if then is not None:
             then(fraction)
 
     return progress
+
+
+PACE_EARLIEST = PACE_EARLY / 4
+"""... and first from this share of its budget, where the pace says it needs PACE_AFTER / PACE_EARLIEST times more than
+that (64 x its budget at the default margin), once it has taken PACE_EARLIEST_STEPS: the weakly damped coupled
+oscillators over t = 1e5, scipy's BDF at rtol 1e-5, 28558 steps allowed, judged at PACE_EARLY (1785 steps, 0.6 s of
+each regime) to need some 200 x them, which its first 446 show already."""
+PACE_EARLIEST_STEPS = 100
+"""The fewest steps a pace is judged from at PACE_EARLIEST: scipy's first steps grow by at most 10 x a step, and
+a margin of 64 x is no room for a pace taken while they still grow."""
+EARLY_LEVELS = ((PACE_EARLIEST, PACE_EARLIEST_STEPS), (PACE_EARLY, PACE_STEPS))
+"""The early judgements of a paced Python run (`_paced`), earliest first: (share of the budget, fewest steps)."""
+
+
+def _compiled_pace(budget: int, margin: float = PACE_MARGIN) -> Callable[[int, float], None]:
+    """`_paced` for a compiled loop (`integrators.Problem.pace`), told (steps taken, share done) each time the
+    loop returns to Python (every status.PAUSE_STEPS steps at most): judged from PACE_AFTER of its budget on,
+    from the pace of the latter half of its steps (between those reports), never early (EARLY_LEVELS): measured
+    runs only. Kepler e = 0.9 started at r = 0.01: compiled RK45 at rtol 1e-5 took 4.5e6 steps, 4-5 s, to reach
+    t = 0.125 of 18.8, where its step collapsed; at 1.5e6 steps its pace needs some 40 x its budget of 6e6."""
+    marks: list[tuple[int, float]] = []
+
+    def pace(taken: int, fraction: float) -> None:
+        marks.append((taken, fraction))
+        if taken >= max(PACE_AFTER * budget, PACE_STEPS):
+            needed = taken + _left(marks)
+            if needed > margin * budget:
+                raise Unaffordable(taken, fraction, needed, budget, margin)
+
+    return pace
+
+
+def _left(marks: Sequence[tuple[int, float]]) -> float:
+    """`remaining` from (steps, share done) reports: the pace since the last report at or before half the steps taken."""
+    taken, done = marks[-1]
+    cut = taken // 2
+    since, start = 0, 0.0
+    for steps, fraction in marks[:-1]:
+        if steps > cut:
+            break
+        since, start = steps, fraction
+    gained = done - start
+    return (taken - since) * (1.0 - done) / gained if gained > 0 else math.inf
 
 
 def remaining(done: Sequence[float], part: int = 2) -> float:
@@ -406,8 +453,8 @@ def run(
 ) -> Trajectory:
     """One run of the study, within its step budget (the reference's when `reference`) and, when
     `timed` and the setup has one, its time limit (raises TimeLimit, LagrangeError); `paced`: a
-    Python run is stopped once its pace shows it cannot finish within its budget (raises
-    Unaffordable, see PACE_MARGIN). `settings`: those of an earlier run of the same point, so that a
+    run is stopped once its pace shows it cannot finish within its budget (raises Unaffordable, see
+    PACE_MARGIN; a compiled one only where it is a measured run, `_compiled_pace`). `settings`: those of an earlier run of the same point, so that a
     repeat decides nothing again."""
     limit = setup.time_limit if timed and not reference else None
     decided = settings if settings is not None else settings_for(model, candidate, tolerance, setup, step)
@@ -419,7 +466,11 @@ def run(
     progress = _time_limit(limit) if limit is not None else None
     if paced and decided.backend == "python":  # a reference-side run too (`reference.paced_run`)
         progress = _paced(budget, progress, margin, early=not reference and decided.method != "LSODA")
-    trajectory = integrate(model, decided, progress, budget)
+    # a compiled run at PACE_MARGIN at least, judged at PACE_AFTER only: its budget is some 100 x a Python run's, over which a pace
+    # can change more (Kepler e = 0.9 started at r = 0.01: compiled Radau at 1e-5 had covered 9% of the span in 160000 steps, and
+    # finished in 444132 of its 600000)
+    pace = _compiled_pace(budget, max(margin, PACE_MARGIN)) if paced and decided.backend == "compiled" and not reference else None
+    trajectory = integrate(model, decided, progress, budget, pace=pace)
     if reference and decided.backend == "compiled" and trajectory.outcome == Status.FINISHED:
         kept_runs(model).setdefault(replace(decided, notes=()), trajectory)
     return trajectory

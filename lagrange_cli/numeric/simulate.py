@@ -196,14 +196,16 @@ def simulate(
     return integrate(model, settings, progress, max_steps, Timing(plain.generate_seconds, plain.import_seconds, 0.0, 0.0))
 
 
-def integrate(model: Model, settings: Settings, progress: Progress | None = None, max_steps: int | None = None, before: Timing | None = None) -> Trajectory:
+def integrate(
+    model: Model, settings: Settings, progress: Progress | None = None, max_steps: int | None = None, before: Timing | None = None, pace: Callable[[int, float], None] | None = None
+) -> Trajectory:
     """Run `settings` as decided by `policy.decide` (method and backend resolved); `before` the
-    one-time costs already spent on this run."""
+    one-time costs already spent on this run; `pace`: see `integrators.Problem.pace` (compiled loops only)."""
     model = substitute(model)
     refused = _beyond_budget(model, settings, max_steps, before)
     if refused is not None:
         return refused
-    run, python, timing, notes = _integrated(model, settings, progress, max_steps, before)
+    run, python, timing, notes = _integrated(model, settings, progress, max_steps, before, pace)
     trajectory = _trajectory(model, settings, python, run, timing)
     return dataclasses.replace(trajectory, notes=(*trajectory.notes, *notes)) if notes else trajectory
 
@@ -253,7 +255,9 @@ def run_seconds(model: Model, settings: Settings, max_steps: int | None = None) 
     return timing.run
 
 
-def _integrated(model: Model, settings: Settings, progress: Progress | None, max_steps: int | None, before: Timing | None) -> tuple[Run, compile.Functions, Timing, tuple[str, ...]]:
+def _integrated(
+    model: Model, settings: Settings, progress: Progress | None, max_steps: int | None, before: Timing | None, pace: Callable[[int, float], None] | None = None
+) -> tuple[Run, compile.Functions, Timing, tuple[str, ...]]:
     """The integrator's run of `settings`, the Python functions, the timing and the projection's notes.
 
     Compiled Radau projected onto kept constraints takes its Jacobian by forward differences: it restarts at
@@ -265,7 +269,9 @@ def _integrated(model: Model, settings: Settings, progress: Progress | None, max
     generate = python.generate_seconds + (before.generate if before else 0.0)
     load = python.import_seconds + (before.load if before else 0.0)
     budget = integrators.MAX_STEPS[settings.backend] if max_steps is None else _budget(max_steps)
-    problem = Problem(settings.t0, settings.t_end, np.array(settings.y0, dtype=float), np.array(settings.t_eval, dtype=float), np.array(settings.p, dtype=float), settings.event is not None, budget)
+    problem = Problem(
+        settings.t0, settings.t_end, np.array(settings.y0, dtype=float), np.array(settings.t_eval, dtype=float), np.array(settings.p, dtype=float), settings.event is not None, budget, pace
+    )
     solver: integrators.Solver
     if settings.backend == "compiled":
         numba = compile.build(model, "numba", jacobian=settings.method == "Radau" and not (settings.projection and model.constraints), event=settings.event)
