@@ -22,7 +22,7 @@ import numpy as np
 
 from lagrange_cli.errors import LagrangeError
 from lagrange_cli.model import Model
-from lagrange_cli.numeric import compile, memo, policy
+from lagrange_cli.numeric import compile, diagnostics, memo, policy
 from lagrange_cli.numeric.settings import COMPILED, METHODS, Settings, validate
 from lagrange_cli.numeric.simulate import InvariantKind, Trajectory, fixed_steps, integrate, run_seconds
 from lagrange_cli.numeric.status import Failure, Status
@@ -301,7 +301,8 @@ than that (16 x its budget at the default margin), judged from the faster of two
 of its steps and that of their last quarter, so that steps still growing (a transient left behind) are not
 judged by the smaller ones before them. The weakly damped coupled oscillators over t = 1e5: scipy's BDF at rtol
 1e-5, 28558 steps allowed, was stopped at a quarter of them, 7140 steps and 2.5 s of each regime, where the
-first 1785 already put it at some 40 x its budget. Measured runs only, not LSODA's: LSODA starts with Adams steps,
+first 1785 already put it at some 40 x its budget. Measured runs only, and LSODA's only where its pilot ended in
+Adams steps on a problem not stiff (`_adams_throughout`): LSODA starts with Adams steps,
 stability-limited on a stiff system, and its pace changes when it switches to BDF, which may be after PACE_EARLY (a
 damped stiff spring's reference, Radau confirmed by LSODA, was left unconfirmed); nor reference-side runs, the only
 confirmation a reference may have."""
@@ -465,7 +466,7 @@ def run(
             return replace(kept, settings=decided)  # the same finished run, made before on the reference's side (deterministic: the same steps)
     progress = _time_limit(limit) if limit is not None else None
     if paced and decided.backend == "python":  # a reference-side run too (`reference.paced_run`)
-        progress = _paced(budget, progress, margin, early=not reference and decided.method != "LSODA")
+        progress = _paced(budget, progress, margin, early=not reference and (decided.method != "LSODA" or _adams_throughout(model, decided)))
     # a compiled run at PACE_MARGIN at least, judged at PACE_AFTER only: its budget is some 100 x a Python run's, over which a pace
     # can change more (Kepler e = 0.9 started at r = 0.01: compiled Radau at 1e-5 had covered 9% of the span in 160000 steps, and
     # finished in 444132 of its 600000)
@@ -474,6 +475,17 @@ def run(
     if reference and decided.backend == "compiled" and trajectory.outcome == Status.FINISHED:
         kept_runs(model).setdefault(replace(decided, notes=()), trajectory)
     return trajectory
+
+
+def _adams_throughout(model: Model, settings: Settings) -> bool:
+    """Whether LSODA's pace may be judged early (EARLY_LEVELS): its own pilot (`policy.pilot`, LSODA at these
+    tolerances from this start) ended in Adams steps and found nothing stiff. Then its steps are accuracy-limited, not
+    stability-limited, and a later switch to BDF (where stiffness appears further on) would not make them longer: a
+    pace far beyond its budget is its pace (the weakly damped coupled oscillators over t = 1e5: LSODA at 1e-5 took
+    15000 steps, 0.8-1.3 s of each regime, to reach 0.13% of the span; its pilot switched to BDF and back in its
+    first 200 steps)."""
+    found = policy.pilot(model, settings)
+    return found is not None and found.bdf is False and not diagnostics.stiff(found.worst, settings.t_end)
 
 
 def kept_runs(model: Model) -> dict[Settings, Trajectory]:

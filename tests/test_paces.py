@@ -1,7 +1,8 @@
 """Paces that stop runs which cannot finish: compiled measured runs (`runs._compiled_pace`, told by the compiled
-loop each time it returns to Python), the earliest judgement of a Python run (`runs.EARLY_LEVELS`), and a
-reference that its own convergence already shows unable to vouch, made without a second method
-(`reference._unvouched`). All counted in steps; nothing here reads a clock."""
+loop each time it returns to Python), the earliest judgement of a Python run (`runs.EARLY_LEVELS`), LSODA's early
+judgement where its pilot ended in Adams steps (`runs._adams_throughout`), and a reference that its own convergence
+already shows unable to vouch, made without a second method (`reference._unvouched`). All counted in steps; nothing
+here reads a clock."""
 
 from __future__ import annotations
 
@@ -19,6 +20,8 @@ from .helpers import model_from
 
 numba = pytest.mark.skipif(not compile.numba_available(), reason="the compiled methods need numba")
 KEPLER = ROOT / "tests" / "numeric_audit2" / "kepler_e09.yaml"
+OSCILLATORS = ROOT / "tests" / "numeric_audit7" / "coupled_oscillators_weak_damping_t1e5.yaml"
+STIFF = ROOT / "tests" / "numeric_audit_pilot" / "stiff_elastic_pendulum_r.yaml"
 
 
 def _stopped_at(pace: Any, reports: list[tuple[int, float]]) -> int | None:
@@ -70,6 +73,23 @@ def test_the_earliest_judgement_of_a_python_run_needs_64_x_its_budget_and_100_st
     assert stopped(8) == round(runs.PACE_AFTER * budget)
     assert stopped(2) is None
     assert stopped(128, 400) == round(runs.PACE_EARLY * 400)  # 25 steps: the early level comes first
+
+
+@pytest.mark.usefixtures("private_cache")
+def test_lsoda_is_judged_early_only_where_its_pilot_ended_in_adams_steps_on_a_problem_not_stiff() -> None:
+    """The weakly damped oscillators: LSODA's pilot at rtol 1e-5 ends in Adams steps, nothing stiff, so a paced LSODA run
+    with a budget of 6400 is stopped at the earliest judgement (100 steps: its pace needs far more than 64 x its budget).
+    The stiff elastic pendulum in r (k = 1e10): its pilot finds it stiff, and LSODA waits for PACE_AFTER of its budget."""
+    model = model_from(OSCILLATORS)
+    setup = runs.starting(model, Setup(1e5, tuple(np.linspace(0.0, 1e5, 201).tolist()), max_steps=6400))
+    settings = runs.settings_for(model, Candidate("LSODA"), 1e-5, setup)
+    assert settings.method == "LSODA" and runs._adams_throughout(model, settings)
+    point = runs.measure(model, Candidate("LSODA"), 1e-5, setup, None, np.ones(4), repeats=0, paced=True)  # type: ignore[arg-type]
+    assert point.status == PointStatus.OVER_BUDGET and point.steps == runs.PACE_EARLIEST_STEPS == round(runs.PACE_EARLIEST * 6400), point.reason
+    assert "64 x its step budget (6400)" in point.reason
+    stiff = model_from(STIFF)
+    stiff_setup = runs.starting(stiff, Setup(10.0, tuple(np.linspace(0.0, 10.0, 11).tolist()), max_steps=6400))
+    assert not runs._adams_throughout(stiff, runs.settings_for(stiff, Candidate("LSODA"), 1e-5, stiff_setup))
 
 
 @numba
