@@ -97,6 +97,7 @@ from lagrange_cli.numeric.runs import (
     ties,
     tol_text,
     unrun,
+    warm_study,
     work,
 )
 from lagrange_cli.numeric.settings import validate
@@ -315,6 +316,7 @@ def study(
     check_steps(max_steps)
     if time_limit is not None and not (math.isfinite(time_limit) and time_limit > 0):
         raise LagrangeError(f"the time limit must be a positive number of seconds, got {time_limit:g}")
+    warm_study(model, chosen)
     setup = Setup(full, tuple(np.linspace(0.0, full, samples).tolist()), dict(parameters or {}), dict(initial or {}), max_steps, time_limit=time_limit, start=start)
     ref_tol = max(min(tolerances) * REFERENCE_FACTOR, TIGHTEST)
     total = 1 + len(chosen) * len(tolerances)

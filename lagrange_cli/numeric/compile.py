@@ -15,13 +15,16 @@ once per system, and later runs load them. Modules imported once are kept for th
 
 from __future__ import annotations
 
+import atexit
 import functools
 import hashlib
 import importlib.util
 import os
 import stat
+import subprocess
 import sys
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
@@ -118,6 +121,72 @@ def kernels_module() -> ModuleType:
         _cached(path, text)
         _LOADED[name] = _load(name, path, text)
     return _LOADED[name]
+
+
+WARM_CODE = "import sys\nfrom lagrange_cli.numeric import compile\nkernels = compile.kernels_module()\nfor name in sys.argv[1:]:\n    kernels.compiled(name)\n"
+"""What the process that compiles kernels ahead runs (`warm_kernels`): fixed code, the kernels' names its only arguments."""
+_WARMING: dict[tuple[str, str], subprocess.Popen[bytes]] = {}
+"""The kernel entry points being compiled ahead, by cache folder and name: the process compiling them."""
+_STARTED: list[subprocess.Popen[bytes]] = []
+"""Every process started to compile ahead, stopped at exit if still running (`_stop_warming`)."""
+
+
+def warm_kernels(names: Sequence[str]) -> None:
+    """Compile the kernel entry points `names` that numba's cache does not hold yet in a process of their own,
+    in that order, while this one goes on (compiling the ones it needs first): numba compiles under the GIL, so
+    only a second process uses the machine's second core (each group a method needs together, one process: Radau's
+    and the symplectic method's are started apart, so that waiting for one never waits for the other). The first `stress` on a machine compiles its explicit
+    loops (erk_start, erk_run: about 14 s) and Radau's (radau_start, radau_run: about 21 s) one after the other;
+    ahead, Radau's are ready by the time its first run starts. `kernel_entry` waits for a kernel being compiled
+    ahead rather than compiling it a second time; the process is stopped when this one exits (numba writes its
+    cache files whole, by renaming). Nothing is started without numba, for kernels already cached, or where
+    LAGRANGE_NO_WARM is set."""
+    if not names or not numba_available() or os.environ.get("LAGRANGE_NO_WARM") or not sys.executable:
+        return
+    kernels_module()  # the copy the process imports, written here first
+    folder = str(cache_dir())
+    missing = [name for name in dict.fromkeys(names) if (folder, name) not in _WARMING and not kernel_cached(name)]
+    if not missing:
+        return
+    environment = {**os.environ, "LAGRANGE_CACHE_DIR": folder, "PYTHONPATH": os.pathsep.join(p for p in sys.path if p)}
+    try:
+        process = subprocess.Popen([sys.executable, "-c", WARM_CODE, *missing], stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=environment)
+    except OSError:
+        return  # no second process: each kernel is compiled here when first needed, as without it
+    if not _STARTED:
+        atexit.register(_stop_warming)
+    _STARTED.append(process)
+    for name in missing:
+        _WARMING[(folder, name)] = process
+
+
+def kernel_cached(name: str) -> bool:
+    """Whether numba's cache beside the kernels' copy holds machine code of the entry point `name` (its index file)."""
+    return any((cache_dir() / "__pycache__").glob(f"{kernels_name()}.{name}-*.nbi"))
+
+
+WARM_POLL = 0.05
+"""Seconds between looks at the cache while a kernel this process needs is being compiled ahead."""
+
+
+def kernel_entry(kernels: ModuleType, name: str) -> object:
+    """`kernels.compiled(name)`, after waiting for the process compiling it ahead (`warm_kernels`), if there is
+    one, to write it to the cache (or to end, having failed): then it is loaded, not compiled again."""
+    process = _WARMING.pop((str(cache_dir()), name), None)
+    while process is not None and process.poll() is None and not kernel_cached(name):
+        time.sleep(WARM_POLL)
+    return kernels.compiled(name)
+
+
+def _stop_warming() -> None:
+    for process in _STARTED:
+        if process.poll() is None:
+            process.terminate()
+            try:
+                process.wait(5)
+            except subprocess.TimeoutExpired:
+                process.kill()
+    _WARMING.clear()
 
 
 def cached_module(prefix: str, text: str) -> ModuleType:

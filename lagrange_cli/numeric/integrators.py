@@ -30,7 +30,7 @@ from typing import Any, Protocol
 import numpy as np
 
 from lagrange_cli.numeric import diagnostics, status, switching
-from lagrange_cli.numeric.compile import Functions
+from lagrange_cli.numeric.compile import Functions, kernel_entry
 from lagrange_cli.numeric.status import Status
 from lagrange_cli.numeric.tableaux import EXPLICIT
 
@@ -349,7 +349,7 @@ def _compile(functions: Functions, kernel: str, pieces: Sequence[tuple[str, Any]
     start = time.perf_counter()
     kernels = functions.kernels
     assert kernels is not None
-    entry = kernels.compiled(kernel)
+    entry = kernel_entry(kernels, kernel)  # (compiled ahead in a process of its own: `compile.warm_kernels`)
     compiled = []
     for name, signature in pieces:
         dispatcher = getattr(functions.module, name)

@@ -22,7 +22,7 @@ import numpy as np
 
 from lagrange_cli.errors import LagrangeError
 from lagrange_cli.model import Model
-from lagrange_cli.numeric import compile, diagnostics, memo, policy
+from lagrange_cli.numeric import compile, diagnostics, memo, policy, switching
 from lagrange_cli.numeric.settings import COMPILED, METHODS, Settings, validate
 from lagrange_cli.numeric.simulate import InvariantKind, Trajectory, fixed_steps, integrate, run_seconds
 from lagrange_cli.numeric.status import Failure, Status
@@ -91,6 +91,20 @@ def default_candidates(model: Model) -> tuple[Candidate, ...]:
     skip = bool(model.constraints) or not compile.numba_available() or model.dissipative
     methods = [m for m in STUDY_METHODS if not (m == "symplectic" and skip)]
     return tuple(Candidate(m) for m in methods)
+
+
+def warm_study(model: Model, candidates: Sequence[Candidate]) -> None:
+    """Start compiling ahead, in a process of their own (`compile.warm_kernels`), the loops of the study's methods
+    other than the explicit ones its reference compiles first: compiled Radau's (radau_start and the loop the system
+    needs: projected onto kept constraints, landing on switching surfaces, or plain) and the symplectic method's. A
+    no-op once they are in the cache."""
+    if not compile.numba_available():
+        return
+    if any(c.method == "Radau" and backend_for(c) == "compiled" for c in candidates):
+        switched = not model.constraints and switching.located(compile.build(model, "numba", jacobian=True).module)
+        compile.warm_kernels(["radau_start", "radau_projected" if model.constraints else "radau_switched" if switched else "radau_run"])
+    if any(c.method == "symplectic" for c in candidates):
+        compile.warm_kernels(["gauss_run"])
 
 
 def compiled_radau() -> bool:

@@ -110,6 +110,7 @@ from lagrange_cli.numeric.runs import (
     ties,
     tol_text,
     unrun,
+    warm_study,
     work,
 )
 from lagrange_cli.numeric.settings import Settings, validate
@@ -434,6 +435,7 @@ def stress(
         raise LagrangeError(f"the time limit must be a positive number of seconds, got {time_limit:g}")
     chosen = tuple(candidates) if candidates else default_candidates(model)
     planned = regimes(model, scales, long_factor, energy_factor, t_end)
+    warm_study(model, chosen)
     outcomes = []
     earlier: list[_Earlier] = []
     for k, regime in enumerate(planned):
