@@ -1,6 +1,6 @@
 """Paces that stop runs which cannot finish: compiled measured runs (`runs._compiled_pace`, told by the compiled
 loop each time it returns to Python), the earliest judgement of a Python run (`runs.EARLY_LEVELS`), LSODA's early
-judgement where its pilot ended in Adams steps (`runs._adams_throughout`), and a reference that its own convergence
+judgement where its pilot ended in Adams steps (`runs._lsoda_judged_early`), and a reference that its own convergence
 already shows unable to vouch, made without a second method (`reference._unvouched`). All counted in steps; nothing
 here reads a clock."""
 
@@ -83,13 +83,13 @@ def test_lsoda_is_judged_early_only_where_its_pilot_ended_in_adams_steps_on_a_pr
     model = model_from(OSCILLATORS)
     setup = runs.starting(model, Setup(1e5, tuple(np.linspace(0.0, 1e5, 201).tolist()), max_steps=6400))
     settings = runs.settings_for(model, Candidate("LSODA"), 1e-5, setup)
-    assert settings.method == "LSODA" and runs._adams_throughout(model, settings)
+    assert settings.method == "LSODA" and runs._lsoda_judged_early(model, settings)
     point = runs.measure(model, Candidate("LSODA"), 1e-5, setup, None, np.ones(4), repeats=0, paced=True)  # type: ignore[arg-type]
     assert point.status == PointStatus.OVER_BUDGET and point.steps == runs.PACE_EARLIEST_STEPS == round(runs.PACE_EARLIEST * 6400), point.reason
     assert "64 x its step budget (6400)" in point.reason
     stiff = model_from(STIFF)
     stiff_setup = runs.starting(stiff, Setup(10.0, tuple(np.linspace(0.0, 10.0, 11).tolist()), max_steps=6400))
-    assert not runs._adams_throughout(stiff, runs.settings_for(stiff, Candidate("LSODA"), 1e-5, stiff_setup))
+    assert not runs._lsoda_judged_early(stiff, runs.settings_for(stiff, Candidate("LSODA"), 1e-5, stiff_setup))
 
 
 @numba

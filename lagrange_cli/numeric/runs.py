@@ -100,9 +100,11 @@ def warm_study(model: Model, candidates: Sequence[Candidate]) -> None:
     no-op once they are in the cache."""
     if not compile.numba_available():
         return
-    if any(c.method == "Radau" and backend_for(c) == "compiled" for c in candidates):
-        switched = not model.constraints and switching.located(compile.build(model, "numba", jacobian=True).module)
-        compile.warm_kernels(["radau_start", "radau_projected" if model.constraints else "radau_switched" if switched else "radau_run"])
+    loops = ["radau_projected"] if model.constraints else ["radau_run", "radau_switched"]
+    if any(c.method == "Radau" and backend_for(c) == "compiled" for c in candidates) and not all(map(compile.kernel_cached, ["radau_start", *loops])):
+        if len(loops) > 1:  # which of the two the system needs: its module (the one compiled Radau runs) says
+            loops = loops[1:] if switching.located(compile.build(model, "numba", jacobian=True).module) else loops[:1]
+        compile.warm_kernels(["radau_start", *loops])
     if any(c.method == "symplectic" for c in candidates):
         compile.warm_kernels(["gauss_run"])
 
@@ -316,7 +318,7 @@ of its steps and that of their last quarter, so that steps still growing (a tran
 judged by the smaller ones before them. The weakly damped coupled oscillators over t = 1e5: scipy's BDF at rtol
 1e-5, 28558 steps allowed, was stopped at a quarter of them, 7140 steps and 2.5 s of each regime, where the
 first 1785 already put it at some 40 x its budget. Measured runs only, and LSODA's only where its pilot ended in
-Adams steps on a problem not stiff (`_adams_throughout`): LSODA starts with Adams steps,
+Adams steps on a problem not stiff (`_lsoda_judged_early`): LSODA starts with Adams steps,
 stability-limited on a stiff system, and its pace changes when it switches to BDF, which may be after PACE_EARLY (a
 damped stiff spring's reference, Radau confirmed by LSODA, was left unconfirmed); nor reference-side runs, the only
 confirmation a reference may have."""
@@ -480,7 +482,7 @@ def run(
             return replace(kept, settings=decided)  # the same finished run, made before on the reference's side (deterministic: the same steps)
     progress = _time_limit(limit) if limit is not None else None
     if paced and decided.backend == "python":  # a reference-side run too (`reference.paced_run`)
-        progress = _paced(budget, progress, margin, early=not reference and (decided.method != "LSODA" or _adams_throughout(model, decided)))
+        progress = _paced(budget, progress, margin, early=not reference and (decided.method != "LSODA" or _lsoda_judged_early(model, decided)))
     # a compiled run at PACE_MARGIN at least, judged at PACE_AFTER only: its budget is some 100 x a Python run's, over which a pace
     # can change more (Kepler e = 0.9 started at r = 0.01: compiled Radau at 1e-5 had covered 9% of the span in 160000 steps, and
     # finished in 444132 of its 600000)
@@ -491,7 +493,7 @@ def run(
     return trajectory
 
 
-def _adams_throughout(model: Model, settings: Settings) -> bool:
+def _lsoda_judged_early(model: Model, settings: Settings) -> bool:
     """Whether LSODA's pace may be judged early (EARLY_LEVELS): its own pilot (`policy.pilot`, LSODA at these
     tolerances from this start) ended in Adams steps and found nothing stiff. Then its steps are accuracy-limited, not
     stability-limited, and a later switch to BDF (where stiffness appears further on) would not make them longer: a
