@@ -135,8 +135,9 @@ def warm_kernels(names: Sequence[str]) -> None:
     """Compile the kernel entry points `names` that numba's cache does not hold yet in a process of their own,
     in that order, while this one goes on (compiling the ones it needs first): numba compiles under the GIL, so
     only a second process uses the machine's second core (each group a method needs together, one process: Radau's
-    and the symplectic method's are started apart, so that waiting for one never waits for the other). The first `stress` on a machine compiles its explicit
-    loops (erk_start, erk_run: about 14 s) and Radau's (radau_start, radau_run: about 21 s) one after the other;
+    and the symplectic method's are started apart, so that waiting for one never waits for the other). The first
+    `stress` on a machine compiles its explicit loops (erk_start, erk_run: about 14 s) and Radau's (radau_start,
+    radau_run: about 21 s) one after the other;
     ahead, Radau's are ready by the time its first run starts. `kernel_entry` waits for a kernel being compiled
     ahead rather than compiling it a second time; the process is stopped when this one exits (numba writes its
     cache files whole, by renaming). Nothing is started without numba, for kernels already cached, or where

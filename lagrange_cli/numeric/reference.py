@@ -809,10 +809,8 @@ def _computed_reference(model: Model, setup: Setup, tolerance: float, hint: str,
                 # RK45 at 2.5e-14 ran out of its 2e6 steps, then Radau at 1e-10 its 20000, a third of `stress`'s time)
                 looser = [(second, r) for r in looser_confirmations(rtol, rtols[-1])] if second.backend == "compiled" else []
                 confirmations = [(second, rtol), *looser, (Candidate("Radau"), max(rtols[0], rtol))]
-                unvouched = _unvouched(model, capped, main, rtol, primary, rtols[-1], time.perf_counter() - began) if implicit and not looser else None
-                if unvouched is not None:
-                    return replace(unvouched, description=f"{unvouched.description} (looser than rtol {tol_text(tolerance)}: {'; '.join(tried)})") if tried else unvouched
-                found = None
+                # `stress` without looser rungs: a reference its own convergence already cannot let vouch asks no second method
+                found = _unvouched(model, capped, main, rtol, primary, rtols[-1], time.perf_counter() - began) if implicit and not looser else None
                 if implicit and looser:  # (looser confirmations are compiled ones: the primary is compiled DOP853)
                     # the primary's own run CONVERGENCE_STEP x looser is asked for on every path below (`_floored`, `_converged`):
                     # made beside the second method's
@@ -1103,6 +1101,11 @@ def _looser(rtol: float, factor: float) -> float:
     return float(f"{rtol * factor:.12g}")
 
 
+def _own_looser(model: Model, setup: Setup, main: Trajectory, tolerance: float, method: Candidate, seconds: float, factor: float = CONVERGENCE_STEP) -> Reference:
+    """`main` confirmed by its own method `factor` x looser (`_converged`, `_unvouched`, `_floored`)."""
+    return _confirmed(model, setup, main, tolerance, [(method, _looser(tolerance, factor))], seconds)
+
+
 def _converged(model: Model, setup: Setup, main: Trajectory, tolerance: float, found: Reference, method: Candidate, enough: float, seconds: float) -> Reference:
     """`found` where its own error is within `enough` (0.1 x the accuracy asked) or its second method
     confirmed at the primary's own rtol (the spherical pendulum in gimbal angles at high energy: RK45 at
@@ -1119,10 +1122,10 @@ def _converged(model: Model, setup: Setup, main: Trajectory, tolerance: float, f
         return found
     if found.own_error <= enough or found.confirmed_rtol <= tolerance * (1 + 1e-9):
         return _floored(model, setup, main, tolerance, found, method, seconds)  # a second opinion at equal terms stands, floored
-    near = _confirmed(model, setup, main, tolerance, [(method, _looser(tolerance, CONVERGENCE_STEP))], seconds)
+    near = _own_looser(model, setup, main, tolerance, method, seconds)
     if not (math.isfinite(near.own_error) and (near.own_error < found.own_error or not math.isfinite(found.own_error))):
         return found
-    far = _confirmed(model, setup, main, tolerance, [(method, _looser(tolerance, CONVERGENCE_STEP**2))], seconds)
+    far = _own_looser(model, setup, main, tolerance, method, seconds, CONVERGENCE_STEP**2)
     low, high = CONVERGENCE_RATIO
     if not (math.isfinite(far.own_error) and low * near.own_error <= far.own_error <= high * near.own_error):
         return found  # not converging with the tolerance as the method's order says (round-off, a shared defect, not yet asymptotic): no bound
@@ -1166,12 +1169,11 @@ def _unvouched(model: Model, setup: Setup, main: Trajectory, tolerance: float, m
     mostly its own error (`_converged`). None where that run does not finish or agrees within `enough`: the
     second method is asked as before (the run is the one `_floored` asks for, made once). Only where the second
     method has no looser rungs (`looser_confirmations`): there this run is made beside the second's (`attempt_ahead`).
-    Kepler e = 0.9
-    started at r = 0.01 (a near collision): DOP853 at 2.5e-10 and 2.5e-9 are 1.1 apart; compiled RK45 at
-    2.5e-10, 5.6e6 steps and 5.8 s of the regime's 19, came within 1.0 and changed nothing."""
+    Kepler e = 0.9 started at r = 0.01 (a near collision): DOP853 at 2.5e-10 and 2.5e-9 are 1.1 apart; compiled
+    RK45 at 2.5e-10, 5.6e6 steps and 5.8 s of the regime's 19, came within 1.0 and changed nothing."""
     if method.backend != "compiled":
         return None
-    near = _confirmed(model, setup, main, tolerance, [(method, _looser(tolerance, CONVERGENCE_STEP))], seconds)
+    near = _own_looser(model, setup, main, tolerance, method, seconds)
     if not (math.isfinite(near.own_error) and near.own_error > enough):
         return None
     how = (
@@ -1198,7 +1200,7 @@ def _floored(model: Model, setup: Setup, main: Trajectory, tolerance: float, fou
     about the same steps and agrees closely, and the floor costs nothing but that run."""
     if not always and not (found.confirmed_rtol < CONVERGENCE_STEP * tolerance * (1 - 1e-9)):
         return found  # confirmed (or not) at CONVERGENCE_STEP x looser or more: its disagreement is already the looser run's
-    near = _confirmed(model, setup, main, tolerance, [(method, _looser(tolerance, CONVERGENCE_STEP))], seconds)
+    near = _own_looser(model, setup, main, tolerance, method, seconds)
     if not (math.isfinite(near.own_error) and near.own_error > found.own_error):
         return found
     how = (
