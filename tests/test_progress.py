@@ -81,6 +81,23 @@ def test_the_estimate_weighs_units_by_their_share(monkeypatch: pytest.MonkeyPatc
     assert report.eta(Step(3, 3, "high energy", fraction=1.0)) == "finished"
 
 
+def test_the_estimate_leaves_the_compiling_out(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The first run on a machine spends seconds compiling the loops, once: the pace of the rest is the pace
+    without them (a cold first regime of three took 10 s, 6 of them compiling: 8 s left, not 20)."""
+    import time
+
+    from lagrange_cli.numeric import compile
+
+    monkeypatch.setattr(compile, "_COMPILING", [100.0])  # compiled before this command (a notebook's earlier study)
+    report = Reporter("stress", "regime", terminal=False)
+    report.start = 0.0
+    monkeypatch.setattr(time, "perf_counter", lambda: 10.0)
+    assert report.eta(Step(1, 3, "defaults")) == "about 20 s left"
+    compile.note_compiling(6.0)
+    assert report.eta(Step(1, 3, "defaults")) == "about 8 s left"
+    assert report.eta(Step(1, 3, "defaults", once=200.0)) == "about 1 s left"  # never a negative pace
+
+
 def test_simulate_takes_quiet_and_prints_no_progress_off_a_terminal() -> None:
     result = runner.invoke(app, ["simulate", "simple_pendulum", "--t-end", "1", "--backend", "python", "--quiet"])
     assert result.exit_code == 0, result.output

@@ -17,7 +17,7 @@ from lagrange_cli import derive, spec
 from lagrange_cli.cli import app
 from lagrange_cli.numeric import accuracy, stress
 from lagrange_cli.numeric.reports import simulate_command, simulate_options
-from lagrange_cli.numeric.runs import Candidate, Point, component_scale, exact_text, scaled_errors
+from lagrange_cli.numeric.runs import Candidate, Point, atol_for, component_scale, exact_text, scaled_errors
 from lagrange_cli.numeric.simulate import integrate
 
 pytestmark = pytest.mark.usefixtures("private_cache")
@@ -63,6 +63,13 @@ def test_exact_text_reads_back() -> None:
     for value in (1e-3, 1e-6, 1e-9, 2.5e-14, 0.0113, 0.011296182345678, 3.0, 1 / 3, 10.0**-7 * 1e-3):
         assert float(exact_text(value)) == value
     assert exact_text(1e-6) == "1e-06" and exact_text(20.0) == "20"
+
+
+def test_a_study_atol_prints_as_written() -> None:
+    """rtol x 1e-3 in floating point is 1.0000000000000002e-12 for 1e-9 (and 1.0000000000000001e-07 for 1e-4):
+    the atol a study runs with is that product to 12 digits, which prints short and repeats the run."""
+    assert 1e-9 * 1e-3 != 1e-12 and atol_for(1e-9) == 1e-12 and atol_for(1e-4) == 1e-7 and atol_for(2.5e-12) == 2.5e-15
+    assert all(exact_text(atol_for(10.0**-k)) == f"1e-{k + 3:02d}" for k in range(3, 14))
 
 
 def test_a_symplectic_setting_states_the_full_step_and_the_stages(study) -> None:  # type: ignore[no-untyped-def]

@@ -30,7 +30,7 @@ from typing import Any, Protocol
 import numpy as np
 
 from lagrange_cli.numeric import diagnostics, status, switching
-from lagrange_cli.numeric.compile import Functions, kernel_entry
+from lagrange_cli.numeric.compile import Functions, kernel_entry, note_compiling
 from lagrange_cli.numeric.status import Status
 from lagrange_cli.numeric.tableaux import EXPLICIT
 
@@ -355,7 +355,9 @@ def _compile(functions: Functions, kernel: str, pieces: Sequence[tuple[str, Any]
         dispatcher = getattr(functions.module, name)
         dispatcher.compile(signature.args)
         compiled.append(dispatcher)
-    return entry, compiled, time.perf_counter() - start
+    seconds = time.perf_counter() - start
+    note_compiling(seconds)
+    return entry, compiled, seconds
 
 
 def run_erk(functions: Functions, problem: Problem, method: str, rtol: float, atol: float, max_step: float, progress: Progress | None = None) -> Run:

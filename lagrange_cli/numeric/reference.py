@@ -26,7 +26,6 @@ from lagrange_cli.model import Model
 from lagrange_cli.numeric import compile, diagnostics, integrators, memo, policy, switching
 from lagrange_cli.numeric.codegen import real_diff
 from lagrange_cli.numeric.runs import (
-    ATOL_RATIO,
     COMPILED_STEPS,
     PACE_MARGIN,
     REFERENCE_STEPS,
@@ -34,6 +33,7 @@ from lagrange_cli.numeric.runs import (
     Candidate,
     Setup,
     Unaffordable,
+    atol_for,
     backend_for,
     compiled_radau,
     component_scale,
@@ -286,7 +286,7 @@ def stiff_start(model: Model, setup: Setup) -> bool:
     most of them rejected, or never finishes (a spring of k = 1e10 written in its length: 1e6
     steps for 0.65 s at rtol 1e-13)."""
     s = replace(start_of(model, setup), method="auto", backend="auto")
-    measured = policy.pilot(model, replace(s, rtol=PILOT_RTOL, atol=PILOT_RTOL * ATOL_RATIO))
+    measured = policy.pilot(model, replace(s, rtol=PILOT_RTOL, atol=atol_for(PILOT_RTOL)))
     if measured is None:
         return False
     return diagnostics.stiff(measured.worst, setup.t_end)
@@ -516,7 +516,7 @@ def implicit_first(model: Model, setup: Setup) -> bool:
         return False
     if compiled:
         return True
-    s = replace(start_of(model, setup), method="auto", backend="auto", rtol=PILOT_RTOL, atol=PILOT_RTOL * ATOL_RATIO)
+    s = replace(start_of(model, setup), method="auto", backend="auto", rtol=PILOT_RTOL, atol=atol_for(PILOT_RTOL))
     measured = policy.pilot(model, s)
     return measured is not None and stable > IMPLICIT_FIRST_RATIO * max(measured.implicit_steps(setup.t_end), 1.0)
 
@@ -542,7 +542,7 @@ def stable_steps(model: Model, setup: Setup, method: str) -> float:
     interval = STABLE_PROBE.get(method)
     if interval is None:
         return 0.0
-    s = replace(start_of(model, setup), method="auto", backend="auto", rtol=PILOT_RTOL, atol=PILOT_RTOL * ATOL_RATIO)
+    s = replace(start_of(model, setup), method="auto", backend="auto", rtol=PILOT_RTOL, atol=atol_for(PILOT_RTOL))
     measured = policy.pilot(model, s)
     if measured is None or not diagnostics.stiff(measured.worst, setup.t_end):
         return 0.0
@@ -614,7 +614,7 @@ def _doomed(model: Model, setup: Setup, rtol: float, candidate: Candidate = RADA
     steps than the budget, or a probe of Radau over the first PROBE_SPAN of the window runs out of
     PROBE_SHARE of the budget."""
     budget = setup.reference_steps
-    s = replace(start_of(model, setup), method="auto", backend="auto", rtol=rtol, atol=rtol * ATOL_RATIO)
+    s = replace(start_of(model, setup), method="auto", backend="auto", rtol=rtol, atol=atol_for(rtol))
     # not for compiled Radau, whose probe costs 0.1-0.3 s: a pilot started in a fast transient overstates the steps (the stiff
     # elastic pendulum in r at high energy: every rtol doomed, so the explicit fallback, 23 s, where compiled Radau finishes)
     measured = policy.pilot(model, s) if candidate.method in IMPLICIT and backend_for(candidate) != "compiled" else None
@@ -1014,7 +1014,7 @@ def _explicit_budget(model: Model, setup: Setup) -> int:
     """The reference step budget (scipy steps; compiled runs COMPILED_STEPS x as many) of a stability-limited compiled
     explicit reference run: EXPLICIT_MARGIN x the stability-limited steps `auto`'s pilot estimates, at least
     EXPLICIT_FLOOR compiled steps, at most `setup`'s reference budget."""
-    s = replace(start_of(model, setup), method="auto", backend="auto", rtol=PILOT_RTOL, atol=PILOT_RTOL * ATOL_RATIO)
+    s = replace(start_of(model, setup), method="auto", backend="auto", rtol=PILOT_RTOL, atol=atol_for(PILOT_RTOL))
     measured = policy.pilot(model, s)
     stable = measured.explicit_steps(setup.t_end) if measured is not None else 0.0
     return min(setup.reference_steps, max(EXPLICIT_FLOOR, math.ceil(EXPLICIT_MARGIN * stable)) // COMPILED_STEPS + 1)
@@ -1264,7 +1264,7 @@ def _confirmed(model: Model, setup: Setup, main: Trajectory, tolerance: float, c
             confirm = f"confirmed by {confirmation}"
             confirmed_rtol, confirmer = rtol, candidate
             break
-    description = f"{main.settings.method} ({main.settings.backend}) at rtol {tol_text(tolerance)}, atol {tol_text(tolerance * ATOL_RATIO)}, {confirm}"
+    description = f"{main.settings.method} ({main.settings.backend}) at rtol {tol_text(tolerance)}, atol {tol_text(atol_for(tolerance))}, {confirm}"
     return Reference("computed", description, own, main.t, main.y, main.energy, seconds, main.settings, confirmed_rtol, confirmation, confirmer)
 
 

@@ -31,7 +31,15 @@ if TYPE_CHECKING:
     from lagrange_cli.numeric.reference import Reference
 
 STUDY_METHODS = tuple(m for m in METHODS if m != "auto")
-ATOL_RATIO = 1e-3  # atol = rtol x ATOL_RATIO
+ATOL_RATIO = 1e-3  # atol = rtol x ATOL_RATIO (`atol_for`)
+
+
+def atol_for(rtol: float) -> float:
+    """The atol that goes with `rtol`: rtol x ATOL_RATIO to 12 digits, so that 1e-9 gives 1e-12 (the product is
+    1.0000000000000002e-12, which a printed setting would have to repeat in full to repeat the run)."""
+    return float(f"{rtol * ATOL_RATIO:.12g}")
+
+
 TIGHTEST = 2.5e-14  # no run is asked for less (double precision)
 MAX_STEPS = 200_000
 """The default step budget of one measured run of a study, in scipy steps (10-20 thousand a second
@@ -94,19 +102,22 @@ def default_candidates(model: Model) -> tuple[Candidate, ...]:
 
 
 def warm_study(model: Model, candidates: Sequence[Candidate]) -> None:
-    """Start compiling ahead, in a process of their own (`compile.warm_kernels`), the loops of the study's methods
-    other than the explicit ones its reference compiles first: compiled Radau's (radau_start and the loop the system
-    needs: projected onto kept constraints, landing on switching surfaces, or plain) and the symplectic method's. A
-    no-op once they are in the cache."""
+    """Start compiling ahead, in one process of their own (`compile.warm_kernels`), the loops of the study's methods
+    other than the explicit ones its reference compiles first, in the order the study needs them: compiled Radau's
+    (radau_start and the loop the system needs: projected onto kept constraints, landing on switching surfaces, or
+    plain), then the symplectic method's. A no-op once they are in the cache."""
     if not compile.numba_available():
         return
+    names = []
     loops = ["radau_projected"] if model.constraints else ["radau_run", "radau_switched"]
     if any(c.method == "Radau" and backend_for(c) == "compiled" for c in candidates) and not all(map(compile.kernel_cached, ["radau_start", *loops])):
         if len(loops) > 1:  # which of the two the system needs: its module (the one compiled Radau runs) says
             loops = loops[1:] if switching.located(compile.build(model, "numba", jacobian=True).module) else loops[:1]
-        compile.warm_kernels(["radau_start", *loops])
+        names += ["radau_start", *loops]
     if any(c.method == "symplectic" for c in candidates):
-        compile.warm_kernels(["gauss_run"])
+        names.append("gauss_run")
+    if names:
+        compile.warm_kernels(names)
 
 
 def compiled_radau() -> bool:
@@ -268,7 +279,7 @@ class Point:
         if self.step is not None:
             stages = f", {s.stages} stages" if s is not None and s.stages is not None else ""
             return f"step {exact_text(self.step)}{stages}"
-        atol = s.atol if s is not None else self.tolerance * ATOL_RATIO
+        atol = s.atol if s is not None else atol_for(self.tolerance)
         return f"rtol {exact_text(self.tolerance)}, atol {exact_text(atol)}"
 
 
@@ -424,7 +435,7 @@ def settings_for(model: Model, candidate: Candidate, tolerance: float, setup: Se
         t_end=setup.t_end,
         method=candidate.method,
         rtol=tolerance,
-        atol=tolerance * ATOL_RATIO,
+        atol=atol_for(tolerance),
         step=step,
         t_eval=setup.times,
         parameters=setup.parameters,
