@@ -8,6 +8,7 @@ from __future__ import annotations
 import ast
 import inspect
 
+import pytest
 from numba.core import compiler, ir, types
 from numba.core.analysis import dead_branch_prune
 from numba.core.registry import CPUDispatcher
@@ -104,3 +105,36 @@ def test_a_second_system_reuses_the_compiled_loop() -> None:
     modules = [module for name, module in compile._LOADED.items() if name.startswith("lagrange_numba_")]
     assert len(modules) >= 2
     assert all(len(module._accel.signatures) == 1 for module in modules)
+
+
+def test_the_kernels_cache_key_covers_every_module_whose_constants_they_take(monkeypatch: pytest.MonkeyPatch) -> None:
+    """numba freezes the values kernels.py imports into the machine code it caches beside the kernels' copy, whose
+    name is the cache key: every lagrange module kernels.py imports from is hashed into that name, so a changed
+    status code or step-control constant compiles afresh instead of loading machine code made with the old value."""
+    tree = ast.parse(inspect.getsource(kernels))
+    imported = {node.module for node in tree.body if isinstance(node, ast.ImportFrom) and node.module and node.module.startswith("lagrange_cli")}
+    assert imported == {f"lagrange_cli.numeric.{name.removesuffix('.py')}" for name in compile.KERNEL_CONSTANTS}
+    from importlib import resources
+
+    before = compile.kernels_name()
+    original = resources.files
+
+    class Changed:
+        def __init__(self, package: str) -> None:
+            self.package = package
+
+        def joinpath(self, name: str) -> object:
+            path = original(self.package).joinpath(name)
+            if name != "status.py":
+                return path
+            text = path.read_text(encoding="utf-8").replace("CHATTER = 8", "CHATTER = 9")
+            return type("Text", (), {"read_text": lambda self, encoding="utf-8": text})()
+
+    compile.kernels_name.cache_clear()
+    monkeypatch.setattr(compile.resources, "files", Changed)
+    try:
+        assert compile.kernels_name() != before
+    finally:
+        monkeypatch.undo()
+        compile.kernels_name.cache_clear()
+    assert compile.kernels_name() == before

@@ -71,3 +71,33 @@ def test_crossings_of_different_surfaces_close_together_are_no_sliding_mode() ->
     assert drag.outcome == Status.FINISHED, drag.message
     stuck = simulate(api.load(BLOCK).model, method="DOP853", backend="compiled")
     assert stuck.outcome != Status.FINISHED and stuck.t_last == pytest.approx(1.98692, abs=1e-4)
+
+
+BELT = Path(__file__).parent / "numeric_audit8" / "stick_slip_block_on_belt_shaken_wall.yaml"
+
+
+@pytest.mark.parametrize("method", ["DOP853", "Radau"])
+def test_a_block_that_sticks_to_a_moving_belt_stops_where_it_sticks(method: str) -> None:
+    """Audit 8's stick-slip block: dry friction mu m g sign(v0 - x_dot) holds it on the belt (x_dot = v0) from
+    t = 0.1168. Compiled Radau's implicit steps take 3 or 4 accepted steps between crossings of that sliding mode,
+    not 1 or 2: with the explicit pairs' window it crossed 412589 times in a million steps (16 s) to stop at the step
+    budget; with its own (status.RADAU_QUICK_STEPS) it stops there after CHATTER crossings, as DOP853 does."""
+    trajectory = api.load(BELT).simulate(method=method, backend="compiled", samples=11).run
+    assert trajectory.outcome == Status.SURFACE_JUMP and SURFACE_COLLAPSE in trajectory.message, trajectory.message
+    assert abs(trajectory.t_last - 0.116794) < 1e-5 and abs(trajectory.y_last[1] - 0.4) < 1e-7  # on the belt (to the step control tolerance)
+    assert trajectory.stats.steps < 1000, trajectory.stats
+    assert _crossings(trajectory.notes) <= 2 * kernels.CHATTER, trajectory.notes
+
+
+def test_a_reference_that_stops_in_a_sliding_mode_asks_for_a_shorter_span_only() -> None:
+    """`accuracy` on the stick-slip block: no reference passes the sliding mode (exit 1, the cause and where), and the
+    advice is a --t-end before it, not more steps or looser tolerances (neither passes it)."""
+    from typer.testing import CliRunner
+
+    from lagrange_cli.cli import app
+
+    result = CliRunner().invoke(app, ["accuracy", str(BELT), "-q"])
+    assert result.exit_code == 1, result.output
+    text = " ".join(result.output.split())
+    assert "sliding mode" in text and "give a --t-end before t = 0.116794, where it stops" in text, text
+    assert "--max-steps" not in text.split("sliding mode")[-1], text

@@ -220,9 +220,19 @@ def cached_module(prefix: str, text: str) -> ModuleType:
     return _LOADED[name]
 
 
+KERNEL_CONSTANTS = ("status.py", "tableaux.py")
+"""The modules whose values kernels.py imports (status codes, record indices, step-control constants, tableaux):
+numba freezes them into the machine code it caches, so they are part of the kernels' cache key (`kernels_name`)."""
+
+
+@functools.cache
 def kernels_name() -> str:
-    """The module name of the kernels' copy: a hash of their source and the versions that compile it."""
-    return "lagrange_kernels_" + hashlib.sha256((_kernels_source() + _numba_version("numba") + sys.version).encode()).hexdigest()[:20]
+    """The module name of the kernels' copy: a hash of their source, of the modules whose constants they take
+    (KERNEL_CONSTANTS: numba's cache, keyed by the copy's file alone, would keep machine code compiled with the old
+    values of a changed constant) and of the versions that compile it."""
+    numeric = resources.files("lagrange_cli.numeric")
+    constants = "".join(numeric.joinpath(name).read_text(encoding="utf-8") for name in KERNEL_CONSTANTS)
+    return "lagrange_kernels_" + hashlib.sha256("\x00".join([_kernels_source(), constants, _numba_version("numba"), sys.version]).encode()).hexdigest()[:20]
 
 
 def module_source(model: Model, target: str, jacobian: bool, event: sp.Expr | None) -> str:

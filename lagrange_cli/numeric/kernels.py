@@ -76,6 +76,7 @@ from lagrange_cli.numeric.status import (
     POSITION,
     PROJECTIONS,
     QUICK_STEPS,
+    RADAU_QUICK_STEPS,
     ROUND_OFF_LEVEL,
     RTOL,
     RUNNING,
@@ -678,13 +679,14 @@ def _erk_samples(accel, event, pair, t, h, t_new, y, y_new, K, coef, work, ts, y
 
 # -- the explicit loop: plain, switched and projected runs (issue 15) ------------------------------
 
-SWITCH_PENDING, SWITCH_INDEX, SWITCH_COUNT, SWITCH_HOPS, SWITCH_SINCE, SWITCH_QUICK, SWITCH_LAST = 0, 1, 2, 3, 4, 5, 6
+SWITCH_PENDING, SWITCH_INDEX, SWITCH_COUNT, SWITCH_HOPS, SWITCH_SINCE, SWITCH_QUICK, SWITCH_LAST, SWITCH_WINDOW = 0, 1, 2, 3, 4, 5, 6, 7
 """The first entries of a switched loop's `switching` record (erk_switched, radau_switched): the located crossing
 ahead (inf: none), the surface crossing there, the crossings landed on so far (hops included), the hops across a
 jump among them (`_hop`), the steps accepted since the last crossing and the crossings in a row each at most
-QUICK_STEPS steps after the one before, of the same surface (`_chattering`), the surface crossed last (-1: none); then g
-at the last accepted point (m values) and g at the end of the step that found the crossing (m values)."""
-SWITCH_HEAD = 7
+SWITCH_WINDOW steps after the one before, of the same surface (`_chattering`), the surface crossed last (-1: none),
+that window (QUICK_STEPS for the explicit pairs, RADAU_QUICK_STEPS for Radau); then g at the last accepted point
+(m values) and g at the end of the step that found the crossing (m values)."""
+SWITCH_HEAD = 8
 
 LINEAR = 3
 """The interpolant kind of `_hop`'s path, y(t) = y_old + (t - t_old) coef[0] (kinds 0 and 1: the explicit pairs'
@@ -700,9 +702,11 @@ HOP_REACH = 2.0 / MIN_FACTOR
 rejected was at most 1 / MIN_FACTOR times that."""
 
 
-def switching_record(m):
-    """A switched loop's record for m switching functions, nothing located yet (g filled by the caller)."""
+def switching_record(m, window=QUICK_STEPS):
+    """A switched loop's record for m switching functions, nothing located yet (g filled by the caller); `window`:
+    the accepted steps at most between two crossings of a sliding mode (`_chattering`)."""
     record = np.zeros(SWITCH_HEAD + 2 * m)
+    record[SWITCH_WINDOW] = window
     record[SWITCH_LAST] = -1.0
     record[SWITCH_PENDING] = np.inf
     record[SWITCH_INDEX] = -1.0
@@ -790,11 +794,11 @@ def _found(record, m, first, t_first, g_end, ahead):
 @njit(error_model="numpy")
 def _chattering(record, crossed):
     """One more crossing (a landing or a hop) of surface `crossed`: counted, and whether it is the CHATTER-th in a row
-    of that surface each at most QUICK_STEPS accepted steps after the one before (a sliding mode: the same surface
+    of that surface each at most record[SWITCH_WINDOW] accepted steps after the one before (a sliding mode: the same surface
     crossed back and forth). Crossings of different surfaces close together are no sliding mode: audit 9 F2, a double
     pendulum with drag |v| v on three velocities, each 0 near each turn of the swing, at rtol 1e-5."""
     record[SWITCH_COUNT] += 1.0
-    same = record[SWITCH_SINCE] <= QUICK_STEPS and record[SWITCH_LAST] == crossed
+    same = record[SWITCH_SINCE] <= record[SWITCH_WINDOW] and record[SWITCH_LAST] == crossed
     record[SWITCH_QUICK] = record[SWITCH_QUICK] + 1.0 if same else 1.0
     record[SWITCH_SINCE] = 0.0
     record[SWITCH_LAST] = crossed

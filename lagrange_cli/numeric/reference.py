@@ -975,6 +975,10 @@ def _no_reference(model: Model, reasons: list[str], hint: str, main: Trajectory 
     solution itself blows up (`blowup`, "" when it does not), and the options that would help (`hint`:
     the one that loosens the reference, as the calling command names it)."""
     message = f"{model.source}: " + "; and ".join(reasons) + (f"; {blowup}" if blowup else "")
+    if main is not None and main.outcome == Status.SURFACE_JUMP and not blowup:
+        # stopped on a switching surface (a sliding mode: no classical solution past it, which the reason says): neither
+        # more steps nor a looser reference passes it (the stick-slip block at t = 0.1168, at every rtol)
+        return ReferenceFailed(f"{message}; give a --t-end before t = {main.t_last:.6g}, where it stops", trajectory=main, attempts=tuple(reasons))
     return ReferenceFailed(f"{message}; give a shorter --t-end{hint} or a larger --max-steps", blowup=bool(blowup), trajectory=main, attempts=tuple(reasons))
 
 
