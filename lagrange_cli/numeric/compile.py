@@ -125,23 +125,23 @@ def kernels_module() -> ModuleType:
 
 WARM_CODE = "import sys\nfrom lagrange_cli.numeric import compile\nkernels = compile.kernels_module()\nfor name in sys.argv[1:]:\n    kernels.compiled(name)\n"
 """What the process that compiles kernels ahead runs (`warm_kernels`): fixed code, the kernels' names its only arguments."""
-_WARMING: dict[tuple[str, str], tuple[subprocess.Popen[bytes], tuple[str, ...]]] = {}
-"""The kernel entry points being compiled ahead, by cache folder and name: the process compiling them, and the
-kernels it compiles first."""
+_WARMING: dict[tuple[str, str], subprocess.Popen[bytes]] = {}
+"""The kernel entry points being compiled ahead, by cache folder and name: the process compiling them."""
 _STARTED: list[subprocess.Popen[bytes]] = []
 """Every process started to compile ahead, stopped at exit if still running (`_stop_warming`)."""
 
 
 def warm_kernels(names: Sequence[str]) -> None:
-    """Compile the kernel entry points `names` that numba's cache does not hold yet in a process of their own, one
-    after the other in the order given (the order they are needed in), while this one goes on compiling the ones it
-    needs first: numba compiles under the GIL, so only a second process uses the machine's second core, and one
-    such process at a time leaves this one a core of its own. The first `stress` on a machine compiles its explicit
-    loops (erk_start, erk_run: about 7 s of CPU) here while Radau's (radau_start, radau_run: about 13 s) and then the
-    symplectic method's (gauss_run: about 7 s) are compiled ahead. `kernel_entry` waits for a kernel the process
-    has begun rather than compiling it a second time, and compiles one it has not reached yet here; the process is
-    stopped when this one exits (numba writes its cache files whole, by renaming). Nothing is started without
-    numba, for kernels already cached, or where LAGRANGE_NO_WARM is set."""
+    """Compile the kernel entry points `names` that numba's cache does not hold yet in a process of their own,
+    in that order, while this one goes on (compiling the ones it needs first): numba compiles under the GIL, so
+    only a second process uses the machine's second core (each group a method needs together, one process: Radau's
+    and the symplectic method's are started apart, so that waiting for one never waits for the other). The first
+    `stress` on a machine compiles its explicit loops (erk_start, erk_run: about 14 s) and Radau's (radau_start,
+    radau_run: about 21 s) one after the other;
+    ahead, Radau's are ready by the time its first run starts. `kernel_entry` waits for a kernel being compiled
+    ahead rather than compiling it a second time; the process is stopped when this one exits (numba writes its
+    cache files whole, by renaming). Nothing is started without numba, for kernels already cached, or where
+    LAGRANGE_NO_WARM is set."""
     if not names or not numba_available() or os.environ.get("LAGRANGE_NO_WARM") or not sys.executable:
         return
     kernels_module()  # the copy the process imports, written here first
@@ -157,8 +157,8 @@ def warm_kernels(names: Sequence[str]) -> None:
     if not _STARTED:
         atexit.register(_stop_warming)
     _STARTED.append(process)
-    for k, name in enumerate(missing):
-        _WARMING[(folder, name)] = (process, tuple(missing[:k]))
+    for name in missing:
+        _WARMING[(folder, name)] = process
 
 
 def kernel_cached(name: str) -> bool:
@@ -171,14 +171,11 @@ WARM_POLL = 0.05
 
 
 def kernel_entry(kernels: ModuleType, name: str) -> object:
-    """`kernels.compiled(name)`, after waiting for the process compiling it ahead (`warm_kernels`), if it has begun
-    it (the kernels before it in its order are in the cache), to write it to the cache or to end, having failed:
-    then it is loaded, not compiled again. One the process has not reached yet is compiled here, at once (the
-    process then loads it, or compiles it too if it gets there first)."""
-    process, before = _WARMING.pop((str(cache_dir()), name), (None, ()))
-    if process is not None and process.poll() is None and all(map(kernel_cached, before)):
-        while process.poll() is None and not kernel_cached(name):
-            time.sleep(WARM_POLL)
+    """`kernels.compiled(name)`, after waiting for the process compiling it ahead (`warm_kernels`), if there is
+    one, to write it to the cache (or to end, having failed): then it is loaded, not compiled again."""
+    process = _WARMING.pop((str(cache_dir()), name), None)
+    while process is not None and process.poll() is None and not kernel_cached(name):
+        time.sleep(WARM_POLL)
     return kernels.compiled(name)
 
 

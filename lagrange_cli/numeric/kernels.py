@@ -76,7 +76,6 @@ from lagrange_cli.numeric.status import (
     POSITION,
     PROJECTIONS,
     QUICK_STEPS,
-    RADAU_QUICK_STEPS,
     ROUND_OFF_LEVEL,
     RTOL,
     RUNNING,

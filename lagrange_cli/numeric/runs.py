@@ -102,22 +102,19 @@ def default_candidates(model: Model) -> tuple[Candidate, ...]:
 
 
 def warm_study(model: Model, candidates: Sequence[Candidate]) -> None:
-    """Start compiling ahead, in one process of their own (`compile.warm_kernels`), the loops of the study's methods
-    other than the explicit ones its reference compiles first, in the order the study needs them: compiled Radau's
-    (radau_start and the loop the system needs: projected onto kept constraints, landing on switching surfaces, or
-    plain), then the symplectic method's. A no-op once they are in the cache."""
+    """Start compiling ahead, in a process of their own (`compile.warm_kernels`), the loops of the study's methods
+    other than the explicit ones its reference compiles first: compiled Radau's (radau_start and the loop the system
+    needs: projected onto kept constraints, landing on switching surfaces, or plain) and the symplectic method's. A
+    no-op once they are in the cache."""
     if not compile.numba_available():
         return
-    names = []
     loops = ["radau_projected"] if model.constraints else ["radau_run", "radau_switched"]
     if any(c.method == "Radau" and backend_for(c) == "compiled" for c in candidates) and not all(map(compile.kernel_cached, ["radau_start", *loops])):
         if len(loops) > 1:  # which of the two the system needs: its module (the one compiled Radau runs) says
             loops = loops[1:] if switching.located(compile.build(model, "numba", jacobian=True).module) else loops[:1]
-        names += ["radau_start", *loops]
+        compile.warm_kernels(["radau_start", *loops])
     if any(c.method == "symplectic" for c in candidates):
-        names.append("gauss_run")
-    if names:
-        compile.warm_kernels(names)
+        compile.warm_kernels(["gauss_run"])
 
 
 def compiled_radau() -> bool:
