@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from lagrange_cli import api
-from lagrange_cli.numeric import kernels
+from lagrange_cli.numeric import kernels, status
 from lagrange_cli.numeric.simulate import SURFACE_COLLAPSE, simulate
 from lagrange_cli.numeric.status import Status
 
@@ -59,7 +59,8 @@ def test_a_block_that_sticks_stops_on_the_surface(method: str, rtol: float) -> N
     assert abs(trajectory.y_last[1]) < 1e-9  # on the surface v = 0
     assert abs(trajectory.y_last[0] - (1.0 - 4 * 0.3 * 9.81 / 10.0)) < 1e-6  # x = 1 - 4 mu g / k after two half swings
     assert trajectory.stats.steps < 5000, trajectory.stats
-    assert _crossings(trajectory.notes) <= 4 * kernels.CHATTER, trajectory.notes
+    chatter = status.RADAU_CHATTER if method == "Radau" else kernels.CHATTER  # Radau's sliding modes take longer to tell (status.py)
+    assert _crossings(trajectory.notes) <= 4 * chatter, trajectory.notes
 
 
 def test_crossings_of_different_surfaces_close_together_are_no_sliding_mode() -> None:
@@ -86,7 +87,7 @@ def test_a_block_that_sticks_to_a_moving_belt_stops_where_it_sticks(method: str)
     assert trajectory.outcome == Status.SURFACE_JUMP and SURFACE_COLLAPSE in trajectory.message, trajectory.message
     assert abs(trajectory.t_last - 0.116794) < 1e-5 and abs(trajectory.y_last[1] - 0.4) < 1e-7  # on the belt (to the step control tolerance)
     assert trajectory.stats.steps < 1000, trajectory.stats
-    assert _crossings(trajectory.notes) <= 2 * kernels.CHATTER, trajectory.notes
+    assert _crossings(trajectory.notes) <= max(kernels.CHATTER, status.RADAU_CHATTER), trajectory.notes
 
 
 def test_a_reference_that_stops_in_a_sliding_mode_asks_for_a_shorter_span_only() -> None:
@@ -101,3 +102,13 @@ def test_a_reference_that_stops_in_a_sliding_mode_asks_for_a_shorter_span_only()
     text = " ".join(result.output.split())
     assert "sliding mode" in text and "give a --t-end before t = 0.116794, where it stops" in text, text
     assert "--max-steps" not in text.split("sliding mode")[-1], text
+
+
+@pytest.mark.parametrize("rtol", [1e-3, 1e-5, 1e-8])
+def test_a_ball_rattling_on_a_penalty_wall_is_no_sliding_mode_for_radau(rtol: float) -> None:
+    """Audit 6's ball in a cup (a one-sided penalty wall, k = 1e8): compiled Radau crosses the wall's surface every few
+    steps while the ball rattles, a resolved contact each time. With Radau's window of 4 steps and 8 crossings in a row
+    it was stopped as a sliding mode at t = 0.425 (rtol 1e-5); 64 in a row (status.RADAU_CHATTER) it finishes."""
+    ball = Path(__file__).parent / "numeric_audit6" / "ball_in_cup_penalty_k1e8.yaml"
+    trajectory = api.load(ball).simulate(method="Radau", backend="compiled", rtol=rtol, atol=rtol * 1e-3, samples=11).run
+    assert trajectory.outcome == Status.FINISHED, trajectory.message

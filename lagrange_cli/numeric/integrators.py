@@ -561,7 +561,7 @@ def run_radau(
     if projection is not None:
         extra = (given[-2], given[-1], *projection)
     elif switches:
-        switch, record = given[-1], kernels.switching_record(switches, status.RADAU_QUICK_STEPS)
+        switch, record = given[-1], kernels.switching_record(switches, status.RADAU_QUICK_STEPS, status.RADAU_CHATTER)
         g = np.empty(switches)
         switch(problem.t0, problem.y0, problem.p, g)
         record[kernels.SWITCH_HEAD : kernels.SWITCH_HEAD + switches] = g

@@ -678,14 +678,15 @@ def _erk_samples(accel, event, pair, t, h, t_new, y, y_new, K, coef, work, ts, y
 
 # -- the explicit loop: plain, switched and projected runs (issue 15) ------------------------------
 
-SWITCH_PENDING, SWITCH_INDEX, SWITCH_COUNT, SWITCH_HOPS, SWITCH_SINCE, SWITCH_QUICK, SWITCH_LAST, SWITCH_WINDOW = 0, 1, 2, 3, 4, 5, 6, 7
+SWITCH_PENDING, SWITCH_INDEX, SWITCH_COUNT, SWITCH_HOPS, SWITCH_SINCE, SWITCH_QUICK, SWITCH_LAST, SWITCH_WINDOW, SWITCH_CHATTER = 0, 1, 2, 3, 4, 5, 6, 7, 8
 """The first entries of a switched loop's `switching` record (erk_switched, radau_switched): the located crossing
 ahead (inf: none), the surface crossing there, the crossings landed on so far (hops included), the hops across a
 jump among them (`_hop`), the steps accepted since the last crossing and the crossings in a row each at most
 SWITCH_WINDOW steps after the one before, of the same surface (`_chattering`), the surface crossed last (-1: none),
-that window (QUICK_STEPS for the explicit pairs, RADAU_QUICK_STEPS for Radau); then g at the last accepted point
-(m values) and g at the end of the step that found the crossing (m values)."""
-SWITCH_HEAD = 8
+that window and the crossings in a row that make a sliding mode (QUICK_STEPS and CHATTER for the explicit pairs,
+RADAU_QUICK_STEPS and RADAU_CHATTER for Radau); then g at the last accepted point (m values) and g at the end of the
+step that found the crossing (m values)."""
+SWITCH_HEAD = 9
 
 LINEAR = 3
 """The interpolant kind of `_hop`'s path, y(t) = y_old + (t - t_old) coef[0] (kinds 0 and 1: the explicit pairs'
@@ -701,11 +702,12 @@ HOP_REACH = 2.0 / MIN_FACTOR
 rejected was at most 1 / MIN_FACTOR times that."""
 
 
-def switching_record(m, window=QUICK_STEPS):
+def switching_record(m, window=QUICK_STEPS, chatter=CHATTER):
     """A switched loop's record for m switching functions, nothing located yet (g filled by the caller); `window`:
-    the accepted steps at most between two crossings of a sliding mode (`_chattering`)."""
+    the accepted steps at most between two crossings of a sliding mode, `chatter` such crossings in a row
+    (`_chattering`)."""
     record = np.zeros(SWITCH_HEAD + 2 * m)
-    record[SWITCH_WINDOW] = window
+    record[SWITCH_WINDOW], record[SWITCH_CHATTER] = window, chatter
     record[SWITCH_LAST] = -1.0
     record[SWITCH_PENDING] = np.inf
     record[SWITCH_INDEX] = -1.0
@@ -792,8 +794,8 @@ def _found(record, m, first, t_first, g_end, ahead):
 
 @njit(error_model="numpy")
 def _chattering(record, crossed):
-    """One more crossing (a landing or a hop) of surface `crossed`: counted, and whether it is the CHATTER-th in a row
-    of that surface each at most record[SWITCH_WINDOW] accepted steps after the one before (a sliding mode: the same surface
+    """One more crossing (a landing or a hop) of surface `crossed`: counted, and whether it is the
+    record[SWITCH_CHATTER]-th in a row of that surface each at most record[SWITCH_WINDOW] accepted steps after the one before (a sliding mode: the same surface
     crossed back and forth). Crossings of different surfaces close together are no sliding mode: audit 9 F2, a double
     pendulum with drag |v| v on three velocities, each 0 near each turn of the swing, at rtol 1e-5."""
     record[SWITCH_COUNT] += 1.0
@@ -801,7 +803,7 @@ def _chattering(record, crossed):
     record[SWITCH_QUICK] = record[SWITCH_QUICK] + 1.0 if same else 1.0
     record[SWITCH_SINCE] = 0.0
     record[SWITCH_LAST] = crossed
-    return record[SWITCH_QUICK] >= CHATTER
+    return record[SWITCH_QUICK] >= record[SWITCH_CHATTER]
 
 
 @njit(error_model="numpy")
