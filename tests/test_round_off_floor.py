@@ -58,11 +58,12 @@ def test_the_floored_runs_converge_with_the_tolerance() -> None:
 
 def test_a_smooth_system_never_reaches_the_floor() -> None:
     """On the double pendulum the floor stays far below every scale: no step is held there (and the run
-    takes exactly the steps it took before the floor existed: 2862 at the defaults, to t = 10)."""
+    takes the steps it took before the floor existed: 2862 at the defaults, to t = 10, on the machine that
+    measured it; 2867 on another CPU, whose compiled sin and cos round differently: within 1%, not to the step)."""
     run = _run(ROOT / "systems" / "double_pendulum.yaml", 1e-8, 1e-10, t_end=10.0)
     assert run.status == Status.FINISHED
     assert run.stats.floored == 0
-    assert run.stats.steps == 2862
+    assert abs(run.stats.steps - 2862) <= 0.01 * 2862, run.stats
 
 
 def test_simulate_says_where_the_tolerance_was_floored() -> None:
