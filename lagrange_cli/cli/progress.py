@@ -37,6 +37,7 @@ class Reporter:
         self.start = time.perf_counter()
         from lagrange_cli.numeric.compile import compiling_seconds
 
+        self._compiling = compiling_seconds
         self._once = compiling_seconds()  # compiling done before this command (a notebook's earlier studies): not its own
         self._bar: Any = None
         self._task: Any = None
@@ -66,7 +67,7 @@ class Reporter:
     def eta(self, step: Step) -> str:
         """The time left at the pace so far, the one-off compiling left out of that pace (the first run on a
         machine compiles the loops: counted in, the first of seven regimes would promise minutes for seconds)."""
-        elapsed, share = max(time.perf_counter() - self.start - (step.once - self._once), 0.0), self._share if step.running else step.share
+        elapsed, share = max(time.perf_counter() - self.start - (self._compiling() - self._once), 0.0), self._share if step.running else step.share
         if step.done >= step.total:
             return "finished"
         if share <= 0:

@@ -43,13 +43,12 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from lagrange_cli.errors import LagrangeError
 from lagrange_cli.model import Model
-from lagrange_cli.numeric.compile import compiling_seconds
 from lagrange_cli.numeric.reference import (
     CHAOS_GROWTH,
     HORIZON_THRESHOLD,
@@ -233,9 +232,6 @@ class Step:
     running: str = ""
     fraction: float | None = None
     """The share of the work done, where units differ in size (a long horizon weighs more); else done / total."""
-    once: float = field(default_factory=compiling_seconds)
-    """Seconds this process had spent on one-off work when the step was made (compiling the loops and the system's
-    functions, or waiting for them: `compile.compiling_seconds`), which an estimate of the time left leaves out."""
 
     @property
     def share(self) -> float:
