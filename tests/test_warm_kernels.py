@@ -22,6 +22,7 @@ def fresh(tmp_path: object, monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.delenv("LAGRANGE_NO_WARM", raising=False)
     monkeypatch.setattr(compile, "_WARMING", {})
     monkeypatch.setattr(compile, "_STARTED", [])
+    monkeypatch.setattr(compile, "_QUEUED", {})
 
 
 def started() -> list[object]:
@@ -68,12 +69,12 @@ def test_a_study_warms_radau_for_the_system_and_the_symplectic_method_apart(monk
     """A conservative system without constraints: radau_start and radau_run in one process, gauss_run in another; a
     study without Radau or the symplectic method starts nothing."""
     groups: list[list[str]] = []
-    monkeypatch.setattr(compile, "warm_kernels", lambda names: groups.append(list(names)))
+    monkeypatch.setattr(compile, "warm_kernels", lambda names, later=False: groups.append([*names, *(["(later)"] if later else [])]))
     from .conftest import ROOT
 
     kepler = model_from(ROOT / "tests" / "numeric_audit2" / "kepler_e09.yaml")
     runs.warm_study(kepler, runs.default_candidates(kepler))
-    assert groups == [["radau_start", "radau_run"], ["gauss_run"]]
+    assert groups == [["radau_start", "radau_run"], ["gauss_run", "(later)"]]
     groups.clear()
     pendulum = model_from(ROOT / "tests" / "numeric_audit3" / "pendulum_multiplier_large_swing.yaml")
     runs.warm_study(pendulum, runs.default_candidates(pendulum))
@@ -81,3 +82,38 @@ def test_a_study_warms_radau_for_the_system_and_the_symplectic_method_apart(monk
     groups.clear()
     runs.warm_study(kepler, (Candidate("DOP853", "compiled"), Candidate("RK45")))
     assert groups == []
+
+
+@pytest.mark.usefixtures("fresh")
+def test_a_group_needed_later_waits_for_the_running_one_or_for_this_process_to_need_it(monkeypatch: pytest.MonkeyPatch) -> None:
+    """`warm_kernels(later=True)` (the symplectic method's loop behind Radau's) is queued while a process compiling ahead
+    runs, so that two compiling processes and this one do not share a two-core machine; it starts once none runs, or
+    when this process needs one of its kernels (and would otherwise wait with its core idle)."""
+    import subprocess
+    import sys
+
+    blocker = subprocess.Popen([sys.executable, "-c", "import sys; sys.stdin.read()"], stdin=subprocess.PIPE)  # a process compiling ahead, until told
+    compile._STARTED.append(blocker)
+    folder = str(compile.cache_dir())
+    try:
+        compile.warm_kernels(["no_jacobian"], later=True)
+        assert started() == [blocker] and compile._QUEUED == {(folder, "no_jacobian"): ("no_jacobian",)}
+        compile.warm_kernels(["no_jacobian"], later=True)  # queued already: nothing more
+        compile._release(waiting=False)  # the blocker still runs
+        assert started() == [blocker] and warming() == {}
+        entry = compile.kernel_entry(compile.kernels_module(), "no_jacobian")  # needed now: started, and waited for
+        assert entry is not None and compile._QUEUED == {}
+        (process,) = started()[1:]
+        process.wait()
+        assert process.returncode == 0 and compile.kernel_cached("no_jacobian")
+        monkeypatch.setattr(compile, "kernel_cached", lambda name: False)  # as if radau_start were not cached yet
+        compile.warm_kernels(["radau_start"], later=True)
+        assert (folder, "radau_start") in compile._QUEUED
+    finally:
+        assert blocker.stdin is not None
+        blocker.stdin.close()
+        blocker.wait()
+    compile._release(waiting=False)  # none runs now: the queued group starts
+    assert compile._QUEUED == {} and (folder, "radau_start") in warming()
+    compile._stop_warming()
+    assert all(p.poll() is not None for p in started())

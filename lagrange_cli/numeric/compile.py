@@ -131,34 +131,58 @@ _STARTED: list[subprocess.Popen[bytes]] = []
 """Every process started to compile ahead, stopped at exit if still running (`_stop_warming`)."""
 
 
-def warm_kernels(names: Sequence[str]) -> None:
+def warm_kernels(names: Sequence[str], later: bool = False) -> None:
     """Compile the kernel entry points `names` that numba's cache does not hold yet in a process of their own,
     in that order, while this one goes on (compiling the ones it needs first): numba compiles under the GIL, so
     only a second process uses the machine's second core (each group a method needs together, one process: Radau's
-    and the symplectic method's are started apart, so that waiting for one never waits for the other). The first
-    `stress` on a machine compiles its explicit loops (erk_start, erk_run: about 14 s) and Radau's (radau_start,
-    radau_run: about 21 s) one after the other;
-    ahead, Radau's are ready by the time its first run starts. `kernel_entry` waits for a kernel being compiled
-    ahead rather than compiling it a second time; the process is stopped when this one exits (numba writes its
-    cache files whole, by renaming). Nothing is started without numba, for kernels already cached, or where
-    LAGRANGE_NO_WARM is set."""
+    and the symplectic method's apart, so that waiting for one never waits for the other). `later`: a group needed
+    after the others, queued while a process compiling ahead is still running and started when none is, or when this
+    one is about to wait for a kernel (`kernel_entry`: its core idle); started at once, a third compiling process on a
+    two-core machine slowed the two the command needs first (the first Kepler `stress` took 38-43 s; queued, 32-36 s).
+    The first `stress` on a machine compiles its explicit loops (erk_start, erk_run: about 9 s of CPU) here and
+    Radau's (radau_start, radau_run: about 18 s) ahead. `kernel_entry` waits for a kernel being compiled ahead rather
+    than compiling it a second time; the process is stopped when this one exits (numba writes its cache files whole,
+    by renaming). Nothing is started without numba, for kernels already cached, or where LAGRANGE_NO_WARM is set."""
     if not names or not numba_available() or os.environ.get("LAGRANGE_NO_WARM") or not sys.executable:
         return
     kernels_module()  # the copy the process imports, written here first
     folder = str(cache_dir())
-    missing = [name for name in dict.fromkeys(names) if (folder, name) not in _WARMING and not kernel_cached(name)]
+    missing = [name for name in dict.fromkeys(names) if (folder, name) not in _WARMING and (folder, name) not in _QUEUED and not kernel_cached(name)]
     if not missing:
         return
+    if later and any(process.poll() is None for process in _STARTED):
+        group = tuple(missing)
+        for name in missing:
+            _QUEUED[(folder, name)] = group
+        return
+    _start(folder, missing)
+
+
+_QUEUED: dict[tuple[str, str], tuple[str, ...]] = {}
+"""The kernel entry points queued to be compiled ahead (`warm_kernels(later=True)`), by cache folder and name: their group."""
+
+
+def _start(folder: str, names: Sequence[str]) -> None:
     environment = {**os.environ, "LAGRANGE_CACHE_DIR": folder, "PYTHONPATH": os.pathsep.join(p for p in sys.path if p)}
     try:
-        process = subprocess.Popen([sys.executable, "-c", WARM_CODE, *missing], stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=environment)
+        process = subprocess.Popen([sys.executable, "-c", WARM_CODE, *names], stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=environment)
     except OSError:
         return  # no second process: each kernel is compiled here when first needed, as without it
     if not _STARTED:
         atexit.register(_stop_warming)
     _STARTED.append(process)
-    for name in missing:
+    for name in names:
         _WARMING[(folder, name)] = process
+
+
+def _release(waiting: bool) -> None:
+    """Start the queued groups (`warm_kernels(later=True)`) once no process compiling ahead is running, or now that
+    this one is `waiting` for a kernel."""
+    if _QUEUED and (waiting or all(process.poll() is not None for process in _STARTED)):
+        groups = dict.fromkeys((folder, group) for (folder, _), group in _QUEUED.items())
+        _QUEUED.clear()
+        for folder, group in groups:
+            _start(folder, group)
 
 
 def kernel_cached(name: str) -> bool:
@@ -172,8 +196,13 @@ WARM_POLL = 0.05
 
 def kernel_entry(kernels: ModuleType, name: str) -> object:
     """`kernels.compiled(name)`, after waiting for the process compiling it ahead (`warm_kernels`), if there is
-    one, to write it to the cache (or to end, having failed): then it is loaded, not compiled again."""
-    process = _WARMING.pop((str(cache_dir()), name), None)
+    one, to write it to the cache (or to end, having failed): then it is loaded, not compiled again. About to wait
+    (or to compile a kernel queued for later), the queued groups start: this process's core is idle meanwhile."""
+    key = (str(cache_dir()), name)
+    _release(waiting=key in _QUEUED)
+    process = _WARMING.pop(key, None)
+    if process is not None and process.poll() is None and not kernel_cached(name):
+        _release(waiting=True)
     while process is not None and process.poll() is None and not kernel_cached(name):
         time.sleep(WARM_POLL)
     return kernels.compiled(name)
@@ -203,6 +232,7 @@ def _stop_warming() -> None:
             except subprocess.TimeoutExpired:
                 process.kill()
     _WARMING.clear()
+    _QUEUED.clear()
 
 
 def cached_module(prefix: str, text: str) -> ModuleType:

@@ -114,7 +114,7 @@ def warm_study(model: Model, candidates: Sequence[Candidate]) -> None:
             loops = loops[1:] if switching.located(compile.build(model, "numba", jacobian=True).module) else loops[:1]
         compile.warm_kernels(["radau_start", *loops])
     if any(c.method == "symplectic" for c in candidates):
-        compile.warm_kernels(["gauss_run"])
+        compile.warm_kernels(["gauss_run"], later=True)
 
 
 def compiled_radau() -> bool:
