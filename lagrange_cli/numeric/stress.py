@@ -588,6 +588,7 @@ def _regime(model: Model, regime: Regime, target: float, candidates: Sequence[Ca
     twinned = any(c in candidates for c in (TWIN, Candidate("RK45")))  # the twin a candidate too: scipy's RK45 shows scipy's cost; else it is run as asked
     known: list[str] = []
     stopped_at: set[tuple[Candidate, float]] = set()  # (`_Earlier.ended`)
+    near_misses: list[tuple[float, float]] = []  # scipy's RK45 not run: its near twin's rtol and error (`_near_twin_misses`)
     for candidate in _order(model, setup, candidates):
         if not vouches and candidate != AUTO and backend_for(candidate) != "compiled":
             why = "unconfirmed" if not math.isfinite(own) else f"{own:.1e}"
@@ -614,6 +615,10 @@ def _regime(model: Model, regime: Regime, target: float, candidates: Sequence[Ca
                 break
             if missed:
                 known.append(missed)
+                continue
+            near = _near_twin_misses(model, tolerance, setup, reference, scale, made, _cap(NAIVE, best, last, setup, spent), target) if candidate == NAIVE and twinned else None
+            if near is not None:
+                near_misses.append((tolerance, near))
                 continue
             if candidate == NAIVE and twinned:
                 previous, last = last, _twin(model, tolerance, setup, reference, scale, best, last, spent, made, open_only, proof)
@@ -659,6 +664,8 @@ def _regime(model: Model, regime: Regime, target: float, candidates: Sequence[Ca
             stalls = stalls + 1 if stalled else 0
             if stalls == 2:
                 break  # tighter tolerances no longer buy accuracy (round-off, or an error floor)
+        if near_misses and candidate == NAIVE:
+            known.append(_near_note(model, near_misses))
         if last is not None:
             points[candidate] = last
             if last.ok and last.error + own <= target and (best is None or work(last) < work(best)):
@@ -668,7 +675,12 @@ def _regime(model: Model, regime: Regime, target: float, candidates: Sequence[Ca
     if NAIVE in candidates:  # after the ladders, so that a recommendation caps its budget
         if say:
             say(f"{NAIVE.label} {NAIVE_RTOL:.0e} (scipy's default)")
-        naive_default = _capped(model, NAIVE, NAIVE_RTOL, setup, reference, scale, best, None)
+        near = _near_twin_misses(model, NAIVE_RTOL, setup, reference, scale, made, _cap(NAIVE, best, None, setup), target)
+        naive_default = (
+            unrun(NAIVE, NAIVE_RTOL, PointStatus.CAPPED, _near_note(model, [(NAIVE_RTOL, near)], named=False))
+            if near is not None
+            else _capped(model, NAIVE, NAIVE_RTOL, setup, reference, scale, best, None)
+        )
     if say:
         say("timing the runs in turns")
     ordered, naive_default = _retimed(model, ordered, naive_default, setup, target, own)
@@ -910,6 +922,39 @@ def _beyond_twin(model: Model, tolerance: float, setup: Setup, reference: Refere
         return ""
     took = f"took {twin.steps} steps" if twin.status == PointStatus.FINISHED else f"did not finish within {twin.steps} steps"
     return f"not run: its compiled twin (compiled RK45 at this rtol: the same Dormand-Prince pair and step control, so the same steps) {took}, more than {TWIN_BEYOND:g} x its step budget ({cap})"
+
+
+NEAR_TWIN_MISS = 100.0
+"""scipy's RK45 (`NAIVE`) on a system with kept constraints or switching functions, where its compiled twin takes other
+steps (projected at the samples inside its loop, where scipy's restarts there; crossings located on its own dense
+output), is not run at an rtol where that twin misses the accuracy by more than this factor (`_near_twin_misses`): the
+same Dormand-Prince pair and step control at the same rtol, they differ in how the steps meet the samples and the
+surfaces, not by orders of magnitude. The trammel's long horizon, where nothing met the accuracy, spent 11 of its 27 s on
+scipy's RK45 at rtol 1e-5 (6.6 s) and at its default 1e-3 (4.3 s, error 2.0) to show it missing."""
+
+
+def _near_twin_misses(model: Model, tolerance: float, setup: Setup, reference: Reference, scale: np.ndarray, made: dict[Settings, Point], cap: int, target: float) -> float | None:
+    """The error of scipy's RK45's near twin at `tolerance` where it shows that scipy's run need not be made, on a system
+    where the compiled twin is not the same run (kept constraints or switching functions: `_twin` cannot prove them
+    alike, `_beyond_twin` does not apply): that twin at this rtol (the regime's run, else made now within `cap` scipy
+    steps' worth) misses by more than NEAR_TWIN_MISS x `target`. None: run it."""
+    if not (model.constraints or int(getattr(compile.build(model, "python").module, "_SWITCHES", 0)) > 0):
+        return None
+    twin = _twin_run(model, tolerance, setup, reference, scale, made, cap)
+    return twin.error if twin is not None and twin.ok and twin.error > NEAR_TWIN_MISS * target else None
+
+
+def _near_note(model: Model, misses: Sequence[tuple[float, float]], named: bool = True) -> str:
+    """What `_near_twin_misses` found at the rtols `misses` (rtol, the compiled twin's error), in a line (`named`: for the
+    regime's notes, else for the run's own row)."""
+    rtols, errors = [tol_text(rtol) for rtol, _ in misses], [f"{error:.1e}" for _, error in misses]
+    at = f"rtol {rtols[0]}" if len(misses) == 1 else f"rtols {', '.join(rtols)}"
+    by = errors[0] if len(misses) == 1 else ", ".join(errors)
+    how = "projected at the samples inside its loop, where scipy's restarts at each" if model.constraints else "its crossings located on its own dense output"
+    return (
+        f"{f'{NAIVE.label} at {at} ' if named else ''}not run: compiled RK45 {'there' if named else 'at this rtol'} misses by {by}, more than {NEAR_TWIN_MISS:g} x the accuracy asked; scipy's RK45 is the same"
+        f" Dormand-Prince pair and step control (the twin {how}), so it misses too"
+    )
 
 
 def _twin_run(model: Model, tolerance: float, setup: Setup, reference: Reference, scale: np.ndarray, made: dict[Settings, Point], cap: int) -> Point | None:
