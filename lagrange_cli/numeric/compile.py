@@ -138,7 +138,8 @@ def warm_kernels(names: Sequence[str], later: bool = False) -> None:
     and the symplectic method's apart, so that waiting for one never waits for the other). `later`: a group needed
     after the others, queued while a process compiling ahead is still running and started when none is, or when this
     one is about to wait for a kernel (`kernel_entry`: its core idle); started at once, a third compiling process on a
-    two-core machine slowed the two the command needs first (the first Kepler `stress` took 38-43 s; queued, 32-36 s).
+    two-core machine slowed the two the command needs first (the first Kepler `stress`, e = 0.9, took 35-43 s; queued,
+    30-33 s).
     The first `stress` on a machine compiles its explicit loops (erk_start, erk_run: about 9 s of CPU) here and
     Radau's (radau_start, radau_run: about 18 s) ahead. `kernel_entry` waits for a kernel being compiled ahead rather
     than compiling it a second time; the process is stopped when this one exits (numba writes its cache files whole,
