@@ -33,6 +33,10 @@ def warming() -> dict[tuple[str, str], object]:
     return dict(compile._WARMING)
 
 
+def queued() -> dict[tuple[str, str], tuple[str, ...]]:
+    return dict(compile._QUEUED)
+
+
 @pytest.mark.usefixtures("fresh")
 def test_a_kernel_compiled_ahead_is_waited_for_and_found_in_the_cache_and_not_started_twice() -> None:
     assert not compile.kernel_cached("no_jacobian")
@@ -97,23 +101,24 @@ def test_a_group_needed_later_waits_for_the_running_one_or_for_this_process_to_n
     folder = str(compile.cache_dir())
     try:
         compile.warm_kernels(["no_jacobian"], later=True)
-        assert started() == [blocker] and compile._QUEUED == {(folder, "no_jacobian"): ("no_jacobian",)}
+        assert started() == [blocker]
+        assert queued() == {(folder, "no_jacobian"): ("no_jacobian",)}
         compile.warm_kernels(["no_jacobian"], later=True)  # queued already: nothing more
         compile._release(waiting=False)  # the blocker still runs
         assert started() == [blocker] and warming() == {}
         entry = compile.kernel_entry(compile.kernels_module(), "no_jacobian")  # needed now: started, and waited for
-        assert entry is not None and compile._QUEUED == {}
+        assert entry is not None and queued() == {}
         (process,) = started()[1:]
         process.wait()
         assert process.returncode == 0 and compile.kernel_cached("no_jacobian")
         monkeypatch.setattr(compile, "kernel_cached", lambda name: False)  # as if radau_start were not cached yet
         compile.warm_kernels(["radau_start"], later=True)
-        assert (folder, "radau_start") in compile._QUEUED
+        assert (folder, "radau_start") in queued()
     finally:
         assert blocker.stdin is not None
         blocker.stdin.close()
         blocker.wait()
     compile._release(waiting=False)  # none runs now: the queued group starts
-    assert compile._QUEUED == {} and (folder, "radau_start") in warming()
+    assert queued() == {} and (folder, "radau_start") in warming()
     compile._stop_warming()
     assert all(p.poll() is not None for p in started())
