@@ -200,10 +200,10 @@ def kernel_entry(kernels: ModuleType, name: str) -> object:
     one, to write it to the cache (or to end, having failed): then it is loaded, not compiled again. About to wait
     (or to compile a kernel queued for later), the queued groups start: this process's core is idle meanwhile."""
     key = (str(cache_dir()), name)
-    _release(waiting=key in _QUEUED)
-    process = _WARMING.pop(key, None)
-    if process is not None and process.poll() is None and not kernel_cached(name):
+    if key in _QUEUED:
         _release(waiting=True)
+    process = _WARMING.pop(key, None)
+    _release(waiting=process is not None and process.poll() is None and not kernel_cached(name))
     while process is not None and process.poll() is None and not kernel_cached(name):
         time.sleep(WARM_POLL)
     return kernels.compiled(name)

@@ -1046,7 +1046,7 @@ def _erk_loop(pair, y, f, state, control, ts, ys, p, stats, accel, event, switch
 @njit(error_model="numpy")
 def _solve(a, b):
     """`lu_solve` called, not inlined: its three copies in the projection (inlined by numba, as the system's `_accel`
-    needs it) made compiling project_state take 9.7 s of CPU and radau_projected 23 s; called, 6.2 and 19.7 s."""
+    needs it) made compiling project_state take 9.7 s of CPU and radau_projected 23.0 s; called, 6.2 and 18.7 s."""
     return lu_solve(a, b)
 
 

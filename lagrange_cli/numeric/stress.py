@@ -588,13 +588,13 @@ def _regime(model: Model, regime: Regime, target: float, candidates: Sequence[Ca
     twinned = any(c in candidates for c in (TWIN, Candidate("RK45")))  # the twin a candidate too: scipy's RK45 shows scipy's cost; else it is run as asked
     known: list[str] = []
     stopped_at: set[tuple[Candidate, float]] = set()  # (`_Earlier.ended`)
-    near_misses: list[tuple[float, float]] = []  # scipy's RK45 not run: its near twin's rtol and error (`_near_twin_misses`)
     for candidate in _order(model, setup, candidates):
         if not vouches and candidate != AUTO and backend_for(candidate) != "compiled":
             why = "unconfirmed" if not math.isfinite(own) else f"{own:.1e}"
             points[candidate] = unrun(candidate, rungs[0], PointStatus.UNDECIDED, f"not run: the reference's own error ({why}) cannot vouch for {tol_text(target)}, so no run could decide the verdict")
             continue
         last: Point | None = None
+        near_misses: list[tuple[float, float]] = []  # scipy's RK45 not run: its near twin's rtol and error (`_near_twin_misses`)
         stalls = 0
         spent = 0.0  # the work of this method's runs so far
         previous_tolerance = rungs[0]
@@ -664,7 +664,7 @@ def _regime(model: Model, regime: Regime, target: float, candidates: Sequence[Ca
             stalls = stalls + 1 if stalled else 0
             if stalls == 2:
                 break  # tighter tolerances no longer buy accuracy (round-off, or an error floor)
-        if near_misses and candidate == NAIVE:
+        if near_misses:
             known.append(_near_note(model, near_misses))
         if last is not None:
             points[candidate] = last
@@ -891,6 +891,13 @@ def _twin(
     return point
 
 
+def _same_steps(model: Model) -> bool:
+    """Whether scipy's RK45 and its compiled twin take the same steps on `model`: not with kept constraints (the twin
+    projects inside its loop, scipy's run restarts at each projection) nor with switching functions (where the forces
+    jump, scipy rejects steps the compiled loop steps across)."""
+    return not model.constraints and int(getattr(compile.build(model, "python").module, "_SWITCHES", 0)) == 0
+
+
 TWIN_BEYOND = 1.1
 """scipy's RK45 (`NAIVE`) is not run where its compiled twin (TWIN) at the same rtol takes more than this times the
 scipy run's step budget (`_beyond_twin`): the same algorithm takes the same steps (to round-off, which this margin
@@ -903,7 +910,7 @@ def _beyond_twin(model: Model, tolerance: float, setup: Setup, reference: Refere
     regime's run, else made now within TWIN_BEYOND x `cap` compiled steps, a few ms to a second) took more than TWIN_BEYOND x
     `cap`. Only where the two are the same run: no kept constraints (projections) and no switching functions (where the
     forces jump, scipy rejects steps the compiled loop steps across)."""
-    if model.constraints or int(getattr(compile.build(model, "python").module, "_SWITCHES", 0)) > 0:
+    if not _same_steps(model):
         return ""
     try:
         decided = settings_for(model, TWIN, tolerance, setup)
@@ -938,7 +945,7 @@ def _near_twin_misses(model: Model, tolerance: float, setup: Setup, reference: R
     where the compiled twin is not the same run (kept constraints or switching functions: `_twin` cannot prove them
     alike, `_beyond_twin` does not apply): that twin at this rtol (the regime's run, else made now within `cap` scipy
     steps' worth) misses by more than NEAR_TWIN_MISS x `target`. None: run it."""
-    if not (model.constraints or int(getattr(compile.build(model, "python").module, "_SWITCHES", 0)) > 0):
+    if _same_steps(model):
         return None
     twin = _twin_run(model, tolerance, setup, reference, scale, made, cap)
     return twin.error if twin is not None and twin.ok and twin.error > NEAR_TWIN_MISS * target else None
@@ -949,7 +956,7 @@ def _near_note(model: Model, misses: Sequence[tuple[float, float]], named: bool 
     regime's notes, else for the run's own row)."""
     rtols, errors = [tol_text(rtol) for rtol, _ in misses], [f"{error:.1e}" for _, error in misses]
     at = f"rtol {rtols[0]}" if len(misses) == 1 else f"rtols {', '.join(rtols)}"
-    by = errors[0] if len(misses) == 1 else ", ".join(errors)
+    by = ", ".join(errors)
     how = "projected at the samples inside its loop, where scipy's restarts at each" if model.constraints else "its crossings located on its own dense output"
     return (
         f"{f'{NAIVE.label} at {at} ' if named else ''}not run: compiled RK45 {'there' if named else 'at this rtol'} misses by {by}, more than {NEAR_TWIN_MISS:g} x the accuracy asked; scipy's RK45 is the same"
