@@ -264,7 +264,8 @@ def _capped(model: Model, candidate: Candidate, tolerance: float, setup: Setup, 
     if last is not None and last.failure == Failure.BUDGET:
         capped = last.status == PointStatus.CAPPED
         how = "was capped already, a tighter rtol costing more" if capped else "ran out of its budget already"
-        reason = last.reason if not last.steps else f"not run: at rtol {tol_text(last.tolerance)} it {how} ({last.reason})"
+        # (a looser run's own "not run: at rtol ..." is passed on as it is: it names the rtol that was capped, audit 11, F5)
+        reason = last.reason if last.reason.startswith("not run: at rtol") else f"not run: at rtol {tol_text(last.tolerance)} it {how} ({last.reason})"
         return unrun(candidate, tolerance, PointStatus.CAPPED if capped else PointStatus.OVER_BUDGET, reason, Failure.BUDGET)
     cap = capped_steps(candidate, LOSING * cheapest, last, setup)
     capped = cap < setup.steps  # then a losing run: stopped as soon as its pace shows it cannot finish (`runs.PACE_MARGIN`)
@@ -278,7 +279,7 @@ def _capped(model: Model, candidate: Candidate, tolerance: float, setup: Setup, 
     point = measure(model, candidate, tolerance, replace(setup, max_steps=cap) if capped else setup, reference, scale, repeats=0, paced=capped or paced)
     if capped and point.failure == Failure.BUDGET and point.steps and point.nfev:
         point = replace(point, status=PointStatus.CAPPED, reason=f"stopped after {point.steps} steps: {LOSING:g} x the work of the cheapest run at rtol {tol_text(tolerance)}")
-    elif capped and point.failure == Failure.BUDGET and point.steps:
+    elif capped and point.failure == Failure.BUDGET:  # (also a fixed step whose count is over the cap: not run, `measure`)
         point = replace(point, status=PointStatus.CAPPED, reason=f"{point.reason}; its budget is {LOSING:g} x the work of the cheapest run at rtol {tol_text(tolerance)}")
     return point
 
@@ -317,7 +318,9 @@ def study(
     if time_limit is not None and not (math.isfinite(time_limit) and time_limit > 0):
         raise LagrangeError(f"the time limit must be a positive number of seconds, got {time_limit:g}")
     warm_study(model, chosen)
-    setup = Setup(full, tuple(np.linspace(0.0, full, samples).tolist()), dict(parameters or {}), dict(initial or {}), max_steps, time_limit=time_limit, start=start)
+    setup = Setup(
+        full, tuple(np.linspace(0.0, full, samples).tolist()), dict(parameters or {}), dict(initial or {}), max_steps, time_limit=time_limit, raised=max(1.0, max_steps / MAX_STEPS), start=start
+    )
     ref_tol = max(min(tolerances) * REFERENCE_FACTOR, TIGHTEST)
     total = 1 + len(chosen) * len(tolerances)
     say = (lambda text: progress(Step(0, total, "reference", text))) if progress else None

@@ -468,12 +468,20 @@ class Singularity:
     near: float | None
     """The special value (0, +-pi/2, pi) it is near, if any: where the coordinates are singular."""
     direction: tuple[tuple[str, float], ...]
-    """The velocities along which M loses its inertia there (the eigenvector of the smallest eigenvalue), largest first."""
+    """The velocities along which M loses its inertia there (the eigenvector of the smallest eigenvalue), largest first;
+    with `unbounded`, those along which its inertia grows without bound (the largest eigenvalue's)."""
+    unbounded: bool = False
+    """M's largest eigenvalue grew more (against the start's M) than its smallest shrank: the coordinates end at the edge
+    of the region they describe (a height solved from a constraint, z = -sqrt(L^2 - x^2 - y^2), at x^2 + y^2 = L^2: a
+    small change of x or y there moves the bob a long way), not at a configuration where they lose a direction."""
 
 
-def singular_coordinate(names: Sequence[str], condition: Callable[[float, np.ndarray], float], t: float, y: np.ndarray, mass: np.ndarray | None = None) -> Singularity | None:
+def singular_coordinate(
+    names: Sequence[str], condition: Callable[[float, np.ndarray], float], t: float, y: np.ndarray, mass: np.ndarray | None = None, start: np.ndarray | None = None
+) -> Singularity | None:
     """The coordinate whose moving (by 0.05 of its size either way) lowers cond M the most at (t,
-    y): the one at its singularity; None when moving none of them helps."""
+    y): the one at its singularity; None when moving none of them helps. `start`: M at the start, against which
+    `Singularity.unbounded` is judged (without it, M losing inertia is assumed)."""
     n = len(names)
     base = condition(t, y)
     best: tuple[float, int] | None = None
@@ -492,9 +500,14 @@ def singular_coordinate(names: Sequence[str], condition: Callable[[float, np.nda
     value = float(y[i])
     near = min(SPECIAL, key=lambda v: abs(value - v))
     direction: tuple[tuple[str, float], ...] = ()
+    unbounded = False
     if mass is not None and np.all(np.isfinite(mass)):
         w, v = np.linalg.eigh(0.5 * (mass + mass.T))
-        vector = v[:, int(np.argmin(np.abs(w)))]
+        size = np.abs(w)
+        if start is not None and np.all(np.isfinite(start)):
+            before = np.abs(np.linalg.eigvalsh(0.5 * (start + start.T)))
+            unbounded = bool(size.max() * before.max() ** -1 > before.min() / max(size.min(), 1e-300))
+        vector = v[:, int(np.argmax(size) if unbounded else np.argmin(size))]
         vector = vector * (1.0 if vector[int(np.argmax(np.abs(vector)))] > 0 else -1.0)
         direction = tuple((names[j], float(vector[j])) for j in np.argsort(-np.abs(vector)) if abs(vector[j]) > 0.2)
-    return Singularity(names[i], value, near if abs(value - near) < 0.2 else None, direction)
+    return Singularity(names[i], value, near if abs(value - near) < 0.2 else None, direction, unbounded)

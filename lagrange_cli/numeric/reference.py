@@ -28,7 +28,6 @@ from lagrange_cli.numeric.codegen import real_diff
 from lagrange_cli.numeric.runs import (
     COMPILED_STEPS,
     PACE_MARGIN,
-    REFERENCE_STEPS,
     TIGHTEST,
     Candidate,
     Setup,
@@ -348,7 +347,7 @@ def _stopped(model: Model, candidate: Candidate, tolerance: float, setup: Setup,
     if over_step_budget(trajectory):
         return (
             f"the reference run ({what}) did not reach t = {setup.t_end:g} within {trajectory.stats.steps} steps"
-            f" (the step budget of reference runs, {REFERENCE_STEPS} x --max-steps): it stopped at t = {trajectory.t_last:.6g}; state: {state_text(model, trajectory.y_last)}"
+            f" (the step budget of this reference attempt; a larger --max-steps raises it): it stopped at t = {trajectory.t_last:.6g}; state: {state_text(model, trajectory.y_last)}"
         )
     return f"the reference run ({what}) failed: {trajectory.message.removeprefix(f'{model.source}: ')}"
 
@@ -559,12 +558,18 @@ it is round-off-limited (the stiff elastic pendulum in r: an attempt budget of 9
 and a probe of its first tenth that took 920000 steps to cover 0.116 of it)."""
 
 
+def scaled(setup: Setup, steps: int) -> int:
+    """A fixed step cap of one reference attempt (EXPLICIT_REFERENCE_STEPS, COMPILED_RADAU_STEPS, CONFIRMATION_STEPS,
+    TIGHTER_RADAU_STEPS) for `setup`: raised as its --max-steps is over the command's default (`Setup.raised`)."""
+    return math.ceil(steps * max(1.0, setup.raised))
+
+
 def _implicit_budget(model: Model, setup: Setup) -> int:
     s = start_of(model, setup)
     found = policy.initial_spectrum(model, s.values, s.y0)
     expected = diagnostics.implicit_steps(found.slowest if found is not None else 0.0, setup.t_end)
     budget = min(setup.reference_steps, max(IMPLICIT_STEPS, math.ceil(IMPLICIT_MARGIN * expected)))
-    return min(budget, COMPILED_RADAU_STEPS // COMPILED_STEPS) if backend_for(RADAU) == "compiled" else budget
+    return min(budget, scaled(setup, COMPILED_RADAU_STEPS) // COMPILED_STEPS) if backend_for(RADAU) == "compiled" else budget
 
 
 PROBE_SPAN = 0.1
@@ -793,7 +798,7 @@ def _computed_reference(model: Model, setup: Setup, tolerance: float, hint: str,
     main: Trajectory | None = None
     paced_need: float | None = None  # the compiled steps the last explicit attempt's pace needs, where it ran out of budget not stiff
     if primary.method not in IMPLICIT:
-        capped = replace(setup, reference_max_steps=min(setup.reference_steps, EXPLICIT_REFERENCE_STEPS)) if primary.backend == "compiled" else setup
+        capped = replace(setup, reference_max_steps=min(setup.reference_steps, scaled(setup, EXPLICIT_REFERENCE_STEPS))) if primary.backend == "compiled" else setup
         tried: list[str] = []
         attempts = explicit_tolerances(tolerance, rtols[-1])
         for k, rtol in enumerate(attempts):
@@ -853,6 +858,8 @@ def _computed_reference(model: Model, setup: Setup, tolerance: float, hint: str,
                 break
             paced_need = paced.needed if paced is not None else None
         reasons.append("; ".join(tried))
+        if main is not None and main.outcome == Status.STALLED:
+            raise _no_reference(model, reasons, hint, main)  # the coordinates end there: Radau stalls there too (1e6 steps, 3 s)
     attempt = replace(setup, reference_max_steps=_implicit_budget(model, setup))
     radau_backend = backend_for(RADAU)  # compiled where it can (`runs.compiled_radau`), its budget `runs.step_factor` x the scipy steps
     radau_steps = attempt.reference_steps * step_factor("Radau", radau_backend, reference=True)
@@ -895,7 +902,7 @@ def _computed_reference(model: Model, setup: Setup, tolerance: float, hint: str,
             # the compiled explicit confirmations get the explicit fallback's budget (their stability limit sized) up to
             # CONFIRMATION_STEPS, not the implicit attempt's: the angle-damped spring pendulum started at r = 0.011 needs 9.5e5
             # DOP853 steps (1.3 s) at rtol 1e-7
-            wide = replace(attempt, reference_max_steps=max(attempt.reference_steps, min(_explicit_budget(model, setup), CONFIRMATION_STEPS // COMPILED_STEPS)))
+            wide = replace(attempt, reference_max_steps=max(attempt.reference_steps, min(_explicit_budget(model, setup), scaled(setup, CONFIRMATION_STEPS) // COMPILED_STEPS)))
             first = _confirmed(model, wide, radau, rtol, explicit, time.perf_counter() - began) if explicit else None
             if first is not None:
                 first = _vouched(model, wide, radau, rtol, first, rtols[-1], time.perf_counter() - began)
@@ -951,7 +958,7 @@ def _tighter(model: Model, setup: Setup, rtol: float, found: Reference, enough: 
     `rtol`'s, kept) where that lowers the own error. Compiled Radau costs 1-2 us a step: the tighter runs cost what one
     scipy confirmation does, where no explicit run can confirm a stiff system over a long window (the fast-damping cart
     over t = 1000 needs 3e8 stability-limited steps)."""
-    wide = replace(setup, reference_max_steps=max(setup.reference_steps, TIGHTER_RADAU_STEPS // COMPILED_STEPS))
+    wide = replace(setup, reference_max_steps=max(setup.reference_steps, scaled(setup, TIGHTER_RADAU_STEPS) // COMPILED_STEPS))
     tight = rtol
     for _ in range(TIGHTER_DECADES):
         if found.own_error <= enough:
@@ -979,6 +986,8 @@ def _no_reference(model: Model, reasons: list[str], hint: str, main: Trajectory 
         # stopped on a switching surface (a sliding mode: no classical solution past it, which the reason says): neither
         # more steps nor a looser reference passes it (the stick-slip block at t = 0.1168, at every rtol)
         return ReferenceFailed(f"{message}; give a --t-end before t = {main.t_last:.6g}, where it stops", trajectory=main, attempts=tuple(reasons))
+    if main is not None and main.outcome == Status.STALLED:
+        return ReferenceFailed(message, trajectory=main, attempts=tuple(reasons))  # its reason says what to do (`simulate._stalled`)
     return ReferenceFailed(f"{message}; give a shorter --t-end{hint} or a larger --max-steps", blowup=bool(blowup), trajectory=main, attempts=tuple(reasons))
 
 
@@ -1325,7 +1334,7 @@ def _horizon(model: Model, setup: Setup, tolerance: float) -> Horizon | None:
     if primary.method in IMPLICIT:
         return None  # stiff (dissipative) at the start: two more tight implicit runs would cost more than the whole study
     if primary.backend == "compiled":
-        setup = replace(setup, reference_max_steps=min(setup.reference_steps, EXPLICIT_REFERENCE_STEPS))  # as the reference's own attempts
+        setup = replace(setup, reference_max_steps=min(setup.reference_steps, scaled(setup, EXPLICIT_REFERENCE_STEPS)))  # as the reference's own attempts
     base = explicit_attempt(model, primary, tolerance, setup).trajectory if primary.backend == "compiled" else run(model, primary, tolerance, setup, reference=True)
     if base.failed:
         return None

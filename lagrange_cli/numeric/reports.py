@@ -14,6 +14,8 @@ from lagrange_cli.numeric.runs import Point, exact_text
 from lagrange_cli.numeric.settings import STAGES
 
 if TYPE_CHECKING:
+    from collections.abc import Mapping
+
     from matplotlib.figure import Figure
 
     from lagrange_cli.model import Model
@@ -62,6 +64,18 @@ def simulate_command(file: str, model: Model, point: Point) -> str | None:
     if moved:
         words += ["--initial", ",".join(moved)]
     return shlex.join([*words, *options])
+
+
+def start_options(model: Model, parameters: Mapping[str, float], initial: Mapping[str, float]) -> str:
+    """The options (`--set`, `--initial`, shell-quoted, every number as it round-trips) that start a run where a stress
+    regime starts: its parameter and initial values that differ from the file's ("" where none do). Printed for every
+    regime, also one whose reference could not be made and that so has no `try:` line (audit 11, F3)."""
+    import shlex
+
+    defaults = {p.name: p.value for p in model.parameters}
+    changed = [f"{name}={exact_text(value)}" for name, value in parameters.items() if defaults.get(name) is None or float(defaults[name]) != value]  # type: ignore[arg-type]
+    moved = [f"{name}={exact_text(value)}" for name, value in initial.items() if float(model.initial.get(name, 0.0)) != value]
+    return shlex.join([*(["--set", ",".join(changed)] if changed else []), *(["--initial", ",".join(moved)] if moved else [])])
 
 
 COLUMNS = (

@@ -151,6 +151,10 @@ class Setup:
     """Steps each reference run may take (same units); 0: REFERENCE_STEPS x max_steps."""
     time_limit: float | None = None
     """Seconds after which a measured run is stopped as undecided (a safety net; None: no limit)."""
+    raised: float = 1.0
+    """How many times the command's default step budget `max_steps` is, at least 1: the fixed step caps of one reference
+    attempt (`reference.COMPILED_RADAU_STEPS`, ...: `reference.capped`) grow by it, so that a larger --max-steps gives
+    reference runs more steps, as the messages that advise it say (audit 11, F2: it did not)."""
     start: Settings | None = field(default=None, compare=False)
     """The validated settings of these parameters and initial values (`starting`), made once."""
 
@@ -593,7 +597,7 @@ def measure(model: Model, candidate: Candidate, tolerance: float, setup: Setup, 
         needed = fixed_steps(decided)
         if needed > run_steps(decided, setup.steps):  # a fixed step's count is known before the run: no need to spend the budget to learn it
             ran = Ran(decided.method, decided.backend)
-            reason = f"its fixed step {decided.step:.3g} needs {needed:.3g} steps to t_end, above the step budget ({run_steps(decided, setup.steps)}); not run"
+            reason = f"not run: its fixed step {decided.step:.3g} needs {needed:.3g} steps to t_end, above this run's step budget ({run_steps(decided, setup.steps)})"
             return replace(empty, resolved=str(ran), ran=ran, settings=decided, step=decided.step, status=PointStatus.OVER_BUDGET, reason=reason, failure=Failure.BUDGET)
         kept = kept_runs(model).get(replace(decided, notes=())) if decided.backend == "compiled" else None
         if kept is not None and (setup.time_limit is None or kept.timing.run <= setup.time_limit):

@@ -51,7 +51,10 @@ SURFACE_COLLAPSE = (
 """Why a run stopped, where its step size collapsed on a switching surface (`_on_surface`): not a singularity."""
 SURFACE_TOLERANCE = 1e-9
 """A run's last state is on a switching surface where |g| <= SURFACE_TOLERANCE x (1 + max |y|)."""
-BUDGET_HINT = "shorten t_end (--t-end), loosen the tolerances (--rtol/--atol), give a larger --step, or raise the budget (--max-steps)"
+BUDGET_HINT = "shorten t_end (--t-end), loosen the tolerances (--rtol/--atol), or raise the budget (--max-steps)"
+FIXED_BUDGET_HINT = "shorten t_end (--t-end), give a larger --step, or raise the budget (--max-steps)"
+"""What may help a run its step budget stopped: an adaptive method's (tolerances), the symplectic method's (its fixed
+--step: it has no tolerances; audit 11, F5: the adaptive methods were told to give a larger --step)."""
 
 
 class InvariantKind(enum.StrEnum):
@@ -481,7 +484,8 @@ def _trajectory(model: Model, settings: Settings, python: compile.Functions, run
     elif run.status == integrators.BUDGET:
         status = "failed"
         message = (
-            f"{model.source}: stopped after {run.stats.steps} steps (the step budget) at t = {_g(run.t_last)}, of t_end = {_g(settings.t_end)}; state: {state_text(model, run.y_last)}; {BUDGET_HINT}"
+            f"{model.source}: stopped after {run.stats.steps} steps (the step budget) at t = {_g(run.t_last)}, of t_end = {_g(settings.t_end)}; state: {state_text(model, run.y_last)};"
+            f" {FIXED_BUDGET_HINT if settings.method == 'symplectic' else BUDGET_HINT}"
         )
     else:
         status = "failed"
@@ -501,8 +505,54 @@ def _trajectory(model: Model, settings: Settings, python: compile.Functions, run
                 f" t = {_g(ended)} whatever the state (it depends on t explicitly: a length, mass or inertia of the model reaches zero there); no method"
                 f" and no change of coordinates passes it: give a t_end before it (--t-end); state: {state_text(model, run.y_last)}"
             )
+        elif run.status in (integrators.BUDGET, integrators.STEP_COLLAPSE) and (stalled := _stalled(model, settings, run)) is not None:
+            run = dataclasses.replace(run, status=Status.STALLED)
+            message = f"{model.source}: stopped at t = {_g(run.t_last)}, of t_end = {_g(settings.t_end)}, after {run.stats.steps} steps: {stalled}; state: {state_text(model, run.y_last)}"
     notes = (*settings.notes, *(warning.message for warning in run.warnings), *switching.notes(run.switching, getattr(python.module, "_SWITCHES", 0), switching.LOCATE))
     return Trajectory(model.title, model.coordinates, settings, run.t, run.y, energy, status, message, run.t_last, run.y_last, run.stats, timing, invariants, notes, run.status, run.warnings)
+
+
+STALL_STEP = 1e-8
+"""A run stopped by its step budget or a collapsed step stalled at a coordinate singularity (Status.STALLED, `_stalled`)
+where its smallest step was below STALL_STEP x max(1, |t|) ..."""
+STALL_CONDITION = 1e5
+"""... cond M at its last state (scaled as `diagnostics.mass_condition`, by the start's coordinate sizes) above this ..."""
+STALL_GROWTH = 1e3
+"""... and above this times its value at the start. Audit 11's Foucault pendulum in x, y (z = -sqrt(L^2 - x^2 - y^2))
+given the energy to reach the pivot's height: DOP853 took 1e6 steps down to 2e-12 (5e6 more moved t by 7e-6),
+Radau 1e6 down to 4e-15, each stopping at x^2 + y^2 = L^2 (to 1e-5) with cond M 3e5-7e5 against 1.15 at the start;
+the message advised more steps, a larger --step and looser tolerances, none of which could help."""
+
+
+def _stalled(model: Model, settings: Settings, run: Run) -> str | None:
+    """Why a run that its step budget or a collapsed step stopped cannot go on, where its steps shrank at a state with a
+    nearly singular mass matrix that the start did not have (STALL_STEP, STALL_CONDITION, STALL_GROWTH): the coordinates
+    end there; else None (a run merely over its budget, or a blow-up: FAILURES says what)."""
+    from lagrange_cli.numeric import diagnostics, memo
+
+    smallest = run.stats.min_step
+    if smallest is None or not math.isfinite(run.t_last) or smallest > STALL_STEP * max(1.0, abs(run.t_last)) or not np.all(np.isfinite(run.y_last)):
+        return None
+    values = tuple(float(v) for v in settings.values)
+    condition = memo.once(model, ("stall condition", values, tuple(settings.y0)), lambda: diagnostics.mass_condition(model, values, settings.y0))
+    last, start = condition(run.t_last, run.y_last), condition(settings.t0, np.asarray(settings.y0, dtype=float))
+    if not (last > STALL_CONDITION and last > STALL_GROWTH * start):
+        return None
+    mass = condition.mass
+    moved = diagnostics.singular_coordinate(model.coordinates, condition, run.t_last, run.y_last, mass(run.t_last, run.y_last), mass(settings.t0, settings.y0))
+    named = f"; it changes fastest with {moved.coordinate} = {_g(moved.value)}" if moved is not None else ""
+    level = "infinite" if math.isinf(last) else f"{last:.1e}"
+    if moved is not None and moved.unbounded:
+        what = "the edge of the region they describe (M's inertia grows without bound, as where a height solved from a constraint with sqrt reaches 0)"
+        regular = "angles or a unit vector for a direction or a position on a sphere"
+    else:
+        what = "a configuration where they lose a direction (M's inertia vanishes, as for Euler angles at gimbal lock or polar angles at the pole)"
+        regular = "a unit vector or a quaternion for an orientation, Cartesian components for a direction"
+    return (
+        f"its steps shrank to {smallest:.1e} where the mass matrix is nearly singular (cond M = {level} there, {start:.3g} at the start{named}): the"
+        f" coordinates end there, not the motion: {what}. Neither a larger step budget nor another tolerance passes it: describe the system in"
+        f" coordinates regular there ({regular}), or give a t_end before it (--t-end)"
+    )
 
 
 ENDED = 1e-3

@@ -119,6 +119,11 @@ class Status(enum.StrEnum):
     across such a jump, kernels._hop). Not a blow-up; through scipy a looser tolerance may pass it."""
     NO_CONVERGENCE = "convergence"
     BUDGET = "budget"
+    STALLED = "stalled"
+    """The run's steps shrank until its budget ran out (or below round-off) at a state where the mass matrix is
+    nearly singular, far more so than at the start (`simulate._stalled`): the coordinates end there (the bob of a
+    pendulum written in x, y with z = -sqrt(L^2 - x^2 - y^2) reaching the pivot's height; Euler angles at gimbal
+    lock). Not a blow-up of the motion; no method, tolerance or budget passes it, other coordinates do."""
 
     @classmethod
     def of_code(cls, code: int) -> Status:
@@ -169,6 +174,8 @@ class Failure(enum.StrEnum):
     """The run stopped on a switching surface where the forces jump (Status.SURFACE_JUMP)."""
     NO_CONVERGENCE = "convergence"
     BUDGET = "budget"
+    STALLED = "stalled"
+    """The run stalled where the coordinates end (Status.STALLED)."""
     TIME_LIMIT = "time limit"
     NOT_APPLICABLE = "not applicable"
 

@@ -114,7 +114,7 @@ from lagrange_cli.numeric.runs import (
     work,
 )
 from lagrange_cli.numeric.settings import Settings, validate
-from lagrange_cli.numeric.status import Failure
+from lagrange_cli.numeric.status import Failure, Status
 
 NAIVE = Candidate("RK45", "python")
 """scipy's default method, what a user reaches for first."""
@@ -153,10 +153,13 @@ class Finding(str):
 
     kind: str
     detail: str
+    note: bool
+    """About one run (over its budget, stopped by the time limit), not the system: the summary's diagnosis leaves it out
+    (audit 11, F5: a symplectic run's budget note read as the system's diagnosis)."""
 
-    def __new__(cls, kind: str, detail: str = "") -> Finding:
+    def __new__(cls, kind: str, detail: str = "", note: bool = False) -> Finding:
         finding = super().__new__(cls, f"{kind}: {detail}" if detail else kind)
-        finding.kind, finding.detail = kind, detail
+        finding.kind, finding.detail, finding.note = kind, detail, note
         return finding
 
 
@@ -374,7 +377,7 @@ def _near_singular(model: Model, p: Sequence[float], y0: Sequence[float]) -> tup
 
 
 AUTO = Candidate("auto")
-FAILURE_FINDINGS = (Failure.SINGULAR, Failure.NONFINITE, Failure.STEP_COLLAPSE, Failure.SURFACE_JUMP)
+FAILURE_FINDINGS = (Failure.SINGULAR, Failure.NONFINITE, Failure.STEP_COLLAPSE, Failure.SURFACE_JUMP, Failure.STALLED)
 """Failed runs the diagnosis reports: a blow-up, a singular matrix, a step that collapsed (at a singularity, or too stiff)."""
 
 
@@ -440,7 +443,7 @@ def stress(
     earlier: list[_Earlier] = []
     for k, regime in enumerate(planned):
         say = (lambda text, k=k, name=regime.name: progress(study.Step(k, len(planned), name, text))) if progress else None
-        outcomes.append(_regime(model, regime, target, chosen, Setup(0.0, (), max_steps=max_steps, time_limit=time_limit), say, earlier))
+        outcomes.append(_regime(model, regime, target, chosen, Setup(0.0, (), max_steps=max_steps, time_limit=time_limit, raised=max(1.0, max_steps / MAX_STEPS)), say, earlier))
         if progress:  # a regime's work grows with its time span (a long horizon is long_factor x the others)
             progress(study.Step(k + 1, len(planned), regime.name, fraction=sum(r.t_end for r in planned[: k + 1]) / sum(r.t_end for r in planned)))
     return Report(model.title, target, tuple(outcomes))
@@ -564,7 +567,7 @@ def _missed_before(
 def _regime(model: Model, regime: Regime, target: float, candidates: Sequence[Candidate], budget: Setup, say: Callable[[str], None] | None, earlier: list[_Earlier] | None = None) -> Outcome:
     """One regime; `budget` carries the step budget and time limit; `earlier` the regimes before it (this one is added)."""
     times = tuple(np.linspace(0.0, regime.t_end, regime.samples).tolist())
-    setup = starting(model, Setup(regime.t_end, times, dict(regime.parameters), dict(regime.initial), budget.max_steps, time_limit=budget.time_limit))
+    setup = starting(model, Setup(regime.t_end, times, dict(regime.parameters), dict(regime.initial), budget.max_steps, time_limit=budget.time_limit, raised=budget.raised))
     ended = _model_end(model, setup)
     if ended is not None:
         return _ended(model, regime, setup, ended)
@@ -1178,8 +1181,15 @@ def _without_reference(model: Model, regime: Regime, setup: Setup, error: Refere
     reached = error.trajectory
     t, y = (reached.t, reached.y) if reached is not None and len(reached.t) else (np.array([0.0]), np.array([start_of(model, setup).y0], dtype=float))
     where = f"along the reference run up to t = {float(t[-1]):.3g}, where it stopped" if len(t) > 1 else "at the initial state only (the reference run stopped before its first sample)"
+    if reached is not None and math.isfinite(reached.t_last) and reached.t_last > float(t[-1]) and np.all(np.isfinite(reached.y_last)):
+        # the state it stopped at, past its last sample: where the coordinates end, the one whose cond M shows it (audit 11's
+        # Foucault pendulum in x, y: 1.3e4 at the last sample, 1.6e8 where Radau stalled)
+        t, y = np.append(t, reached.t_last), np.vstack([y, reached.y_last])
+        where = f"along the reference run up to t = {reached.t_last:.6g}, where it stopped"
     measured = _measure(model, setup, t, y, None, setup.t_end)
     kind = "blow-up (both reference methods stop there)" if error.blowup else "no reference"
+    if reached is not None and reached.outcome == Status.STALLED and not error.blowup:
+        kind = "no reference: the coordinates end"
     findings = (Finding(kind, str(error).removeprefix(f"{model.source}: ")), *measured.findings)
     diagnosis = replace(measured, findings=findings, where=where)
     open_reason = "" if error.blowup else "no reference could be made (see the diagnosis), so no method could be measured"
@@ -1219,7 +1229,7 @@ def diagnose(
         if point.status == PointStatus.FAILED and point.failure in FAILURE_FINDINGS:
             findings.append(Finding(f"{point.method} ({point.setting}) failed", point.reason.removeprefix(f"{model.source}: ")))
         elif point.status in (PointStatus.OVER_BUDGET, PointStatus.UNDECIDED):
-            findings.append(Finding(f"{point.method} ({point.setting}) {point.reason}"))
+            findings.append(Finding(f"{point.method} ({point.setting}) {point.reason}", note=True))
         for name, drift in point.drifts:
             if point.ok and drift > 10 * target and point.candidate == NAIVE:
                 findings.append(Finding(f"{point.method} ({point.setting})", f"{name} drifts by {drift:.1e} (relative)"))
@@ -1314,7 +1324,7 @@ def _measure(model: Model, setup: Setup, t: np.ndarray, y: np.ndarray, rerun: di
     if growth * t_end > diagnostics.STIFF:
         findings.append(Finding(GROWING, f"growth rate up to {growth:.3g}/s (a saddle, chaos or constraint drift; not stiffness: decays matched by growth are not counted)"))
     if peak is not None and peak.condition > diagnostics.SINGULAR_CONDITION:
-        findings.append(_singularity(model, s.values, condition, peak))
+        findings.append(_singularity(model, s, condition, peak))
     if not spectra:
         return Diagnosis(None, None, None, None, peak.condition if peak else None, tuple(findings), unmeasured="; ".join(unmeasured), condition_at=peak.t if peak else None)
     return Diagnosis(
@@ -1322,21 +1332,28 @@ def _measure(model: Model, setup: Setup, t: np.ndarray, y: np.ndarray, rerun: di
     )
 
 
-def _singularity(model: Model, values: Sequence[float], condition: Callable[[float, np.ndarray], float], peak: diagnostics.Peak) -> Finding:
-    """`near a coordinate singularity`, naming the coordinate, where, and the change to make."""
-    mass = diagnostics.mass_at(model, values)(peak.t, peak.y)
-    found = diagnostics.singular_coordinate(model.coordinates, condition, peak.t, peak.y, mass)
+def _singularity(model: Model, start: Settings, condition: Callable[[float, np.ndarray], float], peak: diagnostics.Peak) -> Finding:
+    """`near a coordinate singularity`, naming the coordinate, where, how M turns singular (against M at the regime's
+    `start`), and the change to make."""
+    mass_of = diagnostics.mass_at(model, start.values)
+    mass = mass_of(peak.t, peak.y)
+    found = diagnostics.singular_coordinate(model.coordinates, condition, peak.t, peak.y, mass, mass_of(start.t0, start.y0))
     detail = f"cond M reaches {peak.condition:.2g} at t = {peak.t:.4g}"
     if found is None:
         return Finding("near a coordinate singularity", f"{detail} along the trajectory")
     at = f"{found.coordinate} = {_angle(found.near)}" if found.near is not None else f"{found.coordinate} near {found.value:.3g}"
-    lost = " + ".join(f"{w:.2g} {name}_dot" for name, w in found.direction).replace("+ -", "- ")
-    where = f" ({found.coordinate} = {found.value:.3g} there; M loses its inertia along {lost})" if lost else f" ({found.coordinate} = {found.value:.3g} there)"
-    advice = (
-        f"coordinates singular at {at}: {detail}{where}. The coordinates, not the motion, are singular there: describe the system with coordinates"
-        f" regular there (for an orientation a unit vector or a quaternion, or Euler angles whose singular axis points away from the motion;"
-        f" for a direction, Cartesian components instead of polar and azimuthal angles), or start away from {at} (--initial {found.coordinate}=...)"
+    along = " + ".join(f"{w:.2g} {name}_dot" for name, w in found.direction).replace("+ -", "- ")
+    how = "grows without bound" if found.unbounded else "vanishes"
+    where = f" ({found.coordinate} = {found.value:.3g} there; M's inertia {how} along {along})" if along else f" ({found.coordinate} = {found.value:.3g} there)"
+    regular = (
+        "for a direction or a position on a sphere, angles or a unit vector instead of components with a height solved from the constraint"
+        " (sqrt reaches 0 at the edge of the region such coordinates describe)"
+        if found.unbounded
+        else "for an orientation a unit vector or a quaternion, or Euler angles whose singular axis points away from the motion; for a direction,"
+        " Cartesian components instead of polar and azimuthal angles"
     )
+    away = "give a t_end before the motion gets there (--t-end)" if found.unbounded else f"start away from {at} (--initial {found.coordinate}=...)"
+    advice = f"coordinates singular at {at}: {detail}{where}. The coordinates, not the motion, are singular there: describe the system with coordinates regular there ({regular}), or {away}"
     return Finding("near a coordinate singularity", advice)
 
 
@@ -1379,6 +1396,8 @@ def json_text(report: Report) -> str:
                 "regime": o.regime.name,
                 "verdict": o.verdict,
                 "t_end": o.t_end,
+                "parameters": dict(o.regime.parameters),
+                "initial": dict(o.regime.initial),
                 "reference": o.reference,
                 "reference_error": number(o.reference_error),
                 "open_reason": o.open_reason or None,
