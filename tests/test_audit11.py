@@ -74,6 +74,32 @@ def test_a_run_reaching_the_edge_of_its_coordinates_says_so_whatever_the_method(
         assert math.isclose(state["x"] ** 2 + state["y"] ** 2, L**2, rel_tol=1e-4), state  # on the edge: x^2 + y^2 = L^2
 
 
+INFALL = """\
+title: Radial infall in polar coordinates
+coordinates: [r, th]
+parameters:
+  k: {value: 1.0}
+particles:
+  p:
+    mass: 1
+    position: [r*cos(th), r*sin(th), 0]
+potential: -k/r
+initial: {r: 1.0, th: 0.0, r_dot: 0.0, th_dot: 0.0}
+simulate: {t_end: 3}
+"""
+
+
+def test_a_collision_is_not_taken_for_coordinates_that_end(tmp_path: Path) -> None:
+    """At r = 1e-9 cond M = 1/r^2 is 1e18, as where coordinates end, but the kinetic energy is 1e8 x its largest along the
+    run: the motion itself blows up (`simulate.STALL_KINETIC`)."""
+    system = tmp_path / "infall.yaml"
+    system.write_text(INFALL, encoding="utf-8")
+    result = runner.invoke(app, ["simulate", str(system), "--method", "RK45", "--backend", "python", "-o", str(tmp_path / "t.csv")])
+    assert result.exit_code == 1, result.output
+    text = _flat(result.stderr)
+    assert "the step size collapsed" in text and "coordinates end" not in text, text
+
+
 def test_a_run_merely_over_its_budget_is_advised_what_fits_its_method(tmp_path: Path) -> None:
     system = str(ROOT / "systems" / "harmonic_oscillator.yaml")
     adaptive = runner.invoke(app, ["simulate", system, "--method", "RK45", "--backend", "python", "--max-steps", "5", "-o", str(tmp_path / "a.csv")])

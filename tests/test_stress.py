@@ -306,7 +306,7 @@ def test_cond_m_is_sampled_along_the_dense_output_near_a_pole_and_a_change_of_co
     assert outcome.diagnosis.condition is not None and outcome.diagnosis.condition >= 0.9 * found.condition
     # closer to the pole (theta = 1e-4: cond M 1e8), the finding names the coordinate and the change to make
     peak = diagnostics.Peak(1e8, 0.0, np.array([1e-4, 0.3, 0.0, 50.0]), 1, 0)
-    finding = stress._singularity(model, setup.start.values, condition, peak)  # type: ignore[union-attr]
+    finding = stress._singularity(model, setup.start, condition, peak)  # type: ignore[arg-type]
     assert finding.kind == "near a coordinate singularity"
     assert "coordinates singular at theta = 0" in finding.detail and "phi_dot" in finding.detail and "start away from theta = 0" in finding.detail, finding
 

@@ -506,6 +506,23 @@ class _Earlier:
     ended: frozenset[tuple[Candidate, float]]
     """The rungs where a ladder stopped because no tighter run could be the recommendation (its work, or the work its
     error's fall predicts, against the run that met the accuracy): not where the reference could not vouch."""
+    stalled: ReferenceFailed | None = None
+    """Its reference stalled where the coordinates end (Status.STALLED; `runs` then empty): a later regime from the same
+    start over a longer span stalls there too, and makes no reference attempt of its own (`_stalled_before`)."""
+
+
+def _stalled_before(model: Model, setup: Setup, earlier: Sequence[_Earlier]) -> ReferenceFailed | None:
+    """The reference failure of an earlier regime of the same parameters and start whose reference stalled where the
+    coordinates end before this regime's t_end (audit 11's pendulum in x, y: the long horizon's reference attempts, as
+    long as the defaults' own, stalled at the same state)."""
+    for before in earlier:
+        found = before.stalled
+        reached = found.trajectory if found is not None else None
+        if found is None or reached is None or reached.t_last >= setup.t_end:
+            continue
+        if dict(before.setup.parameters) == dict(setup.parameters) and dict(before.setup.initial) == dict(setup.initial):
+            return ReferenceFailed(f"{found} (as in regime {before.name}, from the same start)", trajectory=reached, attempts=found.attempts)
+    return None
 
 
 PREFIX_METHODS = ("RK45", "DOP853", "Radau", "BDF")
@@ -572,9 +589,14 @@ def _regime(model: Model, regime: Regime, target: float, candidates: Sequence[Ca
     if ended is not None:
         return _ended(model, regime, setup, ended)
     ref_tol = reference_tolerance(target)
+    ends = _stalled_before(model, setup, earlier or ())
+    if ends is not None:
+        return _without_reference(model, regime, setup, ends)
     try:
         setup, reference, horizon, _ = prepare(model, setup, ref_tol, say, window=WINDOW_FACTOR * target, hint=", a looser --accuracy", implicit=implicit_reference_tolerances(target))
     except ReferenceFailed as error:
+        if earlier is not None and error.trajectory is not None and error.trajectory.outcome == Status.STALLED:
+            earlier.append(_Earlier(regime.name, setup, np.ones(1), math.inf, {}, frozenset(), stalled=error))
         return _without_reference(model, regime, setup, error)
     scale = component_scale(reference.y)
     own = reference.own_error if math.isfinite(reference.own_error) else math.inf
