@@ -100,6 +100,51 @@ def test_a_collision_is_not_taken_for_coordinates_that_end(tmp_path: Path) -> No
     assert "the step size collapsed" in text and "coordinates end" not in text, text
 
 
+TOP = """\
+title: Heavy top in Euler angles whose axis passes within 1e-6 of the vertical
+coordinates: [theta, phi, psi]
+parameters: {m: 1.0, l: 1.0, g: 9.81, I_perp: 1.0, I_par: 2.0}
+gravity: [0, 0, -g]
+bodies:
+  top:
+    mass: m
+    position: [l*sin(theta)*sin(phi), -l*sin(theta)*cos(phi), l*cos(theta)]
+    inertia: [I_perp, I_perp, I_par]
+    angular_velocity:
+      - phi_dot*sin(theta)*sin(psi) + theta_dot*cos(psi)
+      - phi_dot*sin(theta)*cos(psi) - theta_dot*sin(psi)
+      - phi_dot*cos(theta) + psi_dot
+initial: {theta: 0.3, phi: 0.0, psi: 0.0, theta_dot: -2.0, phi_dot: 1.0e-5, psi_dot: -1.0e-5}
+simulate: {t_end: 0.2}
+"""
+FLYING = """\
+title: A free particle in polar coordinates flying out to r = 1000, and an oscillator whose stiffness grows with t
+coordinates: [r, theta, z]
+parameters: {m: 1.0, K: 1.0, a: 20000.0}
+particles:
+  p: {mass: m, position: [r*cos(theta), r*sin(theta)]}
+  q: {mass: m, position: [0, 0, z]}
+potential: K/2*exp(a*(t - 1))*z**2
+initial: {r: 1.0, r_dot: 1000.0, theta: 0.0, theta_dot: 1.0, z: 0.001, z_dot: 0.0}
+simulate: {t_end: 5}
+"""
+
+
+def test_a_budget_that_ends_inside_a_close_pass_or_a_stiff_stretch_is_no_stall(tmp_path: Path) -> None:
+    """Audit 12: the top's axis passes within 1e-6 of the vertical at t = 0.156, which 16578 scipy steps pass; with 500
+    the run stops inside the pass, cond M 1e12, and the probe is still going when its evaluations run out: not shown to
+    be stuck, so the budget is named. The particle's r grows to 1000 (cond M = r^2 in the start's sizes, 1 in its own)
+    while the oscillator's stiffness shrinks Radau's steps to 5e-10: a budget, not coordinates that end."""
+    top, flying = tmp_path / "top.yaml", tmp_path / "flying.yaml"
+    top.write_text(TOP, encoding="utf-8")
+    flying.write_text(FLYING, encoding="utf-8")
+    for system, options in ((top, ["--backend", "python", "--max-steps", "500"]), (flying, ["--method", "Radau", "--backend", "compiled", "--max-steps", "100000"])):
+        result = runner.invoke(app, ["simulate", str(system), *options, "-o", str(tmp_path / "t.csv")])
+        assert result.exit_code == 1, result.output
+        text = _flat(result.stderr)
+        assert "(the step budget)" in text and "coordinates end" not in text, text
+
+
 def test_a_run_merely_over_its_budget_is_advised_what_fits_its_method(tmp_path: Path) -> None:
     system = str(ROOT / "systems" / "harmonic_oscillator.yaml")
     adaptive = runner.invoke(app, ["simulate", system, "--method", "RK45", "--backend", "python", "--max-steps", "5", "-o", str(tmp_path / "a.csv")])

@@ -546,17 +546,22 @@ def _spread(settings: Settings, run: Run) -> list[tuple[float, np.ndarray]]:
 
 
 STALL_PROBE = 20_000
-"""A candidate stall is confirmed by a probe: scipy's DOP853 (rtol at least STALL_PROBE_RTOL) from the last state, for at
-most this many right-hand side evaluations (0.1-0.5 s), must not reach a state where cond M is below STALL_LEFT x its
-value at the stop, nor t_end. A run whose budget ended inside a close pass goes on past it: Kepler's orbit at e = 0.9
-through periapsis in polar coordinates (cond M 7e8 against 1e4 at the start, steps of 1e-9), a top whose axis passes
-within 1e-4 of the vertical in Euler angles."""
+"""A candidate stall is confirmed by a probe: scipy's DOP853 (rtol at least STALL_PROBE_RTOL) from the last state must get
+stuck within this many right-hand side evaluations (0.1-0.5 s): its step collapses (scipy's status -1) or it steps where
+the equations cannot be evaluated, before it reaches t_end or a state where cond M is below STALL_LEFT x its value at
+the stop, and before its evaluations run out (then it is not shown to be stuck). A run whose budget ended inside a close
+pass goes on past it: Kepler's orbit at e = 0.9 through periapsis in polar coordinates (cond M 7e8 against 1e4 at the
+start, steps of 1e-9), a top whose axis passes within 1e-4 (or, given its steps, 1e-6) of the vertical in Euler angles."""
 STALL_PROBE_RTOL = 1e-8
 STALL_LEFT = 1e-2
 
 
 class _ProbeOver(Exception):
-    """The probe's evaluations ran out, or the right-hand side could not be evaluated."""
+    """The probe's evaluations ran out."""
+
+
+class _ProbeStuck(Exception):
+    """The probe reached a state where the right-hand side cannot be evaluated (or is not finite)."""
 
 
 def _leaves(module: Any, settings: Settings, run: Run, condition: Callable[[float, np.ndarray], float], last: float) -> bool:
@@ -572,9 +577,11 @@ def _leaves(module: Any, settings: Settings, run: Run, condition: Callable[[floa
     def f(t: float, y: np.ndarray) -> np.ndarray:
         nonlocal count
         count += 1
-        value = rhs(t, y) if count <= STALL_PROBE else None
-        if value is None or not np.all(np.isfinite(value)):
+        if count > STALL_PROBE:
             raise _ProbeOver
+        value = rhs(t, y)
+        if value is None or not np.all(np.isfinite(value)):
+            raise _ProbeStuck
         if count % 50 == 0:
             seen.append((t, np.array(y, dtype=float)))
         return value
@@ -584,9 +591,12 @@ def _leaves(module: Any, settings: Settings, run: Run, condition: Callable[[floa
         try:
             found = solve_ivp(f, (run.t_last, settings.t_end), np.asarray(run.y_last, dtype=float), method="DOP853", rtol=max(settings.rtol, STALL_PROBE_RTOL), atol=max(settings.atol, 1e-12))
             if found.status == 0:
-                return True
+                return True  # it reached t_end
         except _ProbeOver:
+            return True  # still going when its evaluations ran out: not shown to be stuck (audit 12: a top's axis passing within 1e-6 of the vertical needs 16578 steps)
+        except _ProbeStuck:
             pass
+    # stuck: its step collapsed (scipy's status -1) or it stepped where the equations cannot be evaluated; unless it left first
     return any(condition(t, y) <= STALL_LEFT * last for t, y in seen)
 
 
@@ -600,8 +610,12 @@ def _stalled(model: Model, settings: Settings, run: Run, module: Any) -> str | N
     if smallest is None or not math.isfinite(run.t_last) or smallest > STALL_STEP * max(1.0, abs(run.t_last)) or not np.all(np.isfinite(run.y_last)):
         return None
     values = tuple(float(v) for v in settings.values)
-    condition = memo.once(model, ("stall condition", values, tuple(settings.y0)), lambda: diagnostics.mass_condition(model, values, settings.y0))
-    last, start = condition(run.t_last, run.y_last), condition(settings.t0, np.asarray(settings.y0, dtype=float))
+    begin = memo.once(model, ("stall condition", values, tuple(settings.y0)), lambda: diagnostics.mass_condition(model, values, settings.y0))
+    # at the stop, in the larger of the coordinates' sizes there and at the start: a polar r grown from 1 to 1000 makes
+    # M = diag(m, m r^2) 1e6-conditioned in the start's sizes, regular in its own (audit 12: a free particle flying out)
+    sizes = np.maximum(np.abs(np.asarray(settings.y0, dtype=float)), np.abs(np.asarray(run.y_last, dtype=float)))
+    condition = diagnostics.MassCondition(begin.mass, diagnostics.coordinate_sizes(sizes, model.n))
+    last, start = condition(run.t_last, run.y_last), begin(settings.t0, np.asarray(settings.y0, dtype=float))
     if not (last > STALL_CONDITION and last > STALL_GROWTH * start):
         return None
     mass = condition.mass
