@@ -425,7 +425,8 @@ def _projected(
         sum(r.stats.floored for r in runs),
     )
     outcome = integrators.BUDGET if over_budget else last.status
-    y_last = y if outcome in (integrators.FINISHED, integrators.BUDGET) else last.y_last
+    # (a stretch stopped by its budget ends at its own last state, not at the last projected sample: audit 12, F4)
+    y_last = y if outcome == integrators.FINISHED or over_budget else last.y_last
     compile_seconds = sum(r.compile_seconds for r in runs)
     elapsed = time.perf_counter() - began - compile_seconds  # the projections count as part of the run
     run = Run(np.concatenate(pieces_t), np.vstack(pieces_y), outcome, t_start if over_budget else last.t_last, y_last, stats, compile_seconds, elapsed, last.problem)
