@@ -517,7 +517,8 @@ STALL_STEP = 1e-8
 """A run stopped by its step budget or a collapsed step stalled at a coordinate singularity (Status.STALLED, `_stalled`)
 where its smallest step was below STALL_STEP x max(1, |t|) ..."""
 STALL_CONDITION = 1e5
-"""... cond M at its last state (scaled as `diagnostics.mass_condition`, by the start's coordinate sizes) above this ..."""
+"""... cond M at its last state (scaled as `diagnostics.mass_condition`, by the larger of the coordinates' sizes there and
+at the start) above this ..."""
 STALL_GROWTH = 1e3
 """... and above this times its value at the start. Audit 11's Foucault pendulum in x, y (z = -sqrt(L^2 - x^2 - y^2))
 given the energy to reach the pivot's height: DOP853 took 1e6 steps down to 2e-12 (5e6 more moved t by 7e-6),
