@@ -55,14 +55,8 @@ def simulate_command(file: str, model: Model, point: Point) -> str | None:
     words = ["lagrange", "simulate", file, "--t-end", exact_text(s.t_end)]
     if len(s.t_eval) >= 2 and s.t_eval[0] == s.t0 and s.t_eval[-1] == s.t_end:
         words += ["--samples", str(len(s.t_eval))]
-    defaults = {p.name: p.value for p in model.parameters}
-    changed = [f"{name}={exact_text(value)}" for name, value in s.parameters if defaults.get(name) is None or float(defaults[name]) != value]  # type: ignore[arg-type]
-    if changed:
-        words += ["--set", ",".join(changed)]
     names = [*model.coordinates, *(f"{c}_dot" for c in model.coordinates)]
-    moved = [f"{name}={exact_text(value)}" for name, value in zip(names, s.y0, strict=True) if float(model.initial.get(name, 0.0)) != value]
-    if moved:
-        words += ["--initial", ",".join(moved)]
+    words += _start_words(model, dict(s.parameters), dict(zip(names, s.y0, strict=True)))
     return shlex.join([*words, *options])
 
 
@@ -72,10 +66,15 @@ def start_options(model: Model, parameters: Mapping[str, float], initial: Mappin
     regime, also one whose reference could not be made and that so has no `try:` line (audit 11, F3)."""
     import shlex
 
+    return shlex.join(_start_words(model, parameters, initial))
+
+
+def _start_words(model: Model, parameters: Mapping[str, float], initial: Mapping[str, float]) -> list[str]:
+    """`--set` and `--initial` with the values that differ from the file's, every number as it round-trips."""
     defaults = {p.name: p.value for p in model.parameters}
     changed = [f"{name}={exact_text(value)}" for name, value in parameters.items() if defaults.get(name) is None or float(defaults[name]) != value]  # type: ignore[arg-type]
     moved = [f"{name}={exact_text(value)}" for name, value in initial.items() if float(model.initial.get(name, 0.0)) != value]
-    return shlex.join([*(["--set", ",".join(changed)] if changed else []), *(["--initial", ",".join(moved)] if moved else [])])
+    return [*(["--set", ",".join(changed)] if changed else []), *(["--initial", ",".join(moved)] if moved else [])]
 
 
 COLUMNS = (

@@ -153,7 +153,7 @@ class Setup:
     """Seconds after which a measured run is stopped as undecided (a safety net; None: no limit)."""
     raised: float = 1.0
     """How many times the command's default step budget `max_steps` is, at least 1: the fixed step caps of one reference
-    attempt (`reference.COMPILED_RADAU_STEPS`, ...: `reference.capped`) grow by it, so that a larger --max-steps gives
+    attempt (`reference.COMPILED_RADAU_STEPS`, ...: `reference.scaled`) grow by it, so that a larger --max-steps gives
     reference runs more steps, as the messages that advise it say (audit 11, F2: it did not)."""
     start: Settings | None = field(default=None, compare=False)
     """The validated settings of these parameters and initial values (`starting`), made once."""

@@ -511,7 +511,7 @@ class _Earlier:
     start over a longer span stalls there too, and makes no reference attempt of its own (`_stalled_before`)."""
 
 
-def _stalled_before(model: Model, setup: Setup, earlier: Sequence[_Earlier]) -> ReferenceFailed | None:
+def _stalled_before(setup: Setup, earlier: Sequence[_Earlier]) -> ReferenceFailed | None:
     """The reference failure of an earlier regime of the same parameters and start whose reference stalled where the
     coordinates end before this regime's t_end (audit 11's pendulum in x, y: the long horizon's reference attempts, as
     long as the defaults' own, stalled at the same state)."""
@@ -589,7 +589,7 @@ def _regime(model: Model, regime: Regime, target: float, candidates: Sequence[Ca
     if ended is not None:
         return _ended(model, regime, setup, ended)
     ref_tol = reference_tolerance(target)
-    ends = _stalled_before(model, setup, earlier or ())
+    ends = _stalled_before(setup, earlier or ())
     if ends is not None:
         return _without_reference(model, regime, setup, ends)
     try:
