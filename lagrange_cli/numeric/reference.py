@@ -46,7 +46,7 @@ from lagrange_cli.numeric.runs import (
     tol_text,
 )
 from lagrange_cli.numeric.settings import Settings, code_parameters
-from lagrange_cli.numeric.simulate import Trajectory, integrate, state_text
+from lagrange_cli.numeric.simulate import Trajectory, coordinates_end, integrate, state_text
 from lagrange_cli.numeric.status import MAX_FACTOR, Status
 from lagrange_cli.numeric.tableaux import EXPLICIT
 
@@ -59,14 +59,17 @@ class ReferenceFailed(LagrangeError):
     """The reference run failed or ran out of its step budget: a failed numerical run (exit 1),
     the message naming the time, the state and the cause. `blowup`: every reference method that
     was tried failed by a blow-up or a singular matrix (not by its step budget), near the same time,
-    so that the failure is the system's, not the methods'; `trajectory`: the samples the primary
-    run reached (for a diagnosis along them)."""
+    so that the failure is the system's, not the methods'; `coordinates`: they stopped where the coordinates end (a
+    stall, or a singular mass matrix at a state the motion reaches with bounded kinetic energy: `simulate.coordinates_end`),
+    where no method in them can go, but the motion does; `trajectory`: the samples the primary run reached (for a
+    diagnosis along them)."""
 
     exit_code = 1
 
-    def __init__(self, message: str, *, blowup: bool = False, trajectory: Trajectory | None = None, attempts: tuple[str, ...] = ()) -> None:
+    def __init__(self, message: str, *, blowup: bool = False, coordinates: bool = False, trajectory: Trajectory | None = None, attempts: tuple[str, ...] = ()) -> None:
         super().__init__(message)
         self.blowup = blowup
+        self.coordinates = coordinates or (trajectory is not None and trajectory.outcome == Status.STALLED and not blowup)
         self.trajectory = trajectory
         self.attempts = attempts
 
@@ -941,8 +944,11 @@ def _computed_reference(model: Model, setup: Setup, tolerance: float, hint: str,
             return fallback
     main = main if main is not None else radau
     blowup = main.outcome in BLOWUP and radau.outcome in BLOWUP and abs(radau.t_last - main.t_last) <= 0.01 * max(setup.t_end, 1e-300)
-    where = f"{'both stop' if main is not radau else 'it stops'} near t = {main.t_last:.6g}: the solution itself blows up or reaches a singular configuration there"
-    raise _no_reference(model, reasons, hint, main, where if blowup else "")
+    stop = f"{'both stop' if main is not radau else 'it stops'} near t = {main.t_last:.6g}"
+    if blowup and (ended := coordinates_end(model, main.settings, main.t, main.y, main.t_last, main.y_last)) is not None:
+        # where the coordinates end, not the motion: no reference in them (undecided), not a blow-up of the system (not met)
+        raise ReferenceFailed(f"{model.source}: " + "; and ".join(reasons) + f"; {stop}, where {ended}", coordinates=True, trajectory=main, attempts=tuple(reasons))
+    raise _no_reference(model, reasons, hint, main, f"{stop}: the solution itself blows up or reaches a singular configuration there" if blowup else "")
 
 
 TIGHTER_DECADES = 2

@@ -21,7 +21,7 @@ import math
 import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -34,6 +34,9 @@ from lagrange_cli.numeric.policy import resolve
 from lagrange_cli.numeric.projection import Correction, Projector
 from lagrange_cli.numeric.settings import STAGES, Settings, check
 from lagrange_cli.numeric.status import Status
+
+if TYPE_CHECKING:
+    from lagrange_cli.numeric.diagnostics import MassCondition
 
 FAILURES = {
     integrators.SINGULAR: "the mass matrix{} is singular (a coordinate singularity, such as Euler angles at theta = 0, or a configuration without inertia)",
@@ -541,10 +544,10 @@ def _kinetic(mass: Callable[[float, Sequence[float] | np.ndarray], np.ndarray | 
     return 0.0 if m is None else float(0.5 * y[n:] @ m @ y[n:])
 
 
-def _spread(settings: Settings, run: Run) -> list[tuple[float, np.ndarray]]:
-    """The run's start and up to STALL_SAMPLES of its samples, evenly spread."""
-    picked = np.unique(np.linspace(0, len(run.t) - 1, min(STALL_SAMPLES, len(run.t))).astype(int)) if len(run.t) else np.array([], dtype=int)
-    return [(settings.t0, np.asarray(settings.y0, dtype=float)), *((float(run.t[k]), np.asarray(run.y[k], dtype=float)) for k in picked)]
+def _spread(settings: Settings, t: np.ndarray, y: np.ndarray) -> list[tuple[float, np.ndarray]]:
+    """The run's start and up to STALL_SAMPLES of its samples (`t`, `y`), evenly spread."""
+    picked = np.unique(np.linspace(0, len(t) - 1, min(STALL_SAMPLES, len(t))).astype(int)) if len(t) else np.array([], dtype=int)
+    return [(settings.t0, np.asarray(settings.y0, dtype=float)), *((float(t[k]), np.asarray(y[k], dtype=float)) for k in picked)]
 
 
 STALL_PROBE = 20_000
@@ -606,26 +609,52 @@ def _stalled(model: Model, settings: Settings, run: Run, module: Any) -> str | N
     """Why a run that its step budget or a collapsed step stopped cannot go on, where its steps shrank at a state with a
     nearly singular mass matrix that the start did not have (STALL_STEP, STALL_CONDITION, STALL_GROWTH): the coordinates
     end there; else None (a run merely over its budget, or a blow-up: FAILURES says what)."""
+    smallest = run.stats.min_step
+    if smallest is None or not math.isfinite(run.t_last) or smallest > STALL_STEP * max(1.0, abs(run.t_last)):
+        return None
+    found = _ending(model, settings, run.t_last, run.y_last, _spread(settings, run.t, run.y))
+    if found is None:
+        return None
+    condition, last, what = found
+    if _leaves(module, settings, run, condition, last):
+        return None  # a close pass that its budget ended in, not a stall
+    return f"its steps shrank to {smallest:.1e} where {what}"
+
+
+def coordinates_end(model: Model, settings: Settings, t: np.ndarray, y: np.ndarray, t_last: float, y_last: np.ndarray) -> str | None:
+    """Where a run that stopped at (t_last, y_last) on a singular mass matrix (or a collapsed step) stopped because its
+    coordinates end there (`_ending`: M nearly singular there, not at the start, its kinetic energy bounded), what they
+    do there and what to do; else None (a blow-up of the motion itself: a collision). `t`, `y`: the run's samples. A
+    reference whose methods all stop there has found where the description ends, not the solution: audit 12's heavy
+    top in Euler angles started at theta = 0.01, whose axis passes within 3e-7 of the vertical (cond M 4e13), stopped
+    DOP853 and Radau alike on "the mass matrix is singular", which `stress` called a blow-up of the system and not met."""
+    found = _ending(model, settings, t_last, y_last, _spread(settings, t, y))
+    return None if found is None else found[2]
+
+
+def _ending(model: Model, settings: Settings, t_last: float, y_last: np.ndarray, samples: Sequence[tuple[float, np.ndarray]]) -> tuple[MassCondition, float, str] | None:
+    """Whether the coordinates end at (t_last, y_last): cond M there, in the larger of the coordinates' sizes there and at
+    the start, above STALL_CONDITION and STALL_GROWTH x its value at the start, and the kinetic energy there within
+    STALL_KINETIC x its largest at `samples` (else the motion blows up there, not only the coordinates: a collision).
+    Then cond M's measure, its value there and the words that say so (what the coordinates do there, which one, what
+    to do); else None."""
     from lagrange_cli.numeric import diagnostics, memo
 
-    smallest = run.stats.min_step
-    if smallest is None or not math.isfinite(run.t_last) or smallest > STALL_STEP * max(1.0, abs(run.t_last)) or not np.all(np.isfinite(run.y_last)):
+    if not math.isfinite(t_last) or not np.all(np.isfinite(y_last)):
         return None
     values = tuple(float(v) for v in settings.values)
     begin = memo.once(model, ("stall condition", values, tuple(settings.y0)), lambda: diagnostics.mass_condition(model, values, settings.y0))
     # at the stop, in the larger of the coordinates' sizes there and at the start: a polar r grown from 1 to 1000 makes
     # M = diag(m, m r^2) 1e6-conditioned in the start's sizes, regular in its own (audit 12: a free particle flying out)
-    sizes = np.maximum(np.abs(np.asarray(settings.y0, dtype=float)), np.abs(np.asarray(run.y_last, dtype=float)))
+    sizes = np.maximum(np.abs(np.asarray(settings.y0, dtype=float)), np.abs(np.asarray(y_last, dtype=float)))
     condition = diagnostics.MassCondition(begin.mass, diagnostics.coordinate_sizes(sizes, model.n))
-    last, start = condition(run.t_last, run.y_last), begin(settings.t0, np.asarray(settings.y0, dtype=float))
+    last, start = condition(t_last, y_last), begin(settings.t0, np.asarray(settings.y0, dtype=float))
     if not (last > STALL_CONDITION and last > STALL_GROWTH * start):
         return None
     mass = condition.mass
-    if _kinetic(mass, run.t_last, run.y_last) > STALL_KINETIC * max(_kinetic(mass, float(t), y) for t, y in _spread(settings, run)):
+    if _kinetic(mass, t_last, y_last) > STALL_KINETIC * max(_kinetic(mass, float(t), y) for t, y in samples):
         return None  # the motion blows up there, not only the coordinates: a collision (FAILURES says what)
-    if _leaves(module, settings, run, condition, last):
-        return None  # a close pass that its budget ended in, not a stall
-    moved = diagnostics.singular_coordinate(model.coordinates, condition, run.t_last, run.y_last, mass(run.t_last, run.y_last), mass(settings.t0, settings.y0))
+    moved = diagnostics.singular_coordinate(model.coordinates, condition, t_last, y_last, mass(t_last, y_last), mass(settings.t0, settings.y0))
     named = f"; it changes fastest with {moved.coordinate} = {_g(moved.value)}" if moved is not None else ""
     level = "infinite" if math.isinf(last) else f"{last:.1e}"
     if moved is not None and moved.unbounded:
@@ -634,11 +663,12 @@ def _stalled(model: Model, settings: Settings, run: Run, module: Any) -> str | N
     else:
         what = "a configuration where they lose a direction (M's inertia vanishes, as for Euler angles at gimbal lock or polar angles at the pole)"
         regular = "a unit vector or a quaternion for an orientation, Cartesian components for a direction"
-    return (
-        f"its steps shrank to {smallest:.1e} where the mass matrix is nearly singular (cond M = {level} there, {start:.3g} at the start{named}): the"
-        f" coordinates end there, not the motion: {what}. A larger step budget or a looser tolerance passes it at best with a large error there:"
-        f" describe the system in coordinates regular there ({regular}), or give a t_end before it (--t-end)"
+    words = (
+        f"the mass matrix is nearly singular (cond M = {level} there, {start:.3g} at the start{named}): the coordinates end there, not the motion:"
+        f" {what}. A larger step budget or a looser tolerance passes it at best with a large error there: describe the system in coordinates"
+        f" regular there ({regular}), or give a t_end before it (--t-end)"
     )
+    return condition, last, words
 
 
 ENDED = 1e-3

@@ -114,7 +114,7 @@ from lagrange_cli.numeric.runs import (
     work,
 )
 from lagrange_cli.numeric.settings import Settings, validate
-from lagrange_cli.numeric.status import Failure, Status
+from lagrange_cli.numeric.status import Failure
 
 NAIVE = Candidate("RK45", "python")
 """scipy's default method, what a user reaches for first."""
@@ -507,7 +507,7 @@ class _Earlier:
     """The rungs where a ladder stopped because no tighter run could be the recommendation (its work, or the work its
     error's fall predicts, against the run that met the accuracy): not where the reference could not vouch."""
     stalled: ReferenceFailed | None = None
-    """Its reference stalled where the coordinates end (Status.STALLED; `runs` then empty): a later regime from the same
+    """Its reference stopped where the coordinates end (`ReferenceFailed.coordinates`; `runs` then empty): a later regime from the same
     start over a longer span stalls there too, and makes no reference attempt of its own (`_stalled_before`)."""
 
 
@@ -521,7 +521,7 @@ def _stalled_before(setup: Setup, earlier: Sequence[_Earlier]) -> ReferenceFaile
         if found is None or reached is None or reached.t_last >= setup.t_end:
             continue
         if dict(before.setup.parameters) == dict(setup.parameters) and dict(before.setup.initial) == dict(setup.initial):
-            return ReferenceFailed(f"{found} (as in regime {before.name}, from the same start)", trajectory=reached, attempts=found.attempts)
+            return ReferenceFailed(f"{found} (as in regime {before.name}, from the same start)", coordinates=True, trajectory=reached, attempts=found.attempts)
     return None
 
 
@@ -595,7 +595,7 @@ def _regime(model: Model, regime: Regime, target: float, candidates: Sequence[Ca
     try:
         setup, reference, horizon, _ = prepare(model, setup, ref_tol, say, window=WINDOW_FACTOR * target, hint=", a looser --accuracy", implicit=implicit_reference_tolerances(target))
     except ReferenceFailed as error:
-        if earlier is not None and error.trajectory is not None and error.trajectory.outcome == Status.STALLED:
+        if earlier is not None and error.trajectory is not None and error.coordinates:
             earlier.append(_Earlier(regime.name, setup, np.ones(1), math.inf, {}, frozenset(), stalled=error))
         return _without_reference(model, regime, setup, error)
     scale = component_scale(reference.y)
@@ -1209,9 +1209,7 @@ def _without_reference(model: Model, regime: Regime, setup: Setup, error: Refere
         t, y = np.append(t, reached.t_last), np.vstack([y, reached.y_last])
         where = f"along the reference run up to t = {reached.t_last:.6g}, where it stopped"
     measured = _measure(model, setup, t, y, None, setup.t_end)
-    kind = "blow-up (both reference methods stop there)" if error.blowup else "no reference"
-    if reached is not None and reached.outcome == Status.STALLED and not error.blowup:
-        kind = "no reference: the coordinates end"
+    kind = "blow-up (both reference methods stop there)" if error.blowup else "no reference: the coordinates end" if error.coordinates else "no reference"
     findings = (Finding(kind, str(error).removeprefix(f"{model.source}: ")), *measured.findings)
     diagnosis = replace(measured, findings=findings, where=where)
     open_reason = "" if error.blowup else "no reference could be made (see the diagnosis), so no method could be measured"
