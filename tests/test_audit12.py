@@ -7,6 +7,7 @@ coordinate and the advice, and `stress` leaves the regime undecided. A true blow
 
 from __future__ import annotations
 
+import json
 import re
 from pathlib import Path
 
@@ -18,8 +19,10 @@ from lagrange_cli.cli import app
 from lagrange_cli.numeric import stress
 from lagrange_cli.numeric.reference import ReferenceFailed, computed_reference
 from lagrange_cli.numeric.runs import Setup, starting
+from lagrange_cli.numeric.simulate import coordinates_end, simulate
+from lagrange_cli.numeric.status import Status
 
-from .helpers import model_from
+from .helpers import model_from, model_of
 
 runner = CliRunner()
 
@@ -72,3 +75,44 @@ def test_stress_leaves_such_a_regime_undecided_not_a_blow_up(top: Path) -> None:
     kinds = [finding.kind for finding in outcome.diagnosis.findings]
     assert "no reference: the coordinates end" in kinds and not any(kind.startswith("blow-up") for kind in kinds), kinds
     assert outcome.open_reason and outcome.undecided and not outcome.met, outcome
+
+
+ACOS = """\
+title: A pendulum whose angle is acos(c)
+coordinates: [c]
+parameters: {m: 1.0, L: 1.0, g: 9.81}
+gravity: [0, -g]
+particles:
+  bob: {mass: m, position: [L*sin(acos(c)), -L*cos(acos(c))]}
+initial: {c: 0.5, c_dot: 9.4}
+simulate: {t_end: 0.2}
+"""
+
+
+def test_one_coordinate_whose_inertia_grows_without_bound_ends_there(tmp_path: Path) -> None:
+    """cond of a 1 x 1 M is 1: the singular stop itself (and M's one entry) says the coordinates end, at c = 1."""
+    path = tmp_path / "acos.yaml"
+    path.write_text(ACOS, encoding="utf-8")
+    model = model_from(path).with_definitions()
+    run = simulate(model, backend="compiled", method="DOP853", t_end=0.2, rtol=1e-10, atol=1e-13)
+    assert run.failed and run.outcome == Status.SINGULAR and abs(float(run.y_last[0]) - 1.0) < 1e-6, run.message
+    found = coordinates_end(model, run.settings, run.t, run.y, run.t_last, run.y_last, singular=True)
+    assert found is not None and "its one entry grows without bound at c = 1" in found and "the coordinates end there" in found, found
+    # a true blow-up is not taken for one: V = -x^4 sends x to infinity in finite time (its state not finite, or T unbounded)
+    blow = model_of("coordinates: [x]\nparticles:\n  p: {mass: 1, position: [x]}\npotential: -x**4\ninitial: {x: 1.0}\n").with_definitions()
+    gone = simulate(blow, backend="compiled", method="DOP853", t_end=5.0)
+    assert gone.failed and coordinates_end(blow, gone.settings, gone.t, gone.y, gone.t_last, gone.y_last, singular=gone.outcome == Status.SINGULAR) is None
+
+
+def test_an_unconfirmed_reference_vouches_for_no_fastest_method(tmp_path: Path) -> None:
+    """Only Radau passes c = 1 (every other method stops there): its run is the reference, unconfirmed, and `accuracy`
+    claimed Radau met 1e-5 against it. Now it names no fastest method, and says why."""
+    path = tmp_path / "acos.yaml"
+    path.write_text(ACOS, encoding="utf-8")
+    result = runner.invoke(app, ["accuracy", str(path), "-q", "--json", "-"])
+    assert result.exit_code == 0, result.output
+    document = json.loads(result.stdout)
+    assert document["reference"]["own_error"] is None and "unconfirmed" in document["reference"]["description"], document["reference"]
+    assert document["fastest"] == []
+    text = " ".join(runner.invoke(app, ["accuracy", str(path), "-q"]).output.split())
+    assert "no fastest method: the reference is one run that no second method confirmed" in text and "try:" not in text, text

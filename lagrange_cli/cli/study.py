@@ -242,6 +242,8 @@ def _report_study(result: Study, to_stderr: bool, file: str, model: Model) -> No
         console.print(summary)
         for level, p in fastest:
             _reproduce(console, file, model, p, f"error <= {level:.0e}: ")
+    elif result.unconfirmed:
+        console.print("no fastest method: the reference is one run that no second method confirmed (see its line), so it vouches for no run's error; the errors above are against that run alone")
     else:
         console.print("[red]no run finished with a finite error[/red]")
 

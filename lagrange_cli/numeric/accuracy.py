@@ -182,8 +182,16 @@ class Study:
     @property
     def fastest(self) -> tuple[tuple[float, Point], ...]:
         """For each decade of error reached by some run, the fastest run reaching it; only
-        levels the reference can vouch for (at least 10x its own error)."""
-        return fastest(self.points, floor=10 * self.reference.own_error)
+        levels the reference can vouch for (at least 10x its own error): none when no second method
+        confirmed it (`unconfirmed`)."""
+        return () if self.unconfirmed else fastest(self.points, floor=10 * self.reference.own_error)
+
+    @property
+    def unconfirmed(self) -> bool:
+        """The reference is one run that no second method confirmed (its own error unknown): the errors are measured
+        against it, but it vouches for none of them. Audit 12: a pendulum whose angle is acos(c), its reference a Radau
+        run that stepped through the singular c = 1 where every other method stopped, "met" 1e-5 with Radau itself."""
+        return self.reference.kind == "computed" and math.isnan(self.reference.own_error)
 
     def ties(self, level: float, best: Point) -> tuple[Point, ...]:
         """Other methods reaching `level` within TIE_MARGIN of `best`'s run time: a tie, not a win."""

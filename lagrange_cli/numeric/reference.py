@@ -945,7 +945,7 @@ def _computed_reference(model: Model, setup: Setup, tolerance: float, hint: str,
     main = main if main is not None else radau
     blowup = main.outcome in BLOWUP and radau.outcome in BLOWUP and abs(radau.t_last - main.t_last) <= 0.01 * max(setup.t_end, 1e-300)
     stop = f"{'both stop' if main is not radau else 'it stops'} near t = {main.t_last:.6g}"
-    if blowup and (ended := coordinates_end(model, main.settings, main.t, main.y, main.t_last, main.y_last)) is not None:
+    if blowup and (ended := coordinates_end(model, main.settings, main.t, main.y, main.t_last, main.y_last, main.outcome == Status.SINGULAR)) is not None:
         # where the coordinates end, not the motion: no reference in them (undecided), not a blow-up of the system (not met)
         raise ReferenceFailed(f"{model.source}: " + "; and ".join(reasons) + f"; {stop}, where {ended}", coordinates=True, trajectory=main, attempts=tuple(reasons))
     raise _no_reference(model, reasons, hint, main, f"{stop}: the solution itself blows up or reaches a singular configuration there" if blowup else "")

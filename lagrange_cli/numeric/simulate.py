@@ -621,23 +621,26 @@ def _stalled(model: Model, settings: Settings, run: Run, module: Any) -> str | N
     return f"its steps shrank to {smallest:.1e} where {what}"
 
 
-def coordinates_end(model: Model, settings: Settings, t: np.ndarray, y: np.ndarray, t_last: float, y_last: np.ndarray) -> str | None:
-    """Where a run that stopped at (t_last, y_last) on a singular mass matrix (or a collapsed step) stopped because its
-    coordinates end there (`_ending`: M nearly singular there, not at the start, its kinetic energy bounded), what they
-    do there and what to do; else None (a blow-up of the motion itself: a collision). `t`, `y`: the run's samples. A
-    reference whose methods all stop there has found where the description ends, not the solution: audit 12's heavy
-    top in Euler angles started at theta = 0.01, whose axis passes within 3e-7 of the vertical (cond M 4e13), stopped
-    DOP853 and Radau alike on "the mass matrix is singular", which `stress` called a blow-up of the system and not met."""
-    found = _ending(model, settings, t_last, y_last, _spread(settings, t, y))
+def coordinates_end(model: Model, settings: Settings, t: np.ndarray, y: np.ndarray, t_last: float, y_last: np.ndarray, singular: bool = False) -> str | None:
+    """Where a run that stopped at (t_last, y_last) on a singular mass matrix (`singular`: its LU's pivot test said so)
+    or a collapsed step stopped because its coordinates end there (`_ending`), what they do there and what to do; else
+    None (a blow-up of the motion itself: a collision). `t`, `y`: the run's samples. A reference whose methods all stop
+    there has found where the description ends, not the solution: audit 12's heavy top in Euler angles started at
+    theta = 0.01, whose axis passes within 3e-7 of the vertical (cond M 4e13), stopped DOP853 and Radau alike on "the
+    mass matrix is singular", which `stress` called a blow-up of the system and not met; so did a pendulum whose angle
+    is acos(c), at c = 1."""
+    found = _ending(model, settings, t_last, y_last, _spread(settings, t, y), singular)
     return None if found is None else found[2]
 
 
-def _ending(model: Model, settings: Settings, t_last: float, y_last: np.ndarray, samples: Sequence[tuple[float, np.ndarray]]) -> tuple[MassCondition, float, str] | None:
+def _ending(model: Model, settings: Settings, t_last: float, y_last: np.ndarray, samples: Sequence[tuple[float, np.ndarray]], singular: bool = False) -> tuple[MassCondition, float, str] | None:
     """Whether the coordinates end at (t_last, y_last): cond M there, in the larger of the coordinates' sizes there and at
-    the start, above STALL_CONDITION and STALL_GROWTH x its value at the start, and the kinetic energy there within
-    STALL_KINETIC x its largest at `samples` (else the motion blows up there, not only the coordinates: a collision).
-    Then cond M's measure, its value there and the words that say so (what the coordinates do there, which one, what
-    to do); else None."""
+    the start, above STALL_CONDITION and STALL_GROWTH x its value at the start (or, `singular`, M found singular there by
+    the integrator, in a model without kept constraints, whose rows can lose rank where the motion does not end), and
+    the kinetic energy there within STALL_KINETIC x its largest at `samples` (else the motion blows up there, not only
+    the coordinates: a collision; where M itself is infinite, as 1/(1 - c^2) at c = 1, no collision is). Then cond M's
+    measure, its value there and the words that say so (what the coordinates do there, which one, what to do); else
+    None."""
     from lagrange_cli.numeric import diagnostics, memo
 
     if not math.isfinite(t_last) or not np.all(np.isfinite(y_last)):
@@ -649,24 +652,34 @@ def _ending(model: Model, settings: Settings, t_last: float, y_last: np.ndarray,
     sizes = np.maximum(np.abs(np.asarray(settings.y0, dtype=float)), np.abs(np.asarray(y_last, dtype=float)))
     condition = diagnostics.MassCondition(begin.mass, diagnostics.coordinate_sizes(sizes, model.n))
     last, start = condition(t_last, y_last), begin(settings.t0, np.asarray(settings.y0, dtype=float))
-    if not (last > STALL_CONDITION and last > STALL_GROWTH * start):
+    singular = singular and not model.constraints
+    if not singular and not (last > STALL_CONDITION and last > STALL_GROWTH * start):
         return None
     mass = condition.mass
-    if _kinetic(mass, t_last, y_last) > STALL_KINETIC * max(_kinetic(mass, float(t), y) for t, y in samples):
+    kinetic = _kinetic(mass, t_last, y_last)
+    if math.isfinite(kinetic) and kinetic > STALL_KINETIC * max(_kinetic(mass, float(t), y) for t, y in samples):
         return None  # the motion blows up there, not only the coordinates: a collision (FAILURES says what)
-    moved = diagnostics.singular_coordinate(model.coordinates, condition, t_last, y_last, mass(t_last, y_last), mass(settings.t0, settings.y0))
-    named = f"; it changes fastest with {moved.coordinate} = {_g(moved.value)}" if moved is not None else ""
-    level = "infinite" if math.isinf(last) else f"{last:.1e}"
-    if moved is not None and moved.unbounded:
+    at_stop, at_start = mass(t_last, y_last), mass(settings.t0, settings.y0)
+    moved = diagnostics.singular_coordinate(model.coordinates, condition, t_last, y_last, at_stop, at_start)
+    if model.n == 1:  # cond of a 1 x 1 M is 1: its one entry says how it turns singular
+        grows = at_stop is None or not np.all(np.isfinite(at_stop)) or (at_start is not None and abs(float(at_stop[0, 0])) > abs(float(at_start[0, 0])))
+        how = "grows without bound" if grows else "vanishes"
+        state = f"the mass matrix is {'singular' if singular else 'nearly singular'} (its one entry {how} at {model.coordinates[0]} = {_g(float(y_last[0]))})"
+        unbounded = grows
+    else:
+        named = f"; it changes fastest with {moved.coordinate} = {_g(moved.value)}" if moved is not None else ""
+        level = "infinite" if math.isinf(last) else f"{last:.1e}"
+        state = f"the mass matrix is {'singular' if singular else 'nearly singular'} (cond M = {level} there, {start:.3g} at the start{named})"
+        unbounded = moved is not None and moved.unbounded
+    if unbounded:
         what = "the edge of the region they describe (M's inertia grows without bound, as where a height solved from a constraint with sqrt reaches 0)"
         regular = "angles or a unit vector for a direction or a position on a sphere"
     else:
         what = "a configuration where they lose a direction (M's inertia vanishes, as for Euler angles at gimbal lock or polar angles at the pole)"
         regular = "a unit vector or a quaternion for an orientation, Cartesian components for a direction"
     words = (
-        f"the mass matrix is nearly singular (cond M = {level} there, {start:.3g} at the start{named}): the coordinates end there, not the motion:"
-        f" {what}. A larger step budget or a looser tolerance passes it at best with a large error there: describe the system in coordinates"
-        f" regular there ({regular}), or give a t_end before it (--t-end)"
+        f"{state}: the coordinates end there, not the motion: {what}. A larger step budget or a looser tolerance passes it at best with a large"
+        f" error there: describe the system in coordinates regular there ({regular}), or give a t_end before it (--t-end)"
     )
     return condition, last, words
 
