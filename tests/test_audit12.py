@@ -8,6 +8,7 @@ coordinate and the advice, and `stress` leaves the regime undecided. A true blow
 from __future__ import annotations
 
 import json
+import math
 import re
 from pathlib import Path
 
@@ -22,6 +23,7 @@ from lagrange_cli.numeric.runs import Setup, starting
 from lagrange_cli.numeric.simulate import coordinates_end, simulate
 from lagrange_cli.numeric.status import Status
 
+from .conftest import ROOT
 from .helpers import model_from, model_of
 
 runner = CliRunner()
@@ -116,3 +118,55 @@ def test_an_unconfirmed_reference_vouches_for_no_fastest_method(tmp_path: Path) 
     assert document["fastest"] == []
     text = " ".join(runner.invoke(app, ["accuracy", str(path), "-q"]).output.split())
     assert "no fastest method: the reference is one run that no second method confirmed" in text and "try:" not in text, text
+
+
+SQRT = """\
+title: A pendulum written in x, its height -sqrt(L^2 - x^2), given the energy to pass the horizontal
+coordinates: [x]
+parameters: {m: 1.0, L: 1.0, g: 9.81}
+gravity: [0, -g]
+particles:
+  bob: {mass: m, position: [x, -sqrt(L**2 - x**2)]}
+initial: {x: 0.0, x_dot: 6.0}
+simulate: {t_end: 1}
+"""
+
+SPHERE = """\
+title: A spherical pendulum in x, y, its height -sqrt(L^2 - x^2 - y^2), given the energy to rise above the pivot
+coordinates: [x, y]
+parameters: {m: 1.0, L: 1.0, g: 9.81}
+gravity: [0, 0, -g]
+particles:
+  bob: {mass: m, position: [x, y, -sqrt(L**2 - x**2 - y**2)]}
+initial: {x: 0.0, y: 0.0, x_dot: 6.0, y_dot: 0.5}
+simulate: {t_end: 1}
+"""
+
+
+def test_a_run_reflected_at_the_edge_of_its_coordinates_is_warned_about(tmp_path: Path) -> None:
+    """scipy's RK45 steps past x = L (where M's one entry is infinite) and comes back, and "finished" with its energy
+    changed by 23 %: it is warned about, with where; an accurate run of a regular system is not, at a loose rtol either."""
+    path = tmp_path / "sqrt.yaml"
+    path.write_text(SQRT, encoding="utf-8")
+    run = simulate(model_from(path).with_definitions(), backend="python", method="RK45")
+    assert not run.failed, run.message
+    (warned,) = [note for note in run.notes if note.startswith("warning: the energy, which this system conserves")]
+    found = re.search(r"jumping by ([0-9.e+-]+) between t = ([0-9.e+-]+) and ([0-9.e+-]+)\)", warned)
+    assert found is not None and float(found.group(1)) > 0.1 and float(found.group(2)) < 0.29795 < float(found.group(3)), warned  # x reaches L at t = 0.29795
+    result = runner.invoke(app, ["simulate", str(path), "--backend", "python", "--method", "RK45", "-o", str(tmp_path / "out.csv")])
+    assert result.exit_code == 0 and "not to be trusted" in " ".join(result.output.split()), result.output
+    for name, rtol in (("double_pendulum_chaotic", 1e-3), ("kepler", 1e-4), ("spherical_pendulum_near_pole", 1e-3)):
+        regular = simulate(model_from(ROOT / "systems" / f"{name}.yaml").with_definitions(), t_end=50.0, rtol=rtol)
+        assert not regular.failed and not any("which this system conserves" in note for note in regular.notes), (name, regular.notes)
+
+
+def test_a_run_stopped_where_x_y_coordinates_of_a_sphere_end_says_so(tmp_path: Path) -> None:
+    """Audit 12, F6: the docs' own example class ended on "the mass matrix is singular", never the diagnosis."""
+    path = tmp_path / "sphere.yaml"
+    path.write_text(SPHERE, encoding="utf-8")
+    run = simulate(model_from(path).with_definitions(), backend="compiled", method="DOP853")
+    assert run.failed and run.outcome == Status.SINGULAR, run.message
+    flat = " ".join(run.message.split())
+    assert "the coordinates end there, not the motion" in flat and "grows without bound" in flat and "it changes fastest with" in flat, flat
+    x, y = float(run.y_last[0]), float(run.y_last[1])
+    assert abs(math.hypot(x, y) - 1.0) < 1e-3, (x, y)  # on x^2 + y^2 = L^2

@@ -498,6 +498,8 @@ def _trajectory(model: Model, settings: Settings, python: compile.Functions, run
         elif run.status == Status.SURFACE_JUMP or (run.status == integrators.STEP_COLLAPSE and _on_surface(python.module, run, p)):
             reason = SURFACE_COLLAPSE
             run = dataclasses.replace(run, status=Status.SURFACE_JUMP)
+        elif run.status == integrators.SINGULAR and (ended_here := coordinates_end(model, settings, run.t, run.y, run.t_last, run.y_last, singular=True)) is not None:
+            reason = ended_here  # how the coordinates end there (audit 12: a spherical pendulum in x, y at x^2 + y^2 = L^2)
         else:
             reason = FAILURES[run.status].format(" (with the constraint rows)" if model.constraints else "")
         message = f"{model.source}: simulation failed at t = {_g(run.t_last)}: {reason}; state: {state_text(model, run.y_last)}"
@@ -512,8 +514,48 @@ def _trajectory(model: Model, settings: Settings, python: compile.Functions, run
         elif run.status in (integrators.BUDGET, integrators.STEP_COLLAPSE) and (stalled := _stalled(model, settings, run, python.module)) is not None:
             run = dataclasses.replace(run, status=Status.STALLED)
             message = f"{model.source}: stopped at t = {_g(run.t_last)}, of t_end = {_g(settings.t_end)}, after {run.stats.steps} steps: {stalled}; state: {state_text(model, run.y_last)}"
-    notes = (*settings.notes, *(warning.message for warning in run.warnings), *switching.notes(run.switching, getattr(python.module, "_SWITCHES", 0), switching.LOCATE))
+    alarm = _energy_alarm(settings, run, energy, invariants) if status != "failed" else None
+    notes = (
+        *settings.notes,
+        *(warning.message for warning in run.warnings),
+        *switching.notes(run.switching, getattr(python.module, "_SWITCHES", 0), switching.LOCATE),
+        *((alarm,) if alarm else ()),
+    )
     return Trajectory(model.title, model.coordinates, settings, run.t, run.y, energy, status, message, run.t_last, run.y_last, run.stats, timing, invariants, notes, run.status, run.warnings)
+
+
+ENERGY_ALARM = 1e-2
+"""A run that finished is warned about when the energy its system conserves jumped, between two samples, by more than
+ENERGY_ALARM of its scale (`Invariant.scale`) and ENERGY_JUMP x rtol, or moved over the run by more than ENERGY_ALARM and
+ENERGY_DRIFT x rtol (for the symplectic method, whose step has no rtol, ENERGY_ALARM alone). Audit 12: a pendulum written
+in x with its height -sqrt(L^2 - x^2), given the energy to pass the horizontal, "finished" at rtol 1e-8 with its energy
+changed by 23 % (100 % of its initial value), the motion reflected at x = L, the edge of the region its coordinates
+describe; a pendulum whose angle is acos(c), by 51 %. An accurate run's energy moves by about rtol per unit time."""
+ENERGY_JUMP = 100.0
+ENERGY_DRIFT = 1e4
+
+
+def _energy_alarm(settings: Settings, run: Run, energy: np.ndarray, invariants: Sequence[Invariant]) -> str | None:
+    """The warning for a finished run whose conserved energy jumped or drifted far beyond its tolerance (ENERGY_ALARM);
+    else None."""
+    found = next((i for i in invariants if i.kind == InvariantKind.ENERGY and i.conserved), None)
+    if found is None or len(energy) < 2 or found.scale <= 0 or not np.all(np.isfinite(energy)):
+        return None
+    steps = np.abs(np.diff(energy)) / found.scale
+    k = int(np.argmax(steps))
+    fixed = settings.method == "symplectic"
+    jump = steps[k] > ENERGY_ALARM and (fixed or steps[k] > ENERGY_JUMP * settings.rtol)
+    drift = found.relative > ENERGY_ALARM and (fixed or found.relative > ENERGY_DRIFT * settings.rtol)
+    if not (jump or drift):
+        return None
+    where = f"jumping by {steps[k]:.2g} between t = {_g(float(run.t[k]))} and {_g(float(run.t[k + 1]))}" if jump else "drifting steadily"
+    tolerance = "its step" if fixed else f"rtol {settings.rtol:g}"
+    return (
+        f"warning: the energy, which this system conserves, changed by {found.relative:.2g} of its scale along the run ({where}), far more"
+        f" than {tolerance} allows: the run likely stepped across a point where its equations are singular (the edge of the region its"
+        " coordinates describe, or a collision) without resolving it, and the trajectory past there is not to be trusted; describe the"
+        " system in coordinates regular there, or give a t_end before it" + ("" if jump else "; or, if nothing is singular along it, tighten the tolerance")
+    )
 
 
 STALL_STEP = 1e-8
@@ -635,8 +677,9 @@ def coordinates_end(model: Model, settings: Settings, t: np.ndarray, y: np.ndarr
 
 def _ending(model: Model, settings: Settings, t_last: float, y_last: np.ndarray, samples: Sequence[tuple[float, np.ndarray]], singular: bool = False) -> tuple[MassCondition, float, str] | None:
     """Whether the coordinates end at (t_last, y_last): cond M there, in the larger of the coordinates' sizes there and at
-    the start, above STALL_CONDITION and STALL_GROWTH x its value at the start (or, `singular`, M found singular there by
-    the integrator, in a model without kept constraints, whose rows can lose rank where the motion does not end), and
+    the start, above STALL_CONDITION and STALL_GROWTH x its value at the start (or, for one coordinate, `singular`: M found
+    singular there by the integrator, in a model without kept constraints, whose rows can lose rank where the motion does
+    not end), and
     the kinetic energy there within STALL_KINETIC x its largest at `samples` (else the motion blows up there, not only
     the coordinates: a collision; where M itself is infinite, as 1/(1 - c^2) at c = 1, no collision is). Then cond M's
     measure, its value there and the words that say so (what the coordinates do there, which one, what to do); else
@@ -653,8 +696,8 @@ def _ending(model: Model, settings: Settings, t_last: float, y_last: np.ndarray,
     condition = diagnostics.MassCondition(begin.mass, diagnostics.coordinate_sizes(sizes, model.n))
     last, start = condition(t_last, y_last), begin(settings.t0, np.asarray(settings.y0, dtype=float))
     singular = singular and not model.constraints
-    if not singular and not (last > STALL_CONDITION and last > STALL_GROWTH * start):
-        return None
+    if not (singular and model.n == 1) and not (last > STALL_CONDITION and last > STALL_GROWTH * start):
+        return None  # (cond of a 1 x 1 M is 1: there the integrator's finding M singular is the test)
     mass = condition.mass
     kinetic = _kinetic(mass, t_last, y_last)
     if math.isfinite(kinetic) and kinetic > STALL_KINETIC * max(_kinetic(mass, float(t), y) for t, y in samples):
