@@ -170,3 +170,14 @@ def test_a_run_stopped_where_x_y_coordinates_of_a_sphere_end_says_so(tmp_path: P
     assert "the coordinates end there, not the motion" in flat and "grows without bound" in flat and "it changes fastest with" in flat, flat
     x, y = float(run.y_last[0]), float(run.y_last[1])
     assert abs(math.hypot(x, y) - 1.0) < 1e-3, (x, y)  # on x^2 + y^2 = L^2
+
+
+def test_a_step_budget_is_honoured_exactly_by_compiled_and_auto_runs() -> None:
+    """--max-steps 50 ran `auto`'s attempt to 1668 steps (and "finished"); a compiled run paused every 20000 steps
+    stopped "after 20001 steps" under --max-steps 5000. Each now stops at its budget, to the step."""
+    kepler = model_from(ROOT / "systems" / "kepler.yaml").with_definitions()
+    for method, backend, budget in ((None, "auto", 50), ("DOP853", "compiled", 5000), ("RK45", "compiled", 25000), ("Radau", "compiled", 3000)):
+        run = simulate(kepler, t_end=1e4, max_steps=budget, backend=backend, **({"method": method} if method else {}))
+        assert run.failed and run.stats.steps == budget and "the step budget" in run.message, (method, budget, run.stats.steps, run.message)
+    whole = simulate(kepler, t_end=1e3)
+    assert not whole.failed and simulate(kepler, t_end=1e3, max_steps=whole.stats.steps).stats.steps == whole.stats.steps

@@ -314,12 +314,20 @@ def _state(t: float, h: float, event_value: float) -> np.ndarray:
     return state
 
 
-def _drive(advance: Callable[[float], int], now: Callable[[], float], taken: Callable[[], int], problem: Problem, progress: Progress | None) -> int:
-    """Call a compiled loop (`advance(t_stop)` -> status, -1 while running: at t_stop or after
+def _drive(step: Callable[[float], int], now: Callable[[], float], taken: Callable[[], int], problem: Problem, progress: Progress | None, stretch: Callable[[int], None] | None = None) -> int:
+    """Call a compiled loop (`step(t_stop)` -> status, -1 while running: at t_stop or after
     status.PAUSE_STEPS steps) until it stops or has taken `problem.max_steps` steps (status.BUDGET),
-    returning to Python about every PROGRESS_PERIOD seconds to report progress."""
+    returning to Python about every PROGRESS_PERIOD seconds to report progress. `stretch(k)`: where the loop
+    pauses after k steps (control[STRETCH]), set before each call to what is left of the budget (at most
+    PAUSE_STEPS), so that a run stops at its budget, not at the next pause past it (--max-steps 5000: 20001 steps)."""
     span = problem.t_end - problem.t0
     pace = problem.pace
+
+    def advance(t_stop: float) -> int:
+        if stretch is not None:
+            stretch(max(1, min(status.PAUSE_STEPS, problem.max_steps - taken())))
+        return step(t_stop)
+
     if progress is None:
         code = advance(problem.t_end)
         while code == status.RUNNING:  # paused after status.PAUSE_STEPS steps
@@ -433,6 +441,9 @@ class ErkLoop:
         """Whether the stiffness test has found the problem stiff (STIFF_STEPS steps limited by stability)."""
         return bool(self.stats[status.STIFF] >= status.STIFF_STEPS)
 
+    def _stretch(self, steps: int) -> None:
+        self.control[status.STRETCH] = float(steps)
+
     def _advance(self, t_stop: float) -> int:
         began = time.perf_counter()
         self.control[status.T_STOP] = t_stop
@@ -441,7 +452,11 @@ class ErkLoop:
         return self.code
 
     def advance(self, steps: int, stiffness: bool = False) -> int:
-        """One stretch of at most `steps` steps (see the class docstring); the status code (RUNNING: paused)."""
+        """One stretch of at most `steps` steps (see the class docstring), and never past the problem's step budget
+        (audit 12: `auto`'s measured stretch of 2000 steps ran under --max-steps 50); the status code (RUNNING: paused)."""
+        steps = min(steps, self.problem.max_steps - self.steps)
+        if self.code == status.RUNNING and steps <= 0:
+            self.code = status.BUDGET
         if self.code == status.RUNNING:
             self.control[status.STIFFNESS], self.control[status.STRETCH] = (1.0 if stiffness else 0.0), float(steps)
             self._advance(self.problem.t_end)
@@ -453,7 +468,7 @@ class ErkLoop:
         if self.code == status.RUNNING and self.steps >= self.problem.max_steps:  # paused past the budget already
             self.code = status.BUDGET
         if self.code == status.RUNNING:
-            self.code = _drive(self._advance, lambda: self.t, lambda: self.steps, self.problem, progress)
+            self.code = _drive(self._advance, lambda: self.t, lambda: self.steps, self.problem, progress, self._stretch)
         m = int(self.state[status.NEXT_SAMPLE])
         kernels = self.functions.kernels
         switched = (self.switches, int(self.record[kernels.SWITCH_COUNT])) if self.switches and kernels is not None else None
@@ -581,7 +596,10 @@ def run_radau(
         control[status.T_STOP] = t_stop
         return int(entry(y, f, state, control, problem.ts, ys, problem.p, stats, jac, dense, y_old, memory, accel, event, jacobian, *extra))
 
-    code = status.SINGULAR if h0 < 0 else _drive(advance, lambda: float(state[status.T]), lambda: int(stats[status.NSTEPS]), problem, progress)
+    def stretch(steps: int) -> None:
+        control[status.STRETCH] = float(steps)
+
+    code = status.SINGULAR if h0 < 0 else _drive(advance, lambda: float(state[status.T]), lambda: int(stats[status.NSTEPS]), problem, progress, stretch)
     m = int(state[status.NEXT_SAMPLE])
     switched = (switches, int(extra[1][kernels.SWITCH_COUNT])) if switches else None
     return Run(

@@ -292,6 +292,8 @@ def _integrated(
 
     notes: tuple[str, ...] = ()
     started = policy.take_attempt(model, settings, problem) if isinstance(solver, integrators.ExplicitRK) and solver.method == "DOP853" else None
+    if started is not None and started.steps > problem.max_steps:
+        started = None  # `auto`'s attempt took more steps than this run's budget (--max-steps 50): the run afresh, stopped at its budget
     if settings.projection and model.constraints and isinstance(solver, (integrators.ExplicitRK, integrators.RadauCompiled)):
         run, notes = _projected_compiled(model, solver, problem, progress)
         run = _verified_event(python, problem, run)
