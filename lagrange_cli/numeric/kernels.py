@@ -5,7 +5,13 @@ with fixed signatures and passed in as first-class functions, so these loops are
 once per machine, cached, and call the right-hand side through a pointer (a few ns), with
 nothing crossing back into Python per step. Everything works on float64 arrays and reports
 by status codes (no exceptions in compiled code). compile.py copies this file into the cache
-directory and imports it from there, so numba's cache sits beside it.
+directory and imports it from there, so numba's cache sits beside it. The helpers are cached too
+(`cache=True`, not only the entry points): an entry point compiled in one process (the explicit
+loops in the command's own, Radau's in the one compiling ahead: `compile.warm_kernels`), or by an
+earlier command, leaves the helpers it shares with the others (the projection, the LU, the initial
+step) for them to load. The first `stress` of the pendulum with a multiplier: 34-36 s -> 30-32 s;
+Radau's loops compiled after the explicit ones: 26 -> 20 s of CPU; erk_run and radau_run after their
+projected cases: 21 -> 11 s.
 
 - `erk_run`: adaptive explicit Runge-Kutta, Dormand-Prince 5(4) (`RK45`) or DOP853, with the
   same step-size control, initial step and dense output as scipy.integrate (so both take the
@@ -355,7 +361,7 @@ def lu_solve(a, b):
 # -- the system as y' = f(t, y) ----------------------------------------------------------------
 
 
-@njit(error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _rhs(accel, t, y, p, out, x, a):
     """out = (q_dot, q_ddot) at y = (q, q_dot); 1 when the matrix is singular."""
     n = y.shape[0] // 2
@@ -366,7 +372,7 @@ def _rhs(accel, t, y, p, out, x, a):
     return status
 
 
-@njit(error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _rms(v, scale):
     total = 0.0
     for i in range(v.shape[0]):
@@ -374,7 +380,7 @@ def _rms(v, scale):
     return (total / v.shape[0]) ** 0.5
 
 
-@njit(error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _finite(v):
     for i in range(v.shape[0]):
         if not np.isfinite(v[i]):
@@ -382,7 +388,7 @@ def _finite(v):
     return True
 
 
-@njit(error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _initial_step(accel, t0, y0, f0, t_bound, max_step, order, rtol, atol, p, x, a, stats):
     """scipy's `select_initial_step`: h0 from the norms of y0 and f0, refined by one Euler step."""
     n = y0.shape[0]
@@ -414,7 +420,7 @@ def _initial_step(accel, t0, y0, f0, t_bound, max_step, order, rtol, atol, p, x,
 # -- explicit Runge-Kutta ---------------------------------------------------------------------
 
 
-@njit(error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _erk_step(accel, pair, t, y, h, K, y_new, p, x, a, stats):
     """One step of the pair from (t, y) with K[0] = f(t, y); fills K and y_new, K[stages] = f(t + h, y_new).
 
@@ -453,7 +459,7 @@ def _erk_step(accel, pair, t, y, h, K, y_new, p, x, a, stats):
     return status
 
 
-@njit(error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _erk_error(pair, K, h, y, y_new, rtol, atol):
     """The scaled error norm of the step (scipy's RK45 and DOP853 estimates)."""
     n = y.shape[0]
@@ -479,7 +485,7 @@ def _erk_error(pair, K, h, y, y_new, rtol, atol):
     return abs(h) * err5 / (n * (err5 + 0.01 * err3)) ** 0.5
 
 
-@njit(error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _erk_dense(accel, pair, t, y, y_new, f_new, h, K, coef, p, x, a, stats):
     """The interpolant's coefficients of the step [t, t + h] (DOP853: 3 more evaluations; accel
     called directly, as in `_erk_step`)."""
@@ -519,7 +525,7 @@ def _erk_dense(accel, pair, t, y, y_new, f_new, h, K, coef, p, x, a, stats):
     return status
 
 
-@njit(error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _erk_eval(pair, t_old, h, y_old, coef, t, out):
     """The dense output at t in [t_old, t_old + h]."""
     xi = (t - t_old) / h
@@ -556,7 +562,7 @@ def _illinois_update(lo, hi, g_lo, g_hi, side, mid, g_mid):
     return lo, mid, (0.5 * g_lo if side == 1 else g_lo), g_mid, 1
 
 
-@njit(error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _erk_root(event, pair, t_old, h, y_old, coef, p, x, a, work, g_old):
     """The time in (t_old, t_old + h] where the event changes sign: the Illinois method on the dense output."""
     lo, hi = t_old, t_old + h
@@ -576,7 +582,7 @@ def _erk_root(event, pair, t_old, h, y_old, coef, p, x, a, work, g_old):
     return hi
 
 
-@njit(error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _stiffness_test(K, h, y, y_new, work, stats):
     """DOP853's stiffness test on an accepted step (dop853.f): h |lambda| ~ h |f(t + h, y_new) - f(t + h, Y_12)| / |y_new - Y_12|,
     Y_12 the last stage's argument (c = 1); counts the positive tests (h |lambda| > STIFF_H_LAMBDA: the step is
@@ -613,7 +619,7 @@ def erk_start(pair, t0, y, f, control, p, stats, accel):
     return _initial_step(accel, t0, y, f, control[T_BOUND], control[MAX_STEP], _ERROR_ORDER[pair], control[RTOL], control[ATOL], p, x, a, stats)
 
 
-@njit(error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _erk_attempt(accel, pair, t, y, f, h_abs, min_step, limit, hold_landed, K, y_new, p, x, a, stats, state, rtol, atol, exponent):
     """One accepted step of the pair from (t, y), f = rhs there, trying h_abs and shrinking it on rejection
     (scipy's control), a step reaching `limit` shortened to land on it: (RUNNING, t_new, h, h_abs, the
@@ -645,7 +651,7 @@ def _erk_attempt(accel, pair, t, y, f, h_abs, min_step, limit, hold_landed, K, y
         stats[NREJECT] += 1
 
 
-@njit(error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _erk_samples(accel, event, pair, t, h, t_new, y, y_new, K, coef, work, ts, ys, p, x, a, state, stats, use_event):
     """After an accepted step t -> t_new (y -> y_new, stages K): the samples it passes written into ys
     (dense output), and the event looked for; (status, the time the step ends): RUNNING and t_new, or
@@ -714,7 +720,7 @@ def switching_record(m, window=QUICK_STEPS, chatter=CHATTER):
     return record
 
 
-@njit(error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _interpolant(kind, t_old, h, y_old, coef, t, out):
     """The state at t on a step's interpolant: the explicit pair's dense output (kind = its code), Radau's collocation
     polynomial (RADAU_KIND) or the straight line of a hop (LINEAR: coef[0] the slope)."""
@@ -727,7 +733,7 @@ def _interpolant(kind, t_old, h, y_old, coef, t, out):
         _erk_eval(kind, t_old, h, y_old, coef, t, out)
 
 
-@njit(error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _switch_root(switch, i, kind, t_old, h, y_old, coef, p, work, g, g_lo, g_hi):
     """The time in (t_old, t_old + h] where switching function i changes sign: the Illinois method on the step's
     interpolant (`_interpolant`, as `_erk_root` for the event), the bracket's far end returned (g_i there on the new
@@ -747,7 +753,7 @@ def _switch_root(switch, i, kind, t_old, h, y_old, coef, p, work, g, g_lo, g_hi)
     return hi
 
 
-@njit(error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _changed(switch, t, y, p, record, m, g_end, g_start):
     """Whether a switching function changed sign over an accepted step from (t, y) (g_end: g at its end, against g at
     the last accepted point in `record`); g_start = g(t, y) computed once one of them may have. A function whose g at
@@ -765,7 +771,7 @@ def _changed(switch, t, y, p, record, m, g_end, g_start):
     return False
 
 
-@njit(error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _earliest(switch, kind, t, h, y, coef, p, record, m, g_end, g_start, g_work, work):
     """After `_changed` found a crossing in the step [t, t + h] (its interpolant `kind`, `coef`): (the surface crossed
     first, the time of its crossing), each located by `_switch_root`."""
@@ -781,7 +787,7 @@ def _earliest(switch, kind, t, h, y, coef, p, record, m, g_end, g_start, g_work,
     return first, t_first
 
 
-@njit(error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _found(record, m, first, t_first, g_end, ahead):
     """A crossing of surface `first` found on an accepted step: `ahead` (inside the step, at t_first: the step is to
     be taken again onto it) or at the step's end (landed there); g at the step's end kept for the landing."""
@@ -792,7 +798,7 @@ def _found(record, m, first, t_first, g_end, ahead):
         record[SWITCH_HEAD + m + i] = g_end[i]
 
 
-@njit(error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _chattering(record, crossed):
     """One more crossing (a landing or a hop) of surface `crossed`: counted, and whether it is the
     record[SWITCH_CHATTER]-th in a row of that surface each at most record[SWITCH_WINDOW] accepted steps after the one before (a sliding mode: the same surface
@@ -806,7 +812,7 @@ def _chattering(record, crossed):
     return record[SWITCH_QUICK] >= record[SWITCH_CHATTER]
 
 
-@njit(error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _landed(switch, t, y, p, record, m, g):
     """The record after a landing on the crossing at t: g on the crossing's far side for the surface crossed, at the
     landing point for the others (g: workspace), nothing pending, one more crossing; True when it is a sliding mode
@@ -819,7 +825,7 @@ def _landed(switch, t, y, p, record, m, g):
     return _chattering(record, crossed)
 
 
-@njit(error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _hop(switch, accel, t, y, f, reach, p, record, m, g_start, g_end, g_work, work, slope, y_far, f_far, x, a, stats):
     """Across a jump of the forces: the step size collapsed at (t, y) (f = f(t, y)), the steps rejected because their
     stages straddle a switching surface where the forces jump (a step across it has an error of h x the jump, above
@@ -870,7 +876,7 @@ def _hop(switch, accel, t, y, f, reach, p, record, m, g_start, g_end, g_work, wo
     return RUNNING, t_far
 
 
-@njit(error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _hopped(event, t, t_far, y, f, y_far, f_far, slope, ts, ys, p, x, a, state, stats, use_event):
     """After a hop t -> t_far (`_hop`): the samples it passes written (on its line), (y, f) = (y_far, f_far), one
     step counted; EVENT where the stop condition changed sign across the hop (the run stops at t_far, the hop's
@@ -1043,14 +1049,14 @@ def _erk_loop(pair, y, f, state, control, ts, ys, p, stats, accel, event, switch
 # -- explicit Runge-Kutta with projection onto kept constraints ----------------------------------
 
 
-@njit(error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _solve(a, b):
     """`lu_solve` called, not inlined: its three copies in the projection (inlined by numba, as the system's `_accel`
     needs it) made compiling project_state take 9.7 s of CPU and radau_projected 23.0 s; called, 6.2 and 18.7 s."""
     return lu_solve(a, b)
 
 
-@njit(error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _all_finite(v):
     for i in range(v.shape[0]):
         if not np.isfinite(v[i]):
@@ -1058,14 +1064,14 @@ def _all_finite(v):
     return True
 
 
-@njit(error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _rows_at(rows, t, q, p, f, A, b, M):
     """f, A, b, M of the kept constraints at (t, q) (the system's `_rows`); False where a value is not finite."""
     rows(t, q, p, f, A, b, M)
     return _all_finite(f) and _all_finite(A) and _all_finite(b) and _all_finite(M)
 
 
-@njit(error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _inverse_rows(m, rows, w):
     """w = M^-1 R^T (n x count) for the rows R (count x n), column by column; 1 when M is singular."""
     count, n = rows.shape
@@ -1082,7 +1088,7 @@ def _inverse_rows(m, rows, w):
     return 0
 
 
-@njit(error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _normal(rows, w):
     """R M^-1 R^T from R and w = M^-1 R^T."""
     count, n = rows.shape
@@ -1096,7 +1102,7 @@ def _normal(rows, w):
     return normal
 
 
-@njit(error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _weighted(m, rows, r, out):
     """out = M^-1 R^T (R M^-1 R^T)^-1 r: the M-weighted least-norm solution of R dx = r (projection._weighted); 1 when singular."""
     count, n = rows.shape
@@ -1117,7 +1123,7 @@ def _weighted(m, rows, r, out):
     return 0
 
 
-@njit(error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _project(rows, energy, t, y, p, holonomic, record, out, found, x, a):
     """`projection.Projector.project` compiled: out = y = [q; q_dot] projected onto the kept constraints at t
     (Gauss-Newton on the holonomic rows' positions, at most record[NEWTON_LIMIT] steps, stopping at
@@ -1292,7 +1298,7 @@ def erk_projected(pair, y, f, state, control, ts, ys, p, stats, accel, event, ro
 # -- Gauss-Legendre in (q, p) -----------------------------------------------------------------
 
 
-@njit(error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _jacobian(hamilton, t, z, p, x, a, jac, f0, work, column, sizes, stats):
     """J = dF/dz at z by forward differences (f0 = F(z) is computed too), each component moved
     by 1.5e-8 of its size (`sizes`: the largest |z_k| so far); 1 when M is singular."""
@@ -1312,7 +1318,7 @@ def _jacobian(hamilton, t, z, p, x, a, jac, f0, work, column, sizes, stats):
     return status
 
 
-@njit(error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _newton_matrix(s, h, jac, m, pivots):
     """LU factors of I - h (A x J), the simplified Newton matrix of the stage equations; 1 when singular."""
     n = jac.shape[0]
@@ -1354,7 +1360,7 @@ STAGES_DOC = """What gauss_run's stage loop does. Solve W_i = h sum_j a_ij F(z +
     the Jacobian once, then fails with that status)."""
 
 
-@njit(error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _hermite(tn, Zn, Fn, m, t, out, xs, q):
     """The Hermite interpolant of (Zn[r], Fn[r]) at the times tn[r], r < m (m >= 2), at t: divided
     differences on the doubled nodes, in the variable theta = (t - tn[m - 2]) / (tn[m - 1] - tn[m - 2])
@@ -1379,7 +1385,7 @@ def _hermite(tn, Zn, Fn, m, t, out, xs, q):
         out[i] = value
 
 
-@njit(error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _gauss_sample(hamilton, s, t, h, theta, z, compensation, FZ, sizes, p, x, a, out, W, F, work, fw, stats):
     """out = the state at t + theta h (0 < theta < 1) by one Gauss step of theta h from the step's start
     z: the method's own accuracy (order 2s), where an interpolant of the steps has its own error (of
@@ -1435,7 +1441,7 @@ def _gauss_sample(hamilton, s, t, h, theta, z, compensation, FZ, sizes, p, x, a,
     return 1
 
 
-@njit(error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _velocity_state(z, f, out):
     """(q, q_dot) from z = (q, p) and f = (q_dot, p_dot)."""
     m = z.shape[0] // 2
@@ -1444,7 +1450,7 @@ def _velocity_state(z, f, out):
         out[m + k] = f[k]
 
 
-@njit(error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _gauss_root(hamilton, event, tn, Zn, Fn, m, xs, q, p, x, a, g_old):
     """The event time in (tn[m - 2], tn[m - 1]], by bisection on the Hermite interpolant (`_hermite`)."""
     n = Zn.shape[1]
@@ -1743,7 +1749,7 @@ _MU_COMPLEX = complex(MU_COMPLEX_REAL, MU_COMPLEX_IMAG)
 _EPS = 2.220446049250313e-16
 
 
-@njit(error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _lu_factor(a, pivots):
     """LU factors of a (real or complex) in place, partial pivoting (pivots[k]: the row swapped with
     row k); 1 when a pivot is zero or not finite (singular, or NaN entries), else 0."""
@@ -1771,7 +1777,7 @@ def _lu_factor(a, pivots):
     return 0
 
 
-@njit(error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _lu_back(a, pivots, b):
     """Solve with `_lu_factor`'s factors: b becomes a^-1 b."""
     n = b.shape[0]
@@ -1789,7 +1795,7 @@ def _lu_back(a, pivots, b):
         b[i] = total / a[i, i]
 
 
-@njit(error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _radau_matrices(jac, h, lu_real, pivots_real, lu_complex, pivots_complex, stats):
     """The Newton matrices' factors: MU_REAL / h - J and MU_COMPLEX / h - J; 1 when one is singular."""
     n = jac.shape[0]
@@ -1806,7 +1812,7 @@ def _radau_matrices(jac, h, lu_real, pivots_real, lu_complex, pivots_complex, st
     return _lu_factor(lu_complex, pivots_complex)
 
 
-@njit(error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _floor_solve(lu_real, pivots_real, delta, floor, work):
     """floor = FLOOR_SAFETY x |(MU_REAL / h - J)^-1 delta| for perturbations of the sizes `delta` whose signs
     are unknown: solved with three sign patterns (alike, alternating, alternating in pairs: one alone can
@@ -1825,7 +1831,7 @@ def _floor_solve(lu_real, pivots_real, delta, floor, work):
                 floor[i] = value
 
 
-@njit(error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _radau_floor(accel, t, y, f, p, x, a, jac, lu_real, pivots_real, floor, delta, measured, work, fw, atol, rtol, newton_tol, stats):
     """The round-off floor of each component's Newton corrections and error estimate (into `floor`): what
     evaluating f at a state rounded to double precision puts into them through the factors of MU_REAL / h - J
@@ -1871,7 +1877,7 @@ def _radau_floor(accel, t, y, f, p, x, a, jac, lu_real, pivots_real, floor, delt
     return 0
 
 
-@njit(error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _radau_jacobian(accel, t, y, f, p, x, a, jac, work, fw, stats):
     """J = df/dy at (t, y) by forward differences (radau5.f's increments sqrt(eps max(1e-5, |y_j|))),
     f = f(t, y) given; the rows of dq/dt are exact ([0 I]). 1 when the matrix is singular."""
@@ -1899,7 +1905,7 @@ def no_jacobian(t, y, p, r, x, a):
     return 1
 
 
-@njit(error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _radau_analytic(jacobian, t, y, p, x, a, rows, jac, pivots, column, stats):
     """J from the system's analytic `_jac` (the derivative of the augmented system, codegen.jac_numba):
     the first n rows of a^-1 r, the rows of dq/dt exact ([0 I]); 1 when the matrix is singular, 2 where a
@@ -1925,7 +1931,7 @@ def _radau_analytic(jacobian, t, y, p, x, a, rows, jac, pivots, column, stats):
     return 0
 
 
-@njit(error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _radau_jac(accel, jacobian, analytic, t, y, f, p, x, a, jac, work, fw, rows, pivots, column, stats):
     """J at (t, y) (f = f(t, y)): analytic where the system has one and its values are finite, else by
     forward differences; 1 when the matrix is singular."""
@@ -1936,7 +1942,7 @@ def _radau_jac(accel, jacobian, analytic, t, y, f, p, x, a, jac, work, fw, rows,
     return _radau_jacobian(accel, t, y, f, p, x, a, jac, work, fw, stats)
 
 
-@njit(error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _radau_afresh(accel, jacobian, analytic, t, y, f, p, x, a, jac, work, fw, rows, pivots, column, stats, memory):
     """A restart of the Radau loop at (t, y) with f = f(t, y) (after a landing on a crossing, a hop across a jump, a
     projection): the Jacobian afresh, no predictor, no controller memory (as radau_start). True where the Jacobian
@@ -1948,7 +1954,7 @@ def _radau_afresh(accel, jacobian, analytic, t, y, f, p, x, a, jac, work, fw, ro
     return False
 
 
-@njit(error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _radau_eval(t_old, h, y_old, dense, t, out):
     """The collocation polynomial of the step [t_old, t_old + h] at t (dense[k]: the coefficient of x^(k + 1))."""
     xi = (t - t_old) / h
@@ -1956,7 +1962,7 @@ def _radau_eval(t_old, h, y_old, dense, t, out):
         out[i] = y_old[i] + xi * (dense[0, i] + xi * (dense[1, i] + xi * dense[2, i]))
 
 
-@njit(error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _radau_newton(accel, t, y, h, Z, W, F, dW, scale, tol, contraction, lu_real, pivots_real, lu_complex, pivots_complex, rhs_complex, work, p, x, a, stats):
     """Simplified Newton iteration on the collocation system from the predictor Z (overwritten by the
     stages): (code, converged, iterations, the last contraction rate (NaN before a second iteration),
@@ -2019,7 +2025,7 @@ def _radau_newton(accel, t, y, h, Z, W, F, dW, scale, tol, contraction, lu_real,
     return RUNNING, False, NEWTON_MAXITER, rate, contraction
 
 
-@njit(error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _predict_factor(h_abs, h_abs_old, error_norm, error_old):
     """The predictive (Gustafsson) controller's factor (radau5.f; h_abs_old, error_old NaN: none)."""
     if np.isnan(h_abs_old) or np.isnan(error_old) or error_norm == 0.0:
@@ -2031,7 +2037,7 @@ def _predict_factor(h_abs, h_abs_old, error_norm, error_old):
     return min(1.0, multiplier) * error_norm**-0.25
 
 
-@njit(error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _radau_root(event, t_old, h, y_old, dense, hi, p, x, a, work, g_old):
     """The time in (t_old, hi] where the event changes sign: the Illinois method on the collocation polynomial."""
     lo = t_old
@@ -2102,7 +2108,7 @@ def radau_projected(y, f, state, control, ts, ys, p, stats, jac, dense, y_old, m
     return _radau_loop(y, f, state, control, ts, ys, p, stats, jac, dense, y_old, memory, accel, event, jacobian, None, None, rows, energy, bounds, holonomic, record)
 
 
-@njit(error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _radau_loop(y, f, state, control, ts, ys, p, stats, jac, dense, y_old, memory, accel, event, jacobian, switch, record, rows, energy, bounds, holonomic, projected_record):
     """radau_run, radau_switched and radau_projected. `switch` (and its `record`) or `rows` (and `energy`, `bounds`,
     `holonomic`, `projected_record`) None: that case is left out when numba compiles the loop for the entry point
