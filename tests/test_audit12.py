@@ -181,3 +181,26 @@ def test_a_step_budget_is_honoured_exactly_by_compiled_and_auto_runs() -> None:
         assert run.failed and run.stats.steps == budget and "the step budget" in run.message, (method, budget, run.stats.steps, run.message)
     whole = simulate(kepler, t_end=1e3)
     assert not whole.failed and simulate(kepler, t_end=1e3, max_steps=whole.stats.steps).stats.steps == whole.stats.steps
+
+
+FAR = """\
+title: A free particle in polar coordinates flying out, beside an oscillator whose stiffness overflows
+coordinates: [r, theta, z]
+parameters: {m: 1.0, K: 1.0, a: 20000.0}
+particles:
+  p: {mass: m, position: [r*cos(theta), r*sin(theta)]}
+  q: {mass: m, position: [0, 0, z]}
+potential: K/2*exp(a*(t - 1))*z**2
+initial: {r: 1.0, r_dot: 1000.0, theta: 0.0, theta_dot: 1.0, z: 0.001, z_dot: 0.0}
+simulate: {t_end: 5}
+"""
+
+
+def test_a_singular_stop_at_a_regular_far_state_is_not_called_the_end_of_the_coordinates(tmp_path: Path) -> None:
+    """At r = 956 M = diag(1, r^2, 1) is regular (cond 9e5 in the sizes there); the compiled run stops there on the
+    overflowing forces, reported as a singular M. That is not where the coordinates end (ENDED_CONDITION)."""
+    path = tmp_path / "far.yaml"
+    path.write_text(FAR, encoding="utf-8")
+    run = simulate(model_from(path).with_definitions(), backend="compiled", method="DOP853")
+    assert run.failed and float(run.y_last[0]) > 100, run.message
+    assert "the coordinates end" not in run.message, run.message

@@ -673,15 +673,36 @@ def coordinates_end(model: Model, settings: Settings, t: np.ndarray, y: np.ndarr
     theta = 0.01, whose axis passes within 3e-7 of the vertical (cond M 4e13), stopped DOP853 and Radau alike on "the
     mass matrix is singular", which `stress` called a blow-up of the system and not met; so did a pendulum whose angle
     is acos(c), at c = 1."""
-    found = _ending(model, settings, t_last, y_last, _spread(settings, t, y), singular)
+    found = _ending(model, settings, t_last, y_last, _spread(settings, t, y), singular, floor=ENDED_CONDITION)
     return None if found is None else found[2]
 
 
-def _ending(model: Model, settings: Settings, t_last: float, y_last: np.ndarray, samples: Sequence[tuple[float, np.ndarray]], singular: bool = False) -> tuple[MassCondition, float, str] | None:
+ENDED_CONDITION = 1e10
+"""`coordinates_end`, which has no probe (a stop on a singular M, or a reference whose methods all stop at one state),
+asks for cond M above this at the stop (and, with one coordinate, M's one entry this many times above or below its value
+at the start, or not finite): M about singular in double precision. Audit 12: a free particle in polar coordinates at
+r = 956 (cond M 9e5 in the sizes there, regular) beside an oscillator whose stiffness overflows stopped compiled DOP853
+on "the mass matrix is singular" (the forces were not finite): the coordinates do not end there."""
+
+
+def _entry_ends(at_stop: np.ndarray | None, at_start: np.ndarray | None, floor: float) -> bool:
+    """Whether a 1 x 1 M at the stop is `floor` x its value at the start or 1 / `floor` of it, or not finite."""
+    if at_stop is None or not np.all(np.isfinite(at_stop)):
+        return True
+    if at_start is None or not np.all(np.isfinite(at_start)):
+        return False
+    stop, start = abs(float(at_stop[0, 0])), abs(float(at_start[0, 0]))
+    return stop > floor * start or stop * floor < start
+
+
+def _ending(
+    model: Model, settings: Settings, t_last: float, y_last: np.ndarray, samples: Sequence[tuple[float, np.ndarray]], singular: bool = False, floor: float = STALL_CONDITION
+) -> tuple[MassCondition, float, str] | None:
     """Whether the coordinates end at (t_last, y_last): cond M there, in the larger of the coordinates' sizes there and at
-    the start, above STALL_CONDITION and STALL_GROWTH x its value at the start (or, for one coordinate, `singular`: M found
-    singular there by the integrator, in a model without kept constraints, whose rows can lose rank where the motion does
-    not end), and
+    the start, above `floor` (STALL_CONDITION, or ENDED_CONDITION without a probe) and STALL_GROWTH x its value at the
+    start (or, for one coordinate, `singular`: M found singular there by the integrator, in a model without kept
+    constraints, whose rows can lose rank where the motion does not end, and its one entry `floor` x its start's or
+    1 / `floor` of it, or not finite), and
     the kinetic energy there within STALL_KINETIC x its largest at `samples` (else the motion blows up there, not only
     the coordinates: a collision; where M itself is infinite, as 1/(1 - c^2) at c = 1, no collision is). Then cond M's
     measure, its value there and the words that say so (what the coordinates do there, which one, what to do); else
@@ -698,9 +719,12 @@ def _ending(model: Model, settings: Settings, t_last: float, y_last: np.ndarray,
     condition = diagnostics.MassCondition(begin.mass, diagnostics.coordinate_sizes(sizes, model.n))
     last, start = condition(t_last, y_last), begin(settings.t0, np.asarray(settings.y0, dtype=float))
     singular = singular and not model.constraints
-    if not (singular and model.n == 1) and not (last > STALL_CONDITION and last > STALL_GROWTH * start):
-        return None  # (cond of a 1 x 1 M is 1: there the integrator's finding M singular is the test)
     mass = condition.mass
+    if model.n == 1:  # cond of a 1 x 1 M is 1: the integrator's finding M singular and its one entry are the test
+        if not singular or not _entry_ends(mass(t_last, y_last), mass(settings.t0, settings.y0), floor):
+            return None
+    elif not (last > floor and last > STALL_GROWTH * start):
+        return None
     kinetic = _kinetic(mass, t_last, y_last)
     if math.isfinite(kinetic) and kinetic > STALL_KINETIC * max(_kinetic(mass, float(t), y) for t, y in samples):
         return None  # the motion blows up there, not only the coordinates: a collision (FAILURES says what)
