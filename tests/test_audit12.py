@@ -23,28 +23,14 @@ from lagrange_cli.numeric.runs import Setup, starting
 from lagrange_cli.numeric.simulate import coordinates_end, simulate
 from lagrange_cli.numeric.status import Status
 
+from . import test_audit11 as audit11
 from .conftest import ROOT
 from .helpers import model_from, model_of
 
 runner = CliRunner()
 
-TOP = """\
-title: Heavy top in Euler angles, its axis passing within 3e-7 of the vertical
-coordinates: [theta, phi, psi]
-parameters: {m: 1.0, l: 1.0, g: 9.81, I_perp: 1.0, I_par: 2.0}
-gravity: [0, 0, -g]
-bodies:
-  top:
-    mass: m
-    position: [l*sin(theta)*sin(phi), -l*sin(theta)*cos(phi), l*cos(theta)]
-    inertia: [I_perp, I_perp, I_par]
-    angular_velocity:
-      - phi_dot*sin(theta)*sin(psi) + theta_dot*cos(psi)
-      - phi_dot*sin(theta)*cos(psi) - theta_dot*sin(psi)
-      - phi_dot*cos(theta) + psi_dot
-initial: {theta: 0.01, phi: 0.0, psi: 0.0, theta_dot: -2.0, phi_dot: 1.0e-5, psi_dot: -1.0e-5}
-simulate: {t_end: 0.01}
-"""
+TOP = audit11.TOP.replace("theta: 0.3,", "theta: 0.01,").replace("t_end: 0.2", "t_end: 0.01")
+"""Audit 11's top started at theta = 0.01: its axis passes within 3e-7 of the vertical at t = 0.005."""
 
 
 @pytest.fixture
@@ -183,17 +169,7 @@ def test_a_step_budget_is_honoured_exactly_by_compiled_and_auto_runs() -> None:
     assert not whole.failed and simulate(kepler, t_end=1e3, max_steps=whole.stats.steps).stats.steps == whole.stats.steps
 
 
-FAR = """\
-title: A free particle in polar coordinates flying out, beside an oscillator whose stiffness overflows
-coordinates: [r, theta, z]
-parameters: {m: 1.0, K: 1.0, a: 20000.0}
-particles:
-  p: {mass: m, position: [r*cos(theta), r*sin(theta)]}
-  q: {mass: m, position: [0, 0, z]}
-potential: K/2*exp(a*(t - 1))*z**2
-initial: {r: 1.0, r_dot: 1000.0, theta: 0.0, theta_dot: 1.0, z: 0.001, z_dot: 0.0}
-simulate: {t_end: 5}
-"""
+FAR = audit11.FLYING
 
 
 def test_a_singular_stop_at_a_regular_far_state_is_not_called_the_end_of_the_coordinates(tmp_path: Path) -> None:
