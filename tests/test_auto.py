@@ -196,10 +196,12 @@ def test_a_close_choice_is_made_from_the_measured_cost_of_the_rest_of_the_run() 
 
 def test_a_paused_run_past_the_step_budget_stops_there() -> None:
     """The undamped stiff spring (14 868 DOP853 steps): the compiled run `auto` starts with pauses at
-    ATTEMPT_STEPS, the pilot finds it not stiff and it goes on, unless the caller's budget is spent already."""
+    ATTEMPT_STEPS, the pilot finds it not stiff and it goes on, unless the caller's budget is smaller: then
+    the run starts afresh and stops at its budget, to the step (audit 12: --max-steps 50 took 2000)."""
     model = model_from(ROOT / "systems" / "stiff_spring_pendulum.yaml")
     short = simulate(model, method="auto", samples=11, max_steps=5000)
-    assert short.outcome == "budget" and short.stats.steps == policy.ATTEMPT_STEPS, (short.stats, short.notes)
+    assert short.outcome == "budget" and short.stats.steps == 5000 < policy.ATTEMPT_STEPS, (short.stats, short.notes)
+    assert any("took 10000 steps, more than the step budget (5000): the run started afresh" in note for note in short.notes), short.notes
     whole = simulate(model, method="auto", samples=11)
     assert whole.status == "finished" and whole.settings.method == "DOP853" and whole.stats.steps > policy.ATTEMPT_STEPS, whole.notes
     assert any("goes on from t =" in note for note in whole.notes), whole.notes

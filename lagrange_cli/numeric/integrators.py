@@ -178,6 +178,10 @@ class Problem:
     pace: Callable[[int, float], None] | None = None
     """Told (steps taken, share of the span done) each time a compiled loop returns to Python (at most every
     status.PAUSE_STEPS steps); it may raise to stop the run there (`runs._compiled_pace`)."""
+    exact: bool = False
+    """Stop a compiled loop at `max_steps` to the step (the budget a user gave `simulate`: --max-steps 5000 ran
+    20001 steps); else it is checked where the loop pauses (every status.PAUSE_STEPS steps), as the reference's
+    probes and the studies' runs count on: a probe's budget is at least one stretch of the loop."""
 
 
 EVALUATIONS_PER_STEP = 20
@@ -319,12 +323,12 @@ def _drive(step: Callable[[float], int], now: Callable[[], float], taken: Callab
     status.PAUSE_STEPS steps) until it stops or has taken `problem.max_steps` steps (status.BUDGET),
     returning to Python about every PROGRESS_PERIOD seconds to report progress. `stretch(k)`: where the loop
     pauses after k steps (control[STRETCH]), set before each call to what is left of the budget (at most
-    PAUSE_STEPS), so that a run stops at its budget, not at the next pause past it (--max-steps 5000: 20001 steps)."""
+    PAUSE_STEPS) for an `exact` problem, so that it stops at its budget, not at the next pause past it."""
     span = problem.t_end - problem.t0
     pace = problem.pace
 
     def advance(t_stop: float) -> int:
-        if stretch is not None:
+        if stretch is not None and problem.exact:
             stretch(max(1, min(status.PAUSE_STEPS, problem.max_steps - taken())))
         return step(t_stop)
 
@@ -452,9 +456,9 @@ class ErkLoop:
         return self.code
 
     def advance(self, steps: int, stiffness: bool = False) -> int:
-        """One stretch of at most `steps` steps (see the class docstring), and never past the problem's step budget
-        (audit 12: `auto`'s measured stretch of 2000 steps ran under --max-steps 50); the status code (RUNNING: paused)."""
-        steps = min(steps, self.problem.max_steps - self.steps)
+        """One stretch of at most `steps` steps (see the class docstring), and never past an `exact` problem's step
+        budget; the status code (RUNNING: paused)."""
+        steps = min(steps, self.problem.max_steps - self.steps) if self.problem.exact else steps
         if self.code == status.RUNNING and steps <= 0:
             self.code = status.BUDGET
         if self.code == status.RUNNING:

@@ -199,19 +199,26 @@ def simulate(
         projection=projection,
         stages=stages,
     )
-    return integrate(model, settings, progress, max_steps, Timing(plain.generate_seconds, plain.import_seconds, 0.0, 0.0))
+    return integrate(model, settings, progress, max_steps, Timing(plain.generate_seconds, plain.import_seconds, 0.0, 0.0), exact=True)
 
 
 def integrate(
-    model: Model, settings: Settings, progress: Progress | None = None, max_steps: int | None = None, before: Timing | None = None, pace: Callable[[int, float], None] | None = None
+    model: Model,
+    settings: Settings,
+    progress: Progress | None = None,
+    max_steps: int | None = None,
+    before: Timing | None = None,
+    pace: Callable[[int, float], None] | None = None,
+    exact: bool = False,
 ) -> Trajectory:
     """Run `settings` as decided by `policy.decide` (method and backend resolved); `before` the
-    one-time costs already spent on this run; `pace`: see `integrators.Problem.pace` (compiled loops only)."""
+    one-time costs already spent on this run; `pace`: see `integrators.Problem.pace` (compiled loops only);
+    `exact`: stop at `max_steps` to the step (`integrators.Problem.exact`: `simulate`'s budget, a user's)."""
     model = substitute(model)
     refused = _beyond_budget(model, settings, max_steps, before)
     if refused is not None:
         return refused
-    run, python, timing, notes = _integrated(model, settings, progress, max_steps, before, pace)
+    run, python, timing, notes = _integrated(model, settings, progress, max_steps, before, pace, exact)
     trajectory = _trajectory(model, settings, python, run, timing)
     return dataclasses.replace(trajectory, notes=(*trajectory.notes, *notes)) if notes else trajectory
 
@@ -262,7 +269,7 @@ def run_seconds(model: Model, settings: Settings, max_steps: int | None = None) 
 
 
 def _integrated(
-    model: Model, settings: Settings, progress: Progress | None, max_steps: int | None, before: Timing | None, pace: Callable[[int, float], None] | None = None
+    model: Model, settings: Settings, progress: Progress | None, max_steps: int | None, before: Timing | None, pace: Callable[[int, float], None] | None = None, exact: bool = False
 ) -> tuple[Run, compile.Functions, Timing, tuple[str, ...]]:
     """The integrator's run of `settings`, the Python functions, the timing and the projection's notes.
 
@@ -276,7 +283,7 @@ def _integrated(
     load = python.import_seconds + (before.load if before else 0.0)
     budget = integrators.MAX_STEPS[settings.backend] if max_steps is None else _budget(max_steps)
     problem = Problem(
-        settings.t0, settings.t_end, np.array(settings.y0, dtype=float), np.array(settings.t_eval, dtype=float), np.array(settings.p, dtype=float), settings.event is not None, budget, pace
+        settings.t0, settings.t_end, np.array(settings.y0, dtype=float), np.array(settings.t_eval, dtype=float), np.array(settings.p, dtype=float), settings.event is not None, budget, pace, exact
     )
     solver: integrators.Solver
     if settings.backend == "compiled":
@@ -292,8 +299,10 @@ def _integrated(
 
     notes: tuple[str, ...] = ()
     started = policy.take_attempt(model, settings, problem) if isinstance(solver, integrators.ExplicitRK) and solver.method == "DOP853" else None
-    if started is not None and started.steps > problem.max_steps:
-        started = None  # `auto`'s attempt took more steps than this run's budget (--max-steps 50): the run afresh, stopped at its budget
+    if started is not None and problem.exact and started.steps > problem.max_steps:
+        # `auto`'s attempt took more steps than this run's budget (--max-steps 50): the run afresh, stopped at its budget
+        notes = (f"the compiled run `auto` started with took {started.steps} steps, more than the step budget ({problem.max_steps}): the run started afresh",)
+        started = None
     if settings.projection and model.constraints and isinstance(solver, (integrators.ExplicitRK, integrators.RadauCompiled)):
         run, notes = _projected_compiled(model, solver, problem, progress)
         run = _verified_event(python, problem, run)
@@ -400,7 +409,7 @@ def _projected(
             over_budget = True
             break
         inside = ts[(ts > t_start) & (ts <= t_stop)]
-        part = Problem(t_start, t_stop, y, inside, problem.p, problem.use_event, steps_left)
+        part = Problem(t_start, t_stop, y, inside, problem.p, problem.use_event, steps_left, exact=problem.exact)
         report = (lambda fraction, a=t_start, b=t_stop: progress((a - problem.t0 + fraction * (b - a)) / span)) if progress is not None else None
         run = runner(part, report)
         runs.append(run)
