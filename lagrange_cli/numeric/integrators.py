@@ -318,18 +318,18 @@ def _state(t: float, h: float, event_value: float) -> np.ndarray:
     return state
 
 
-def _drive(step: Callable[[float], int], now: Callable[[], float], taken: Callable[[], int], problem: Problem, progress: Progress | None, stretch: Callable[[int], None] | None = None) -> int:
+def _drive(step: Callable[[float], int], now: Callable[[], float], taken: Callable[[], int], problem: Problem, progress: Progress | None, control: np.ndarray | None = None) -> int:
     """Call a compiled loop (`step(t_stop)` -> status, -1 while running: at t_stop or after
     status.PAUSE_STEPS steps) until it stops or has taken `problem.max_steps` steps (status.BUDGET),
-    returning to Python about every PROGRESS_PERIOD seconds to report progress. `stretch(k)`: where the loop
-    pauses after k steps (control[STRETCH]), set before each call to what is left of the budget (at most
-    PAUSE_STEPS) for an `exact` problem, so that it stops at its budget, not at the next pause past it."""
+    returning to Python about every PROGRESS_PERIOD seconds to report progress. For an `exact` problem the loop's
+    `control[STRETCH]` (where it pauses) is set before each call to what is left of the budget (at most PAUSE_STEPS),
+    so that it stops at its budget, not at the next pause past it."""
     span = problem.t_end - problem.t0
     pace = problem.pace
 
     def advance(t_stop: float) -> int:
-        if stretch is not None and problem.exact:
-            stretch(max(1, min(status.PAUSE_STEPS, problem.max_steps - taken())))
+        if control is not None and problem.exact:
+            control[status.STRETCH] = float(max(1, min(status.PAUSE_STEPS, problem.max_steps - taken())))
         return step(t_stop)
 
     if progress is None:
@@ -445,9 +445,6 @@ class ErkLoop:
         """Whether the stiffness test has found the problem stiff (STIFF_STEPS steps limited by stability)."""
         return bool(self.stats[status.STIFF] >= status.STIFF_STEPS)
 
-    def _stretch(self, steps: int) -> None:
-        self.control[status.STRETCH] = float(steps)
-
     def _advance(self, t_stop: float) -> int:
         began = time.perf_counter()
         self.control[status.T_STOP] = t_stop
@@ -472,7 +469,7 @@ class ErkLoop:
         if self.code == status.RUNNING and self.steps >= self.problem.max_steps:  # paused past the budget already
             self.code = status.BUDGET
         if self.code == status.RUNNING:
-            self.code = _drive(self._advance, lambda: self.t, lambda: self.steps, self.problem, progress, self._stretch)
+            self.code = _drive(self._advance, lambda: self.t, lambda: self.steps, self.problem, progress, self.control)
         m = int(self.state[status.NEXT_SAMPLE])
         kernels = self.functions.kernels
         switched = (self.switches, int(self.record[kernels.SWITCH_COUNT])) if self.switches and kernels is not None else None
@@ -600,10 +597,7 @@ def run_radau(
         control[status.T_STOP] = t_stop
         return int(entry(y, f, state, control, problem.ts, ys, problem.p, stats, jac, dense, y_old, memory, accel, event, jacobian, *extra))
 
-    def stretch(steps: int) -> None:
-        control[status.STRETCH] = float(steps)
-
-    code = status.SINGULAR if h0 < 0 else _drive(advance, lambda: float(state[status.T]), lambda: int(stats[status.NSTEPS]), problem, progress, stretch)
+    code = status.SINGULAR if h0 < 0 else _drive(advance, lambda: float(state[status.T]), lambda: int(stats[status.NSTEPS]), problem, progress, control)
     m = int(state[status.NEXT_SAMPLE])
     switched = (switches, int(extra[1][kernels.SWITCH_COUNT])) if switches else None
     return Run(

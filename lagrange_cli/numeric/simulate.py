@@ -729,22 +729,21 @@ def _ending(
     last, start = condition(t_last, y_last), begin(settings.t0, np.asarray(settings.y0, dtype=float))
     singular = singular and not model.constraints
     mass = condition.mass
+    at_stop, at_start = mass(t_last, y_last), mass(settings.t0, settings.y0)
     if model.n == 1:  # cond of a 1 x 1 M is 1: the integrator's finding M singular and its one entry are the test
-        if not singular or not _entry_ends(mass(t_last, y_last), mass(settings.t0, settings.y0), floor):
+        if not singular or not _entry_ends(at_stop, at_start, floor):
             return None
     elif not (last > floor and last > STALL_GROWTH * start):
         return None
     kinetic = _kinetic(mass, t_last, y_last)
     if math.isfinite(kinetic) and kinetic > STALL_KINETIC * max(_kinetic(mass, float(t), y) for t, y in samples):
         return None  # the motion blows up there, not only the coordinates: a collision (FAILURES says what)
-    at_stop, at_start = mass(t_last, y_last), mass(settings.t0, settings.y0)
-    moved = diagnostics.singular_coordinate(model.coordinates, condition, t_last, y_last, at_stop, at_start)
-    if model.n == 1:  # cond of a 1 x 1 M is 1: its one entry says how it turns singular
-        grows = at_stop is None or not np.all(np.isfinite(at_stop)) or (at_start is not None and abs(float(at_stop[0, 0])) > abs(float(at_start[0, 0])))
-        how = "grows without bound" if grows else "vanishes"
+    if model.n == 1:  # its one entry says how M turns singular
+        unbounded = at_stop is None or not np.all(np.isfinite(at_stop)) or (at_start is not None and abs(float(at_stop[0, 0])) > abs(float(at_start[0, 0])))
+        how = "grows without bound" if unbounded else "vanishes"
         state = f"the mass matrix is {'singular' if singular else 'nearly singular'} (its one entry {how} at {model.coordinates[0]} = {_g(float(y_last[0]))})"
-        unbounded = grows
     else:
+        moved = diagnostics.singular_coordinate(model.coordinates, condition, t_last, y_last, at_stop, at_start)
         named = f"; it changes fastest with {moved.coordinate} = {_g(moved.value)}" if moved is not None else ""
         level = "infinite" if math.isinf(last) else f"{last:.1e}"
         state = f"the mass matrix is {'singular' if singular else 'nearly singular'} (cond M = {level} there, {start:.3g} at the start{named})"
