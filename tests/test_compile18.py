@@ -140,3 +140,27 @@ def test_the_kernels_cache_key_covers_every_module_whose_constants_they_take(mon
         monkeypatch.undo()
         compile.kernels_name.cache_clear()
     assert compile.kernels_name() == before
+
+
+@pytest.mark.parametrize("name", sorted(kernels._LOOP_ENTRIES))
+def test_a_loop_entry_point_passes_none_where_its_documented_function_does(name: str) -> None:
+    """The entry points compiled as their loop (kernels._LOOP_ENTRIES, to spare numba a second pass over the whole
+    loop) take the loop's arguments in the order their Python function (radau_run, ...) passes them, None in the
+    places that function passes None: the table and the functions cannot drift apart."""
+    loop, at, absent = kernels._LOOP_ENTRIES[name]
+    tree = ast.parse(inspect.getsource(getattr(kernels, name)))
+    call = next(node for node in ast.walk(tree) if isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id == loop)
+    nones = [i for i, arg in enumerate(call.args) if isinstance(arg, ast.Constant) and arg.value is None]
+    assert nones == list(range(at, at + absent)), (name, nones)
+    given = [arg.id for arg in call.args if isinstance(arg, ast.Name)]
+    assert given == list(inspect.signature(getattr(kernels, name)).parameters), name  # its own arguments, in order
+    assert len(call.args) == len(inspect.signature(getattr(kernels, loop).py_func).parameters)
+    assert len(kernels.SIGNATURES[name].args) + absent == len(call.args)
+
+
+def test_a_loop_entry_point_is_found_in_the_cache_under_its_own_name() -> None:
+    """`compile.kernel_cached` looks for an entry point's numba index by its name: the loop compiled as erk_projected
+    is cached as erk_projected, so that a second command neither compiles it ahead again nor waits for it."""
+    module = compile.kernels_module()
+    module.compiled("erk_projected")
+    assert compile.kernel_cached("erk_projected")

@@ -141,7 +141,7 @@ def warm_kernels(names: Sequence[str], later: bool = False) -> None:
     two-core machine slowed the two the command needs first (the first Kepler `stress`, e = 0.9, took 35-43 s; queued,
     30-33 s).
     The first `stress` on a machine compiles its explicit loops (erk_start, erk_run: about 9 s of CPU) here and
-    Radau's (radau_start, radau_run: about 18 s) ahead. `kernel_entry` waits for a kernel being compiled ahead rather
+    Radau's (radau_start, radau_run: about 15 s) ahead. `kernel_entry` waits for a kernel being compiled ahead rather
     than compiling it a second time; the process is stopped when this one exits (numba writes its cache files whole,
     by renaming). Nothing is started without numba, for kernels already cached, or where LAGRANGE_NO_WARM is set."""
     if not names or not numba_available() or os.environ.get("LAGRANGE_NO_WARM") or not sys.executable:

@@ -11,7 +11,10 @@ loops in the command's own, Radau's in the one compiling ahead: `compile.warm_ke
 earlier command, leaves the helpers it shares with the others (the projection, the LU, the initial
 step) for them to load. The first `stress` of the pendulum with a multiplier: 34-36 s -> 30-32 s;
 Radau's loops compiled after the explicit ones: 26 -> 20 s of CPU; erk_run and radau_run after their
-projected cases: 21 -> 11 s.
+projected cases: 21 -> 11 s. The entry points that only pick a loop's features (radau_run, radau_switched,
+radau_projected, erk_switched, erk_projected) are compiled as that loop itself (`_loop_entry`): numba emits a
+called function's code again inside its caller, so a one-line entry point cost a second pass over the whole loop
+(Radau's: about 3 s of CPU; the first `stress` of the pendulum with a multiplier, 27-30 s -> 25.5-27.3 s).
 
 - `erk_run`: adaptive explicit Runge-Kutta, Dormand-Prince 5(4) (`RK45`) or DOP853, with the
   same step-size control, initial step and dense output as scipy.integrate (so both take the
@@ -31,6 +34,7 @@ projected cases: 21 -> 11 s.
 
 # ruff: noqa: SIM108, SIM110  (explicit loops and branches compile best in numba)
 # mypy: ignore-errors
+from types import FunctionType
 from typing import Any
 
 import numpy as np
@@ -303,13 +307,48 @@ SIGNATURES = {
 steps done, EVENT_VALUE, NEXT_SAMPLE), `control` (RTOL, ATOL, MAX_STEP, T_BOUND, T_STOP, USE_EVENT,
 SIZE, STEP, STEPS, T0, STIFFNESS, STRETCH) and `stats` (NFEV, NJEV, NSTEPS, NREJECT, HMIN, HMAX, STIFF, NONSTIFF, H_LAMBDA)."""
 _COMPILED: dict[str, Any] = {}
+_LOOP_ENTRIES = {
+    # entry point: (the loop it calls, where the arguments it passes as None go, how many); erk_run stays a
+    # compiled function of its own: ensemble.py's batch loop calls it from compiled code
+    "erk_switched": ("_erk_loop", 13, 5),
+    "erk_projected": ("_erk_loop", 11, 2),
+    "radau_run": ("_radau_loop", 15, 7),
+    "radau_switched": ("_radau_loop", 17, 5),
+    "radau_projected": ("_radau_loop", 15, 2),
+}
+"""Entry points compiled as the loop they call, with None for the features they leave out (`_loop_entry`)."""
 
 
 def compiled(name: str) -> Any:
     """The entry point `name` compiled for its signature (loaded from numba's cache when there)."""
     if name not in _COMPILED:
-        _COMPILED[name] = njit(SIGNATURES[name], cache=True, error_model="numpy", nogil=True)(globals()[name])
+        _COMPILED[name] = _loop_entry(name) if name in _LOOP_ENTRIES else njit(SIGNATURES[name], cache=True, error_model="numpy", nogil=True)(globals()[name])
     return _COMPILED[name]
+
+
+def _loop_entry(name: str) -> Any:
+    """The entry point `name` (`_LOOP_ENTRIES`) as its loop compiled directly, its signature with None's type where
+    the entry point passes None (numba prunes those features' branches as it does in a call), called from Python with
+    the entry point's own arguments. numba links a called function's code into the caller's and optimizes and emits
+    the whole again, so a one-line entry point around Radau's loop cost a second pass over all of it: 3.1 s of the
+    19.5 s that the first compile of radau_start and radau_projected takes (16.4 s compiled this way, one machine);
+    erk_projected 7.0-7.3 s, 6.1-6.7 s this way.
+    The loop is compiled as a copy named after the entry point, so that each has numba cache files of its own, found
+    by their name as those of the other entry points are."""
+    loop, at, absent = _LOOP_ENTRIES[name]
+    source = globals()[loop].py_func
+    own = FunctionType(source.__code__, source.__globals__, name, source.__defaults__, source.__closure__)
+    own.__qualname__ = own.__name__ = name  # numba's cache files named after the entry point (`compile.kernel_cached`)
+    signature = SIGNATURES[name]
+    arguments = list(signature.args)
+    arguments[at:at] = [types.none] * absent
+    loop_compiled = njit(signature.return_type(*arguments), cache=True, error_model="numpy", nogil=True)(own)
+    nones = (None,) * absent
+
+    def entry(*given: Any) -> int:
+        return int(loop_compiled(*given[:at], *nones, *given[at:]))
+
+    return entry
 
 
 # -- linear algebra --------------------------------------------------------------------------
