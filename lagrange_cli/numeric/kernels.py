@@ -405,10 +405,24 @@ def _rhs(accel, t, y, p, out, x, a):
     """out = (q_dot, q_ddot) at y = (q, q_dot); 1 when the matrix is singular."""
     n = y.shape[0] // 2
     status = accel(t, y, p, x, a)
+    if status != 0 and not _finite(y):
+        status = _not_finite(x, n)
     for i in range(n):
         out[i] = y[n + i]
         out[n + i] = x[i]
     return status
+
+
+@njit(cache=True, error_model="numpy")
+def _not_finite(x, n):
+    """At a state that is not finite (a trial stage of a step too large), the accelerations x[:n] are NaN, and 0 is
+    returned: not "singular" (1), which stops a run. accel's LU finds no pivot in a row of M holding NaN or inf, and
+    audit 12's s14 (a polar r = 956, cond M 9e5, beside a force K exp(2e4 (t - 1)) z) stopped there on "the mass
+    matrix is singular" through compiled DOP853, where scipy's DOP853, given NaN, shrank the step and went on.
+    Now the step is rejected and shrunk as for any derivative that is not finite."""
+    for i in range(n):
+        x[i] = np.nan
+    return 0
 
 
 @njit(cache=True, error_model="numpy")
@@ -481,7 +495,10 @@ def _erk_step(accel, pair, t, y, h, K, y_new, p, x, a, stats):
             for j in range(s):
                 dy += A[s, j] * K[j, i]
             y_new[i] = y[i] + h * dy
-        status += accel(t + C[s] * h, y_new, p, x, a)
+        code = accel(t + C[s] * h, y_new, p, x, a)
+        if code != 0 and not _finite(y_new):  # a stage that is not finite: the step is rejected, not the run stopped (`_not_finite`)
+            code = _not_finite(x, half)
+        status += code
         for i in range(half):
             K[s, i] = y_new[half + i]
             K[s, half + i] = x[i]
@@ -490,7 +507,10 @@ def _erk_step(accel, pair, t, y, h, K, y_new, p, x, a, stats):
         for j in range(stages):
             dy += B[j] * K[j, i]
         y_new[i] = y[i] + h * dy
-    status += accel(t + h, y_new, p, x, a)
+    code = accel(t + h, y_new, p, x, a)
+    if code != 0 and not _finite(y_new):
+        code = _not_finite(x, half)
+    status += code
     for i in range(half):
         K[stages, i] = y_new[half + i]
         K[stages, half + i] = x[i]
@@ -2023,8 +2043,8 @@ def _radau_newton(accel, t, y, h, Z, W, F, dW, scale, tol, contraction, lu_real,
         for r in range(3):
             for i in range(n):
                 work[i] = y[i] + Z[r, i]
-            if accel(t + _RC[r] * h, work, p, x, a):
-                return SINGULAR, False, k + 1, rate, contraction
+            if accel(t + _RC[r] * h, work, p, x, a):  # (at a stage that is not finite: NONFINITE, the step shrunk, as `_not_finite`)
+                return (SINGULAR if _finite(work) else NONFINITE), False, k + 1, rate, contraction
             for i in range(half):
                 F[r, i] = work[half + i]
                 F[r, half + i] = x[i]
