@@ -402,7 +402,7 @@ def lu_solve(a, b):
 
 @njit(cache=True, error_model="numpy")
 def _rhs(accel, t, y, p, out, x, a):
-    """out = (q_dot, q_ddot) at y = (q, q_dot); 1 when the matrix is singular."""
+    """out = (q_dot, q_ddot) at y = (q, q_dot); 1 when the matrix is singular (at a finite y: `_not_finite`)."""
     n = y.shape[0] // 2
     status = accel(t, y, p, x, a)
     if status != 0 and not _finite(y):

@@ -691,7 +691,8 @@ ENDED_CONDITION = 1e10
 asks for cond M above this at the stop (and, with one coordinate, M's one entry this many times above or below its value
 at the start, or not finite): M about singular in double precision. Audit 12: a free particle in polar coordinates at
 r = 956 (cond M 9e5 in the sizes there, regular) beside an oscillator whose stiffness overflows stopped compiled DOP853
-on "the mass matrix is singular" (the forces were not finite): the coordinates do not end there."""
+on "the mass matrix is singular" (a trial stage's forces were not finite; since then such a stage rejects the step,
+kernels._not_finite): the coordinates do not end there."""
 
 
 def _entry_ends(at_stop: np.ndarray | None, at_start: np.ndarray | None, floor: float) -> bool:
